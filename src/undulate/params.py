@@ -1,0 +1,458 @@
+"""Frozen, validated parameter types.  SI units everywhere.
+
+Every physical field carries its unit in its name (``_m``, ``_rad``,
+``_hz``, ``_kg``, ``_s``, ``_N``...) and in its docstring.  Construction
+validates; an invalid value raises :class:`~undulate.errors.ParameterError`
+naming the field.
+
+Conventions (fixed here, used by the simulator, theory and plots)
+-----------------------------------------------------------------
+* Swimmers lie along the channel axis ``x``; lateral direction ``y``.
+* Link 0 is the **head**; joint ``i`` joins link ``i`` and ``i+1``.  Heads
+  point to **-x**, so the body wave (travelling head to tail, increasing
+  joint index) travels toward **+x** in the world, exactly as in the theory's
+  ``y = A sin(2 pi x / lambda - omega t + phi)``.
+* For two lateral neighbours ``a`` (lower y) and ``b`` (upper y):
+  ``dx = x_b - x_a`` and ``dphi = phi_b - phi_a``.  Compatibility is then
+  ``dx = lambda dphi / (2 pi)`` (positive slope).
+* Angles are radians inside; only the CLI takes degrees, and says so.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import ParameterError
+
+__all__ = [
+    "Gait",
+    "SwimmerGeometry",
+    "Servo",
+    "Ground",
+    "Channel",
+    "ContactModel",
+    "Scene",
+    "SimOptions",
+]
+
+
+def _finite(name: str, value: float) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ParameterError(name, "a finite number", value) from None
+    if not math.isfinite(v):
+        raise ParameterError(name, "a finite number", value)
+    return v
+
+
+def _positive(name: str, value: float, unit: str = "") -> float:
+    v = _finite(name, value)
+    if v <= 0:
+        raise ParameterError(name, f"> 0{(' ' + unit) if unit else ''}", value)
+    return v
+
+
+def _nonneg(name: str, value: float, unit: str = "") -> float:
+    v = _finite(name, value)
+    if v < 0:
+        raise ParameterError(name, f">= 0{(' ' + unit) if unit else ''}", value)
+    return v
+
+
+def _unit(desc: str) -> Any:
+    return field(metadata={"doc": desc})
+
+
+class _Params:
+    """Mixin: conversion to a plain dict (for provenance) and field docs."""
+
+    def to_dict(self) -> dict[str, Any]:
+        out: dict[str, Any] = {}
+        for f in dataclasses.fields(self):  # type: ignore[arg-type]
+            v = getattr(self, f.name)
+            if isinstance(v, _Params):
+                v = v.to_dict()
+            elif isinstance(v, tuple):
+                v = list(v)
+            out[f.name] = v
+        return out
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]):
+        kwargs = {}
+        for f in dataclasses.fields(cls):  # type: ignore[arg-type]
+            if f.name not in d:
+                continue
+            v = d[f.name]
+            sub = _NESTED.get((cls.__name__, f.name))
+            if sub is not None and isinstance(v, dict):
+                v = sub.from_dict(v)
+            elif isinstance(v, list):
+                v = tuple(v)
+            kwargs[f.name] = v
+        return cls(**kwargs)
+
+
+@dataclass(frozen=True)
+class Gait(_Params):
+    """Travelling-wave gait, paper Eq. (1).
+
+    Joint ``i`` (``0..N-2``, 0 nearest the head) of a swimmer with phase
+    ``phi`` follows ``alpha_i(t) = beta sin(2 pi xi i / N - 2 pi f t + phi)``.
+    ``xi = 0`` is the standing wave (all joints in phase; the paper's
+    "lambda/L = 0" case).
+    """
+
+    amplitude_rad: float = math.radians(45.0)
+    """beta: joint angle amplitude, rad.  Allowed: (0, pi/2]."""
+    waves_per_body: float = 1.0
+    """xi = L / lambda: number of body waves on the body, dimensionless, >= 0."""
+    frequency_hz: float = 0.5
+    """f: gait frequency, Hz, > 0."""
+
+    def __post_init__(self):
+        a = _positive("amplitude_rad", self.amplitude_rad, "rad")
+        if a > math.pi / 2:
+            raise ParameterError("amplitude_rad", "in (0, pi/2] rad (0 to 90 degrees)", self.amplitude_rad)
+        xi = _nonneg("waves_per_body", self.waves_per_body)
+        if xi > 10:
+            raise ParameterError("waves_per_body", "in [0, 10]", self.waves_per_body)
+        _positive("frequency_hz", self.frequency_hz, "Hz")
+        object.__setattr__(self, "amplitude_rad", a)
+        object.__setattr__(self, "waves_per_body", xi)
+        object.__setattr__(self, "frequency_hz", float(self.frequency_hz))
+
+    @property
+    def period_s(self) -> float:
+        """Gait period 1/f, s."""
+        return 1.0 / self.frequency_hz
+
+    @property
+    def angular_frequency_rad_s(self) -> float:
+        """omega = 2 pi f, rad/s."""
+        return 2.0 * math.pi * self.frequency_hz
+
+    def wavelength_m(self, body_length_m: float) -> float:
+        """lambda = L / xi, m (``inf`` for the standing wave xi = 0)."""
+        return math.inf if self.waves_per_body == 0 else body_length_m / self.waves_per_body
+
+    def joint_angles(self, t_s, phase_rad, n_links: int) -> np.ndarray:
+        """Commanded joint angles, rad.
+
+        ``t_s``: times, s (any shape ``T``); ``phase_rad``: per-swimmer phases
+        (shape ``S``).  Returns shape ``T + S + (n_links - 1,)``.
+        """
+        t = np.asarray(t_s, dtype=float)[..., None, None]
+        phi = np.asarray(phase_rad, dtype=float)[..., None]
+        i = np.arange(n_links - 1)
+        return self.amplitude_rad * np.sin(
+            2 * np.pi * self.waves_per_body * i / n_links - 2 * np.pi * self.frequency_hz * t + phi
+        )
+
+    def joint_velocities(self, t_s, phase_rad, n_links: int) -> np.ndarray:
+        """Time derivative of :meth:`joint_angles`, rad/s, same shape."""
+        t = np.asarray(t_s, dtype=float)[..., None, None]
+        phi = np.asarray(phase_rad, dtype=float)[..., None]
+        i = np.arange(n_links - 1)
+        w = 2 * np.pi * self.frequency_hz
+        return -w * self.amplitude_rad * np.cos(
+            2 * np.pi * self.waves_per_body * i / n_links - w * t + phi
+        )
+
+
+@dataclass(frozen=True)
+class SwimmerGeometry(_Params):
+    """Body of one swimmer: ``n_links`` equal rigid boxes in a row."""
+
+    n_links: int = 3
+    """N: number of links, >= 2 (N-1 actuated joints)."""
+    length_m: float = 0.54
+    """L: total body length, m (each link is L/N long)."""
+    width_m: float = 0.015
+    """w: link width (lateral thickness), m."""
+    height_m: float = 0.05
+    """h: link height, m (out of plane; sets only inertia and drawing)."""
+    mass_kg: float = 0.3
+    """Total swimmer mass, kg (split equally over the links)."""
+
+    def __post_init__(self):
+        try:
+            n = int(self.n_links)
+        except (TypeError, ValueError):
+            raise ParameterError("n_links", "an integer >= 2", self.n_links) from None
+        if n != self.n_links or n < 2 or n > 64:
+            raise ParameterError("n_links", "an integer in [2, 64]", self.n_links)
+        object.__setattr__(self, "n_links", n)
+        L = _positive("length_m", self.length_m, "m")
+        w = _positive("width_m", self.width_m, "m")
+        _positive("height_m", self.height_m, "m")
+        _positive("mass_kg", self.mass_kg, "kg")
+        if w >= L / n:
+            raise ParameterError("width_m", f"smaller than the link length L/N = {L / n:g} m", self.width_m)
+
+    @property
+    def link_length_m(self) -> float:
+        """l = L/N, m."""
+        return self.length_m / self.n_links
+
+    @property
+    def link_mass_kg(self) -> float:
+        """Mass of one link, kg."""
+        return self.mass_kg / self.n_links
+
+
+@dataclass(frozen=True)
+class Servo(_Params):
+    """Joint position servo: PD torque control with torque saturation.
+
+    ``tau = clip(kp (alpha_cmd - alpha) + kd (dalpha_cmd/dt - dalpha/dt),
+    -torque_limit, +torque_limit)``.  Implemented with MuJoCo's own
+    ``general`` actuator (gain ``kp``, bias ``-kp q - kd qdot``, ``forcerange``)
+    fed the control ``alpha_cmd + (kd/kp) dalpha_cmd/dt``.
+
+    The defaults model a Dynamixel AX-12A (stall torque 1.5 N m), whose
+    firmware runs proportional control with no integral term; ``kp`` is stiff
+    enough that an unobstructed joint tracks the gait within ~1e-3 rad.
+    """
+
+    kp_Nm_per_rad: float = 10.0
+    """Proportional gain, N m / rad."""
+    kd_Nms_per_rad: float = 0.1
+    """Derivative gain on the tracking-error rate, N m s / rad."""
+    torque_limit_Nm: float = 1.5
+    """Saturation (stall) torque, N m."""
+
+    def __post_init__(self):
+        _positive("kp_Nm_per_rad", self.kp_Nm_per_rad, "N m/rad")
+        _nonneg("kd_Nms_per_rad", self.kd_Nms_per_rad, "N m s/rad")
+        _positive("torque_limit_Nm", self.torque_limit_Nm, "N m")
+
+
+@dataclass(frozen=True)
+class Ground(_Params):
+    """Ground interaction of every link.
+
+    ``mode="viscous"`` (default): isotropic linear drag on each link's centre
+    of mass, ``F = -c v`` with ``c = drag_N_s_per_m`` per link, plus the
+    matching rotational drag of MuJoCo's Stokes model (see
+    :mod:`undulate.scene`).  Overdamped: with the default mass the
+    velocity relaxation time is ``m_link / c = 0.05 s``.
+    """
+
+    drag_N_s_per_m: float = 2.0
+    """c: linear drag coefficient per link, N s / m."""
+    mode: str = "viscous"
+    """``"viscous"`` (isotropic, no locomotion)."""
+
+    def __post_init__(self):
+        _positive("drag_N_s_per_m", self.drag_N_s_per_m, "N s/m")
+        if self.mode not in ("viscous",):
+            raise ParameterError("mode", "'viscous'", self.mode)
+
+
+@dataclass(frozen=True)
+class Channel(_Params):
+    """Two rigid walls parallel to x at ``y = +-width_m/2``.
+
+    ``end_walls_m``: if set, two more walls at ``x = +-end_walls_m/2``
+    (the packing study's short channel, 1.1 L).
+    """
+
+    width_m: float = 0.13
+    """d: wall-to-wall separation, m."""
+    length_m: float = 1.2
+    """Channel length, m (walls are drawn this long; >= 1 m)."""
+    end_walls_m: float | None = None
+    """Longitudinal distance between end walls, m, or None (open ends)."""
+
+    def __post_init__(self):
+        _positive("width_m", self.width_m, "m")
+        ln = _positive("length_m", self.length_m, "m")
+        if ln < 1.0:
+            raise ParameterError("length_m", ">= 1 m", self.length_m)
+        if self.end_walls_m is not None:
+            _positive("end_walls_m", self.end_walls_m, "m")
+
+
+@dataclass(frozen=True)
+class ContactModel(_Params):
+    """Frictionless normal contact (MuJoCo soft constraint).
+
+    ``solref = (timeconst_s, dampratio)``, ``solimp = (dmin, dmax, width_m)``.
+    The time constant is clamped to at least two time steps by MuJoCo; the
+    defaults keep steady interpenetration below 1 mm at the default time step
+    (measured in tests/test_contact.py).
+    """
+
+    timeconst_s: float = 0.01
+    """Contact restitution time constant, s."""
+    dampratio: float = 1.0
+    """Contact damping ratio (1 = critical)."""
+    dmin: float = 0.95
+    dmax: float = 0.99
+    width_m: float = 0.001
+    """Impedance transition width, m."""
+    margin_m: float = 0.0
+    """Contact detection margin, m."""
+    max_penetration_m: float = 0.005
+    """Interpenetration beyond this stops the run as diverged, m."""
+
+    def __post_init__(self):
+        _positive("timeconst_s", self.timeconst_s, "s")
+        _positive("dampratio", self.dampratio)
+        for n in ("dmin", "dmax"):
+            v = _finite(n, getattr(self, n))
+            if not 0 < v < 1:
+                raise ParameterError(n, "in (0, 1)", v)
+        _positive("width_m", self.width_m, "m")
+        _nonneg("margin_m", self.margin_m, "m")
+        _positive("max_penetration_m", self.max_penetration_m, "m")
+
+
+@dataclass(frozen=True)
+class Scene(_Params):
+    """Swimmers side by side in a channel.
+
+    Swimmers start straight (all joint angles 0), stacked from low to high
+    ``y`` in the order of ``phases_rad``, centre lines ``width + lateral_gap_m``
+    apart and the stack centred in the channel.  Swimmer ``j`` starts
+    ``dx0_m[j-1]`` further along ``x`` than swimmer ``j-1`` (the group is
+    centred on x = 0).  ``forces_N[j]`` is a constant longitudinal force (+x)
+    on swimmer ``j``, spread equally over its links.
+    """
+
+    phases_rad: tuple[float, ...] = (0.0, 0.0)
+    """phi_j per swimmer, rad.  Their count is the number of swimmers."""
+    gait: Gait = field(default_factory=Gait)
+    geometry: SwimmerGeometry = field(default_factory=SwimmerGeometry)
+    servo: Servo = field(default_factory=Servo)
+    ground: Ground = field(default_factory=Ground)
+    channel: Channel = field(default_factory=Channel)
+    contact: ContactModel = field(default_factory=ContactModel)
+    dx0_m: tuple[float, ...] | float = 0.0
+    """Initial longitudinal offset of each swimmer from the previous one, m
+    (a scalar applies to every neighbouring pair)."""
+    lateral_gap_m: float = 0.0
+    """Initial gap between neighbouring bodies, m (0 = laterally in contact,
+    centre lines ``w`` apart)."""
+    forces_N: tuple[float, ...] | None = None
+    """Constant longitudinal force on each swimmer, N (+x), or None."""
+
+    def __post_init__(self):
+        try:
+            phases = tuple(float(p) for p in np.atleast_1d(self.phases_rad))
+        except (TypeError, ValueError):
+            raise ParameterError("phases_rad", "a sequence of finite numbers (rad)", self.phases_rad) from None
+        if len(phases) < 1 or len(phases) > 500:
+            raise ParameterError("phases_rad", "1 to 500 values, one per swimmer", self.phases_rad)
+        for p in phases:
+            _finite("phases_rad", p)
+        object.__setattr__(self, "phases_rad", phases)
+        n = len(phases)
+        if isinstance(self.dx0_m, (int, float, np.floating, np.integer)):
+            dx0 = (float(self.dx0_m),) * (n - 1)
+        else:
+            dx0 = tuple(float(v) for v in self.dx0_m)
+        if len(dx0) != n - 1:
+            raise ParameterError("dx0_m", f"a scalar or {n - 1} values (one per neighbouring pair)", self.dx0_m)
+        for v in dx0:
+            _finite("dx0_m", v)
+        object.__setattr__(self, "dx0_m", dx0)
+        gap = _nonneg("lateral_gap_m", self.lateral_gap_m, "m")
+        if self.forces_N is not None:
+            forces = tuple(_finite("forces_N", f) for f in self.forces_N)
+            if len(forces) != n:
+                raise ParameterError("forces_N", f"{n} values, one per swimmer", self.forces_N)
+            object.__setattr__(self, "forces_N", forces)
+        w = self.geometry.width_m
+        stack = n * w + (n - 1) * gap
+        if stack >= self.channel.width_m:
+            raise ParameterError(
+                "channel width",
+                f"> {stack:g} m to fit {n} swimmer(s) of width {w:g} m side by side",
+                self.channel.width_m,
+            )
+        if self.channel.end_walls_m is not None:
+            xs = self.initial_x_m()
+            half = self.channel.end_walls_m / 2
+            L = self.geometry.length_m
+            if np.any(xs - L / 2 <= -half) or np.any(xs + L / 2 >= half):
+                raise ParameterError(
+                    "channel end_walls_m",
+                    f"longer than the swimmers' longitudinal extent ({float(np.ptp(xs)) + L:g} m)",
+                    self.channel.end_walls_m,
+                )
+
+    @property
+    def n_swimmers(self) -> int:
+        return len(self.phases_rad)
+
+    @property
+    def wavelength_m(self) -> float:
+        """lambda = L / xi, m (inf for the standing wave)."""
+        return self.gait.wavelength_m(self.geometry.length_m)
+
+    def initial_x_m(self) -> np.ndarray:
+        """Initial centre x of each swimmer, m (group centred on x = 0)."""
+        xs = np.concatenate([[0.0], np.cumsum(self.dx0_m)])
+        return xs - 0.5 * (xs.max() + xs.min())
+
+    def initial_y_m(self) -> np.ndarray:
+        """Initial centre-line y of each swimmer, m (stack centred in the channel)."""
+        pitch = self.geometry.width_m + self.lateral_gap_m
+        ys = pitch * np.arange(self.n_swimmers)
+        return ys - ys.mean()
+
+
+_NESTED = {
+    ("Scene", "gait"): Gait,
+    ("Scene", "geometry"): SwimmerGeometry,
+    ("Scene", "servo"): Servo,
+    ("Scene", "ground"): Ground,
+    ("Scene", "channel"): Channel,
+    ("Scene", "contact"): ContactModel,
+}
+
+
+@dataclass(frozen=True)
+class SimOptions(_Params):
+    """How to integrate and what to record."""
+
+    duration_s: float = 30.0
+    """Simulated time, s (> 0)."""
+    timestep_s: float = 0.002
+    """Integrator time step, s.  Allowed (0, 0.005]; larger is unstable with
+    the default servo and contact stiffness."""
+    sample_rate_hz: float = 20.0
+    """Recording rate, Hz (<= 1/timestep)."""
+    chunk_steps: int = 2000
+    """Steps per call into ``mujoco.rollout`` (bounds memory)."""
+
+    MAX_TIMESTEP_S = 0.005
+
+    def __post_init__(self):
+        _positive("duration_s", self.duration_s, "s")
+        dt = _positive("timestep_s", self.timestep_s, "s")
+        if dt > self.MAX_TIMESTEP_S:
+            raise ParameterError("timestep_s", f"in (0, {self.MAX_TIMESTEP_S}] s for a stable simulation", self.timestep_s)
+        sr = _positive("sample_rate_hz", self.sample_rate_hz, "Hz")
+        if sr > 1.0 / dt * (1 + 1e-9):
+            raise ParameterError("sample_rate_hz", f"<= 1/timestep = {1 / dt:g} Hz", self.sample_rate_hz)
+        if self.duration_s < dt:
+            raise ParameterError("duration_s", f">= one time step ({dt:g} s)", self.duration_s)
+        if int(self.chunk_steps) != self.chunk_steps or self.chunk_steps < 1:
+            raise ParameterError("chunk_steps", "a positive integer", self.chunk_steps)
+
+    @property
+    def n_steps(self) -> int:
+        return int(round(self.duration_s / self.timestep_s))
+
+    @property
+    def steps_per_sample(self) -> int:
+        return max(1, int(round(1.0 / (self.sample_rate_hz * self.timestep_s))))
