@@ -209,16 +209,18 @@ class SwimmerGeometry(_Params):
 
 @dataclass(frozen=True)
 class Servo(_Params):
-    """Joint position servo: PD torque control with torque saturation.
+    """Joint position servo: PID torque control with torque saturation.
 
-    ``tau = clip(kp (alpha_cmd - alpha) + kd (dalpha_cmd/dt - dalpha/dt),
-    -torque_limit, +torque_limit)``.  Implemented with MuJoCo's own
-    ``general`` actuator (gain ``kp``, bias ``-kp q - kd qdot``, ``forcerange``)
-    fed the control ``alpha_cmd + (kd/kp) dalpha_cmd/dt``.
+    ``tau = clip(kp e + kd de/dt + ki int(e) dt, -torque_limit, +torque_limit)``
+    with ``e = alpha_cmd - alpha``, implemented by MuJoCo's own ``pid``
+    actuator with position and velocity set-points (the velocity set-point is
+    the gait's ``dalpha_cmd/dt``, so the derivative acts on the tracking
+    error) and ``forcerange`` for the saturation.
 
     The defaults model a Dynamixel AX-12A (stall torque 1.5 N m), whose
-    firmware runs proportional control with no integral term; ``kp`` is stiff
-    enough that an unobstructed joint tracks the gait within ~1e-3 rad.
+    firmware runs proportional control with no integral term (``ki = 0``);
+    ``kp`` is stiff enough that an unobstructed joint tracks the gait closely
+    (RMS error measured in tests/test_simulate.py).
     """
 
     kp_Nm_per_rad: float = 10.0
@@ -227,11 +229,22 @@ class Servo(_Params):
     """Derivative gain on the tracking-error rate, N m s / rad."""
     torque_limit_Nm: float = 1.5
     """Saturation (stall) torque, N m."""
+    ki_Nm_per_rad_s: float = 0.0
+    """Integral gain, N m / (rad s); 0 disables the integral state."""
+    integral_limit_rad_s: float = 0.0
+    """Anti-windup clamp on the integrated error, rad s (0 = unclamped)."""
+    max_speed_rad_s: float = 6.0
+    """Slew limit of the position set-point, rad/s (the servo's top speed;
+    AX-12A: about 6 rad/s under load).  It makes the start from a straight body
+    a fast ramp instead of an impulsive snap.  0 = unlimited."""
 
     def __post_init__(self):
         _positive("kp_Nm_per_rad", self.kp_Nm_per_rad, "N m/rad")
         _nonneg("kd_Nms_per_rad", self.kd_Nms_per_rad, "N m s/rad")
         _positive("torque_limit_Nm", self.torque_limit_Nm, "N m")
+        _nonneg("ki_Nm_per_rad_s", self.ki_Nm_per_rad_s, "N m/(rad s)")
+        _nonneg("integral_limit_rad_s", self.integral_limit_rad_s, "rad s")
+        _nonneg("max_speed_rad_s", self.max_speed_rad_s, "rad/s")
 
 
 @dataclass(frozen=True)
@@ -285,13 +298,14 @@ class ContactModel(_Params):
     """Frictionless normal contact (MuJoCo soft constraint).
 
     ``solref = (timeconst_s, dampratio)``, ``solimp = (dmin, dmax, width_m)``.
-    The time constant is clamped to at least two time steps by MuJoCo; the
-    defaults keep steady interpenetration below 1 mm at the default time step
-    (measured in tests/test_contact.py).
+    The default time constant is two time steps, the stiffest MuJoCo's
+    implicit constraint model keeps stable; with it, steady interpenetration
+    stays below 1 mm and start-up penetration near 2 mm at the default time
+    step (measured in tests/test_simulate.py).
     """
 
-    timeconst_s: float = 0.01
-    """Contact restitution time constant, s."""
+    timeconst_s: float | None = None
+    """Contact restitution time constant, s (None: two time steps)."""
     dampratio: float = 1.0
     """Contact damping ratio (1 = critical)."""
     dmin: float = 0.95
@@ -300,11 +314,13 @@ class ContactModel(_Params):
     """Impedance transition width, m."""
     margin_m: float = 0.0
     """Contact detection margin, m."""
-    max_penetration_m: float = 0.005
-    """Interpenetration beyond this stops the run as diverged, m."""
+    max_penetration_m: float = 0.0075
+    """Interpenetration beyond this stops the run as diverged, m (default:
+    half the default body width: the bodies are passing through each other)."""
 
     def __post_init__(self):
-        _positive("timeconst_s", self.timeconst_s, "s")
+        if self.timeconst_s is not None:
+            _positive("timeconst_s", self.timeconst_s, "s")
         _positive("dampratio", self.dampratio)
         for n in ("dmin", "dmax"):
             v = _finite(n, getattr(self, n))
@@ -343,6 +359,8 @@ class Scene(_Params):
     centre lines ``w`` apart)."""
     forces_N: tuple[float, ...] | None = None
     """Constant longitudinal force on each swimmer, N (+x), or None."""
+    force_onset_s: float = 0.0
+    """Time at which ``forces_N`` switch on, s (they stay on)."""
 
     def __post_init__(self):
         try:
@@ -365,6 +383,7 @@ class Scene(_Params):
             _finite("dx0_m", v)
         object.__setattr__(self, "dx0_m", dx0)
         gap = _nonneg("lateral_gap_m", self.lateral_gap_m, "m")
+        _nonneg("force_onset_s", self.force_onset_s, "s")
         if self.forces_N is not None:
             forces = tuple(_finite("forces_N", f) for f in self.forces_N)
             if len(forces) != n:
@@ -427,14 +446,15 @@ class SimOptions(_Params):
     duration_s: float = 30.0
     """Simulated time, s (> 0)."""
     timestep_s: float = 0.002
-    """Integrator time step, s.  Allowed (0, 0.005]; larger is unstable with
-    the default servo and contact stiffness."""
+    """Integrator time step, s.  Allowed (0, 0.004]; larger steps are unstable
+    with the servo and contact stiffness (the pair study jams at 0.004 s and
+    diverges at 0.005 s; 0.002 s is converged, see benchmarks/bench_simulate.py)."""
     sample_rate_hz: float = 20.0
     """Recording rate, Hz (<= 1/timestep)."""
     chunk_steps: int = 2000
     """Steps per call into ``mujoco.rollout`` (bounds memory)."""
 
-    MAX_TIMESTEP_S = 0.005
+    MAX_TIMESTEP_S = 0.004
 
     def __post_init__(self):
         _positive("duration_s", self.duration_s, "s")

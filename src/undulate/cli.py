@@ -1,0 +1,241 @@
+"""The ``undulate`` command line (typer): a thin layer over the Python API.
+
+Bad input prints one line ``error: invalid <parameter>: must be ...`` on
+stderr and exits with code 2, before anything is written.  A diverged
+simulation exits with code 1 and a diagnosis.  Heavy imports (MuJoCo,
+xarray, matplotlib, Dask) happen inside the commands, so ``--help`` is fast.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import sys
+import tempfile
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from .errors import DivergenceError, ParameterError, UndulateError
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Simulate and analyse active undulatory collectives (contact-coupled multi-link swimmers).",
+    pretty_exceptions_enable=False,
+)
+
+
+def _fail(msg: str, code: int) -> None:
+    typer.echo(f"error: {msg}", err=True)
+    raise typer.Exit(code)
+
+
+def _parse_floats(name: str, text: str) -> tuple[float, ...]:
+    parts = [p.strip() for p in text.split(",")]
+    if not parts or any(p == "" for p in parts):
+        raise ParameterError(name, "a comma-separated list of numbers", text)
+    out = []
+    for p in parts:
+        try:
+            v = float(p)
+        except ValueError:
+            raise ParameterError(name, "a comma-separated list of numbers", text) from None
+        if not math.isfinite(v):
+            raise ParameterError(name, "finite numbers", text)
+        out.append(v)
+    return tuple(out)
+
+
+def check_writable(name: str, path: Path) -> Path:
+    """Validate that ``path`` can be created (its folder exists and is writable)."""
+    path = Path(path)
+    parent = path.resolve().parent
+    if path.exists() and path.is_dir():
+        raise ParameterError(name, "a file path, not a directory", str(path))
+    if not parent.is_dir():
+        raise ParameterError(name, "a path in an existing directory", str(path))
+    if not os.access(parent, os.W_OK):
+        raise ParameterError(name, "a path in a writable directory", str(path))
+    return path
+
+
+def write_netcdf_atomic(ds, path: Path) -> None:
+    """Write ``ds`` to ``path`` via a temporary file in the same folder and a rename."""
+    path = Path(path)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.resolve().parent)
+    os.close(fd)
+    try:
+        ds.to_netcdf(tmp, engine="h5netcdf")
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+@app.command()
+def simulate(
+    phases: str = typer.Option("0,90", help="Gait phase of each swimmer, DEGREES, comma-separated; their count is the number of swimmers (side by side, laterally in contact)."),
+    links: int = typer.Option(3, help="Links per swimmer (>= 2)."),
+    waves_per_body: float = typer.Option(1.0, help="xi = L/lambda, body waves per body length (0 = standing wave)."),
+    amplitude: float = typer.Option(45.0, help="Joint amplitude beta, DEGREES (0, 90]."),
+    frequency: float = typer.Option(0.5, help="Gait frequency f, Hz."),
+    channel_width: float = typer.Option(0.13, help="Wall-to-wall channel width d, m."),
+    dx0: float = typer.Option(0.0, help="Initial longitudinal offset of each swimmer from the previous one, m."),
+    separating_force: float = typer.Option(0.0, help="Longitudinal force, N: +F on the second swimmer and -F on the first."),
+    duration: float = typer.Option(30.0, help="Simulated time, s."),
+    timestep: float = typer.Option(0.002, help="Integrator time step, s (<= 0.004)."),
+    sample_rate: float = typer.Option(20.0, help="Recording rate, Hz."),
+    body_length: float = typer.Option(0.54, help="Total body length L, m."),
+    width: float = typer.Option(0.015, help="Link width w, m."),
+    out: Path = typer.Option(Path("run.nc"), "--out", "-o", help="Output netCDF file."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
+) -> None:
+    """Simulate swimmers side by side in a channel and write a netCDF trajectory."""
+    try:
+        phases_deg = _parse_floats("--phases", phases)
+        from .params import Channel, Gait, Scene, SimOptions, SwimmerGeometry
+
+        if links < 2:
+            raise ParameterError("--links", "an integer >= 2", links)
+        try:
+            gait = Gait(amplitude_rad=math.radians(amplitude), waves_per_body=waves_per_body, frequency_hz=frequency)
+        except ParameterError as e:
+            raise _cli_name(e, {"amplitude_rad": "--amplitude (degrees, (0, 90])", "waves_per_body": "--waves-per-body",
+                                "frequency_hz": "--frequency (Hz)"}) from None
+        try:
+            geometry = SwimmerGeometry(n_links=links, length_m=body_length, width_m=width)
+        except ParameterError as e:
+            raise _cli_name(e, {"n_links": "--links", "length_m": "--body-length (m)", "width_m": "--width (m)"}) from None
+        try:
+            channel = Channel(width_m=channel_width)
+        except ParameterError as e:
+            raise _cli_name(e, {"width_m": "--channel-width (m)"}) from None
+        n = len(phases_deg)
+        if not math.isfinite(separating_force):
+            raise ParameterError("--separating-force", "a finite number (N)", separating_force)
+        forces = None
+        if separating_force != 0.0:
+            if n < 2:
+                raise ParameterError("--separating-force", "0 unless there are at least 2 swimmers", separating_force)
+            forces = (-separating_force, separating_force) + (0.0,) * (n - 2)
+        try:
+            scene = Scene(phases_rad=tuple(math.radians(p) for p in phases_deg), gait=gait, geometry=geometry,
+                          channel=channel, dx0_m=dx0, forces_N=forces)
+        except ParameterError as e:
+            raise _cli_name(e, {"channel width": "--channel-width (m)", "dx0_m": "--dx0 (m)",
+                                "phases_rad": "--phases (degrees)"}) from None
+        try:
+            options = SimOptions(duration_s=duration, timestep_s=timestep, sample_rate_hz=sample_rate)
+        except ParameterError as e:
+            raise _cli_name(e, {"duration_s": "--duration (s)", "timestep_s": "--timestep (s)",
+                                "sample_rate_hz": "--sample-rate (Hz)"}) from None
+        check_writable("--out", out)
+    except ParameterError as e:
+        _fail(str(e), 2)
+
+    from .simulate import simulate as run
+
+    try:
+        ds = run(scene, options)
+    except DivergenceError as e:
+        _fail(str(e), 1)
+    write_netcdf_atomic(ds, out)
+    if not quiet:
+        typer.echo(_summary(ds, out))
+
+
+def _cli_name(e: ParameterError, names: dict[str, str]) -> ParameterError:
+    """Re-label a parameter error with the CLI option the user typed."""
+    return ParameterError(names.get(e.name, e.name), e.allowed, e.got)
+
+
+def _summary(ds, out: Path) -> str:
+    from . import theory
+    from .observables import neighbour_offsets
+
+    lam = float(ds.attrs["wavelength"])
+    off = neighbour_offsets(ds)
+    period = float(ds.attrs["period"])
+    t = ds["time"].values
+    last = t >= t[-1] - period + 1e-9  # average over the last gait period
+    lines = [f"wrote {out}  ({len(t)} samples, {t[-1]:g} s, lambda = {lam:.4g} m)"]
+    if off.sizes["pair"] == 0:
+        lines.append("one swimmer: no neighbouring pairs")
+    for p in range(off.sizes["pair"]):
+        dx = float(off["dx"].values[last, p].mean())
+        dphi = float(off["dphi"].values[-1, p])
+        lo, hi = int(off["lower"].values[-1, p]), int(off["upper"].values[-1, p])
+        if math.isfinite(lam):
+            res = float(theory.compatibility_residual(dx, dphi, lam))
+            pred = dx - res
+            lines.append(
+                f"pair {lo}-{hi}: dphi = {math.degrees(dphi):7.1f} deg   final dx/lambda = {dx / lam:+.3f}   "
+                f"compatibility dx/lambda = {pred / lam:+.3f} (nearest branch)   residual = {res / lam:+.3f}"
+            )
+        else:
+            lines.append(f"pair {lo}-{hi}: dphi = {math.degrees(dphi):7.1f} deg   final dx = {dx:+.4f} m   "
+                         "(standing wave: no compatibility prediction)")
+    return "\n".join(lines)
+
+
+@app.command("studies")
+def list_studies() -> None:
+    """List the registered studies."""
+    from . import studies
+
+    for name in studies.names():
+        typer.echo(f"{name:14s} {studies.describe(name)}")
+
+
+@app.command()
+def study(
+    name: str = typer.Argument(..., help="Study name (see `undulate studies`)."),
+    out: Path = typer.Option(Path("results"), "--out", "-o", help="Output folder (created if missing)."),
+    quick: bool = typer.Option(False, "--quick", help="Reduced resolution that runs in minutes."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
+    seed: int = typer.Option(0, help="Base random seed."),
+) -> None:
+    """Run one paper study: writes OUT/NAME.nc, OUT/NAME.png (+ .pdf) and OUT/NAME.json."""
+    from . import studies
+
+    try:
+        if name not in studies.names():
+            raise ParameterError("study name", "one of " + ", ".join(studies.names()), name)
+        out_path = Path(out)
+        if out_path.exists() and not out_path.is_dir():
+            raise ParameterError("--out", "a directory", str(out))
+        path = studies.run_study(name, out_path, quick=quick, scheduler=scheduler, seed=seed)
+    except ParameterError as e:
+        _fail(str(e), 2)
+    except UndulateError as e:
+        _fail(str(e), 1)
+    typer.echo(f"wrote {path}")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: run the app, turning click's usage errors into one line + exit 2."""
+    try:
+        rv = app(args=argv, standalone_mode=False)
+    except typer.Exit as e:
+        return e.exit_code
+    except (typer.Abort, KeyboardInterrupt):
+        typer.echo("aborted", err=True)
+        return 130
+    except typer.TyperException as e:  # click usage errors: unparsable values, unknown options
+        msg = e.format_message() if hasattr(e, "format_message") else str(e)
+        if type(e).__name__ == "NoArgsIsHelpError":
+            typer.echo(msg)
+        else:
+            typer.echo(f"error: {msg.splitlines()[0] if msg else e}", err=True)
+        return getattr(e, "exit_code", 2)
+    return rv if isinstance(rv, int) else 0
+
+
+def _console() -> None:  # pragma: no cover - console script
+    sys.exit(main())
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

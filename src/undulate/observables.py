@@ -1,0 +1,231 @@
+"""Observables: pure functions of a recorded trajectory (an ``xarray.Dataset``
+from :func:`undulate.simulate`).  No hidden state; they serve the tests, the
+studies and a user's notebook alike.
+
+Conventions: neighbours are identified by **lateral order** at every sample
+(sorted by centre-of-mass ``y``); for the neighbouring ranks ``r`` (lower)
+and ``r+1`` (upper), ``dx = x_upper - x_lower``, ``dy = y_upper - y_lower``
+and ``dphi = phi_upper - phi_lower`` wrapped into ``(-pi, pi]``.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import xarray as xr
+
+__all__ = [
+    "lateral_order",
+    "neighbour_offsets",
+    "dx_over_wavelength",
+    "period_average",
+    "steady_state",
+    "centreline_points",
+    "gait_amplitude",
+    "contact_impulse",
+    "mean_contact_force",
+    "wrap_angle",
+]
+
+
+def wrap_angle(a):
+    """Wrap angles (rad) into (-pi, pi]."""
+    a = np.asarray(a, dtype=float)
+    w = np.mod(a + np.pi, 2 * np.pi) - np.pi
+    return np.where(w == -np.pi, np.pi, w)
+
+
+def lateral_order(ds: xr.Dataset) -> xr.DataArray:
+    """Swimmer ids sorted by centre-of-mass y at each sample: (time, rank)."""
+    order = np.argsort(ds["y"].values, axis=1, kind="stable")
+    return xr.DataArray(order, dims=("time", "rank"), coords={"time": ds["time"]},
+                        attrs={"long_name": "swimmer id at lateral rank (0 = lowest y)"})
+
+
+def neighbour_offsets(ds: xr.Dataset) -> xr.Dataset:
+    """Nearest-neighbour offsets by lateral order.
+
+    Returns a Dataset with dims ``(time, pair)`` (pair ``r`` joins ranks
+    ``r`` and ``r+1``): ``dx`` and ``dy`` in m, ``dphi`` in rad, and the
+    swimmer ids ``lower`` and ``upper``.
+    """
+    order = lateral_order(ds).values
+    x, y = ds["x"].values, ds["y"].values
+    phase = np.asarray(ds["phase"].values, dtype=float)
+    lo, hi = order[:, :-1], order[:, 1:]
+    take = np.take_along_axis
+    dx = take(x, hi, axis=1) - take(x, lo, axis=1)
+    dy = take(y, hi, axis=1) - take(y, lo, axis=1)
+    dphi = wrap_angle(phase[hi] - phase[lo])
+    dims = ("time", "pair")
+    return xr.Dataset(
+        {
+            "dx": (dims, dx, {"units": "m", "long_name": "longitudinal offset x_upper - x_lower"}),
+            "dy": (dims, dy, {"units": "m", "long_name": "lateral offset y_upper - y_lower"}),
+            "dphi": (dims, dphi, {"units": "rad", "long_name": "phase difference phi_upper - phi_lower"}),
+            "lower": (dims, lo),
+            "upper": (dims, hi),
+        },
+        coords={"time": ds["time"], "pair": np.arange(lo.shape[1])},
+        attrs={"wavelength": ds.attrs["wavelength"], "wavelength_units": "m"},
+    )
+
+
+def dx_over_wavelength(ds: xr.Dataset) -> xr.DataArray:
+    """Nearest-neighbour ``dx / lambda`` (time, pair), dimensionless.
+
+    For the standing wave (lambda = inf) this is identically 0; use ``dx`` in
+    metres there.
+    """
+    off = neighbour_offsets(ds)
+    lam = float(ds.attrs["wavelength"])
+    out = off["dx"] / lam
+    out.attrs = {"units": "1", "long_name": "dx / lambda"}
+    return out
+
+
+def period_average(da: xr.DataArray, period_s: float) -> xr.DataArray:
+    """Average over whole gait periods counted from t = 0.
+
+    The result has one sample per complete period, its ``time`` coordinate at
+    the period's midpoint; an incomplete last period is dropped.
+    """
+    t = da["time"].values
+    k = np.floor((t - t[0]) / period_s + 1e-9).astype(int)
+    # a sample exactly at a period boundary belongs to the period it ends
+    k = np.where((k > 0) & np.isclose((t - t[0]) / period_s, k), k - 1, k)
+    n_full = int(np.floor((t[-1] - t[0]) / period_s + 1e-9))
+    if n_full < 1:
+        raise ValueError("period_average needs at least one whole period of data")
+    keep = k < n_full
+    g = da.isel(time=np.flatnonzero(keep)).assign_coords(period=("time", k[keep]))
+    out = g.groupby("period").mean("time")
+    out = out.assign_coords(time=("period", t[0] + (np.arange(n_full) + 0.5) * period_s))
+    out = out.swap_dims({"period": "time"}).drop_vars("period")
+    out.attrs = dict(da.attrs)
+    return out
+
+
+def steady_state(da: xr.DataArray, period_s: float, tol: float, window: int = 3) -> xr.Dataset:
+    """Steady value of a slowly settling signal (e.g. Δx/λ), per pair.
+
+    Rule: average over whole periods; the signal is *steady* once the
+    period averages of the last ``window`` periods all lie within ``tol`` of
+    their mean (same units as ``da``).  The steady value is that mean; the
+    settle time is the start of the earliest period from which every later
+    window of ``window`` periods satisfies the same bound.  If the last
+    window does not satisfy it, ``steady`` is False and ``value`` is still
+    the last-window mean (reported, flagged).
+
+    Returns a Dataset with ``value``, ``steady`` (bool), ``settle_time``
+    (s, NaN if never), ``spread`` (max deviation in the last window) over
+    the non-time dims of ``da``.
+    """
+    pa = period_average(da, period_s)
+    n = pa.sizes["time"]
+    if n < window:
+        raise ValueError(f"steady_state needs at least {window} whole periods, got {n}")
+    a = pa.transpose("time", ...).values
+    a2 = a.reshape(n, -1)
+    # windowed max deviation from the window mean
+    dev = np.empty((n - window + 1, a2.shape[1]))
+    means = np.empty_like(dev)
+    for i in range(n - window + 1):
+        w = a2[i:i + window]
+        means[i] = w.mean(axis=0)
+        dev[i] = np.abs(w - means[i]).max(axis=0)
+    ok = dev <= tol
+    last = ok[-1]
+    # earliest i such that ok[i:] all true
+    settle = np.full(a2.shape[1], np.nan)
+    for c in range(a2.shape[1]):
+        if last[c]:
+            bad = np.flatnonzero(~ok[:, c])
+            first = 0 if bad.size == 0 else bad[-1] + 1
+            settle[c] = float(pa["time"].values[first]) - period_s / 2
+    shape = a.shape[1:]
+    dims = tuple(d for d in pa.dims if d != "time")
+    coords = {d: pa[d] for d in dims if d in pa.coords}
+    return xr.Dataset(
+        {
+            "value": (dims, means[-1].reshape(shape), dict(da.attrs)),
+            "steady": (dims, last.reshape(shape)),
+            "settle_time": (dims, settle.reshape(shape), {"units": "s"}),
+            "spread": (dims, dev[-1].reshape(shape), dict(da.attrs)),
+        },
+        coords=coords,
+        attrs={"rule": f"period averages of the last {window} periods within {tol:g} of their mean",
+               "period_s": period_s, "tol": tol, "window": window},
+    )
+
+
+def centreline_points(ds: xr.Dataset, per_link: int = 16) -> tuple[np.ndarray, np.ndarray]:
+    """Points along every swimmer's centre line: arrays (time, swimmer, point), m.
+
+    Interpolates ``per_link`` points on each link between recorded nodes.
+    """
+    nx, ny = ds["node_x"].values, ds["node_y"].values
+    s = np.linspace(0.0, 1.0, per_link, endpoint=False)
+    px = nx[..., :-1, None] + (nx[..., 1:, None] - nx[..., :-1, None]) * s
+    py = ny[..., :-1, None] + (ny[..., 1:, None] - ny[..., :-1, None]) * s
+    sh = px.shape[:-2] + (-1,)
+    px = np.concatenate([px.reshape(sh), nx[..., -1:]], axis=-1)
+    py = np.concatenate([py.reshape(sh), ny[..., -1:]], axis=-1)
+    return px, py
+
+
+def gait_amplitude(ds: xr.Dataset, swimmer: int = 0, periods: int = 1) -> float:
+    """Gait amplitude A of a free swimmer, m, from its kinematics.
+
+    A is half the peak-to-peak lateral extent of the body's centre line over
+    the last ``periods`` whole gait periods: the centre line is expressed in
+    the frame of the swimmer's mean position and mean heading over that
+    window, and A = (max y' - min y') / 2 over all body points and times.
+    """
+    period = float(ds.attrs["period"])
+    t = ds["time"].values
+    t_end = t[-1]
+    sel = t >= t_end - periods * period - 1e-9
+    if t_end - t[0] < periods * period - 1e-9:
+        raise ValueError("gait_amplitude needs at least `periods` whole periods of data")
+    px, py = centreline_points(ds.isel(time=np.flatnonzero(sel), swimmer=[swimmer]))
+    px, py = px[:, 0], py[:, 0]
+    cx, cy = px.mean(), py.mean()
+    h = float(ds["heading"].values[sel, swimmer].mean())
+    # body axis direction (head toward -x at heading 0): axis angle = heading
+    yp = -(px - cx) * math.sin(h) + (py - cy) * math.cos(h)
+    return float((yp.max() - yp.min()) / 2)
+
+
+def contact_impulse(ds: xr.Dataset, t_from: float = 0.0, t_to: float | None = None) -> xr.Dataset:
+    """Time-integrated contact forces over ``[t_from, t_to]``, N s.
+
+    Uses the recorded interval means (exact integral of every step's force).
+    Returns ``pair`` (per neighbouring pair, initial order) and ``wall``.
+    """
+    dt = float(ds.attrs["sample_interval"])
+    t = ds["time"]
+    hi = t[-1] if t_to is None else t_to
+    # the sample at time t holds the mean over (t - dt, t]
+    sel = (t > t_from + 1e-12) & (t <= hi + 1e-12)
+    out = xr.Dataset(
+        {
+            "pair": (ds["contact_force_pair"].where(sel, 0.0).sum("time") * dt),
+            "wall": (ds["contact_force_wall"].where(sel, 0.0).sum("time") * dt),
+        }
+    )
+    for v in out.data_vars.values():
+        v.attrs = {"units": "N s"}
+    return out
+
+
+def mean_contact_force(ds: xr.Dataset, t_from: float = 0.0, t_to: float | None = None) -> xr.Dataset:
+    """Time-averaged contact forces over ``(t_from, t_to]``, N."""
+    t = ds["time"].values
+    hi = t[-1] if t_to is None else t_to
+    imp = contact_impulse(ds, t_from, t_to)
+    out = imp / (hi - t_from)
+    for v in out.data_vars.values():
+        v.attrs = {"units": "N"}
+    return out

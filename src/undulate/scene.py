@@ -1,0 +1,292 @@
+"""Build the MuJoCo model of swimmers in a channel (build, never run).
+
+One swimmer is defined once (:func:`swimmer_spec`) and attached N times
+under the name prefixes ``s0_``, ``s1_``, ... (:func:`scene_spec`).  The
+compiled model comes with a :class:`SceneIndex` that resolves every name to
+its address once, so nothing downstream indexes arrays by position.
+
+Model choices (documented here, tested in ``tests/``):
+
+* **Planar bodies.**  Each swimmer's head link carries three root degrees of
+  freedom (slide x, slide y, hinge z); links ``1..N-1`` hang from it through
+  hinge-z joints ``j0..j{N-2}``.  No gravity (the plane is horizontal and
+  its support is modelled by the ground drag alone).  Heads point to -x.
+* **Mass and inertia** are those of a solid box ``l x w x h`` per link,
+  ``l = L/N``, mass ``M/N``.
+* **Collision geometry** is a capsule of radius ``w/2`` spanning the link's
+  full length ``l``: its flanks coincide with the box's flanks, which is
+  where lateral contact happens; only the link ends are rounded.  A capsule
+  pair costs one analytic test instead of box-box clipping (see
+  ``benchmarks/bench_simulate.py`` for the measured difference).
+* **Contact** is frictionless (``condim=1``), normal force only, between
+  links of different swimmers, between links and walls, and between
+  non-adjacent links of one swimmer; adjacent links never collide
+  (MuJoCo's parent-child filter).  Softness: :class:`~undulate.params.ContactModel`.
+* **Walls** are planes: ``y = -d/2`` (normal +y), ``y = +d/2`` (normal -y)
+  and optional end walls ``x = -E/2, +E/2``.
+* **Ground drag** uses MuJoCo's inertia-box fluid model with zero density:
+  each link feels ``F = -3 pi mu D v`` (``D`` = mean side of its inertia
+  box, ``mu`` = ``opt.viscosity``) and a rotational drag
+  ``-pi mu D^3 omega``.  ``mu`` is chosen so the linear coefficient equals
+  :attr:`~undulate.params.Ground.drag_N_s_per_m`.  Equal links with equal
+  drag make the swimmer's centre of mass exactly stationary under internal
+  torques alone.
+* **Servos** are MuJoCo ``pid`` actuators, inputs ``[pos, vel]``,
+  ``forcerange = +-torque_limit``.
+* **Perturbation**: a ``motor`` actuator on each swimmer's root slide-x
+  degree of freedom applies the longitudinal force of
+  :attr:`~undulate.params.Scene.forces_N` (a pure translation force, no
+  torque on the body's joints).
+* **Sensors** (all computed in C each step): each swimmer's centre of mass
+  (``subtreecom``); the net contact force between neighbouring swimmers
+  ``(j, j+1)`` (in the initial lateral order) and on each wall (lower,
+  upper, end walls; one sensor per wall: per-swimmer wall sensors cost
+  more than the physics for large groups); and the deepest interpenetration among all
+  contacts.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import mujoco
+import numpy as np
+
+from .params import Scene
+
+__all__ = ["SceneIndex", "CompiledScene", "swimmer_spec", "scene_spec", "build"]
+
+_Q_ALONG_Y_UP = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)  # plane normal +y
+_Q_ALONG_Y_DOWN = (math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0)  # plane normal -y
+_Q_ALONG_X_UP = (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)  # plane normal +x
+_Q_ALONG_X_DOWN = (math.sqrt(0.5), 0.0, -math.sqrt(0.5), 0.0)  # plane normal -x
+
+_SWIMMER_RGBA = (0.85, 0.45, 0.2, 1.0)
+_WALL_RGBA = (0.5, 0.5, 0.55, 0.4)
+
+
+def _box_inertia(m: float, a: float, b: float, c: float) -> list[float]:
+    """Principal moments of a solid box of sides a, b, c (m) and mass m (kg)."""
+    return [m * (b * b + c * c) / 12, m * (a * a + c * c) / 12, m * (a * a + b * b) / 12]
+
+
+def _timeconst(scene: Scene, timestep_s: float) -> float:
+    """Contact time constant, s: the scene's, or two time steps by default."""
+    tc = scene.contact.timeconst_s
+    return 2.0 * timestep_s if tc is None else tc
+
+
+def drag_viscosity(scene: Scene) -> float:
+    """MuJoCo ``opt.viscosity`` (Pa s) giving the per-link linear drag coefficient.
+
+    MuJoCo's inertia-box model applies ``F = -3 pi mu D v`` to each body,
+    with ``D`` the mean side of its equivalent inertia box, here the link box
+    ``l x w x h``: ``mu = c / (3 pi D)``.
+    """
+    g = scene.geometry
+    D = (g.link_length_m + g.width_m + g.height_m) / 3.0
+    return scene.ground.drag_N_s_per_m / (3.0 * math.pi * D)
+
+
+def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
+    """One swimmer (head link at the origin, body along +x) as an ``MjSpec``.
+
+    Names (before the attach prefix): bodies ``link0..link{N-1}``, root
+    joints ``x``, ``y``, ``yaw``, body joints ``j0..j{N-2}``, geoms
+    ``g0..g{N-1}``, servos ``servo0..``, perturbation actuator ``push``.
+    The root body's frame sits at the head tip; link ``k`` spans
+    ``[k l, (k+1) l]`` along the body axis when straight.
+    """
+    g, c, sv = scene.geometry, scene.contact, scene.servo
+    n, l, w = g.n_links, g.link_length_m, g.width_m
+    spec = mujoco.MjSpec()
+    parent = spec.worldbody
+    for k in range(n):
+        body = parent.add_body(name=f"link{k}", pos=[0.0 if k == 0 else l, 0, 0])
+        # inertia of the box link, centred on the link's midpoint
+        body.explicitinertial = True
+        body.mass = g.link_mass_kg
+        body.ipos = [l / 2, 0, 0]
+        body.inertia = _box_inertia(g.link_mass_kg, l, w, g.height_m)
+        if k == 0:
+            body.add_joint(name="x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
+            body.add_joint(name="y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
+            body.add_joint(name="yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
+        else:
+            body.add_joint(name=f"j{k - 1}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
+        r = w / 2
+        body.add_geom(
+            name=f"g{k}",
+            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+            fromto=[r, 0, 0, l - r, 0, 0],
+            size=[r, 0, 0],
+            condim=1,
+            contype=1,
+            conaffinity=1,
+            solref=[_timeconst(scene, timestep_s), c.dampratio],
+            solimp=[c.dmin, c.dmax, c.width_m, 0.5, 2.0],
+            margin=c.margin_m,
+            rgba=list(_SWIMMER_RGBA),
+            mass=0,  # inertia is explicit
+        )
+        parent = body
+    for i in range(n - 1):
+        a = spec.add_actuator(name=f"servo{i}", target=f"j{i}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.set_to_pid(kp=sv.kp_Nm_per_rad, kv=sv.kd_Nms_per_rad,
+                     ki=sv.ki_Nm_per_rad_s if sv.ki_Nm_per_rad_s > 0 else -1,
+                     imax=sv.integral_limit_rad_s if sv.ki_Nm_per_rad_s > 0 else -1,
+                     slewmax=sv.max_speed_rad_s if sv.max_speed_rad_s > 0 else -1)
+        a.forcelimited = True
+        a.forcerange = [-sv.torque_limit_Nm, sv.torque_limit_Nm]
+    push = spec.add_actuator(name="push", target="x", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+    push.set_to_motor()
+    return spec
+
+
+@dataclass(frozen=True)
+class SceneIndex:
+    """Addresses in the compiled model, resolved once by name.
+
+    All arrays have a leading swimmer axis.  ``qpos_root[j] = (x, y, yaw)``
+    addresses, ``qpos_joint[j, i]`` the hinge of joint ``i``;
+    ``ctrl_pos[j, i]`` / ``ctrl_vel[j, i]`` the servo's position / velocity
+    set-point inputs; ``ctrl_push[j]`` the perturbation force input;
+    ``sens_com[j]`` the first of 3 sensordata entries of the centre of mass;
+    ``sens_pair[p]`` the 3-vector net force between swimmers ``p, p+1``;
+    ``sens_wall[k]`` the 3-vector net force of all swimmers on wall ``k``
+    (lower, upper, then end walls if any); ``sens_mindist`` the (found, dist) pair
+    of the deepest contact.
+    """
+
+    qpos_root: np.ndarray
+    qpos_joint: np.ndarray
+    qvel_root: np.ndarray
+    ctrl_pos: np.ndarray
+    ctrl_vel: np.ndarray
+    ctrl_push: np.ndarray
+    sens_com: np.ndarray
+    sens_pair: np.ndarray
+    sens_wall: np.ndarray
+    sens_mindist: int
+    wall_names: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class CompiledScene:
+    """A compiled model, its index and the scene it was built from."""
+
+    model: mujoco.MjModel
+    index: SceneIndex
+    scene: Scene
+
+    def initial_qpos(self) -> np.ndarray:
+        """Straight bodies at their start positions (qpos, nq)."""
+        return self.model.qpos0.copy()
+
+
+def scene_spec(scene: Scene, timestep_s: float) -> tuple[mujoco.MjSpec, tuple[str, ...]]:
+    """The full scene: channel walls plus ``scene.n_swimmers`` attached swimmers.
+
+    Returns the spec and the wall geom names (lower, upper[, end_lo, end_hi]).
+    """
+    g = scene.geometry
+    ch = scene.channel
+    c = scene.contact
+    spec = mujoco.MjSpec()
+    spec.modelname = "undulate"
+    opt = spec.option
+    opt.timestep = timestep_s
+    opt.gravity = [0, 0, 0]
+    opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
+    opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
+    opt.solver = mujoco.mjtSolver.mjSOL_NEWTON
+    opt.viscosity = drag_viscosity(scene)
+    opt.density = 0.0
+    opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
+
+    half_d = ch.width_m / 2
+    wall_common = dict(
+        type=mujoco.mjtGeom.mjGEOM_PLANE,
+        condim=1,
+        contype=2,
+        conaffinity=1,
+        solref=[_timeconst(scene, timestep_s), c.dampratio],
+        solimp=[c.dmin, c.dmax, c.width_m, 0.5, 2.0],
+        margin=c.margin_m,
+        rgba=list(_WALL_RGBA),
+    )
+    wb = spec.worldbody
+    walls = ["wall_lo", "wall_hi"]
+    wb.add_geom(name="wall_lo", pos=[0, -half_d, 0], quat=list(_Q_ALONG_Y_UP),
+                size=[ch.length_m / 2, g.height_m, 0.05], **wall_common)
+    wb.add_geom(name="wall_hi", pos=[0, half_d, 0], quat=list(_Q_ALONG_Y_DOWN),
+                size=[ch.length_m / 2, g.height_m, 0.05], **wall_common)
+    if ch.end_walls_m is not None:
+        half_e = ch.end_walls_m / 2
+        wb.add_geom(name="wall_end_lo", pos=[-half_e, 0, 0], quat=list(_Q_ALONG_X_UP),
+                    size=[half_d, g.height_m, 0.05], **wall_common)
+        wb.add_geom(name="wall_end_hi", pos=[half_e, 0, 0], quat=list(_Q_ALONG_X_DOWN),
+                    size=[half_d, g.height_m, 0.05], **wall_common)
+        walls += ["wall_end_lo", "wall_end_hi"]
+
+    xs, ys = scene.initial_x_m(), scene.initial_y_m()
+    one = swimmer_spec(scene, timestep_s)
+    spec.copy_during_attach = True  # attach the same swimmer N times
+    L = g.length_m
+    for j in range(scene.n_swimmers):
+        frame = wb.add_frame(pos=[xs[j] - L / 2, ys[j], 0])
+        spec.attach(one, prefix=f"s{j}_", frame=frame)
+
+    # sensors: names resolved to addresses after compilation
+    for j in range(scene.n_swimmers):
+        spec.add_sensor(name=f"s{j}_com", type=mujoco.mjtSensor.mjSENS_SUBTREECOM,
+                        objtype=mujoco.mjtObj.mjOBJ_BODY, objname=f"s{j}_link0")
+    _FORCE, _NET = 2, 3  # contact sensor: data="force", reduce="netforce"
+    for j in range(scene.n_swimmers - 1):
+        s = spec.add_sensor(name=f"pair{j}_force", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                            objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=f"s{j}_link0",
+                            reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=f"s{j + 1}_link0")
+        s.intprm[:3] = [_FORCE, _NET, 1]
+    for wname in walls:
+        s = spec.add_sensor(name=f"{wname}_force", type=mujoco.mjtSensor.mjSENS_CONTACT,
+                            objtype=mujoco.mjtObj.mjOBJ_GEOM, objname=wname)
+        s.intprm[:3] = [_FORCE, _NET, 1]
+    _FOUND_DIST, _MINDIST = 1 | 8, 1  # data="found dist", reduce="mindist"
+    s = spec.add_sensor(name="mindist", type=mujoco.mjtSensor.mjSENS_CONTACT)
+    s.intprm[:3] = [_FOUND_DIST, _MINDIST, 1]
+    return spec, tuple(walls)
+
+
+def build(scene: Scene, timestep_s: float = 0.002) -> CompiledScene:
+    """Compile ``scene`` and resolve every address by name."""
+    spec, walls = scene_spec(scene, timestep_s)
+    model = spec.compile()
+    n, nj = scene.n_swimmers, scene.geometry.n_links - 1
+
+    def jadr(name: str) -> int:
+        return int(model.jnt_qposadr[model.joint(name).id])
+
+    def vadr(name: str) -> int:
+        return int(model.jnt_dofadr[model.joint(name).id])
+
+    def cadr(name: str) -> int:
+        return int(model.actuator_ctrladr[model.actuator(name).id])
+
+    def sadr(name: str) -> int:
+        return int(model.sensor_adr[model.sensor(name).id])
+
+    index = SceneIndex(
+        qpos_root=np.array([[jadr(f"s{j}_{q}") for q in ("x", "y", "yaw")] for j in range(n)], dtype=int),
+        qpos_joint=np.array([[jadr(f"s{j}_j{i}") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
+        qvel_root=np.array([[vadr(f"s{j}_{q}") for q in ("x", "y", "yaw")] for j in range(n)], dtype=int),
+        ctrl_pos=np.array([[cadr(f"s{j}_servo{i}") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
+        ctrl_vel=np.array([[cadr(f"s{j}_servo{i}") + 1 for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
+        ctrl_push=np.array([cadr(f"s{j}_push") for j in range(n)], dtype=int),
+        sens_com=np.array([sadr(f"s{j}_com") for j in range(n)], dtype=int),
+        sens_pair=np.array([sadr(f"pair{j}_force") for j in range(n - 1)], dtype=int),
+        sens_wall=np.array([sadr(f"{w}_force") for w in walls], dtype=int),
+        sens_mindist=sadr("mindist"),
+        wall_names=walls,
+    )
+    return CompiledScene(model=model, index=index, scene=scene)

@@ -1,0 +1,310 @@
+"""Step scenes in C with ``mujoco.rollout`` and record an ``xarray.Dataset``.
+
+The per-step loop runs entirely inside MuJoCo's C rollout.  Python only
+prepares the open-loop controls of a chunk of steps (the gait's set-points
+and the perturbation forces), hands the chunk to ``rollout`` and decimates
+its output to the recording rate.  Chunks bound memory for long runs and
+large groups.
+
+Solver warm-starting is disabled, so every step depends on the state alone:
+results are bitwise independent of the chunk size and of batching, and equal
+to a plain ``mj_step`` loop (``tests/test_simulate.py``).
+
+Recorded variables (dims; units in each variable's ``units`` attr):
+
+=====================  ==========================  =================================
+``x``, ``y``           time, swimmer               centre of mass, m
+``heading``            time, swimmer               mean link orientation relative to
+                                                   the start (head toward -x), rad
+``node_x``, ``node_y`` time, swimmer, node          centre-line nodes head..tail, m
+``joint_angle``        time, swimmer, joint        alpha, rad
+``joint_command``      time, swimmer, joint        alpha_cmd, rad
+``joint_error``        time, swimmer, joint        abs(alpha - alpha_cmd), rad
+``contact_force_pair`` time, pair                  net swimmer-swimmer contact force
+                                                   between swimmers p and p+1
+                                                   (mean magnitude over the sample
+                                                   interval), N
+``contact_force_wall`` time, wall                  same for all swimmers on each wall, N
+``penetration``        time                        deepest interpenetration over the
+                                                   sample interval, m
+=====================  ==========================  =================================
+
+Forces are interval means: ``sum(F * sample_interval)`` is the exact
+time-integral over the run (every step contributes).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+import xarray as xr
+from mujoco import rollout as _rollout
+
+from .errors import DivergenceError, ParameterError
+from .params import Scene, SimOptions
+from .scene import CompiledScene, build
+
+__all__ = ["simulate", "simulate_batch", "compile_scene", "controls"]
+
+
+def compile_scene(scene: Scene, options: SimOptions) -> CompiledScene:
+    """Build the model for ``scene`` with the solver settings the runner needs."""
+    cs = build(scene, options.timestep_s)
+    cs.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
+    return cs
+
+
+def controls(cs: CompiledScene, t_s: np.ndarray) -> np.ndarray:
+    """Open-loop control vectors at times ``t_s`` (shape ``T``) -> ``T x nu``.
+
+    Servo inputs are the gait's angle and angular-velocity set-points (rad,
+    rad/s); push inputs are the perturbation forces (N), on from
+    ``scene.force_onset_s``.
+    """
+    sc, ix = cs.scene, cs.index
+    n_links = sc.geometry.n_links
+    u = np.zeros((len(t_s), cs.model.nu))
+    u[:, ix.ctrl_pos] = sc.gait.joint_angles(t_s, sc.phases_rad, n_links)
+    u[:, ix.ctrl_vel] = sc.gait.joint_velocities(t_s, sc.phases_rad, n_links)
+    if sc.forces_N is not None:
+        on = (t_s >= sc.force_onset_s)[:, None]
+        u[:, ix.ctrl_push] = np.where(on, np.asarray(sc.forces_N)[None, :], 0.0)
+    return u
+
+
+def _state_layout(m: mujoco.MjModel) -> tuple[int, int]:
+    """Offsets of qpos in a FULLPHYSICS state vector: (qpos_start, nstate)."""
+    n_time = mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_TIME)
+    return n_time, mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+
+
+def _initial_state(m: mujoco.MjModel) -> np.ndarray:
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    s = np.empty(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))
+    mujoco.mj_getState(m, d, s, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+    return s, d.sensordata.copy()
+
+
+def _check_same_structure(compiled: Sequence[CompiledScene]) -> None:
+    ref = compiled[0].model
+    for c in compiled[1:]:
+        m = c.model
+        if (m.nq, m.nv, m.nu, m.na, m.nsensordata, m.ngeom) != (ref.nq, ref.nv, ref.nu, ref.na, ref.nsensordata, ref.ngeom):
+            raise ParameterError(
+                "scenes", "of one structure in a batch (same swimmers, links and walls)", None
+            )
+
+
+def _diagnose(cs: CompiledScene, options: SimOptions, t: float, what: str) -> DivergenceError:
+    tc = cs.model.geom_solref[0, 0]
+    return DivergenceError(
+        f"simulation diverged at t = {t:.3f} s: {what}. Likely cause: the time step "
+        f"({options.timestep_s:g} s) is too large for the contact stiffness "
+        f"(time constant {tc:g} s) or servo gains; try a smaller --timestep "
+        f"or a softer contact (larger timeconst_s)."
+    )
+
+
+def simulate_batch(
+    scenes: Sequence[Scene],
+    options: SimOptions | None = None,
+    *,
+    nthread: int = 0,
+) -> list[xr.Dataset]:
+    """Simulate several scenes of one structure together in one rollout.
+
+    ``nthread = 0`` steps them on the calling thread; ``> 0`` uses MuJoCo's
+    rollout thread pool.  Returns one Dataset per scene, identical to
+    :func:`simulate` on each scene alone.
+    """
+    options = options or SimOptions()
+    if len(scenes) == 0:
+        raise ParameterError("scenes", "a non-empty sequence of Scene", scenes)
+    compiled = [compile_scene(s, options) for s in scenes]
+    _check_same_structure(compiled)
+    m0 = compiled[0].model
+    nb = len(compiled)
+    dt = options.timestep_s
+    sps = options.steps_per_sample
+    n_samples = options.n_steps // sps
+    if n_samples < 1:
+        raise ParameterError("duration_s", f">= one sample interval ({sps * dt:g} s)", options.duration_s)
+    chunk = sps * max(1, options.chunk_steps // sps)
+    q0, nstate = _state_layout(m0)
+
+    state0 = np.empty((nb, nstate))
+    sens0 = np.empty((nb, m0.nsensordata))
+    for b, cs in enumerate(compiled):
+        state0[b], sens0[b] = _initial_state(cs.model)
+
+    # sampled outputs: (nb, n_samples + 1, ...)
+    qpos_s = np.empty((nb, n_samples + 1, m0.nq))
+    sens_s = np.empty((nb, n_samples + 1, m0.nsensordata))
+    qpos_s[:, 0] = state0[:, q0:q0 + m0.nq]
+    sens_s[:, 0] = sens0
+    ix = compiled[0].index
+    pair_adr, wall_adr, md = ix.sens_pair, ix.sens_wall, ix.sens_mindist
+    npair, nwall = len(pair_adr), len(wall_adr)
+    fpair = np.zeros((nb, n_samples + 1, npair))
+    fwall = np.zeros((nb, n_samples + 1, nwall))
+    pen = np.zeros((nb, n_samples + 1))
+
+    def force_mag(sd: np.ndarray, adr: np.ndarray) -> np.ndarray:
+        cols = adr[..., None] + np.arange(3)
+        return np.linalg.norm(sd[..., cols], axis=-1)
+
+    fpair[:, 0] = force_mag(sens0, pair_adr) if npair else 0.0
+    fwall[:, 0] = force_mag(sens0, wall_adr)
+    pen[:, 0] = np.where(sens0[:, md] > 0, np.maximum(0.0, -sens0[:, md + 1]), 0.0)
+
+    models = [c.model for c in compiled]
+    datas = [mujoco.MjData(m0) for _ in range(max(1, nthread))]
+    runner = _rollout.Rollout(nthread=nthread)
+    state_buf = np.empty((nb, chunk, nstate))
+    sens_buf = np.empty((nb, chunk, m0.nsensordata))
+    ctrl_buf = np.empty((nb, chunk, m0.nu))
+    cur = state0.copy()
+    max_pen = max(c.scene.contact.max_penetration_m for c in compiled)
+    total = n_samples * sps
+    done = 0
+    try:
+        while done < total:
+            k = min(chunk, total - done)
+            t = (done + np.arange(k)) * dt
+            for b, cs in enumerate(compiled):
+                ctrl_buf[b, :k] = controls(cs, t)
+            st, sd = state_buf[:, :k], sens_buf[:, :k]
+            runner.rollout(models if nb > 1 else models[0], datas, cur, ctrl_buf[:, :k],
+                           state=st, sensordata=sd, skip_checks=False)
+            ns = k // sps
+            s_lo = done // sps
+            rows = np.arange(sps - 1, k, sps)
+            qpos_s[:, s_lo + 1:s_lo + 1 + ns] = st[:, rows, q0:q0 + m0.nq]
+            sens_s[:, s_lo + 1:s_lo + 1 + ns] = sd[:, rows]
+            fp = force_mag(sd, pair_adr) if npair else np.zeros((nb, k, 0))
+            fpair[:, s_lo + 1:s_lo + 1 + ns] = fp.reshape(nb, ns, sps, npair).mean(axis=2)
+            fw = force_mag(sd, wall_adr)
+            fwall[:, s_lo + 1:s_lo + 1 + ns] = fw.reshape(nb, ns, sps, *fw.shape[2:]).mean(axis=2)
+            depth = np.where(sd[..., md] > 0, np.maximum(0.0, -sd[..., md + 1]), 0.0)
+            pen[:, s_lo + 1:s_lo + 1 + ns] = depth.reshape(nb, ns, sps).max(axis=2)
+            cur = st[:, k - 1].copy()
+            # divergence: non-finite state or deep interpenetration
+            bad = ~np.isfinite(st).all(axis=(1, 2))
+            deep = depth.max(axis=1) > max_pen
+            if bad.any() or deep.any():
+                b = int(np.flatnonzero(bad | deep)[0])
+                if bad[b]:
+                    step = int(np.argmax(~np.isfinite(st[b]).all(axis=1)))
+                    raise _diagnose(compiled[b], options, (done + step + 1) * dt, "non-finite state (NaN/inf)")
+                step = int(np.argmax(depth[b] > max_pen))
+                raise _diagnose(
+                    compiled[b], options, (done + step + 1) * dt,
+                    f"interpenetration {depth[b, step] * 1e3:.2f} mm exceeds the "
+                    f"{compiled[b].scene.contact.max_penetration_m * 1e3:g} mm bound",
+                )
+            for d in datas:
+                if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
+                    raise _diagnose(compiled[0], options, float(d.time), "MuJoCo reported bad accelerations")
+            done += k
+    finally:
+        runner.close()
+
+    return [
+        _to_dataset(cs, options, qpos_s[b], sens_s[b], fpair[b], fwall[b], pen[b])
+        for b, cs in enumerate(compiled)
+    ]
+
+
+def simulate(scene: Scene, options: SimOptions | None = None) -> xr.Dataset:
+    """Simulate one scene; see the module docstring for the recorded variables.
+
+    >>> from undulate import Scene, SimOptions, simulate
+    >>> ds = simulate(Scene(phases_rad=(0.0, 1.57)), SimOptions(duration_s=4))
+    """
+    return simulate_batch([scene], options)[0]
+
+
+def _link_angles(yaw: np.ndarray, joints: np.ndarray) -> np.ndarray:
+    """World orientation of each link's body axis (head->tail), rad.
+
+    ``yaw``: (..., ); ``joints``: (..., N-1) -> (..., N).
+    """
+    return yaw[..., None] + np.concatenate([np.zeros_like(joints[..., :1]), np.cumsum(joints, axis=-1)], axis=-1)
+
+
+def _to_dataset(cs: CompiledScene, options: SimOptions, qpos, sens, fpair, fwall, pen) -> xr.Dataset:
+    from .provenance import provenance
+
+    sc, ix = cs.scene, cs.index
+    g = sc.geometry
+    n, nj = sc.n_swimmers, g.n_links - 1
+    sps = options.steps_per_sample
+    t = np.arange(qpos.shape[0]) * sps * options.timestep_s
+    # root pose at the head tip (frame origin), plus the attach offset
+    xs0, ys0 = sc.initial_x_m() - g.length_m / 2, sc.initial_y_m()
+    root = qpos[:, ix.qpos_root]  # (T, n, 3)
+    rx, ry, yaw = root[..., 0] + xs0, root[..., 1] + ys0, root[..., 2]
+    alpha = qpos[:, ix.qpos_joint]  # (T, n, nj)
+    theta = _link_angles(yaw, alpha)  # (T, n, N)
+    l = g.link_length_m
+    node_x = np.concatenate([rx[..., None], rx[..., None] + l * np.cumsum(np.cos(theta), axis=-1)], axis=-1)
+    node_y = np.concatenate([ry[..., None], ry[..., None] + l * np.cumsum(np.sin(theta), axis=-1)], axis=-1)
+    com = sens[:, ix.sens_com[:, None] + np.arange(2)]  # (T, n, 2)
+    cmd = sc.gait.joint_angles(t, sc.phases_rad, g.n_links)
+    heading = theta.mean(axis=-1)
+
+    def var(dims, data, units, long_name):
+        return xr.Variable(dims, data, attrs={"units": units, "long_name": long_name})
+
+    config = {"scene": sc.to_dict(), "options": options.to_dict()}
+    ds = xr.Dataset(
+        {
+            "x": var(("time", "swimmer"), com[..., 0], "m", "centre of mass x"),
+            "y": var(("time", "swimmer"), com[..., 1], "m", "centre of mass y"),
+            "heading": var(("time", "swimmer"), heading, "rad",
+                           "mean link orientation relative to the start (0: head toward -x)"),
+            "node_x": var(("time", "swimmer", "node"), node_x, "m", "centre-line node x, head to tail"),
+            "node_y": var(("time", "swimmer", "node"), node_y, "m", "centre-line node y, head to tail"),
+            "joint_angle": var(("time", "swimmer", "joint"), alpha, "rad", "joint angle alpha"),
+            "joint_command": var(("time", "swimmer", "joint"), cmd, "rad", "commanded joint angle"),
+            "joint_error": var(("time", "swimmer", "joint"), np.abs(alpha - cmd), "rad",
+                               "joint error |alpha - alpha_cmd|"),
+            "contact_force_pair": var(("time", "pair"), fpair, "N",
+                                      "net contact force between swimmers pair and pair+1, interval mean"),
+            "contact_force_wall": var(("time", "wall"), fwall, "N",
+                                      "net contact force of all swimmers on each wall, interval mean"),
+            "penetration": var(("time",), pen, "m", "deepest interpenetration over the interval"),
+        },
+        coords={
+            "time": ("time", t, {"units": "s", "long_name": "time"}),
+            "swimmer": ("swimmer", np.arange(n)),
+            "joint": ("joint", np.arange(nj)),
+            "node": ("node", np.arange(g.n_links + 1)),
+            "pair": ("pair", np.arange(max(0, n - 1))),
+            "wall": ("wall", list(ix.wall_names)),
+            "phase": ("swimmer", np.asarray(sc.phases_rad), {"units": "rad", "long_name": "gait phase phi"}),
+        },
+        attrs={
+            "title": "undulate simulation",
+            "wavelength": sc.wavelength_m if math.isfinite(sc.wavelength_m) else np.inf,
+            "wavelength_units": "m",
+            "body_length": g.length_m,
+            "body_length_units": "m",
+            "link_width": g.width_m,
+            "channel_width": sc.channel.width_m,
+            "period": sc.gait.period_s,
+            "period_units": "s",
+            "timestep": options.timestep_s,
+            "sample_interval": sps * options.timestep_s,
+            "conventions": "heads toward -x; body wave travels +x; dx = x_upper - x_lower, "
+                           "dphi = phi_upper - phi_lower; compatibility dx = lambda dphi / 2pi",
+            "config": json.dumps(config),
+            **{f"provenance_{k}": v for k, v in provenance().items()},
+        },
+    )
+    return ds
