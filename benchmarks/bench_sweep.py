@@ -1,0 +1,83 @@
+"""Throughput of undulate.sweep: serial vs local processes vs Dask.
+
+A 200-point pair sweep (two swimmers, 10 s each, a grid of phase lags) run
+three ways on the same grid; prints runs per second and the speed-ups, and
+checks the three results are identical.  Timings are printed, never asserted.
+
+    python benchmarks/bench_sweep.py                 # 200 points, 2 workers
+    python benchmarks/bench_sweep.py --points 50 --workers 4 --duration 5
+
+Each timing includes starting the workers (a fresh pool or cluster per
+sweep) and merging the run files, i.e. what a user waits for.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+
+def pair_run(point: dict, seed: int) -> xr.Dataset:
+    """One pair simulation; returns centres and contact force (what the pair study keeps)."""
+    from undulate import Scene, SimOptions, simulate
+
+    ds = simulate(Scene(phases_rad=(0.0, point["dphi_rad"])), SimOptions(duration_s=point["duration_s"]))
+    return ds[["x", "y", "contact_force_pair"]]
+
+
+def _timed(label: str, fn, grid, out: Path, **kw):
+    from undulate.sweep import run_sweep
+
+    t0 = time.perf_counter()
+    res = run_sweep(fn, grid, out, progress=False, **kw)
+    dt = time.perf_counter() - t0
+    assert res.ok, res.failures
+    print(f"{label:<28s} {dt:7.2f} s  {grid.n_runs / dt:7.2f} runs/s", flush=True)
+    return dt, res.dataset
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--points", type=int, default=200, help="grid points (phase lags), default 200")
+    ap.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run, default 10")
+    ap.add_argument("--workers", type=int, default=2, help="local processes and Dask workers, default 2")
+    ap.add_argument("--skip-dask", action="store_true")
+    args = ap.parse_args()
+
+    from undulate.sweep import Grid
+
+    grid = Grid(axes={"dphi_rad": np.linspace(-math.pi, math.pi, args.points), "duration_s": [args.duration]})
+    # warm this process (imports, first rollout) so serial is not charged for it
+    pair_run({"dphi_rad": 0.0, "duration_s": 0.1}, 0)
+    print(f"{args.points} pair runs of {args.duration:g} s; {args.workers} workers")
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        t_serial, ref = _timed("serial (workers=1)", pair_run, grid, tmp / "serial", workers=1)
+        t_local, local = _timed(f"local pool ({args.workers} procs)", pair_run, grid, tmp / "local", workers=args.workers)
+        print(f"  speed-up local/serial: {t_serial / t_local:.2f}x")
+        xr.testing.assert_identical(_data(ref), _data(local))
+        if not args.skip_dask:
+            from distributed import LocalCluster
+
+            t0 = time.perf_counter()
+            with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True) as cluster:
+                t_start = time.perf_counter() - t0
+                t_dask, dsk = _timed(f"dask LocalCluster ({args.workers})", pair_run, grid, tmp / "dask",
+                                     scheduler=cluster.scheduler_address)
+            print(f"  speed-up dask/serial:  {t_serial / t_dask:.2f}x  (cluster start {t_start:.1f} s not included)")
+            xr.testing.assert_identical(_data(ref), _data(dsk))
+    print("results identical across executors")
+
+
+def _data(ds: xr.Dataset) -> xr.Dataset:
+    return ds.drop_attrs()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,319 @@
+"""run_sweep: a function over a grid, resumable, on local cores or Dask."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import sys
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, TextIO
+
+import xarray as xr
+
+from ..errors import ParameterError, UndulateError
+from . import _executors
+from ._grid import Grid
+from ._progress import Progress
+from ._store import ENGINE, MERGED, Store, atomic_write_netcdf, function_id, make_manifest, merge, write_failure
+from ._worker import EXISTS, FAILED, OK, Chunk, Outcome
+
+log = logging.getLogger("undulate.sweep")
+
+#: Auto chunking aims for this many chunks per worker (load balance at the
+#: end of a sweep) but never more runs per chunk than MAX_AUTO_CHUNK.
+CHUNKS_PER_WORKER = 8
+MAX_AUTO_CHUNK = 16
+
+
+@dataclass(frozen=True)
+class RunFailure:
+    """A run that has no result: its parameters and why."""
+
+    key: str
+    """Store key (``runs/<key>.failed.json`` holds the full record)."""
+    point: dict[str, Any]
+    replicate: int
+    seed: int
+    error: str
+    """``ExceptionType: message``."""
+    traceback: str = ""
+
+    def __str__(self) -> str:
+        pt = ", ".join(f"{k}={v!r}" for k, v in self.point.items())
+        return f"{self.key} ({pt}, replicate={self.replicate}, seed={self.seed}): {self.error}"
+
+
+class SweepFailed(UndulateError):
+    """Some runs of a sweep failed; ``.failures`` lists them, ``.result`` has the rest."""
+
+    def __init__(self, result: SweepResult):
+        self.result = result
+        self.failures = result.failures
+        shown = "\n  ".join(str(f) for f in self.failures[:10])
+        more = f"\n  ... and {len(self.failures) - 10} more" if len(self.failures) > 10 else ""
+        super().__init__(
+            f"{len(self.failures)} of {result.n_runs} runs failed (records in {result.out_dir / 'runs'}; "
+            f"run the sweep again to retry them):\n  {shown}{more}"
+        )
+
+
+@dataclass
+class SweepResult:
+    """What :func:`run_sweep` returns."""
+
+    dataset: xr.Dataset
+    """Every run stacked: dims ``grid.dims + ("replicate",)`` then the function's own.
+    Failed runs are NaN and flagged by the ``run_failed`` variable."""
+    failures: list[RunFailure]
+    n_computed: int
+    """Runs computed (successfully) by this call."""
+    n_reused: int
+    """Runs found finished in ``out_dir`` (from an earlier call), not recomputed."""
+    out_dir: Path
+    elapsed_s: float = 0.0
+    grid: Grid | None = field(default=None, repr=False)
+
+    @property
+    def n_runs(self) -> int:
+        return int(self.dataset["run_failed"].size)
+
+    @property
+    def ok(self) -> bool:
+        """True when every run has a result."""
+        return not self.failures
+
+    @property
+    def path(self) -> Path:
+        """The merged netCDF file."""
+        return self.out_dir / MERGED
+
+    def raise_if_failed(self) -> SweepResult:
+        """Raise :class:`SweepFailed` if any run failed; else return self."""
+        if self.failures:
+            raise SweepFailed(self)
+        return self
+
+
+def _auto_chunk(n_todo: int, workers: int) -> int:
+    return max(1, min(MAX_AUTO_CHUNK, math.ceil(n_todo / (max(workers, 1) * CHUNKS_PER_WORKER))))
+
+
+def _provenance() -> dict[str, str]:
+    try:
+        from ..provenance import provenance
+    except ImportError:  # pragma: no cover - provenance module absent
+        from importlib import metadata
+
+        def v(d):
+            try:
+                return metadata.version(d)
+            except metadata.PackageNotFoundError:
+                return "unknown"
+
+        return {"undulate_version": v("undulate"), "mujoco_version": v("mujoco")}
+    return provenance()
+
+
+def run_sweep(
+    fn: Callable[..., Any],
+    grid: Grid,
+    out_dir: str | os.PathLike,
+    *,
+    workers: int | None = None,
+    scheduler: Any = None,
+    progress: bool = True,
+    batch: int | None = None,
+    batched: bool = False,
+    stream: TextIO | None = None,
+) -> SweepResult:
+    """Run ``fn`` on every point (and replicate) of ``grid``; resumable.
+
+    Parameters
+    ----------
+    fn:
+        ``fn(point: dict, seed: int) -> xarray.Dataset``; a top-level (picklable)
+        function, or a ``functools.partial`` of one.  Every returned Dataset
+        must have the same variables, dimensions and coordinates, and be
+        writable to netCDF.  With ``batched=True``: ``fn(points: list[dict],
+        seeds: list[int]) -> list[Dataset]`` on a chunk of runs at once.
+    grid:
+        The points, replicates and base seed (:class:`Grid`).
+    out_dir:
+        Where each finished run is saved as it finishes, and the merged
+        ``sweep.nc``.  Calling again with the same ``fn`` and ``grid`` resumes:
+        finished runs are reused, failed or missing ones (re)computed.  A
+        directory holding a different sweep raises :class:`ParameterError`.
+    workers:
+        Local processes; default: every core this process may use.  ``1``
+        runs in this process (serial: for debugging; the reference).
+    scheduler:
+        Run on a Dask cluster instead: ``"tcp://HOST:PORT"``, the path of a
+        scheduler file, or a ``distributed.Client``.  ``out_dir`` must be on
+        a filesystem every worker sees.
+    progress:
+        Show a bar (terminal) or periodic lines (logs) on ``stream``
+        (default stderr), and a summary at the end.
+    batch:
+        Runs per task (per ``fn`` call when ``batched``).  Default: enough
+        for ~8 tasks per worker, at most 16.  Serial runs use 1 unless batched.
+
+    Returns
+    -------
+    SweepResult
+        ``.dataset`` (also saved as ``out_dir/sweep.nc``), ``.failures``,
+        ``.n_computed``, ``.n_reused``; ``.raise_if_failed()`` raises
+        :class:`SweepFailed` when a run failed.
+
+    Seeds do not depend on the executor, so serial, local and Dask runs give
+    identical results.
+    """
+    t_start = time.monotonic()
+    if not callable(fn):
+        raise ParameterError("fn", "a callable fn(point, seed) -> xarray.Dataset", fn)
+    if not isinstance(grid, Grid):
+        raise ParameterError("grid", "an undulate.sweep.Grid", grid)
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ParameterError("workers", "an integer >= 1 (or None: every core)", workers)
+    if workers is not None and scheduler is not None:
+        raise ParameterError("workers", "left out when a Dask scheduler is given (the cluster sets the workers)", workers)
+    if batch is not None and (isinstance(batch, bool) or not isinstance(batch, int) or batch < 1):
+        raise ParameterError("batch", "an integer >= 1 (runs per task), or None (automatic)", batch)
+
+    with Store.open(out_dir, make_manifest(fn, grid, batched)) as store:
+        runs = grid.runs()
+        done = store.done_keys()
+        todo = [r for r in runs if r.key not in done]
+        n_reused = len(runs) - len(todo)
+
+        client, own_client = None, False
+        if scheduler is not None and todo:
+            client, own_client = _executors.connect(scheduler)
+        try:
+            if client is not None:
+                _executors.check_shared_dir(client, str(store.runs_dir))
+                n_workers = _executors.dask_threads(client) or 8
+                where = f"Dask at {client.scheduler.address} ({_executors.dask_threads(client)} worker threads now)"
+            else:
+                n_workers = min(workers or _executors.default_workers(), max(len(todo), 1))
+                where = "this process" if n_workers == 1 else f"{n_workers} local processes"
+            size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
+            chunks = [
+                Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched)
+                for i in range(0, len(todo), size)
+            ]
+
+            bar = Progress(len(runs), n_reused, enabled=progress, stream=stream)
+            if todo:
+                bar.write(
+                    f"sweep {function_id(fn)}: {len(runs)} runs, {n_reused} already in {store.root}, "
+                    f"{len(todo)} to compute on {where} in tasks of {size}"
+                )
+            counts = {OK: 0, FAILED: 0, EXISTS: 0}
+
+            def on_done(chunk: Chunk, outcomes: list[Outcome]) -> None:
+                for o in outcomes:
+                    counts[o.status] += 1
+                    if o.status == FAILED:
+                        log.info("run %s failed: %s", o.key, o.error)
+                bar.update(sum(o.status != FAILED for o in outcomes), sum(o.status == FAILED for o in outcomes))
+
+            def on_lost(chunk: Chunk, why: str) -> None:
+                lost = [r for r in chunk.runs if not (store.runs_dir / f"{r.key}.nc").exists()]
+                for r in lost:
+                    write_failure(store.runs_dir, r, None, f"WorkerLost: {why}")
+                    log.info("run %s lost: %s", r.key, why)
+                counts[FAILED] += len(lost)
+                bar.update(len(chunk.runs) - len(lost), len(lost))
+
+            try:
+                if not chunks:
+                    pass
+                elif client is not None:
+                    _executors.run_dask(chunks, on_done, on_lost, client=client)
+                elif n_workers == 1:
+                    _executors.run_serial(chunks, on_done, on_lost)
+                else:
+                    _executors.run_local(chunks, on_done, on_lost, workers=n_workers)
+            except KeyboardInterrupt:
+                bar.close()
+                n_saved = len(store.done_keys())
+                print(
+                    f"\nsweep interrupted: {n_saved}/{len(runs)} runs are saved in {store.root}; "
+                    "run the same sweep again to resume",
+                    file=stream or sys.stderr,
+                )
+                raise
+            finally:
+                bar.close()
+        finally:
+            if own_client:
+                client.close()
+
+        ds = merge(grid, runs, store.runs_dir)
+        failures = []
+        for r in runs:
+            if (store.runs_dir / f"{r.key}.nc").exists():
+                continue
+            rec = store.failure(r) or {"error": "no result and no failure record"}
+            failures.append(
+                RunFailure(r.key, dict(r.point), r.replicate, r.seed, rec.get("error", ""), rec.get("traceback", ""))
+            )
+        ds.attrs.update(_sweep_attrs(fn, grid, failures))
+        atomic_write_netcdf(store.merged_path, ds)
+
+    result = SweepResult(
+        dataset=ds,
+        failures=failures,
+        n_computed=counts[OK],
+        n_reused=n_reused + counts[EXISTS],
+        out_dir=store.root,
+        elapsed_s=time.monotonic() - t_start,
+        grid=grid,
+    )
+    if progress:
+        _summary(result, stream or sys.stderr)
+    return result
+
+
+def _sweep_attrs(fn: Callable, grid: Grid, failures: list[RunFailure]) -> dict[str, Any]:
+    attrs: dict[str, Any] = {
+        "sweep_function": function_id(fn),
+        "sweep_grid": json.dumps(grid.to_dict()),
+        "sweep_replicates": grid.replicates,
+        "sweep_seed": grid.seed,
+        "sweep_seed_rule": "SeedSequence(sweep_seed, spawn_key=(*sha256 words of the point, replicate)), first 63 bits",
+        "sweep_n_failed": len(failures),
+        "sweep_failures": json.dumps([{"key": f.key, "point": f.point, "replicate": f.replicate, "error": f.error}
+                                      for f in failures]),
+    }
+    for k, v in _provenance().items():
+        attrs[f"provenance_{k}"] = v  # the prefix undulate.simulate uses too
+    return attrs
+
+
+def _summary(result: SweepResult, stream: TextIO) -> None:
+    n_ok = result.n_runs - len(result.failures)
+    lines = [
+        f"sweep done in {result.elapsed_s:.1f} s: {n_ok}/{result.n_runs} runs have results "
+        f"({result.n_computed} computed now, {result.n_reused} reused) -> {result.path}"
+    ]
+    if result.failures:
+        lines.append(f"{len(result.failures)} run(s) FAILED (records in {result.out_dir / 'runs'}; "
+                     "run again to retry them):")
+        lines += [f"  {f}" for f in result.failures[:20]]
+        if len(result.failures) > 20:
+            lines.append(f"  ... and {len(result.failures) - 20} more")
+    print("\n".join(lines), file=stream, flush=True)
+
+
+def load_sweep(out_dir: str | os.PathLike) -> xr.Dataset:
+    """The merged Dataset of a finished :func:`run_sweep` call (``out_dir/sweep.nc``)."""
+    path = Path(out_dir) / MERGED
+    if not path.is_file():
+        raise ParameterError("out_dir", f"a sweep directory with {MERGED} (run the sweep to completion first)", str(out_dir))
+    return xr.load_dataset(path, engine=ENGINE)

@@ -1,0 +1,111 @@
+"""What runs on a worker: a chunk of runs, each persisted as it finishes.
+
+This module is imported by every worker process (local or Dask), so it keeps
+its imports light and holds no state.
+"""
+
+from __future__ import annotations
+
+import signal
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from ._grid import Run
+from ._store import check_output, result_path, write_failure, write_result
+
+OK = "ok"
+FAILED = "failed"
+EXISTS = "exists"
+
+
+@dataclass(frozen=True)
+class Outcome:
+    """What became of one run of a chunk."""
+
+    key: str
+    status: str
+    """``"ok"`` (computed and saved), ``"failed"`` (raised; recorded) or
+    ``"exists"`` (already saved, e.g. by an earlier try of this chunk)."""
+    error: str = ""
+    seconds: float = 0.0
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """Several runs sent to a worker as one task (amortises the task overhead)."""
+
+    fn: Callable
+    runs_dir: str
+    runs: tuple[Run, ...]
+    grid_names: tuple[str, ...]
+    batched: bool = False
+
+
+def init_local_worker() -> None:
+    """Initializer of local pool processes: Ctrl-C is the parent's to handle."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def run_chunk(chunk: Chunk) -> list[Outcome]:
+    """Compute every run of ``chunk`` that has no result yet; save each at once.
+
+    A run that raises is recorded (``*.failed.json``) and the chunk goes on.
+    """
+    runs_dir = Path(chunk.runs_dir)
+    todo = []
+    out = []
+    for run in chunk.runs:
+        if result_path(runs_dir, run).exists():
+            out.append(Outcome(run.key, EXISTS))
+        else:
+            todo.append(run)
+    if chunk.batched:
+        out += _run_batched(chunk, runs_dir, todo)
+    else:
+        for run in todo:
+            out.append(_run_one(chunk, runs_dir, run, lambda r: chunk.fn(dict(r.point), r.seed)))
+    return out
+
+
+def _run_one(chunk: Chunk, runs_dir: Path, run: Run, compute: Callable[[Run], object]) -> Outcome:
+    t0 = time.perf_counter()
+    try:
+        ds = check_output(compute(run), chunk.grid_names)
+        write_result(runs_dir, run, ds)
+    except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
+        rec = write_failure(runs_dir, run, exc)
+        return Outcome(run.key, FAILED, rec["error"], time.perf_counter() - t0)
+    return Outcome(run.key, OK, "", time.perf_counter() - t0)
+
+
+def _run_batched(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outcome]:
+    """``fn(points, seeds) -> list[Dataset]`` on all runs at once; on error, one by one."""
+    if not runs:
+        return []
+    t0 = time.perf_counter()
+    try:
+        results = list(chunk.fn([dict(r.point) for r in runs], [r.seed for r in runs]))
+        if len(results) != len(runs):
+            raise ValueError(f"the batched sweep function returned {len(results)} Datasets for {len(runs)} points")
+        results = [check_output(ds, chunk.grid_names) for ds in results]
+    except Exception:  # noqa: BLE001 - isolate the failing point(s)
+        return [_run_one(chunk, runs_dir, r, lambda r: _single(chunk.fn, r)) for r in runs]
+    each = (time.perf_counter() - t0) / len(runs)
+    out = []
+    for run, ds in zip(runs, results):
+        try:
+            write_result(runs_dir, run, ds)
+            out.append(Outcome(run.key, OK, "", each))
+        except Exception as exc:  # noqa: BLE001
+            rec = write_failure(runs_dir, run, exc)
+            out.append(Outcome(run.key, FAILED, rec["error"], each))
+    return out
+
+
+def _single(fn: Callable, run: Run) -> object:
+    results = list(fn([dict(run.point)], [run.seed]))
+    if len(results) != 1:
+        raise ValueError(f"the batched sweep function returned {len(results)} Datasets for 1 point")
+    return results[0]

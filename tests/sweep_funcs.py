@@ -1,0 +1,82 @@
+"""Cheap but real sweep functions for tests/test_sweep.py.
+
+They live in their own module (not in the test file) so that spawned pool
+processes and Dask workers can import them: the test adds this folder to
+``sys.path`` and the workers inherit it (multiprocessing's "spawn" passes the
+parent's ``sys.path`` on).
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+import xarray as xr
+from mujoco import rollout
+
+from undulate.errors import DivergenceError
+
+_PENDULUM = """
+<mujoco model="damped pendulum">
+  <option timestep="{dt}" gravity="0 0 -9.81"/>
+  <worldbody>
+    <body name="bob">
+      <joint name="hinge" type="hinge" axis="0 1 0" damping="{damping}"/>
+      <geom type="capsule" fromto="0 0 0 0 0 -{length}" size="0.02" mass="1"/>
+    </body>
+  </worldbody>
+</mujoco>
+"""
+
+
+def pendulum(point: dict, seed: int) -> xr.Dataset:
+    """A damped pendulum released from a random angle (drawn from ``seed``).
+
+    ``point``: ``damping_Nms`` (joint damping, N m s/rad; a negative value
+    pumps energy in: the swing grows and the run raises
+    :class:`DivergenceError`), ``length_m``, and
+    optionally ``duration_s`` (default 2 s).  Returns the angle sampled at
+    50 Hz and its final value.
+    """
+    dt = 0.002
+    model = mujoco.MjModel.from_xml_string(
+        _PENDULUM.format(dt=dt, damping=point["damping_Nms"], length=point["length_m"])
+    )
+    data = mujoco.MjData(model)
+    data.qpos[0] = np.random.default_rng(seed).uniform(-1.0, 1.0)
+    spec = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state0 = np.empty(mujoco.mj_stateSize(model, spec))
+    mujoco.mj_getState(model, data, state0, spec)
+    nstep = int(round(point.get("duration_s", 2.0) / dt))
+    state, _ = rollout.rollout(model, data, state0[None], nstep=nstep)
+    angle = state[0, :, 1]  # FULLPHYSICS state: time, qpos, qvel, ...
+    half = nstep // 2
+    if not np.all(np.isfinite(angle)) or np.abs(angle[half:]).max() > 1.001 * np.abs(angle[:half]).max():
+        raise DivergenceError(f"pendulum swing grows (damping {point['damping_Nms']} N m s/rad)")
+    every = 10
+    t = (np.arange(nstep) + 1)[::every] * dt
+    return xr.Dataset(
+        {
+            "angle": ("time", angle[::every], {"units": "rad"}),
+            "final_angle": ((), angle[-1], {"units": "rad"}),
+        },
+        coords={"time": ("time", t, {"units": "s"})},
+        attrs={"model": "damped pendulum"},
+    )
+
+
+def pendulum_batch(points: list[dict], seeds: list[int]) -> list[xr.Dataset]:
+    """The batched form of :func:`pendulum` (``run_sweep(..., batched=True)``)."""
+    return [pendulum(p, s) for p, s in zip(points, seeds)]
+
+
+def swimmer_pair(point: dict, seed: int) -> xr.Dataset:
+    """A pair of real swimmers (``undulate.simulate``), phase lag ``dphi_rad``.
+
+    ``point``: ``dphi_rad`` and optionally ``duration_s`` (default 2 s).
+    Returns the centres ``x``, ``y`` (time, swimmer) in metres; ``seed`` is
+    unused (the simulation is deterministic).
+    """
+    from undulate import Scene, SimOptions, simulate
+
+    ds = simulate(Scene(phases_rad=(0.0, point["dphi_rad"])), SimOptions(duration_s=point.get("duration_s", 2.0)))
+    return ds[["x", "y"]]
