@@ -1,0 +1,87 @@
+"""The command line, run as a real subprocess: contract options, output, and bad input."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import pytest
+import xarray as xr
+
+CLI = [sys.executable, "-m", "undulate.cli"]
+
+
+def run(*args: str, cwd=None) -> subprocess.CompletedProcess:
+    return subprocess.run([*CLI, *args], capture_output=True, text=True, cwd=cwd, timeout=300)
+
+
+def test_simulate_writes_netcdf_with_contract_fields_and_prints_summary(tmp_path):
+    out = tmp_path / "run.nc"
+    r = run("simulate", "--phases", "0,90", "--links", "3", "--waves-per-body", "1", "--amplitude", "45",
+            "--frequency", "0.5", "--channel-width", "0.13", "--dx0", "0", "--separating-force", "0",
+            "--duration", "10", "--timestep", "0.002", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    assert "compatibility dx/lambda = +0.250" in r.stdout
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        assert ds["x"].dims == ("time", "swimmer") and ds["y"].dims == ("time", "swimmer")
+        assert ds["x"].attrs["units"] == "m"
+        assert ds.attrs["wavelength"] == pytest.approx(0.54)
+        assert "mujoco_version" in "".join(ds.attrs)
+        assert float(ds["time"][-1]) == pytest.approx(10.0)
+
+
+def test_separating_force_pushes_the_second_swimmer_forward(tmp_path):
+    out0, out1 = tmp_path / "a.nc", tmp_path / "b.nc"
+    assert run("simulate", "--phases", "0,0", "--duration", "6", "--out", str(out0)).returncode == 0
+    assert run("simulate", "--phases", "0,0", "--duration", "6", "--separating-force", "0.05",
+               "--out", str(out1)).returncode == 0
+    with xr.open_dataset(out0, engine="h5netcdf") as a, xr.open_dataset(out1, engine="h5netcdf") as b:
+        dxa = float(a["x"][-1, 1] - a["x"][-1, 0])
+        dxb = float(b["x"][-1, 1] - b["x"][-1, 0])
+    assert dxb > dxa + 1e-3
+
+
+BAD = [
+    (["--phases", "0,abc"], "--phases"),
+    (["--phases", "0,nan"], "--phases"),
+    (["--phases", ""], "--phases"),
+    (["--links", "1"], "--links"),
+    (["--links", "abc"], "--links"),
+    (["--amplitude", "0"], "--amplitude"),
+    (["--amplitude", "120"], "--amplitude"),
+    (["--frequency", "-1"], "--frequency"),
+    (["--waves-per-body", "-0.5"], "--waves-per-body"),
+    (["--channel-width", "0"], "--channel-width"),
+    (["--channel-width", "0.02"], "--channel-width"),  # two 15 mm swimmers cannot fit
+    (["--phases", "0,0,0,0,0,0,0,0,0"], "--channel-width"),
+    (["--width", "-0.01"], "--width"),
+    (["--body-length", "0"], "--body-length"),
+    (["--duration", "0"], "--duration"),
+    (["--duration", "-5"], "--duration"),
+    (["--duration", "inf"], "--duration"),
+    (["--timestep", "0.05"], "--timestep"),
+    (["--timestep", "0"], "--timestep"),
+    (["--dx0", "nan"], "--dx0"),
+    (["--separating-force", "inf"], "--separating-force"),
+]
+
+
+@pytest.mark.parametrize("args, param", BAD, ids=[" ".join(a) for a, _ in BAD])
+def test_bad_input_one_line_exit_2_no_file(tmp_path, args, param):
+    out = tmp_path / "bad.nc"
+    r = run("simulate", *args, "--duration" if "--duration" not in args else "--quiet",
+            *(["1"] if "--duration" not in args else []), "--out", str(out))
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1, r.stderr
+    assert lines[0].startswith("error:") and param in lines[0]
+    assert "Traceback" not in r.stderr
+    assert not out.exists()
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_unwritable_output_path(tmp_path):
+    r = run("simulate", "--duration", "1", "--out", str(tmp_path / "missing" / "run.nc"))
+    assert r.returncode == 2 and "--out" in r.stderr and len(r.stderr.strip().splitlines()) == 1
+    r = run("simulate", "--duration", "1", "--out", str(tmp_path))
+    assert r.returncode == 2 and "--out" in r.stderr

@@ -1,0 +1,172 @@
+"""Physics and engineering invariants of the core simulator (real MuJoCo runs)."""
+
+from __future__ import annotations
+
+import math
+
+import mujoco
+import numpy as np
+import pytest
+import xarray as xr
+
+from undulate import (
+    Channel,
+    ContactModel,
+    DivergenceError,
+    Gait,
+    Scene,
+    SimOptions,
+    gait_amplitude,
+    neighbour_offsets,
+    simulate,
+    simulate_batch,
+)
+from undulate.observables import period_average
+from undulate.simulate import compile_scene, controls
+
+WIDE = Channel(width_m=2.0)
+
+
+def _data_vars_identical(a: xr.Dataset, b: xr.Dataset) -> None:
+    for name in a.data_vars:
+        np.testing.assert_array_equal(a[name].values, b[name].values, err_msg=name)
+
+
+def test_lone_swimmer_tracks_gait_and_its_centre_does_not_drift():
+    ds = simulate(Scene(phases_rad=(0.3,), channel=WIDE), SimOptions(duration_s=10.0, sample_rate_hz=50))
+    # tracking: after the start-up ramp the servo follows the gait closely
+    err = ds["joint_error"].sel(time=slice(2.0, None))
+    rms = float(np.sqrt((err**2).mean()))
+    print(f"lone swimmer RMS joint error {rms:.2e} rad")
+    assert rms < 5e-3
+    # internal torques + equal isotropic drag on equal links: the centre of mass cannot move;
+    # the first-order integrator lets it creep by O(dt) (checked to converge below)
+    drift = float(np.hypot(ds["x"] - ds["x"][0], ds["y"] - ds["y"][0]).max())
+    print(f"lone swimmer centre drift over 10 s: {drift * 1e3:.2f} mm")
+    assert drift < 5e-3
+    # no contact anywhere
+    assert float(ds["contact_force_wall"].max()) == 0.0
+    assert float(ds["penetration"].max()) == 0.0
+
+
+def _com_drift(dt: float, integrator: str) -> float:
+    ds = simulate(Scene(phases_rad=(0.3,), channel=WIDE),
+                  SimOptions(duration_s=10.0, timestep_s=dt, integrator=integrator))
+    x, y = ds["x"].values[:, 0], ds["y"].values[:, 0]
+    return float(np.hypot(x[-1] - x[0], y[-1] - y[0]))
+
+
+def test_centre_of_mass_drift_is_integration_error_that_converges():
+    d2, d1 = _com_drift(0.002, "implicitfast"), _com_drift(0.001, "implicitfast")
+    rk = _com_drift(0.001, "rk4")
+    print(f"COM drift over 10 s: implicitfast 2 ms {d2 * 1e3:.3f} mm, 1 ms {d1 * 1e3:.3f} mm; rk4 1 ms {rk * 1e6:.3f} um")
+    assert d1 == pytest.approx(d2 / 2, rel=0.1)  # first order in dt
+    assert rk < 0.02 * d2  # the fourth-order scheme keeps the centre (nearly) still
+
+
+def test_constant_force_gives_drift_velocity_F_over_total_drag():
+    F = 0.3  # N
+    sc = Scene(phases_rad=(0.0,), channel=WIDE, forces_N=(F,))
+    ds = simulate(sc, SimOptions(duration_s=6.0, timestep_s=0.001, integrator="rk4"))
+    pa = period_average(ds["x"].isel(swimmer=0), sc.gait.period_s).values
+    v = (pa[-1] - pa[-2]) / sc.gait.period_s  # velocity, long after the 0.05 s relaxation
+    expected = F / (sc.geometry.n_links * sc.ground.drag_N_s_per_m)
+    assert v == pytest.approx(expected, rel=1e-3)
+
+
+def test_contact_forces_vanish_while_swimmers_are_apart():
+    sc = Scene(phases_rad=(0.0, math.pi), channel=WIDE, lateral_gap_m=0.4)
+    ds = simulate(sc, SimOptions(duration_s=6.0))
+    assert float(ds["contact_force_pair"].max()) == 0.0
+    assert float(ds["penetration"].max()) == 0.0
+    # and they stay where they were, laterally
+    assert float(np.abs(ds["y"] - ds["y"][0]).max()) < 1e-3  # O(dt) creep only
+
+
+def test_walls_keep_every_swimmer_inside_and_contact_is_shallow():
+    sc = Scene(phases_rad=(0.0, math.pi / 2))
+    ds = simulate(sc, SimOptions(duration_s=30.0))
+    # centre lines stay inside the walls, centres of mass at least half a width away
+    assert float(np.abs(ds["node_y"]).max()) < sc.channel.width_m / 2
+    assert float(np.abs(ds["y"]).max()) < sc.channel.width_m / 2 - sc.geometry.width_m / 2
+    steady = ds["penetration"].sel(time=slice(10, None))
+    startup = ds["penetration"].sel(time=slice(0, 2))
+    print(f"penetration: start-up max {float(startup.max()) * 1e3:.2f} mm, steady max {float(steady.max()) * 1e3:.3f} mm")
+    assert float(steady.max()) < 1e-3
+    assert float(startup.max()) < 5e-3
+    # they touch each other and the walls
+    assert float(ds["contact_force_pair"].max()) > 0
+    assert float(ds["contact_force_wall"].max()) > 0
+
+
+def test_rollout_path_equals_plain_mj_step_loop_exactly():
+    sc = Scene(phases_rad=(0.0, 2.0), dx0_m=0.05)
+    opt = SimOptions(duration_s=1.5, sample_rate_hz=100, chunk_steps=137)  # chunks not aligned with anything
+    ds = simulate(sc, opt)
+    cs = compile_scene(sc, opt)
+    m, d = cs.model, mujoco.MjData(cs.model)
+    mujoco.mj_forward(m, d)
+    sps = opt.steps_per_sample
+    n = (len(ds["time"]) - 1) * sps
+    u = controls(cs, np.arange(n) * opt.timestep_s)
+    joints = [d.qpos[cs.index.qpos_joint].copy()]
+    coms = [d.sensordata[cs.index.sens_com[:, None] + np.arange(2)].copy()]
+    for k in range(n):
+        d.ctrl[:] = u[k]
+        mujoco.mj_step(m, d)
+        if (k + 1) % sps == 0:
+            joints.append(d.qpos[cs.index.qpos_joint].copy())
+            coms.append(d.sensordata[cs.index.sens_com[:, None] + np.arange(2)].copy())
+    np.testing.assert_array_equal(ds["joint_angle"].values, np.array(joints))
+    np.testing.assert_array_equal(ds["x"].values, np.array(coms)[..., 0])
+    np.testing.assert_array_equal(ds["y"].values, np.array(coms)[..., 1])
+
+
+def test_identical_inputs_give_identical_output_and_batch_equals_single():
+    a = Scene(phases_rad=(0.0, 1.0))
+    b = Scene(phases_rad=(0.0, -2.0), dx0_m=0.1)
+    opt = SimOptions(duration_s=3.0)
+    one, two = simulate(a, opt), simulate(a, opt)
+    _data_vars_identical(one, two)
+    assert one.attrs["config"] == two.attrs["config"]
+    batch = simulate_batch([a, b], opt, nthread=2)
+    _data_vars_identical(batch[0], one)
+    _data_vars_identical(batch[1], simulate(b, opt))
+
+
+def _final_dx_over_lambda(dt: float) -> float:
+    sc = Scene(phases_rad=(0.0, math.pi / 2), gait=Gait(waves_per_body=1.0), channel=Channel(width_m=0.13))
+    ds = simulate(sc, SimOptions(duration_s=30.0, timestep_s=dt))
+    off = neighbour_offsets(ds)
+    last = ds["time"] >= ds["time"][-1] - sc.gait.period_s
+    return float(off["dx"].where(last).mean()) / sc.wavelength_m
+
+
+def test_pair_at_quarter_phase_ends_near_compatibility_and_converges_in_dt():
+    r2, r1 = _final_dx_over_lambda(0.002), _final_dx_over_lambda(0.001)
+    print(f"dx/lambda at dt=2 ms: {r2:.4f}; 1 ms: {r1:.4f}; compatibility 0.25")
+    assert abs(r1 - 0.25) < 0.06  # positive slope, near the line (3-link shape error ~0.035)
+    assert abs(r2 - r1) < 0.005
+
+
+@pytest.mark.slow
+def test_pair_converges_as_time_step_halves_three_levels():
+    r = [_final_dx_over_lambda(dt) for dt in (0.002, 0.001, 0.0005)]
+    print("dx/lambda vs dt 2, 1, 0.5 ms:", r)
+    assert abs(r[2] - r[1]) <= abs(r[1] - r[0]) + 1e-4
+    assert abs(r[2] - r[1]) < 0.003
+
+
+def test_divergence_stops_with_a_diagnosis():
+    sc = Scene(phases_rad=(0.0, math.pi), contact=ContactModel(max_penetration_m=1e-5))
+    with pytest.raises(DivergenceError, match="time step"):
+        simulate(sc, SimOptions(duration_s=5.0))
+
+
+def test_gait_amplitude_of_a_free_swimmer_grows_with_beta():
+    amps = []
+    for beta in (30, 45, 60):
+        sc = Scene(phases_rad=(0.0,), channel=WIDE, gait=Gait(amplitude_rad=math.radians(beta)))
+        amps.append(gait_amplitude(simulate(sc, SimOptions(duration_s=6.0, sample_rate_hz=100))))
+    print("A(beta=30,45,60) =", amps)
+    assert 0 < amps[0] < amps[1] < amps[2] < 0.27
