@@ -180,6 +180,9 @@ class SwimmerGeometry(_Params):
     """h: link height, m (out of plane; sets only inertia and drawing)."""
     mass_kg: float = 0.3
     """Total swimmer mass, kg (split equally over the links)."""
+    collision_shape: str = "capsule"
+    """``"capsule"`` (default: radius w/2 spanning the link; same flanks as the
+    box, rounded ends, one analytic test per pair) or ``"box"`` (l x w x h)."""
 
     def __post_init__(self):
         try:
@@ -193,6 +196,8 @@ class SwimmerGeometry(_Params):
         w = _positive("width_m", self.width_m, "m")
         _positive("height_m", self.height_m, "m")
         _positive("mass_kg", self.mass_kg, "kg")
+        if self.collision_shape not in ("capsule", "box"):
+            raise ParameterError("collision_shape", "'capsule' or 'box'", self.collision_shape)
         if w >= L / n:
             raise ParameterError("width_m", f"smaller than the link length L/N = {L / n:g} m", self.width_m)
 

@@ -116,11 +116,14 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
         else:
             body.add_joint(name=f"j{k - 1}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
         r = w / 2
+        shape = (
+            dict(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[r, 0, 0, l - r, 0, 0], size=[r, 0, 0])
+            if g.collision_shape == "capsule"
+            else dict(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[l / 2, 0, 0], size=[l / 2, r, g.height_m / 2])
+        )
         body.add_geom(
             name=f"g{k}",
-            type=mujoco.mjtGeom.mjGEOM_CAPSULE,
-            fromto=[r, 0, 0, l - r, 0, 0],
-            size=[r, 0, 0],
+            **shape,
             condim=1,
             contype=1,
             conaffinity=1,
@@ -180,9 +183,22 @@ class CompiledScene:
     index: SceneIndex
     scene: Scene
 
-    def initial_qpos(self) -> np.ndarray:
-        """Straight bodies at their start positions (qpos, nq)."""
-        return self.model.qpos0.copy()
+    def controls(self, t_s: np.ndarray) -> np.ndarray:
+        """Open-loop control vectors at times ``t_s`` (shape ``T``) -> ``T x nu``.
+
+        Servo inputs are the gait's angle and angular-velocity set-points (rad,
+        rad/s); push inputs are the perturbation forces (N), on from
+        ``scene.force_onset_s``.
+        """
+        sc, ix = self.scene, self.index
+        n_links = sc.geometry.n_links
+        u = np.zeros((len(t_s), self.model.nu))
+        u[:, ix.ctrl_pos] = sc.gait.joint_angles(t_s, sc.phases_rad, n_links)
+        u[:, ix.ctrl_vel] = sc.gait.joint_velocities(t_s, sc.phases_rad, n_links)
+        if sc.forces_N is not None:
+            on = (np.asarray(t_s) >= sc.force_onset_s)[:, None]
+            u[:, ix.ctrl_push] = np.where(on, np.asarray(sc.forces_N)[None, :], 0.0)
+        return u
 
 
 def scene_spec(scene: Scene, timestep_s: float) -> tuple[mujoco.MjSpec, tuple[str, ...]]:

@@ -63,21 +63,9 @@ def compile_scene(scene: Scene, options: SimOptions) -> CompiledScene:
 
 
 def controls(cs: CompiledScene, t_s: np.ndarray) -> np.ndarray:
-    """Open-loop control vectors at times ``t_s`` (shape ``T``) -> ``T x nu``.
-
-    Servo inputs are the gait's angle and angular-velocity set-points (rad,
-    rad/s); push inputs are the perturbation forces (N), on from
-    ``scene.force_onset_s``.
-    """
-    sc, ix = cs.scene, cs.index
-    n_links = sc.geometry.n_links
-    u = np.zeros((len(t_s), cs.model.nu))
-    u[:, ix.ctrl_pos] = sc.gait.joint_angles(t_s, sc.phases_rad, n_links)
-    u[:, ix.ctrl_vel] = sc.gait.joint_velocities(t_s, sc.phases_rad, n_links)
-    if sc.forces_N is not None:
-        on = (t_s >= sc.force_onset_s)[:, None]
-        u[:, ix.ctrl_push] = np.where(on, np.asarray(sc.forces_N)[None, :], 0.0)
-    return u
+    """Open-loop control vectors at times ``t_s`` -> ``T x nu`` (see
+    :meth:`~undulate.scene.CompiledScene.controls`)."""
+    return cs.controls(t_s)
 
 
 def _state_layout(m: mujoco.MjModel) -> tuple[int, int]:
