@@ -170,3 +170,20 @@ def test_gait_amplitude_of_a_free_swimmer_grows_with_beta():
         amps.append(gait_amplitude(simulate(sc, SimOptions(duration_s=6.0, sample_rate_hz=100))))
     print("A(beta=30,45,60) =", amps)
     assert 0 < amps[0] < amps[1] < amps[2] < 0.27
+
+
+def _lone_speed(ground) -> float:
+    sc = Scene(phases_rad=(0.0,), channel=WIDE, ground=ground)
+    ds = simulate(sc, SimOptions(duration_s=12.0))
+    pa = period_average(ds["x"].isel(swimmer=0), sc.gait.period_s).values
+    return float((pa[-1] - pa[-4]) / (3 * sc.gait.period_s))
+
+
+def test_swimming_mode_advances_head_first_default_mode_does_not():
+    from undulate import Ground
+
+    swim, still = _lone_speed(Ground.swimming()), _lone_speed(Ground())
+    print(f"lone swimmer speed: swimming {swim * 1e3:.2f} mm/s, viscous ground {still * 1e3:.3f} mm/s")
+    assert swim < -5e-3  # heads point to -x: head first is -x, at > 5 mm/s
+    assert abs(still) < 5e-4  # only the O(dt) integration creep
+    assert abs(swim) > 10 * abs(still)

@@ -254,24 +254,40 @@ class Servo(_Params):
 
 @dataclass(frozen=True)
 class Ground(_Params):
-    """Ground interaction of every link.
+    """How the surroundings resist each link's motion.
 
-    ``mode="viscous"`` (default): isotropic linear drag on each link's centre
-    of mass, ``F = -c v`` with ``c = drag_N_s_per_m`` per link, plus the
-    matching rotational drag of MuJoCo's Stokes model (see
-    :mod:`undulate.scene`).  Overdamped: with the default mass the
-    velocity relaxation time is ``m_link / c = 0.05 s``.
+    ``mode="viscous"`` (default, the paper's robots on a table): isotropic
+    linear drag on each link's centre of mass, ``F = -c v`` with
+    ``c = drag_N_s_per_m`` per link, plus the matching rotational drag of
+    MuJoCo's Stokes model (see :mod:`undulate.scene`).  Overdamped: with the
+    default mass the velocity relaxation time is ``m_link / c = 0.05 s``.
+    Isotropic drag cannot propel a swimmer: a lone swimmer stays in place.
+
+    ``mode="swimming"``: the swimmers move through a fluid of density
+    ``fluid_density_kg_m3`` described by MuJoCo's ellipsoid fluid model
+    (quadratic drag, far larger across a link than along it, plus added
+    mass and lift), on top of the linear drag ``c``.  The anisotropy makes
+    a lone swimmer advance head first (toward -x); :meth:`swimming` gives
+    the defaults used by the swimming study (water, ``c = 0.1 N s/m``).
     """
 
     drag_N_s_per_m: float = 2.0
     """c: linear drag coefficient per link, N s / m."""
     mode: str = "viscous"
-    """``"viscous"`` (isotropic, no locomotion)."""
+    """``"viscous"`` (isotropic, no locomotion) or ``"swimming"`` (anisotropic fluid drag)."""
+    fluid_density_kg_m3: float = 1000.0
+    """Fluid density for ``mode="swimming"``, kg / m^3 (ignored otherwise)."""
 
     def __post_init__(self):
         _positive("drag_N_s_per_m", self.drag_N_s_per_m, "N s/m")
-        if self.mode not in ("viscous",):
-            raise ParameterError("mode", "'viscous'", self.mode)
+        if self.mode not in ("viscous", "swimming"):
+            raise ParameterError("mode", "'viscous' or 'swimming'", self.mode)
+        _positive("fluid_density_kg_m3", self.fluid_density_kg_m3, "kg/m^3")
+
+    @classmethod
+    def swimming(cls, fluid_density_kg_m3: float = 1000.0, drag_N_s_per_m: float = 0.1) -> "Ground":
+        """The swimming variant: water-like fluid plus a weak linear drag."""
+        return cls(drag_N_s_per_m=drag_N_s_per_m, mode="swimming", fluid_density_kg_m3=fluid_density_kg_m3)
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,9 @@ Model choices (documented here, tested in ``tests/``):
   (MuJoCo's parent-child filter).  Softness: :class:`~undulate.params.ContactModel`.
 * **Walls** are planes: ``y = -d/2`` (normal +y), ``y = +d/2`` (normal -y)
   and optional end walls ``x = -E/2, +E/2``.
+* **Swimming** (``Ground(mode="swimming")``): the link geoms switch to
+  MuJoCo's ellipsoid fluid model at the given density (anisotropic
+  quadratic drag, added mass, lift), computed in C like everything else.
 * **Ground drag** uses MuJoCo's inertia-box fluid model with zero density:
   each link feels ``F = -3 pi mu D v`` (``D`` = mean side of its inertia
   box, ``mu`` = ``opt.viscosity``) and a rotational drag
@@ -132,6 +135,7 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
             margin=c.margin_m,
             rgba=list(_SWIMMER_RGBA),
             mass=0,  # inertia is explicit
+            fluid_ellipsoid=1 if scene.ground.mode == "swimming" else 0,
         )
         parent = body
     for i in range(n - 1):
@@ -218,7 +222,7 @@ def scene_spec(scene: Scene, timestep_s: float) -> tuple[mujoco.MjSpec, tuple[st
     opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
     opt.solver = mujoco.mjtSolver.mjSOL_NEWTON
     opt.viscosity = drag_viscosity(scene)
-    opt.density = 0.0
+    opt.density = scene.ground.fluid_density_kg_m3 if scene.ground.mode == "swimming" else 0.0
     opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
 
     half_d = ch.width_m / 2
