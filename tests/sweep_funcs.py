@@ -76,7 +76,8 @@ def swimmer_pair(point: dict, seed: int) -> xr.Dataset:
     Returns the centres ``x``, ``y`` (time, swimmer) in metres; ``seed`` is
     unused (the simulation is deterministic).
     """
-    from undulate import Scene, SimOptions, simulate
+    from undulate.params import Scene, SimOptions
+    from undulate.simulate import simulate
 
     ds = simulate(Scene(phases_rad=(0.0, point["dphi_rad"])), SimOptions(duration_s=point.get("duration_s", 2.0)))
     return ds[["x", "y"]]

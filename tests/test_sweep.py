@@ -1,0 +1,227 @@
+"""undulate.sweep: serial, local processes and Dask agree; resume; failures.
+
+Real components only: a MuJoCo pendulum (tests/sweep_funcs.py) as the sweep
+function, real process pools, a real Dask LocalCluster, a real SIGKILL.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+HERE = Path(__file__).resolve().parent
+if str(HERE) not in sys.path:  # workers inherit sys.path, so they can import sweep_funcs
+    sys.path.insert(0, str(HERE))
+
+import sweep_funcs  # noqa: E402
+
+from undulate.errors import ParameterError  # noqa: E402
+from undulate.sweep import Grid, SweepFailed, load_sweep, run_sweep  # noqa: E402
+
+GRID = Grid(axes={"damping_Nms": [0.05, 0.1, 0.2], "length_m": [0.3, 0.5, 0.7]}, replicates=2, seed=7)
+
+
+def _data(ds: xr.Dataset) -> xr.Dataset:
+    """The dataset without attributes that record when/where it was made."""
+    ds = ds.copy()
+    ds.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("provenance_")}
+    return ds
+
+
+@pytest.fixture(scope="module")
+def serial(tmp_path_factory):
+    """The reference: the grid run in this process."""
+    res = run_sweep(sweep_funcs.pendulum, GRID, tmp_path_factory.mktemp("serial") / "s", workers=1, progress=False)
+    assert res.ok and res.n_computed == GRID.n_runs and res.n_reused == 0
+    return res
+
+
+# ---- the grid and its seeds -----------------------------------------------------------------
+def test_grid_shape_and_seeds():
+    assert GRID.dims == ("damping_Nms", "length_m") and GRID.shape == (3, 3) and GRID.n_runs == 18
+    runs = GRID.runs()
+    seeds = [r.seed for r in runs]
+    assert len(set(seeds)) == len(seeds) and all(0 <= s < 2**63 for s in seeds)
+    # a seed depends on the point and replicate, not on the grid around it
+    bigger = Grid(axes={"damping_Nms": [0.01, 0.05, 0.1, 0.2], "length_m": [0.5]}, replicates=2, seed=7)
+    pick = {(r.point["damping_Nms"], r.replicate): r.seed for r in bigger.runs() if r.point["length_m"] == 0.5}
+    for r in runs:
+        if r.point["length_m"] == 0.5:
+            assert pick[(r.point["damping_Nms"], r.replicate)] == r.seed
+    assert Grid(axes={"a": [1, 2]}).runs()[0].seed == Grid(axes={"a": [1.0, 2.0]}).runs()[0].seed
+    assert Grid(axes={"a": [1, 2]}, seed=1).runs()[0].seed != Grid(axes={"a": [1, 2]}, seed=2).runs()[0].seed
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"axes": {"a": []}}, "axes['a']"),
+        ({"axes": {"a": [1, 1]}}, "axes['a']"),
+        ({"axes": {"replicate": [1]}}, "grid axis name"),
+        ({"axes": {"a": [1, "x"]}}, "axes['a']"),
+        ({"axes": {"a": [1]}, "replicates": 0}, "replicates"),
+        ({"points": [{"a": 1}, {"b": 2}]}, "points"),
+        ({}, "Grid"),
+    ],
+)
+def test_grid_rejects_bad_input(kwargs, name):
+    with pytest.raises(ParameterError) as e:
+        Grid(**kwargs)
+    assert e.value.name == name
+
+
+# ---- executors agree --------------------------------------------------------------------------
+def test_serial_result_matches_direct_calls(serial):
+    ds = serial.dataset
+    assert ds["angle"].dims == ("damping_Nms", "length_m", "replicate", "time")
+    assert not ds["run_failed"].any()
+    one = ds.sel(damping_Nms=0.1, length_m=0.5, replicate=1)
+    direct = sweep_funcs.pendulum({"damping_Nms": 0.1, "length_m": 0.5}, int(one["seed"]))
+    np.testing.assert_array_equal(one["angle"].values, direct["angle"].values)
+    # replicates differ (their seeds draw other release angles)
+    assert not np.array_equal(ds["angle"][0, 0, 0].values, ds["angle"][0, 0, 1].values)
+    # provenance and the grid are stored with the data
+    saved = load_sweep(serial.out_dir)
+    assert json.loads(saved.attrs["sweep_grid"]) == GRID.to_dict()
+    assert saved.attrs["sweep_function"] == "sweep_funcs.pendulum"
+    assert "provenance_mujoco_version" in saved.attrs and "provenance_undulate_version" in saved.attrs
+    xr.testing.assert_identical(_data(saved), _data(ds))
+
+
+def test_local_pool_equals_serial(serial, tmp_path):
+    res = run_sweep(sweep_funcs.pendulum, GRID, tmp_path / "local", workers=2, batch=3, progress=False)
+    assert res.n_computed == GRID.n_runs
+    xr.testing.assert_identical(_data(res.dataset), _data(serial.dataset))
+    # batched form, explicit chunking: same numbers
+    res = run_sweep(sweep_funcs.pendulum_batch, GRID, tmp_path / "batched", workers=2, batch=4, batched=True,
+                    progress=False)
+    xr.testing.assert_identical(res.dataset.drop_attrs(), serial.dataset.drop_attrs())
+
+
+def test_dask_local_cluster_equals_serial(serial, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None) as cl:
+        res = run_sweep(sweep_funcs.pendulum, GRID, tmp_path / "dask", scheduler=cl.scheduler_address,
+                        progress=False)
+    assert res.n_computed == GRID.n_runs
+    xr.testing.assert_identical(_data(res.dataset), _data(serial.dataset))
+
+
+# ---- failures ---------------------------------------------------------------------------------
+def test_failing_point_is_reported_and_retried(tmp_path):
+    grid = Grid(axes={"damping_Nms": [0.1, -0.05, 0.2], "length_m": [0.5]})
+    out = tmp_path / "fail"
+    res = run_sweep(sweep_funcs.pendulum, grid, out, workers=1, progress=False)
+    assert not res.ok and res.n_computed == 2
+    (f,) = res.failures
+    assert f.point == {"damping_Nms": -0.05, "length_m": 0.5}
+    assert f.error.startswith("DivergenceError: pendulum swing grows")
+    assert "Traceback" in f.traceback and "sweep_funcs.py" in f.traceback
+    record = json.loads((out / "runs" / f"{f.key}.failed.json").read_text())
+    assert record["point"] == f.point and record["seed"] == f.seed and "DivergenceError" in record["error"]
+    ds = res.dataset
+    assert ds["run_failed"].sel(damping_Nms=-0.05).all() and np.isnan(ds["angle"].sel(damping_Nms=-0.05)).all()
+    assert np.isfinite(ds["angle"].sel(damping_Nms=[0.1, 0.2])).all()
+    assert json.loads(load_sweep(out).attrs["sweep_failures"])[0]["point"] == f.point
+    with pytest.raises(SweepFailed, match=r"(?s)1 of 3 runs failed.*damping_Nms=-0\.05"):
+        res.raise_if_failed()
+    # A CLI maps SweepFailed to a non-zero exit; resuming retries the failed run (only it).
+    stamp = (out / "runs" / f"{f.key}.failed.json").stat().st_mtime_ns
+    again = run_sweep(sweep_funcs.pendulum, grid, out, workers=1, progress=False)
+    assert again.n_reused == 2 and again.n_computed == 0 and len(again.failures) == 1
+    assert (out / "runs" / f"{f.key}.failed.json").stat().st_mtime_ns != stamp
+
+
+def test_failures_in_worker_processes(tmp_path):
+    grid = Grid(axes={"damping_Nms": [0.1, -0.05, 0.2, -0.1], "length_m": [0.5]})
+    res = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "f", workers=2, batch=2, progress=False)
+    assert sorted(f.point["damping_Nms"] for f in res.failures) == [-0.1, -0.05] and res.n_computed == 2
+    # batched: a failing batch is split so that only the bad points fail
+    res = run_sweep(sweep_funcs.pendulum_batch, grid, tmp_path / "fb", workers=1, batch=4, batched=True,
+                    progress=False)
+    assert sorted(f.point["damping_Nms"] for f in res.failures) == [-0.1, -0.05] and res.n_computed == 2
+
+
+# ---- the store refuses what it should ---------------------------------------------------------
+def test_resume_into_other_sweep_is_refused(tmp_path):
+    grid = Grid(axes={"damping_Nms": [0.1], "length_m": [0.5]})
+    out = tmp_path / "s"
+    run_sweep(sweep_funcs.pendulum, grid, out, workers=1, progress=False)
+    other = Grid(axes={"damping_Nms": [0.1, 0.2], "length_m": [0.5]})
+    with pytest.raises(ParameterError, match="holds a different one: grid axes damping_Nms\\[1\\]") as e:
+        run_sweep(sweep_funcs.pendulum, other, out, workers=1, progress=False)
+    assert e.value.name == "out_dir"
+    with pytest.raises(ParameterError, match="function"):
+        run_sweep(sweep_funcs.pendulum_batch, grid, out, workers=1, progress=False, batched=True)
+    with pytest.raises(ParameterError, match="seed"):
+        run_sweep(sweep_funcs.pendulum, Grid(axes=grid.axes, seed=1), out, workers=1, progress=False)
+    (tmp_path / "junk").mkdir()
+    (tmp_path / "junk" / "notes.txt").write_text("mine")
+    with pytest.raises(ParameterError, match="no manifest.json"):
+        run_sweep(sweep_funcs.pendulum, grid, tmp_path / "junk", workers=1, progress=False)
+
+
+# ---- interruption -----------------------------------------------------------------------------
+KILL_GRID = dict(axes={"damping_Nms": [0.05, 0.1, 0.2, 0.4], "length_m": [0.3, 0.4, 0.5, 0.6, 0.7],
+                       "duration_s": [20.0]}, replicates=2, seed=3)
+
+_SCRIPT = """
+import sys
+sys.path.insert(0, {here!r})
+import sweep_funcs
+from undulate.sweep import Grid, run_sweep
+run_sweep(sweep_funcs.pendulum, Grid(**{grid!r}), {out!r}, workers=2, batch=1, progress=True)
+"""
+
+
+def test_sigkill_then_resume(tmp_path):
+    grid = Grid(**KILL_GRID)
+    out = tmp_path / "killed"
+    runs = out / "runs"
+    script = _SCRIPT.format(here=str(HERE), grid=KILL_GRID, out=str(out))
+    proc = subprocess.Popen([sys.executable, "-c", textwrap.dedent(script)], start_new_session=True,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 60
+        while time.monotonic() < deadline and proc.poll() is None:
+            if runs.is_dir() and len(list(runs.glob("*.nc"))) >= 6:
+                break
+            time.sleep(0.01)
+        assert proc.poll() is None, proc.stderr.read().decode()
+        os.killpg(proc.pid, signal.SIGKILL)  # the sweep and its workers, as an OOM killer or scancel would
+    finally:
+        proc.wait(30)
+    saved = {p.name: p.stat().st_mtime_ns for p in runs.glob("*.nc")}
+    assert 6 <= len(saved) < grid.n_runs, "the kill should land mid-way"
+
+    res = run_sweep(sweep_funcs.pendulum, grid, out, workers=2, progress=False)
+    assert res.ok
+    assert res.n_reused == len(saved) and res.n_computed == grid.n_runs - len(saved)
+    assert {p.name: p.stat().st_mtime_ns for p in runs.glob("*.nc") if p.name in saved} == saved  # not redone
+    assert not list(out.rglob("*.tmp"))  # no half-written file survives
+    reference = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "whole", workers=1, progress=False)
+    xr.testing.assert_identical(_data(res.dataset), _data(reference.dataset))
+
+
+# ---- real swimmers ----------------------------------------------------------------------------
+def test_swimmer_pair_sweep(tmp_path):
+    pytest.importorskip("undulate.simulate")
+    grid = Grid(axes={"dphi_rad": [0.0, np.pi / 2], "duration_s": [1.0]})
+    res = run_sweep(sweep_funcs.swimmer_pair, grid, tmp_path / "pair", workers=1, progress=False)
+    assert res.ok, "\n".join(f.traceback for f in res.failures)
+    ds = res.dataset
+    assert ds["x"].dims == ("dphi_rad", "duration_s", "replicate", "time", "swimmer")
+    assert ds["x"].attrs["units"] == "m"
+    assert np.isfinite(ds["x"]).all()
+    # the per-run phase coordinate differs between points, so it is stacked over the grid
+    np.testing.assert_allclose(ds["phase"].isel(swimmer=1).squeeze().values, [0.0, np.pi / 2])
