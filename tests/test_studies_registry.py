@@ -1,0 +1,123 @@
+"""The study registry: run, write atomically, reopen with units and provenance."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from undulate import studies
+from undulate.errors import ParameterError, UndulateError
+from undulate.studies import _registry
+
+
+def test_compatibility_is_registered_theory_only():
+    assert "compatibility" in studies.names()
+    info = studies.describe("compatibility")
+    assert info.needs_simulation is False and info.paper_figure == "4"
+
+
+def test_unknown_study_names_the_known_ones(tmp_path):
+    with pytest.raises(ParameterError, match="compatibility") as err:
+        studies.run_study("no-such-study", tmp_path)
+    assert err.value.name == "study"
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_compatibility_study_writes_its_files(tmp_path):
+    out = tmp_path / "res"
+    nc = studies.run_study("compatibility", out, quick=True, seed=3)
+    assert nc == out / "compatibility.nc"
+    assert sorted(p.name for p in out.iterdir()) == [
+        "compatibility.json", "compatibility.nc", "compatibility.pdf", "compatibility.png"]
+    assert (out / "compatibility.pdf").read_bytes()[:4] == b"%PDF"
+    assert (out / "compatibility.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    with xr.open_dataset(nc, engine="h5netcdf") as ds:
+        assert ds["dphi"].attrs["units"] == "rad"
+        for name in ("dx_over_lambda", "dy_over_2A", "min_dy_over_2A", "compatible_fraction"):
+            assert ds[name].attrs["units"] == "1"
+        assert ds["compatible"].dtype == bool
+        assert ds.attrs["study"] == "compatibility"
+        assert json.loads(ds.attrs["study_config"]) == {
+            "out_dir": str(out), "quick": True, "scheduler": None, "seed": 3}
+        for key in ("undulate_version", "mujoco_version", "created_utc", "hostname"):
+            assert ds.attrs[key]
+        # the physics survives the round trip: the region is the closed form
+        P, X, Y = xr.broadcast(ds["dphi"], ds["dx_over_lambda"], ds["dy_over_2A"])
+        psi = (P - 2 * np.pi * X + np.pi) % (2 * np.pi) - np.pi
+        mismatch = np.abs(psi) - 2 * np.arcsin(np.minimum(Y, 1))
+        clear = np.abs(mismatch) > 1e-9
+        np.testing.assert_array_equal(ds["compatible"].values[clear], (mismatch <= 0).values[clear])
+        assert ds["compatible"].sel(dy_over_2A=0.0).any()  # the equality line itself
+        assert ds["compatible"].where(ds["dy_over_2A"] >= 1.0, True).all()
+
+    doc = json.loads((out / "compatibility.json").read_text())
+    assert doc["study"] == "compatibility" and doc["provenance"]["undulate_version"]
+    for s, sec in doc["summary"]["sections"].items():
+        assert sec["compatible_fraction_theory"] == pytest.approx(2 * np.arcsin(float(s)) / np.pi)
+        assert sec["compatible_fraction"] == pytest.approx(sec["compatible_fraction_theory"], abs=0.01)
+    assert doc["summary"]["smallest_dy_over_2A_all_compatible"] == pytest.approx(1.0)
+
+
+@pytest.mark.parametrize("name", [n for n in studies.names() if not studies.describe(n).needs_simulation])
+def test_every_theory_study_runs_quick(name, tmp_path):
+    nc = studies.run_study(name, tmp_path, quick=True)
+    assert nc.exists() and (tmp_path / f"{name}.json").exists()
+
+
+@pytest.fixture
+def temporary_study():
+    """Register throwaway studies; remove them afterwards."""
+    added = []
+
+    def add(name, run):
+        studies.register(name, description="test", needs_simulation=False)(run)
+        added.append(name)
+
+    yield add
+    for name in added:
+        _registry._REGISTRY.pop(name, None)
+
+
+def _tiny_dataset():
+    return xr.Dataset({"v": ("x", np.arange(3.0), {"units": "m"})},
+                      coords={"x": ("x", np.arange(3), {"units": "1"})})
+
+
+class _BrokenFigure:
+    def savefig(self, path, **kwargs):
+        with open(path, "wb") as f:  # half a file, then failure
+            f.write(b"%PDF-1.4 partial")
+        raise OSError("disk full")
+
+
+def test_failed_write_leaves_nothing(tmp_path, temporary_study):
+    temporary_study("_broken", lambda cfg: studies.StudyResult(_tiny_dataset(), _BrokenFigure(), {}))
+    (tmp_path / "_broken.nc").write_bytes(b"old result")  # an earlier run's file survives intact
+    with pytest.raises(OSError, match="disk full"):
+        studies.run_study("_broken", tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["_broken.nc"]
+    assert (tmp_path / "_broken.nc").read_bytes() == b"old result"
+
+
+def test_variables_without_units_are_refused(tmp_path, temporary_study):
+    def run(cfg):
+        ds = _tiny_dataset()
+        ds["w"] = ("x", np.ones(3))
+        return studies.StudyResult(ds, _BrokenFigure(), {})
+
+    temporary_study("_unitless", run)
+    with pytest.raises(UndulateError, match="'w'"):
+        studies.run_study("_unitless", tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_summary_numbers_become_plain_json():
+    doc = _registry._jsonable({"a": np.float32(0.5), "b": np.arange(3), "c": float("nan"),
+                               "d": (np.int64(2), True)})
+    assert json.dumps(doc, allow_nan=False) == '{"a": 0.5, "b": [0, 1, 2], "c": null, "d": [2, true]}'
+    with pytest.raises(UndulateError):
+        _registry._jsonable({"x": object()})
