@@ -15,6 +15,8 @@ import math
 import numpy as np
 import xarray as xr
 
+from .theory import wrap_phase
+
 __all__ = [
     "lateral_order",
     "neighbour_offsets",
@@ -30,10 +32,8 @@ __all__ = [
 
 
 def wrap_angle(a):
-    """Wrap angles (rad) into (-pi, pi]."""
-    a = np.asarray(a, dtype=float)
-    w = np.mod(a + np.pi, 2 * np.pi) - np.pi
-    return np.where(w == -np.pi, np.pi, w)
+    """Wrap angles (rad) into (-pi, pi] (so a phase difference of pi reads +pi)."""
+    return -wrap_phase(-np.asarray(a, dtype=float))
 
 
 def lateral_order(ds: xr.Dataset) -> xr.DataArray:
@@ -86,19 +86,21 @@ def dx_over_wavelength(ds: xr.Dataset) -> xr.DataArray:
 
 
 def period_average(da: xr.DataArray, period_s: float) -> xr.DataArray:
-    """Average over whole gait periods counted from t = 0.
+    """Average over whole gait periods counted from the first sample.
 
-    The result has one sample per complete period, its ``time`` coordinate at
-    the period's midpoint; an incomplete last period is dropped.
+    Period ``k`` holds the samples with ``t`` in ``(t0 + kT, t0 + (k+1)T]``
+    (the same half-open intervals the recorded force means use); the first
+    sample itself starts the clock and is not averaged.  The result has one
+    value per complete period, its ``time`` coordinate at the period's
+    midpoint; an incomplete last period is dropped.
     """
     t = da["time"].values
-    k = np.floor((t - t[0]) / period_s + 1e-9).astype(int)
-    # a sample exactly at a period boundary belongs to the period it ends
-    k = np.where((k > 0) & np.isclose((t - t[0]) / period_s, k), k - 1, k)
-    n_full = int(np.floor((t[-1] - t[0]) / period_s + 1e-9))
+    u = (t - t[0]) / period_s
+    k = np.ceil(u - 1e-9).astype(int) - 1
+    n_full = int(np.floor(u[-1] + 1e-9))
     if n_full < 1:
         raise ValueError("period_average needs at least one whole period of data")
-    keep = k < n_full
+    keep = (k >= 0) & (k < n_full)
     g = da.isel(time=np.flatnonzero(keep)).assign_coords(period=("time", k[keep]))
     out = g.groupby("period").mean("time")
     out = out.assign_coords(time=("period", t[0] + (np.arange(n_full) + 0.5) * period_s))
