@@ -17,6 +17,7 @@ def test_compatibility_is_registered_theory_only():
     assert "compatibility" in studies.names()
     info = studies.describe("compatibility")
     assert info.needs_simulation is False and info.paper_figure == "4"
+    assert str(info).startswith(info.description) and "theory only" in str(info)
 
 
 def test_unknown_study_names_the_known_ones(tmp_path):

@@ -94,6 +94,11 @@ class StudyInfo:
     paper_figure: str | None
     run: Callable[[StudyConfig], StudyResult] = field(repr=False, compare=False)
 
+    def __str__(self) -> str:
+        tags = [f"paper Fig. {self.paper_figure}"] if self.paper_figure else []
+        tags.append("simulation" if self.needs_simulation else "theory only")
+        return f"{self.description} [{'; '.join(tags)}]"
+
 
 _REGISTRY: dict[str, StudyInfo] = {}
 _loaded = False

@@ -82,7 +82,7 @@ def compatibility_dataset(dphi_rad, dx_over_lambda, dy_over_2A):
 
 @register("compatibility", needs_simulation=False, paper_figure="4",
           description="Gait-compatibility region of two sinusoids in (dphi, dx/lambda, dy/2A) "
-                      "and its sections at dy/2A = 0.2, 0.5, 0.9 (theory only).")
+                      "and its sections at dy/2A = 0.2, 0.5, 0.9.")
 def run(config: StudyConfig) -> StudyResult:
     from ..plotting.compatibility import plot_compatibility
 
