@@ -33,6 +33,11 @@ __all__ = [
     "simulate",
     "simulate_batch",
     "build",
+    # studies and theory
+    "theory",
+    "studies",
+    "run_study",
+    "animate",
     # observables
     "neighbour_offsets",
     "dx_over_wavelength",
@@ -44,6 +49,10 @@ __all__ = [
 ]
 
 _LAZY = {
+    "theory": ("theory", None),
+    "studies": ("studies", None),
+    "run_study": ("studies", "run_study"),
+    "animate": ("animate", "animate"),
     "simulate": ("simulate", "simulate"),
     "simulate_batch": ("simulate", "simulate_batch"),
     "build": ("scene", "build"),
@@ -62,7 +71,8 @@ def __getattr__(name: str):
         import importlib
 
         mod, attr = _LAZY[name]
-        value = getattr(importlib.import_module(f".{mod}", __name__), attr)
+        module = importlib.import_module(f".{mod}", __name__)
+        value = module if attr is None else getattr(module, attr)
         globals()[name] = value
         return value
     raise AttributeError(f"module 'undulate' has no attribute {name!r}")

@@ -11,7 +11,6 @@ from __future__ import annotations
 import math
 import os
 import sys
-import tempfile
 from pathlib import Path
 from typing import Optional
 
@@ -63,15 +62,10 @@ def check_writable(name: str, path: Path) -> Path:
 
 def write_netcdf_atomic(ds, path: Path) -> None:
     """Write ``ds`` to ``path`` via a temporary file in the same folder and a rename."""
-    path = Path(path)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.resolve().parent)
-    os.close(fd)
-    try:
+    from ._io import atomic_output
+
+    with atomic_output(path) as tmp:
         ds.to_netcdf(tmp, engine="h5netcdf")
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 @app.command()
@@ -178,6 +172,34 @@ def _summary(ds, out: Path) -> str:
             lines.append(f"pair {lo}-{hi}: dphi = {math.degrees(dphi):7.1f} deg   final dx = {dx:+.4f} m   "
                          "(standing wave: no compatibility prediction)")
     return "\n".join(lines)
+
+
+@app.command()
+def animate(
+    run: Path = typer.Argument(..., help="A netCDF file written by `undulate simulate`."),
+    out: Path = typer.Option(..., "--out", "-o", help="Output animation, .mp4 or .gif."),
+    stride: int = typer.Option(1, help="Draw every STRIDE-th recorded sample."),
+    fps: Optional[float] = typer.Option(None, help="Frames per second (default: real time)."),
+) -> None:
+    """Draw a simulated run from above: links as bodies, contacts in red, a clock."""
+    try:
+        if not run.is_file():
+            raise ParameterError("RUN", "an existing netCDF file", str(run))
+        check_writable("--out", out)
+        if out.suffix.lower() not in (".gif", ".mp4"):
+            raise ParameterError("--out", "a path ending in .gif or .mp4", str(out))
+        import xarray as xr
+
+        try:
+            ds = xr.load_dataset(run, engine="h5netcdf")
+        except Exception as e:  # unreadable file: say so in one line
+            raise ParameterError("RUN", "a readable netCDF file", f"{run} ({type(e).__name__})") from None
+        from .animate import animate as draw
+
+        n = draw(ds, out, stride=stride, fps=fps)
+    except ParameterError as e:
+        _fail(str(e), 2)
+    typer.echo(f"wrote {out} ({n} frames)")
 
 
 @app.command("studies")
