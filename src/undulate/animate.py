@@ -81,14 +81,14 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
     w_px = 2 * round(8 * dpi / 2)
     h_px = 2 * round(max(2.2, 8 * (d + 2 * pad) / (x_hi - x_lo + 2 * pad)) * dpi / 2)
     fig = Figure(figsize=(w_px / dpi, h_px / dpi), dpi=dpi)
-    ax = fig.add_axes([0.08, 0.2, 0.9, 0.7])
+    ax = fig.add_axes([0.08, 0.2, 0.9, 0.66])
     ax.set_aspect("equal")
     ax.set_xlim(x_lo - pad, x_hi + pad)
     ax.set_ylim(-d / 2 - pad / 2, d / 2 + pad / 2)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
     if title:
-        ax.set_title(title, fontsize=10)
+        fig.suptitle(title, fontsize=9, y=0.99)
     wall_lines = {}
     for name, y in (("wall_lo", -d / 2), ("wall_hi", d / 2)):
         (wall_lines[name],) = ax.plot([x_lo - pad, x_hi + pad], [y, y], color=_WALL, lw=3)
@@ -104,7 +104,7 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
     bodies = PolyCollection([], closed=True, edgecolors="k", linewidths=0.4)
     ax.add_collection(bodies)
     heads = ax.scatter(nx_all[0, :, 0], ny_all[0, :, 0], s=10, c="k", zorder=3)
-    clock = ax.text(0.01, 1.02, "", transform=ax.transAxes, fontsize=10, family="monospace")
+    clock = ax.text(0.995, 1.015, "", transform=ax.transAxes, fontsize=9, family="monospace", ha="right")
 
     def draw(i: int):
         polys, colours = [], []

@@ -223,8 +223,6 @@ def study(
     from . import studies
 
     try:
-        if name not in studies.names():
-            raise ParameterError("study name", "one of " + ", ".join(studies.names()), name)
         out_path = Path(out)
         if out_path.exists() and not out_path.is_dir():
             raise ParameterError("--out", "a directory", str(out))
@@ -234,6 +232,36 @@ def study(
     except UndulateError as e:
         _fail(str(e), 1)
     typer.echo(f"wrote {path}")
+
+
+@app.command()
+def reproduce(
+    out: Path = typer.Option(Path("reproduction"), "--out", "-o", help="Output folder (created if missing); re-running continues."),
+    quick: bool = typer.Option(True, "--quick/--full", help="Quick mode (minutes) or the paper's full resolution."),
+    scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
+    seed: int = typer.Option(0, help="Base random seed."),
+    only: Optional[str] = typer.Option(None, "--only", help="Comma-separated study names (default: all)."),
+) -> None:
+    """Reproduce the paper: every study, animations, and OUT/index.html."""
+    from . import studies as registry
+    from .reproduce import reproduce as run_all
+
+    try:
+        if out.exists() and not out.is_dir():
+            raise ParameterError("--out", "a directory", str(out))
+        names = None
+        if only is not None:
+            names = [n.strip() for n in only.split(",") if n.strip()]
+            for n in names:
+                if n not in registry.names():
+                    raise ParameterError("--only", "study names from: " + ", ".join(registry.names()), n)
+    except ParameterError as e:
+        _fail(str(e), 2)
+    path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
+                             log=lambda m: typer.echo(m))
+    failed = [s["name"] for s in statuses if not s["ok"]]
+    if failed:
+        _fail(f"{len(failed)} stud{'y' if len(failed) == 1 else 'ies'} failed: {', '.join(failed)} (see {path})", 1)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -1,0 +1,155 @@
+"""One self-contained HTML page for a reproduction run (``DIR/index.html``).
+
+The page uses relative links only, so the folder can be moved, zipped or
+opened offline.  It shows every study's figure, the table of the paper's
+claims (each study's summary carries its own ``claims``: the claim, the
+paper's statement, the measured number and whether it holds), provenance,
+wall times, animations and links to every data file.  A failed study is
+shown as failed, with its error.
+"""
+
+from __future__ import annotations
+
+import html
+import json
+import platform
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from ._io import atomic_output
+from .provenance import provenance
+
+__all__ = ["write_report"]
+
+
+def _esc(x: Any) -> str:
+    return html.escape(str(x), quote=True)
+
+
+def _fmt(v: Any) -> str:
+    if isinstance(v, float):
+        return f"{v:.4g}"
+    if isinstance(v, list) and len(v) <= 12 and all(isinstance(u, (int, float)) for u in v):
+        return "[" + ", ".join(_fmt(u) for u in v) + "]"
+    if isinstance(v, (dict, list)):
+        s = json.dumps(v)
+        return s if len(s) < 160 else s[:157] + "..."
+    return str(v)
+
+
+def _summary_rows(summary: dict[str, Any], prefix: str = "") -> list[tuple[str, str]]:
+    rows = []
+    for k, v in summary.items():
+        if k == "claims":
+            continue
+        if isinstance(v, dict) and len(v) <= 12:
+            rows.extend(_summary_rows(v, f"{prefix}{k}."))
+        else:
+            rows.append((f"{prefix}{k}", _fmt(v)))
+    return rows
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
+h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
+table{border-collapse:collapse;margin:.6em 0;font-size:.92em}td,th{border:1px solid #ddd;padding:.3em .6em;text-align:left;vertical-align:top}
+th{background:#f4f4f4}.ok{color:#176b2c;font-weight:600}.no{color:#b3141f;font-weight:600}.na{color:#777}
+img.fig{max-width:100%;border:1px solid #eee}.anims{display:flex;flex-wrap:wrap;gap:1em}.anims figure{margin:0;max-width:520px}
+.anims img{max-width:100%;border:1px solid #eee}.failed{background:#fde8ea;border:1px solid #f3b5bc;padding:.6em}
+code{background:#f6f6f6;padding:0 .2em}
+"""
+
+
+def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: str,
+                 animations: list[dict[str, str]] | None = None, total_wall_s: float | None = None) -> Path:
+    """Write ``out_dir/index.html`` from the studies' JSON summaries.
+
+    ``statuses``: one dict per study, in order, with ``name``, ``ok``,
+    ``wall_s`` and ``error``; ``animations``: dicts with ``file`` (relative
+    to ``out_dir``) and ``caption``.
+    """
+    out = Path(out_dir)
+    prov = provenance()
+    docs: dict[str, dict] = {}
+    for st in statuses:
+        p = out / f"{st['name']}.json"
+        if st.get("ok") and p.is_file():
+            docs[st["name"]] = json.loads(p.read_text())
+
+    parts: list[str] = []
+    add = parts.append
+    add("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>")
+    add("<meta name='viewport' content='width=device-width, initial-scale=1'>")
+    add(f"<title>undulate reproduction ({_esc(mode)})</title><style>{_CSS}</style></head><body>")
+    add("<h1>Lateral contact yields longitudinal cohesion in active undulatory systems — reproduction</h1>")
+    n_ok = sum(1 for s in statuses if s.get("ok"))
+    failed = [s["name"] for s in statuses if not s.get("ok")]
+    add(f"<p>Mode: <b>{_esc(mode)}</b>. Studies: {n_ok} of {len(statuses)} completed"
+        + (f"; <span class='no'>failed: {_esc(', '.join(failed))}</span>" if failed else "")
+        + (f". Total wall time {total_wall_s:.0f} s." if total_wall_s is not None else ".") + "</p>")
+
+    # claims
+    add("<h2 id='claims'>The paper's claims</h2>")
+    add("<table><tr><th>study</th><th>claim</th><th>paper</th><th>measured</th><th>holds</th></tr>")
+    for st in statuses:
+        name = st["name"]
+        claims = docs.get(name, {}).get("summary", {}).get("claims", [])
+        if not st.get("ok"):
+            add(f"<tr><td>{_esc(name)}</td><td colspan='3' class='no'>study failed: {_esc(st.get('error'))}</td>"
+                "<td class='no'>—</td></tr>")
+            continue
+        for c in claims:
+            holds = c.get("holds")
+            cls, word = ("ok", "yes") if holds is True else ("no", "no") if holds is False else ("na", "n/a")
+            add(f"<tr><td>{_esc(name)}</td><td>{_esc(c.get('claim', ''))}</td><td>{_esc(c.get('paper', ''))}</td>"
+                f"<td>{_esc(c.get('measured', ''))}</td><td class='{cls}'>{word}</td></tr>")
+    add("</table>")
+
+    # animations
+    if animations:
+        add("<h2 id='animations'>Animations</h2><div class='anims'>")
+        for a in animations:
+            if (out / a["file"]).is_file():
+                add(f"<figure><img src='{_esc(a['file'])}' alt='{_esc(a['caption'])}'>"
+                    f"<figcaption>{_esc(a['caption'])} (<a href='{_esc(a['file'])}'>file</a>"
+                    + (f", <a href='{_esc(a['data'])}'>data</a>" if a.get("data") else "") + ")</figcaption></figure>")
+        add("</div>")
+
+    # studies
+    add("<h2 id='studies'>Studies</h2>")
+    for st in statuses:
+        name = st["name"]
+        wall = st.get("wall_s")
+        add(f"<h3 id='{_esc(name)}'>{_esc(name)}</h3>")
+        if not st.get("ok"):
+            add(f"<div class='failed'>This study <b>failed</b>: <code>{_esc(st.get('error'))}</code></div>")
+            continue
+        doc = docs.get(name, {})
+        add(f"<img class='fig' src='{_esc(name)}.png' alt='{_esc(name)} figure'>")
+        links = [f"<a href='{_esc(f)}'>{_esc(f)}</a>" for f in doc.get("files", []) + [f"{name}.json"]]
+        add("<p>Files: " + " · ".join(links) + (f" — wall time {wall:.1f} s" if wall is not None else "") + "</p>")
+        rows = _summary_rows(doc.get("summary", {}))
+        if rows:
+            add("<details><summary>summary numbers</summary><table>")
+            for k, v in rows:
+                add(f"<tr><td>{_esc(k)}</td><td>{_esc(v)}</td></tr>")
+            add("</table></details>")
+
+    # provenance
+    add("<h2 id='provenance'>Provenance</h2><table>")
+    info = {**prov, "report_written_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "machine": f"{platform.machine()} {platform.system()} {platform.release()}", "mode": mode}
+    for k, v in info.items():
+        add(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>")
+    add("</table><table><tr><th>study</th><th>status</th><th>wall time (s)</th></tr>")
+    for st in statuses:
+        w = st.get("wall_s")
+        add(f"<tr><td>{_esc(st['name'])}</td><td class='{'ok' if st.get('ok') else 'no'}'>"
+            f"{'ok' if st.get('ok') else 'failed'}</td><td>{'' if w is None else f'{w:.1f}'}</td></tr>")
+    add("</table></body></html>")
+
+    path = out / "index.html"
+    with atomic_output(path) as tmp:
+        tmp.write_text("\n".join(parts), encoding="utf-8")
+    return path

@@ -1,0 +1,137 @@
+"""Reproduce the paper: every registered study, three animations, one HTML page.
+
+:func:`reproduce` is resumable at two levels: a study whose ``NAME.json``
+exists from a run in the same mode is not run again, and inside a study the
+sweep engine keeps every finished simulation (``DIR/.sweeps``).  Progress
+and wall times are kept in ``DIR/reproduce.json`` (written atomically after
+every study), so an interrupted reproduction re-run continues where it
+stopped.  A study that raises is recorded as failed; the others go on.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+import traceback
+from pathlib import Path
+from typing import Callable
+
+from ._io import atomic_output
+
+__all__ = ["reproduce", "ANIMATIONS"]
+
+#: The report's animations: (file stem, caption, scene keyword arguments, duration s).
+ANIMATIONS = (
+    ("compatible_pair", "A compatible pair: dphi = 90 deg started at dx = lambda/4 stays put",
+     dict(phases_deg=(0.0, 90.0), dx0_over_lambda=0.25, channel_width_m=0.13), 16.0),
+    ("converging_pair", "An incompatible pair: dphi = 90 deg started at dx = 0 is pushed to compatibility",
+     dict(phases_deg=(0.0, 90.0), dx0_over_lambda=0.0, channel_width_m=0.13), 24.0),
+    ("four_swimmers", "Four swimmers with random phases (d = 0.22 m)",
+     dict(phases_deg=(0.0, 137.0, 48.0, 260.0), dx0_over_lambda=0.0, channel_width_m=0.22), 24.0),
+)
+
+
+def _state_path(out: Path) -> Path:
+    return out / "reproduce.json"
+
+
+def _load_state(out: Path, mode: str) -> dict:
+    p = _state_path(out)
+    if p.is_file():
+        st = json.loads(p.read_text())
+        if st.get("mode") == mode:
+            return st
+    return {"mode": mode, "studies": {}}
+
+
+def _save_state(out: Path, state: dict) -> None:
+    with atomic_output(_state_path(out)) as tmp:
+        tmp.write_text(json.dumps(state, indent=2))
+
+
+def _study_done(out: Path, name: str, quick: bool) -> bool:
+    p = out / f"{name}.json"
+    if not p.is_file():
+        return False
+    try:
+        return bool(json.loads(p.read_text())["config"]["quick"]) == quick
+    except (KeyError, ValueError):
+        return False
+
+
+def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: float) -> dict:
+    from .animate import animate
+    from .params import Channel, Scene, SimOptions
+    from .simulate import simulate
+    from .cli import write_netcdf_atomic
+
+    anim_dir = out / "animations"
+    anim_dir.mkdir(exist_ok=True)
+    gif, nc = anim_dir / f"{stem}.gif", anim_dir / f"{stem}.nc"
+    if not gif.is_file():
+        sc = Scene(phases_rad=tuple(math.radians(p) for p in kw["phases_deg"]),
+                   channel=Channel(width_m=kw["channel_width_m"]))
+        sc = Scene(phases_rad=sc.phases_rad, channel=sc.channel, dx0_m=kw["dx0_over_lambda"] * sc.wavelength_m)
+        ds = simulate(sc, SimOptions(duration_s=duration, sample_rate_hz=10))
+        write_netcdf_atomic(ds, nc)
+        animate(ds, gif, stride=1, fps=20, dpi=70, title=caption)  # twice real time
+    return {"file": f"animations/{gif.name}", "data": f"animations/{nc.name}", "caption": caption}
+
+
+def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None = None, seed: int = 0,
+              studies: list[str] | None = None, log: Callable[[str], None] = print,
+              animation_s: float | None = None) -> tuple[Path, list[dict]]:
+    """Run every registered study (or ``studies``) and write ``out_dir/index.html``.
+
+    ``animation_s`` overrides the simulated duration of each animation (s).
+
+    Returns the report path and the per-study statuses (``name``, ``ok``,
+    ``wall_s``, ``error``, ``reused``).
+    """
+    from . import studies as registry
+    from .report import write_report
+
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    mode = "quick" if quick else "full"
+    names = list(studies) if studies is not None else registry.names()
+    for n in names:
+        registry.describe(n)  # unknown names fail before any work
+    state = _load_state(out, mode)
+    t_all = time.perf_counter()
+    statuses = []
+    for i, name in enumerate(names, 1):
+        prev = state["studies"].get(name, {})
+        if _study_done(out, name, quick):
+            log(f"[{i}/{len(names)}] {name}: done earlier ({prev.get('wall_s', float('nan')):.1f} s), kept")
+            statuses.append({"name": name, "ok": True, "wall_s": prev.get("wall_s"), "error": None, "reused": True})
+            continue
+        log(f"[{i}/{len(names)}] {name}: running ({mode})")
+        t0 = time.perf_counter()
+        try:
+            registry.run_study(name, out, quick=quick, scheduler=scheduler, seed=seed)
+            st = {"name": name, "ok": True, "wall_s": time.perf_counter() - t0, "error": None, "reused": False}
+            log(f"[{i}/{len(names)}] {name}: done in {st['wall_s']:.1f} s")
+        except KeyboardInterrupt:
+            raise
+        except Exception as e:  # a failed study is reported, the others go on
+            st = {"name": name, "ok": False, "wall_s": time.perf_counter() - t0,
+                  "error": f"{type(e).__name__}: {e}", "reused": False,
+                  "traceback": traceback.format_exc()}
+            log(f"[{i}/{len(names)}] {name}: FAILED: {st['error']}")
+        statuses.append(st)
+        state["studies"][name] = {k: v for k, v in st.items() if k != "reused"}
+        _save_state(out, state)
+
+    anims = []
+    for stem, caption, kw, dur in ANIMATIONS:
+        try:
+            anims.append(_make_animation(out, stem, caption, kw, dur if animation_s is None else animation_s))
+        except Exception as e:  # pragma: no cover - reported in the log and on the page
+            log(f"animation {stem}: FAILED: {type(e).__name__}: {e}")
+    total = time.perf_counter() - t_all
+    path = write_report(out, statuses, mode=mode, animations=anims,
+                        total_wall_s=sum(s["wall_s"] or 0 for s in statuses))
+    log(f"wrote {path} ({total:.0f} s this run)")
+    return path, statuses
