@@ -80,6 +80,13 @@ def _timeconst(scene: Scene, timestep_s: float) -> float:
     return 2.0 * timestep_s if tc is None else tc
 
 
+def _contact_attrs(scene: Scene, timestep_s: float) -> dict:
+    """Geom attributes of frictionless soft contact, shared by links and walls."""
+    c = scene.contact
+    return dict(condim=1, solref=[_timeconst(scene, timestep_s), c.dampratio],
+                solimp=[c.dmin, c.dmax, c.width_m, 0.5, 2.0], margin=c.margin_m)
+
+
 def drag_viscosity(scene: Scene) -> float:
     """MuJoCo ``opt.viscosity`` (Pa s) giving the per-link linear drag coefficient.
 
@@ -101,7 +108,7 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
     The root body's frame sits at the head tip; link ``k`` spans
     ``[k l, (k+1) l]`` along the body axis when straight.
     """
-    g, c, sv = scene.geometry, scene.contact, scene.servo
+    g, sv = scene.geometry, scene.servo
     n, l, w = g.n_links, g.link_length_m, g.width_m
     spec = mujoco.MjSpec()
     parent = spec.worldbody
@@ -127,12 +134,9 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
         body.add_geom(
             name=f"g{k}",
             **shape,
-            condim=1,
+            **_contact_attrs(scene, timestep_s),
             contype=1,
             conaffinity=1,
-            solref=[_timeconst(scene, timestep_s), c.dampratio],
-            solimp=[c.dmin, c.dmax, c.width_m, 0.5, 2.0],
-            margin=c.margin_m,
             rgba=list(_SWIMMER_RGBA),
             mass=0,  # inertia is explicit
             fluid_ellipsoid=1 if scene.ground.mode == "swimming" else 0,
@@ -212,7 +216,6 @@ def scene_spec(scene: Scene, timestep_s: float) -> tuple[mujoco.MjSpec, tuple[st
     """
     g = scene.geometry
     ch = scene.channel
-    c = scene.contact
     spec = mujoco.MjSpec()
     spec.modelname = "undulate"
     opt = spec.option
@@ -228,12 +231,9 @@ def scene_spec(scene: Scene, timestep_s: float) -> tuple[mujoco.MjSpec, tuple[st
     half_d = ch.width_m / 2
     wall_common = dict(
         type=mujoco.mjtGeom.mjGEOM_PLANE,
-        condim=1,
+        **_contact_attrs(scene, timestep_s),
         contype=2,
         conaffinity=1,
-        solref=[_timeconst(scene, timestep_s), c.dampratio],
-        solimp=[c.dmin, c.dmax, c.width_m, 0.5, 2.0],
-        margin=c.margin_m,
         rgba=list(_WALL_RGBA),
     )
     wb = spec.worldbody
