@@ -22,7 +22,10 @@ from ._registry import (
 
 #: Study modules imported (in this order) when the registry is first used.
 STUDY_MODULES: tuple[str, ...] = (
+    "pairs",
     "compatibility",
+    "links",
+    "groups",
 )
 
 __all__ = [

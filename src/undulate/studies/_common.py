@@ -1,0 +1,455 @@
+"""Shared pieces of the simulation studies (pairs, links, groups).
+
+* :func:`simulate_point` is the sweep function they all run through
+  :func:`undulate.sweep.run_sweep`: one scene from a grid point, reduced to a
+  small Dataset (centres, phases, contact force, joint error).
+* :func:`run_points` runs a grid in ``config.out_dir/.sweeps/NAME/MODE`` so
+  that calling the study again resumes (finished runs are reused).
+* :func:`trajectory`, :func:`final_neighbours`, :func:`neighbour_series`
+  and :func:`steady_offsets` turn one run into nearest-neighbour offsets by
+  **lateral order** and their steady values.
+* :func:`slope_fit` and :func:`rms` are the summary statistics.
+
+Conventions are those of :mod:`undulate.params`: for lateral neighbours
+(lower, upper in y) ``dx = x_upper - x_lower`` and ``dphi = phi_upper -
+phi_lower``; compatibility is ``dx = lambda (dphi / 2 pi + n)``.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from .. import theory
+from ..observables import period_average, steady_state, wrap_angle
+from ..params import Channel, Gait, Scene, SimOptions, SwimmerGeometry
+from ._registry import StudyConfig
+
+__all__ = [
+    "BODY_LENGTH_M",
+    "PERIOD_S",
+    "DURATION_S",
+    "SAMPLE_RATE_HZ",
+    "TIMESTEP_S",
+    "STEADY_TOL",
+    "STEADY_WINDOW",
+    "STEADY_RULE",
+    "paper_phases",
+    "phase_grid",
+    "simulate_point",
+    "free_amplitude",
+    "sweep_function",
+    "run_points",
+    "trajectory",
+    "final_neighbours",
+    "neighbour_series",
+    "steady_offsets",
+    "Steady",
+    "SlopeFit",
+    "SLOPE_METHOD",
+    "unwrap_to_line",
+    "slope_fit",
+    "band_excess",
+    "rms",
+]
+
+BODY_LENGTH_M = 0.54
+"""L, m (the paper's robots; the SwimmerGeometry default)."""
+PERIOD_S = 2.0
+"""Gait period 1/f at the default f = 0.5 Hz, s."""
+DURATION_S = 30.0
+"""15 gait periods, as the paper's runs, s."""
+SAMPLE_RATE_HZ = 10.0
+"""Recording rate of the studies, Hz (20 samples per period)."""
+TIMESTEP_S = 0.002
+"""Integrator step of the 3-link studies, s (converged: README)."""
+
+STEADY_TOL = 0.01
+"""Steady-state tolerance on dx/lambda (dx/L for the standing wave), dimensionless."""
+STEADY_WINDOW = 3
+"""Periods in the steady-state window."""
+STEADY_RULE = (
+    f"observables.steady_state on period averages (period {PERIOD_S:g} s) of dx/lambda "
+    f"(dx/L for the standing wave xi = 0, lambda = inf): steady when the last {STEADY_WINDOW} "
+    f"period averages lie within {STEADY_TOL:g} of their mean; the steady value is that mean"
+)
+
+
+def paper_phases() -> np.ndarray:
+    """The paper's nine phase differences ``{-1, -3/4, ..., 1} pi``, rad."""
+    return np.arange(-4, 5) * (np.pi / 4)
+
+
+def phase_grid(n: int) -> np.ndarray:
+    """``n`` equally spaced phase differences over ``[-pi, pi]`` (both ends), rad.
+
+    With ``n = 8 k + 1`` the grid contains the paper's nine values.
+    """
+    return np.linspace(-np.pi, np.pi, int(n))
+
+
+# ------------------------------------------------------------ the sweep function
+def simulate_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channel_width_m: float = 0.13,
+                   random_phases: bool = False, duration_s: float = DURATION_S,
+                   sample_rate_hz: float = SAMPLE_RATE_HZ) -> xr.Dataset:
+    """Simulate one scene of a study grid; a small Dataset for the sweep store.
+
+    ``point`` keys (all optional): ``dphi_rad`` (phase step between
+    neighbours in the initial stack, rad: swimmer ``j`` gets ``j dphi``;
+    default 0), ``waves_per_body`` (xi, default 1), ``n_links`` (default 3),
+    ``amplitude_rad`` (beta, default 45 degrees), ``timestep_s`` (default
+    :data:`TIMESTEP_S`).  With ``random_phases`` every swimmer's phase is
+    drawn uniformly from ``[0, 2 pi)`` with ``numpy.random.default_rng(seed)``
+    (the sweep's per-run seed) and ``dphi_rad`` is ignored.  Swimmers start
+    straight, laterally in contact, at dx0 = 0 (paper Methods).
+
+    Returns (dims; units): ``x``, ``y`` (time, swimmer; m) centres of mass,
+    ``phase`` (swimmer; rad), ``joint_error`` (time, swimmer; rad, mean over
+    the joints), ``contact_force_pair`` (time, pair; N, swimmers p and p+1
+    of the initial stack), ``penetration_max`` (m), and the wavelength
+    ``wavelength`` (m, inf for xi = 0).
+    """
+    from ..simulate import simulate
+
+    xi = float(point.get("waves_per_body", 1.0))
+    n_links = int(point.get("n_links", 3))
+    beta = float(point.get("amplitude_rad", math.radians(45.0)))
+    dt = float(point.get("timestep_s", TIMESTEP_S))
+    if random_phases:
+        phases = tuple(np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, n_swimmers))
+    else:
+        phases = tuple(j * float(point.get("dphi_rad", 0.0)) for j in range(n_swimmers))
+    scene = Scene(
+        phases_rad=phases,
+        gait=Gait(amplitude_rad=beta, waves_per_body=xi),
+        geometry=SwimmerGeometry(n_links=n_links, length_m=BODY_LENGTH_M),
+        channel=Channel(width_m=channel_width_m),
+    )
+    ds = simulate(scene, SimOptions(duration_s=duration_s, timestep_s=dt, sample_rate_hz=sample_rate_hz))
+    time = ds["time"].values
+    return xr.Dataset(
+        {
+            "x": (("time", "swimmer"), ds["x"].values, {"units": "m", "long_name": "centre of mass x"}),
+            "y": (("time", "swimmer"), ds["y"].values, {"units": "m", "long_name": "centre of mass y"}),
+            "phase": ("swimmer", np.asarray(phases, float), {"units": "rad", "long_name": "gait phase phi"}),
+            "joint_error": (("time", "swimmer"), ds["joint_error"].values.mean(axis=-1),
+                            {"units": "rad", "long_name": "joint error |alpha - alpha_cmd|, mean over joints"}),
+            "contact_force_pair": (("time", "pair"), ds["contact_force_pair"].values,
+                                   {"units": "N", "long_name": "net contact force between swimmers pair "
+                                                               "and pair+1 of the initial stack"}),
+            "penetration_max": ((), float(ds["penetration"].max()), {"units": "m"}),
+            "wavelength": ((), float(ds.attrs["wavelength"]), {"units": "m"}),
+        },
+        coords={"time": ("time", time, {"units": "s"})},
+    )
+
+
+def free_amplitude(point: dict[str, Any], seed: int, *, periods: int = 3) -> xr.Dataset:
+    """Gait amplitude A (m) of one free swimmer with the gait of ``point``.
+
+    Same point keys as :func:`simulate_point` (``dphi_rad`` is irrelevant).
+    The swimmer runs alone in a wide channel (1 m) for ``periods`` + 1
+    periods; A is :func:`undulate.observables.gait_amplitude` over the last
+    ``periods``.  Returns the scalar ``amplitude`` (m).
+    """
+    from ..observables import gait_amplitude
+    from ..simulate import simulate
+
+    gait = Gait(amplitude_rad=float(point.get("amplitude_rad", math.radians(45.0))),
+                waves_per_body=float(point.get("waves_per_body", 1.0)))
+    scene = Scene(phases_rad=(0.0,), gait=gait,
+                  geometry=SwimmerGeometry(n_links=int(point.get("n_links", 3)), length_m=BODY_LENGTH_M),
+                  channel=Channel(width_m=1.0))
+    dt = float(point.get("timestep_s", TIMESTEP_S))
+    ds = simulate(scene, SimOptions(duration_s=(periods + 1) * gait.period_s, timestep_s=dt,
+                                    sample_rate_hz=min(50.0, 1.0 / dt)))
+    a = gait_amplitude(ds, periods=periods)
+    return xr.Dataset({"amplitude": ((), a, {"units": "m", "long_name": "gait amplitude A of a free swimmer"})})
+
+
+def run_points(config: StudyConfig, name: str, sub: str, fn, grid):
+    """Run ``fn`` over ``grid`` with the sweep engine; resumable.
+
+    The store is ``config.out_dir/.sweeps/NAME/{quick,full}/SUB`` (quick
+    and full grids differ, so they keep separate stores); the Dask
+    scheduler is ``config.scheduler`` (None: every local core).  Failed runs
+    are not raised here: they come back as NaN with ``run_failed`` set, and
+    the studies count them.
+    """
+    from ..sweep import run_sweep
+
+    out = Path(config.out_dir) / ".sweeps" / name / ("quick" if config.quick else "full") / sub
+    out.mkdir(parents=True, exist_ok=True)
+    return run_sweep(fn, grid, out, scheduler=config.scheduler)
+
+
+def sweep_function(**kwargs):
+    """:func:`simulate_point` with fixed keyword arguments (picklable, stable id)."""
+    return functools.partial(simulate_point, **kwargs)
+
+
+# ------------------------------------------------------------------ analysis
+def trajectory(run: xr.Dataset, wavelength_m: float, period_s: float = PERIOD_S) -> xr.Dataset:
+    """One run (a slice of the sweep dataset) as a trajectory the observables accept.
+
+    Needs ``x``, ``y`` (time, swimmer) and ``phase`` (swimmer); sets the
+    ``phase`` coordinate and the ``wavelength`` and ``period`` attributes.
+    """
+    ds = xr.Dataset({"x": run["x"], "y": run["y"]},
+                    coords={"time": run["time"], "phase": ("swimmer", np.asarray(run["phase"].values, float))})
+    ds.attrs.update(wavelength=float(wavelength_m), period=float(period_s))
+    return ds
+
+
+def final_neighbours(ds: xr.Dataset, period_s: float | None = None,
+                     window: int = STEADY_WINDOW) -> tuple[list[tuple[int, int]], bool]:
+    """Neighbouring swimmer ids ``(lower, upper)`` by lateral order at the end of a run.
+
+    ``ds``: a trajectory with ``y`` (time, swimmer).  The order is that of
+    the swimmers' **mean** ``y`` over the last ``window`` whole periods (the
+    steady-state window), not of one sample: bodies that interdigitate
+    (e.g. dphi = pi) cross each other's centre-of-mass ``y`` within every
+    cycle, so an instantaneous order flips back and forth.  Returns the
+    pairs, bottom to top, and whether every single period of the window has
+    the same order of its mean ``y`` (False: the swimmers were still
+    changing lateral places).
+    """
+    if period_s is None:
+        period_s = float(ds.attrs.get("period", PERIOD_S))
+    pa = period_average(ds["y"], period_s).transpose("time", "swimmer").values[-window:]
+    last = np.argsort(pa.mean(axis=0), kind="stable")
+    pairs = [(int(a), int(b)) for a, b in zip(last[:-1], last[1:])]
+    stable = all((np.argsort(row, kind="stable") == last).all() for row in pa)
+    return pairs, bool(stable)
+
+
+def neighbour_series(ds: xr.Dataset, lower: int, upper: int) -> tuple[xr.DataArray, xr.DataArray, float]:
+    """``dx(t) = x_upper - x_lower``, ``dy(t)`` (m) and ``dphi = wrap(phi_upper - phi_lower)`` (rad).
+
+    The pair is fixed by id (e.g. from :func:`final_neighbours`), so the
+    series stays continuous even if the swimmers swapped lateral places on
+    the way.  ``dphi`` is wrapped into (-pi, pi].
+    """
+    dx = (ds["x"].isel(swimmer=upper) - ds["x"].isel(swimmer=lower)).assign_attrs(units="m")
+    dy = (ds["y"].isel(swimmer=upper) - ds["y"].isel(swimmer=lower)).assign_attrs(units="m")
+    phase = np.asarray(ds["phase"].values, float)
+    dphi = float(wrap_angle(phase[upper] - phase[lower]))
+    return dx.drop_vars([c for c in dx.coords if c != "time"]), \
+        dy.drop_vars([c for c in dy.coords if c != "time"]), dphi
+
+
+@dataclass(frozen=True)
+class Steady:
+    """Steady value of one neighbour offset (see :data:`STEADY_RULE`)."""
+
+    dx_m: float
+    """Steady dx, m (the mean of the last window's period averages)."""
+    steady: bool
+    settle_time_s: float
+    spread: float
+    """Max deviation of the last window's period averages from their mean, in dx/scale."""
+    dy_m: float
+    """Mean dy over the last window, m."""
+
+
+def steady_offsets(dx: xr.DataArray, dy: xr.DataArray, wavelength_m: float,
+                   period_s: float = PERIOD_S) -> Steady:
+    """Apply the steady-state rule to ``dx / lambda`` (``dx / L`` when lambda = inf)."""
+    scale = wavelength_m if math.isfinite(wavelength_m) else BODY_LENGTH_M
+    ss = steady_state(dx / scale, period_s=period_s, tol=STEADY_TOL, window=STEADY_WINDOW)
+    t = dy["time"].values
+    n_full = int(np.floor((t[-1] - t[0]) / period_s + 1e-9))
+    lo, hi = t[0] + (n_full - STEADY_WINDOW) * period_s, t[0] + n_full * period_s
+    dy_last = float(dy.where((dy["time"] > lo + 1e-9) & (dy["time"] <= hi + 1e-9)).mean())
+    return Steady(dx_m=float(ss["value"]) * scale, steady=bool(ss["steady"]),
+                  settle_time_s=float(ss["settle_time"]), spread=float(ss["spread"]), dy_m=dy_last)
+
+
+def _last_window_mean(da: xr.DataArray, period_s: float = PERIOD_S) -> float:
+    """Mean of a (time, ...) series over the steady-state window (last whole periods)."""
+    t = da["time"].values
+    n_full = int(np.floor((t[-1] - t[0]) / period_s + 1e-9))
+    lo, hi = t[0] + (n_full - STEADY_WINDOW) * period_s, t[0] + n_full * period_s
+    sel = (t > lo + 1e-9) & (t <= hi + 1e-9)
+    return float(np.nanmean(da.values[sel]))
+
+
+PAIR_FIELDS = ("dx_steady", "dy_steady", "steady", "settle_time", "steady_spread", "swapped",
+               "order_stable", "residual", "band_excess", "contact_force_mean", "joint_error_mean",
+               "penetration_max")
+
+
+def pair_record(run: xr.Dataset, dphi_rad: float, wavelength_m: float, amplitude_m: float
+                ) -> tuple[dict[str, float], np.ndarray]:
+    """Steady state of one pair run (2 swimmers; swimmer 1 has phase ``dphi_rad``, swimmer 0 has 0).
+
+    Neighbours are identified by lateral order at the end of the run
+    (:func:`final_neighbours`), giving ``(dx, dphi)`` = ``(x_upper - x_lower,
+    phi_upper - phi_lower)``.  If the swimmers swapped lateral places, that
+    point is reflected through the origin to ``(-dx, -dphi)``, which
+    describes the same configuration (compatibility is odd in both) and
+    puts it at the nominal ``dphi_rad``: in every case the reported offset
+    is ``x_1 - x_0``.  Returns the scalars of :data:`PAIR_FIELDS` (m, s, N,
+    rad, flags as floats) and the series ``x_1(t) - x_0(t)`` (m).
+    """
+    traj = trajectory(run, wavelength_m)
+    pairs, stable = final_neighbours(traj)
+    (lo, up), = pairs
+    swapped = lo != 0
+    dx, dy, _ = neighbour_series(traj, lo, up)
+    sign = -1.0 if swapped else 1.0
+    dx = dx * sign
+    st = steady_offsets(dx, dy, wavelength_m)
+    lam = wavelength_m
+    res = float(theory.compatibility_residual(st.dx_m, dphi_rad, lam)) if math.isfinite(lam) else math.nan
+    exc = float(band_excess(st.dx_m, dphi_rad, st.dy_m, amplitude_m, lam)) if math.isfinite(lam) else math.nan
+    rec = {
+        "dx_steady": st.dx_m, "dy_steady": st.dy_m, "steady": float(st.steady),
+        "settle_time": st.settle_time_s, "steady_spread": st.spread, "swapped": float(swapped),
+        "order_stable": float(stable), "residual": res, "band_excess": exc,
+        "contact_force_mean": _last_window_mean(run["contact_force_pair"].isel(pair=0)),
+        "joint_error_mean": _last_window_mean(run["joint_error"].mean("swimmer")),
+        "penetration_max": float(run["penetration_max"]),
+    }
+    return rec, dx.values
+
+
+PAIR_ATTRS = {
+    "dx_steady": ("m", "steady longitudinal offset x_1 - x_0 (= x_upper - x_lower up to reflection)"),
+    "dy_steady": ("m", "lateral offset y_upper - y_lower, mean over the steady-state window"),
+    "settle_time": ("s", "start of the steady state (NaN if not steady)"),
+    "steady_spread": ("1", "max deviation of the last window's period averages from their mean, "
+                           "in units of lambda (L for xi = 0)"),
+    "residual": ("m", "signed distance of dx_steady from the nearest compatibility branch "
+                      "lambda (dphi/2pi + n) (theory.compatibility_residual)"),
+    "band_excess": ("m", "distance of dx_steady outside the full compatibility band at the measured "
+                         "dy_steady and free-swimmer amplitude A (0 = inside)"),
+    "contact_force_mean": ("N", "mean swimmer-swimmer contact force over the steady-state window"),
+    "joint_error_mean": ("rad", "mean joint error over the steady-state window"),
+    "penetration_max": ("m", "deepest interpenetration of the run"),
+}
+PAIR_FLAGS = {
+    "steady": "steady by the rule in attrs['steady_rule']",
+    "swapped": "the swimmers ended in swapped lateral order (point reflected to the nominal dphi)",
+    "order_stable": "lateral order unchanged over the steady-state window",
+}
+
+
+def collect_pairs(runs, failed, dphi_rad, wavelength_m, amplitude_m, dims):
+    """Analyse an array of pair runs into study variables.
+
+    ``runs(idx)`` returns the run Dataset at index tuple ``idx`` of shape
+    ``failed.shape``; ``dphi_rad``, ``wavelength_m``, ``amplitude_m`` are
+    arrays of that shape (broadcast); ``dims`` names its axes.  Returns
+    ``(variables, dx_t)``: a dict of ``xarray.Variable`` (:data:`PAIR_FIELDS`
+    plus ``dx_steady_over_lambda``, ``residual_over_lambda``,
+    ``run_failed``) and the array of ``x_1 - x_0`` series (shape + (time,)).
+    Failed runs are NaN (flags False).
+    """
+    failed = np.asarray(failed, bool)
+    shape = failed.shape
+    dphi = np.broadcast_to(np.asarray(dphi_rad, float), shape)
+    lam = np.broadcast_to(np.asarray(wavelength_m, float), shape)
+    amp = np.broadcast_to(np.asarray(amplitude_m, float), shape)
+    out = {k: np.full(shape, np.nan) for k in PAIR_FIELDS}
+    dx_t = None
+    for idx in np.ndindex(*shape):
+        if failed[idx]:
+            continue
+        rec, series = pair_record(runs(idx), float(dphi[idx]), float(lam[idx]), float(amp[idx]))
+        if dx_t is None:
+            dx_t = np.full(shape + series.shape, np.nan)
+        dx_t[idx] = series
+        for k, v in rec.items():
+            out[k][idx] = v
+    with np.errstate(invalid="ignore", divide="ignore"):
+        finite = np.isfinite(lam)
+        over = {"dx_steady_over_lambda": np.where(finite, out["dx_steady"] / lam, np.nan),
+                "residual_over_lambda": np.where(finite, out["residual"] / lam, np.nan)}
+    variables = {}
+    for k, (units, long_name) in PAIR_ATTRS.items():
+        variables[k] = xr.Variable(dims, out[k], {"units": units, "long_name": long_name})
+    for k, long_name in PAIR_FLAGS.items():
+        variables[k] = xr.Variable(dims, out[k] == 1.0, {"long_name": long_name})
+    variables["dx_steady_over_lambda"] = xr.Variable(dims, over["dx_steady_over_lambda"], {
+        "units": "1", "long_name": "dx_steady / lambda (NaN for xi = 0)"})
+    variables["residual_over_lambda"] = xr.Variable(dims, over["residual_over_lambda"], {
+        "units": "1", "long_name": "residual / lambda: distance from the nearest compatibility branch"})
+    variables["run_failed"] = xr.Variable(dims, failed, {"long_name": "the simulation failed (no result)"})
+    return variables, dx_t
+
+
+# ------------------------------------------------------------------ statistics
+@dataclass(frozen=True)
+class SlopeFit:
+    """Least-squares line ``dx/lambda = slope * dphi/2pi + intercept``."""
+
+    slope: float
+    intercept: float
+    n: int
+
+
+def unwrap_to_line(dx_over_lambda, dphi_rad) -> np.ndarray:
+    """Move each ``dx/lambda`` by a whole wavelength onto the branch nearest the line through 0.
+
+    ``dx/lambda + n`` with ``n`` the integer that brings the point closest to
+    ``dphi/2pi`` (the n = 0 compatibility branch): this is
+    ``dphi/2pi + compatibility_residual/lambda``.  Branches repeat every
+    wavelength, so this changes no physical configuration; it only undoes
+    the wrap at ``dphi = +-pi`` (the same physical state) before a line fit.
+    """
+    r = theory.compatibility_residual(np.asarray(dx_over_lambda, float), np.asarray(dphi_rad, float), 1.0)
+    return np.asarray(dphi_rad, float) / (2 * np.pi) + r
+
+
+SLOPE_METHOD = (
+    "ordinary least squares (slope and intercept) of dx/lambda against dphi/2pi over every run "
+    "with a result, after moving each dx/lambda by whole wavelengths onto the branch nearest the "
+    "n = 0 line dx/lambda = dphi/2pi (i.e. dphi/2pi + nearest-branch residual; this undoes the "
+    "wrap at dphi = +-pi, which is one physical state); 'slope_open_interval' is the same fit "
+    "without unwrapping over |dphi| < pi only"
+)
+
+
+def slope_fit(dx_over_lambda, dphi_rad, unwrap: bool = True) -> SlopeFit:
+    """Fit ``dx/lambda`` against ``dphi/2pi`` (see :data:`SLOPE_METHOD`); NaNs are skipped."""
+    y = np.asarray(dx_over_lambda, float).ravel()
+    x = np.asarray(dphi_rad, float).ravel()
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y = x[ok], y[ok]
+    if unwrap:
+        y = unwrap_to_line(y, x)
+    if x.size < 2 or np.ptp(x) == 0:
+        return SlopeFit(math.nan, math.nan, int(x.size))
+    slope, intercept = np.polyfit(x / (2 * np.pi), y, 1)
+    return SlopeFit(float(slope), float(intercept), int(x.size))
+
+
+def band_excess(dx_m, dphi_rad, dy_m, amplitude_m, wavelength_m):
+    """How far (m) a configuration lies outside the full compatibility band.
+
+    ``lambda / 2 pi * max(0, |psi| - 2 arcsin(min(|dy| / 2A, 1)))`` with
+    ``psi`` the phase mismatch (paper Eq. (fullcompatibility)): 0 inside the
+    band (the bodies need not touch at that lateral offset), else the
+    longitudinal distance to the band's edge.  NaN for lambda = inf.
+    """
+    lam = float(wavelength_m)
+    if not math.isfinite(lam):
+        return np.full(np.shape(dx_m), np.nan)
+    psi = theory.phase_mismatch(dphi_rad, dx_m, lam)
+    half = theory.max_phase_mismatch(dy_m, amplitude_m)
+    return lam / (2 * np.pi) * np.maximum(0.0, np.abs(psi) - half)
+
+
+def rms(values: Sequence[float] | np.ndarray) -> float:
+    """Root mean square over the finite values (NaN when there are none)."""
+    v = np.asarray(values, float).ravel()
+    v = v[np.isfinite(v)]
+    return float(np.sqrt(np.mean(v * v))) if v.size else math.nan

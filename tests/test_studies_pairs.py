@@ -1,0 +1,172 @@
+"""The pair, link-number and group studies (paper Figs. 3, 5, 6): real quick runs, no mocks."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from undulate.observables import neighbour_offsets
+from undulate.studies import names, run_study
+from undulate.studies import _common as C
+from undulate.studies.groups import group_records
+
+
+def _run(tmp_path_factory, name):
+    out = tmp_path_factory.mktemp(name)
+    path = run_study(name, out, quick=True)
+    return out, path
+
+
+@pytest.fixture(scope="module")
+def pairs_run(tmp_path_factory):
+    return _run(tmp_path_factory, "pairs")
+
+
+@pytest.fixture(scope="module")
+def links_run(tmp_path_factory):
+    return _run(tmp_path_factory, "links")
+
+
+@pytest.fixture(scope="module")
+def groups_run(tmp_path_factory):
+    return _run(tmp_path_factory, "groups")
+
+
+def _check_files(out, name):
+    for ext in ("nc", "png", "pdf", "json"):
+        assert (out / f"{name}.{ext}").stat().st_size > 0
+    ds = xr.load_dataset(out / f"{name}.nc", engine="h5netcdf")
+    for k, v in {**ds.coords, **ds.data_vars}.items():
+        if v.dtype.kind in "iuf":
+            assert "units" in v.attrs, k
+    assert ds.attrs["study"] == name and "undulate_version" in ds.attrs
+    doc = json.loads((out / f"{name}.json").read_text())
+    assert doc["study"] == name
+    return ds, doc["summary"]
+
+
+def test_registered():
+    assert {"pairs", "links", "groups"} <= set(names())
+
+
+def test_pairs_quick(pairs_run):
+    out, path = pairs_run
+    assert path == out / "pairs.nc"
+    ds, summary = _check_files(out, "pairs")
+    assert ds.sizes["dphi"] == 9 and list(ds["xi"].values) == [0.0, 0.75, 1.0, 1.5]
+    assert ds["dx_steady"].attrs["units"] == "m" and ds["dx"].dims == ("xi", "dphi", "time")
+    assert summary["n_runs"] == 36 and summary["n_failed"] == 0
+    assert 0 <= summary["n_steady"] <= 36 and "steady_rule" in summary and "slope_method" in summary
+    per = summary["per_xi"]
+    assert set(per) == {"0", "0.75", "1", "1.5"}
+    for key in ("0.75", "1", "1.5"):
+        for field in ("slope", "intercept", "rms_residual_over_lambda", "rms_residual_m", "n_steady"):
+            assert per[key][field] is not None, (key, field)
+    assert per["0"]["slope"] is None and per["0"]["dx_std_m"] >= 0
+    # Under the project's conventions the compatibility slope is +1: the xi = 1 pair follows it.
+    assert 0.75 < per["1"]["slope"] < 1.25
+    assert per["1"]["rms_residual_over_lambda"] < 0.1
+    # the standing wave has no wavelength: dx/lambda is undefined there
+    assert np.isnan(ds["dx_steady_over_lambda"].sel(xi=0.0)).all()
+
+
+def test_pairs_resume(pairs_run):
+    """A second call reuses every stored run and gives the same numbers."""
+    out, _ = pairs_run
+    before = json.loads((out / "pairs.json").read_text())["summary"]
+    store = out / ".sweeps" / "pairs" / "quick" / "sim"
+    n_files = len(list((store / "runs").glob("*.nc")))
+    assert n_files == 36
+    run_study("pairs", out, quick=True)
+    after = json.loads((out / "pairs.json").read_text())["summary"]
+    assert after["per_xi"]["1"] == before["per_xi"]["1"]
+    assert len(list((store / "runs").glob("*.nc"))) == n_files
+
+
+def test_links_quick(links_run):
+    out, _ = links_run
+    ds, summary = _check_files(out, "links")
+    assert list(ds["n_links"].values) == [3, 5, 7, 9]
+    for rule in ("fixed", "curvature"):
+        per_n = summary["per_rule"][rule]["per_n"]
+        assert set(per_n) == {"3", "5", "7", "9"}
+        for row in per_n.values():
+            assert row["n_failed"] == 0
+            assert row["rms_residual_over_lambda"] is not None and row["rms_residual_over_lambda"] >= 0
+        assert isinstance(summary["per_rule"][rule]["rms_falls_with_n"], bool)
+    # both rules share the 3-link gait, so they agree there exactly
+    a = ds["dx_steady"].sel(n_links=3)
+    np.testing.assert_allclose(a.sel(rule="fixed"), a.sel(rule="curvature"))
+
+
+def test_groups_quick(groups_run):
+    out, _ = groups_run
+    ds, summary = _check_files(out, "groups")
+    per = summary["per_group_size"]
+    assert per["3"]["n_runs"] == 9 and per["3"]["n_neighbour_pairs"] == 18
+    assert per["4"]["n_runs"] == 8 and per["4"]["n_neighbour_pairs"] == 24
+    for row in per.values():
+        assert row["n_failed"] == 0 and row["rms_residual_over_lambda"] is not None
+    # neighbours are adjacent in the final lateral order and dphi is wrapped
+    assert (np.abs(ds["dphi"]) <= math.pi + 1e-12).all()
+    # random 4-swimmer phases differ between draws
+    fours = ds["phase"].values[ds["run_group_size"].values == 4]
+    assert len({tuple(np.round(p, 9)) for p in fours}) == len(fours)
+
+
+def _swap_dataset():
+    """Three swimmers; 0 and 1 swap lateral places at t = 10 s, and stay swapped."""
+    t = np.arange(0.0, 30.0 + 1e-9, 0.1)
+    y0 = np.where(t < 10.0, -0.05, 0.0)
+    y1 = np.where(t < 10.0, 0.0, -0.05)
+    y2 = np.full_like(t, 0.05)
+    x = np.stack([np.full_like(t, 0.10), np.full_like(t, -0.02), np.full_like(t, 0.30)], axis=1)
+    y = np.stack([y0, y1, y2], axis=1)
+    ds = xr.Dataset(
+        {"x": (("time", "swimmer"), x, {"units": "m"}), "y": (("time", "swimmer"), y, {"units": "m"})},
+        coords={"time": t, "swimmer": [0, 1, 2], "phase": ("swimmer", [0.0, 1.0, 3.0])},
+        attrs={"wavelength": 0.54, "period": 2.0},
+    )
+    return ds
+
+
+def test_neighbours_by_lateral_order_after_swap():
+    ds = _swap_dataset()
+    off = neighbour_offsets(ds)
+    # before the swap: (0, 1), (1, 2); after: (1, 0), (0, 2)
+    assert off["lower"].values[0].tolist() == [0, 1] and off["upper"].values[0].tolist() == [1, 2]
+    assert off["lower"].values[-1].tolist() == [1, 0] and off["upper"].values[-1].tolist() == [0, 2]
+    np.testing.assert_allclose(off["dx"].values[-1], [0.10 - (-0.02), 0.30 - 0.10])
+
+    pairs, stable = C.final_neighbours(ds)
+    assert pairs == [(1, 0), (0, 2)] and stable
+    recs = group_records(ds, amplitude_m=0.05)
+    assert [(r["lower"], r["upper"]) for r in recs] == [(1, 0), (0, 2)]
+    assert all(r["order_changed"] for r in recs)
+    np.testing.assert_allclose([r["dx_steady"] for r in recs], [0.12, 0.20])
+    np.testing.assert_allclose([r["dphi"] for r in recs], [-1.0, 3.0])
+    assert all(r["steady"] for r in recs)
+
+
+def test_final_neighbours_ignore_flips_within_a_cycle():
+    """Centres that cross every cycle (interdigitating bodies) keep the order of their mean y."""
+    ds = _swap_dataset().isel(swimmer=[0, 2])
+    t = ds["time"].values
+    y = np.stack([0.004 * np.sin(2 * np.pi * t / 2.0), 0.003 + 0.004 * np.sin(2 * np.pi * t / 2.0 + np.pi)], 1)
+    ds = ds.assign(y=(("time", "swimmer"), y))
+    pairs, _ = C.final_neighbours(ds)
+    assert pairs == [(0, 1)]
+
+
+def test_slope_fit_unwraps_the_pi_ends():
+    dphi = C.paper_phases()
+    y = dphi / (2 * np.pi)
+    y[0] = 0.5  # dphi = -pi landed on the other branch: the same physical state
+    fit = C.slope_fit(y, dphi)
+    assert fit.slope == pytest.approx(1.0) and fit.intercept == pytest.approx(0.0, abs=1e-12)
+    raw = np.polyfit(dphi / (2 * np.pi), y, 1)[0]
+    assert raw < 0.9  # what a naive fit would give
