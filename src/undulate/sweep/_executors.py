@@ -17,7 +17,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from ..errors import ParameterError
+from ..errors import ParameterError, UndulateError
 from ._worker import Chunk, Outcome, init_local_worker, run_chunk
 
 OnDone = Callable[[Chunk, list[Outcome]], None]
@@ -57,6 +57,7 @@ def run_local(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost, *, work
     """
     ctx = multiprocessing.get_context("spawn")
     pending: deque[tuple[Chunk, int]] = deque((c, 0) for c in chunks)
+    breaks_in_a_row = 0
     while pending:
         pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_local_worker)
         inflight: dict[Future, tuple[Chunk, int]] = {}
@@ -74,8 +75,17 @@ def run_local(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost, *, work
                     except BrokenProcessPool:
                         broken.append((chunk, attempts))
                         continue
+                    breaks_in_a_row = 0
                     on_done(chunk, outcomes)
             if broken:
+                breaks_in_a_row += 1
+                if breaks_in_a_row >= MAX_ATTEMPTS:
+                    raise UndulateError(
+                        f"the local worker processes died {breaks_in_a_row} times in a row without finishing a "
+                        "task. Can they import the sweep function? Does the script that calls run_sweep guard it "
+                        "with `if __name__ == \"__main__\":` (new processes import that script)? Finished runs "
+                        "are saved; rerun to resume, or use workers=1 to see errors in this process"
+                    )
                 # Every other in-flight chunk fails with the pool as well.
                 for fut, (chunk, attempts) in inflight.items():
                     try:

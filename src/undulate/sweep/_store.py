@@ -320,7 +320,13 @@ def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path) -> xr.Dataset:
         if not have[j]:
             continue
         path = result_path(runs_dir, run)
-        ds, meta = read_run_file(path)
+        try:
+            ds, meta = read_run_file(path)
+        except Exception as exc:  # noqa: BLE001 - e.g. truncated by a power cut despite fsync
+            path.unlink(missing_ok=True)
+            write_failure(runs_dir, run, None, f"CorruptResult: {path.name} could not be read ({exc}); "
+                          "it was removed, run the sweep again to recompute it")
+            return merge(grid, runs, runs_dir)  # start over without it
         if meta.get("seed") != run.seed or meta.get("point") != json.loads(json.dumps(run.point)):
             raise ParameterError(
                 "out_dir", f"a store whose run files match its manifest ({path.name} is for another run)",

@@ -6,6 +6,7 @@ import json
 import logging
 import math
 import os
+import pickle
 import sys
 import time
 from collections.abc import Callable
@@ -184,6 +185,9 @@ def run_sweep(
     if batch is not None and (isinstance(batch, bool) or not isinstance(batch, int) or batch < 1):
         raise ParameterError("batch", "an integer >= 1 (runs per task), or None (automatic)", batch)
 
+    if scheduler is None and workers != 1:
+        _check_importable(fn)
+
     with Store.open(out_dir, make_manifest(fn, grid, batched)) as store:
         runs = grid.runs()
         done = store.done_keys()
@@ -278,6 +282,24 @@ def run_sweep(
     if progress:
         _summary(result, stream or sys.stderr)
     return result
+
+
+def _check_importable(fn: Callable) -> None:
+    """Local worker processes get ``fn`` by reference (pickle): it must be importable there."""
+    try:
+        pickle.dumps(fn)
+    except Exception as e:  # noqa: BLE001 - lambdas, closures, bound objects that do not pickle
+        raise ParameterError(
+            "fn", f"a top-level function (or a functools.partial of one) that pickles, for workers > 1 ({e}); "
+            "workers=1 runs anything", fn
+        ) from None
+    inner = fn.func if hasattr(fn, "func") else fn
+    main = sys.modules.get("__main__")
+    if getattr(inner, "__module__", None) == "__main__" and not getattr(main, "__file__", None):
+        raise ParameterError(
+            "fn", "defined in an importable module (not in an interactive session or notebook) for workers > 1; "
+            "workers=1 runs it here, and a Dask scheduler= ships it by value", fn
+        )
 
 
 def _sweep_attrs(fn: Callable, grid: Grid, failures: list[RunFailure]) -> dict[str, Any]:
