@@ -36,21 +36,50 @@ def wrap_angle(a):
     return -wrap_phase(-np.asarray(a, dtype=float))
 
 
-def lateral_order(ds: xr.Dataset) -> xr.DataArray:
-    """Swimmer ids sorted by centre-of-mass y at each sample: (time, rank)."""
-    order = np.argsort(ds["y"].values, axis=1, kind="stable")
+def _running_mean(a: np.ndarray, n: int) -> np.ndarray:
+    """Running mean over ``n`` samples along axis 0, centred where possible:
+    near the ends the full window slides inside the record instead of shrinking."""
+    n = min(n, a.shape[0])
+    if n <= 1:
+        return a
+    c = np.cumsum(np.concatenate([np.zeros((1,) + a.shape[1:]), a]), axis=0)
+    i = np.arange(a.shape[0])
+    lo = np.clip(i - n // 2, 0, a.shape[0] - n)
+    hi = lo + n
+    return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
+def lateral_order(ds: xr.Dataset, window_s: float | None = None) -> xr.DataArray:
+    """Swimmer ids sorted by lateral position at each sample: (time, rank).
+
+    Swimmers are ordered by their centre-of-mass ``y`` averaged over a
+    centred window of ``window_s`` (default: one gait period, from
+    ``ds.attrs["period"]``).  Undulating bodies in close contact can swap
+    the order of their instantaneous centres within a cycle while keeping
+    their lateral places; the window removes that flicker.  A real swap of
+    lateral places, lasting longer than the window, is followed.
+    ``window_s = 0`` orders by the instantaneous ``y``.
+    """
+    y = ds["y"].values
+    if window_s is None:
+        window_s = float(ds.attrs.get("period", 0.0))
+    t = ds["time"].values
+    dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
+    n = max(1, int(round(window_s / dt)))
+    order = np.argsort(_running_mean(y, n), axis=1, kind="stable")
     return xr.DataArray(order, dims=("time", "rank"), coords={"time": ds["time"]},
-                        attrs={"long_name": "swimmer id at lateral rank (0 = lowest y)"})
+                        attrs={"long_name": "swimmer id at lateral rank (0 = lowest y)",
+                               "window_s": window_s})
 
 
-def neighbour_offsets(ds: xr.Dataset) -> xr.Dataset:
-    """Nearest-neighbour offsets by lateral order.
+def neighbour_offsets(ds: xr.Dataset, window_s: float | None = None) -> xr.Dataset:
+    """Nearest-neighbour offsets by lateral order (see :func:`lateral_order`).
 
     Returns a Dataset with dims ``(time, pair)`` (pair ``r`` joins ranks
     ``r`` and ``r+1``): ``dx`` and ``dy`` in m, ``dphi`` in rad, and the
     swimmer ids ``lower`` and ``upper``.
     """
-    order = lateral_order(ds).values
+    order = lateral_order(ds, window_s).values
     x, y = ds["x"].values, ds["y"].values
     phase = np.asarray(ds["phase"].values, dtype=float)
     lo, hi = order[:, :-1], order[:, 1:]
