@@ -7,14 +7,24 @@ checks the three results are identical.  Timings are printed, never asserted.
     python benchmarks/bench_sweep.py                 # 200 points, 2 workers
     python benchmarks/bench_sweep.py --points 50 --workers 4 --duration 5
 
-Each timing includes starting the workers (a fresh pool or cluster per
-sweep) and merging the run files, i.e. what a user waits for.
+Two rates per executor:
+
+* end to end: grid size / wall time of ``run_sweep``, including starting the
+  worker processes (~1.5 s each: Python, NumPy, xarray, MuJoCo imports) and
+  merging the run files -- what a user waits for;
+* steady state: from the completion times of the run files (their mtimes),
+  runs finished per second between the first and the last -- the throughput
+  once workers are up, which long sweeps approach.
+
+Timings are only meaningful on an otherwise idle machine; the script prints
+the load average before and after.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 import tempfile
 import time
 from pathlib import Path
@@ -39,8 +49,11 @@ def _timed(label: str, fn, grid, out: Path, **kw):
     res = run_sweep(fn, grid, out, progress=False, **kw)
     dt = time.perf_counter() - t0
     assert res.ok, res.failures
-    print(f"{label:<28s} {dt:7.2f} s  {grid.n_runs / dt:7.2f} runs/s", flush=True)
-    return dt, res.dataset
+    done = sorted(p.stat().st_mtime for p in (out / "runs").glob("*.nc"))
+    steady = (len(done) - 1) / (done[-1] - done[0]) if len(done) > 1 and done[-1] > done[0] else float("nan")
+    print(f"{label:<28s} {dt:7.2f} s  end-to-end {grid.n_runs / dt:6.2f} runs/s  steady {steady:6.2f} runs/s",
+          flush=True)
+    return grid.n_runs / dt, steady, res.dataset
 
 
 def main() -> None:
@@ -56,24 +69,28 @@ def main() -> None:
     grid = Grid(axes={"dphi_rad": np.linspace(-math.pi, math.pi, args.points), "duration_s": [args.duration]})
     # warm this process (imports, first rollout) so serial is not charged for it
     pair_run({"dphi_rad": 0.0, "duration_s": 0.1}, 0)
-    print(f"{args.points} pair runs of {args.duration:g} s; {args.workers} workers")
+    print(f"{args.points} pair runs of {args.duration:g} s; {args.workers} workers; "
+          f"load average {os.getloadavg()[0]:.2f} on {os.cpu_count()} CPUs")
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
-        t_serial, ref = _timed("serial (workers=1)", pair_run, grid, tmp / "serial", workers=1)
-        t_local, local = _timed(f"local pool ({args.workers} procs)", pair_run, grid, tmp / "local", workers=args.workers)
-        print(f"  speed-up local/serial: {t_serial / t_local:.2f}x")
+        r_ser, s_ser, ref = _timed("serial (workers=1)", pair_run, grid, tmp / "serial", workers=1)
+        r_loc, s_loc, local = _timed(f"local pool ({args.workers} procs)", pair_run, grid, tmp / "local",
+                                     workers=args.workers)
+        print(f"  speed-up local/serial: {r_loc / r_ser:.2f}x end-to-end, {s_loc / s_ser:.2f}x steady")
         xr.testing.assert_identical(_data(ref), _data(local))
         if not args.skip_dask:
             from distributed import LocalCluster
 
             t0 = time.perf_counter()
-            with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True) as cluster:
+            with LocalCluster(n_workers=args.workers, threads_per_worker=1, processes=True,
+                              dashboard_address=None) as cluster:
                 t_start = time.perf_counter() - t0
-                t_dask, dsk = _timed(f"dask LocalCluster ({args.workers})", pair_run, grid, tmp / "dask",
-                                     scheduler=cluster.scheduler_address)
-            print(f"  speed-up dask/serial:  {t_serial / t_dask:.2f}x  (cluster start {t_start:.1f} s not included)")
+                r_dsk, s_dsk, dsk = _timed(f"dask LocalCluster ({args.workers})", pair_run, grid, tmp / "dask",
+                                           scheduler=cluster.scheduler_address)
+            print(f"  speed-up dask/serial:  {r_dsk / r_ser:.2f}x end-to-end, {s_dsk / s_ser:.2f}x steady "
+                  f"(cluster start {t_start:.1f} s not included)")
             xr.testing.assert_identical(_data(ref), _data(dsk))
-    print("results identical across executors")
+    print(f"results identical across executors; load average now {os.getloadavg()[0]:.2f}")
 
 
 def _data(ds: xr.Dataset) -> xr.Dataset:

@@ -8,6 +8,9 @@ parent's ``sys.path`` on).
 
 from __future__ import annotations
 
+import os
+import signal
+
 import mujoco
 import numpy as np
 import xarray as xr
@@ -81,3 +84,11 @@ def swimmer_pair(point: dict, seed: int) -> xr.Dataset:
 
     ds = simulate(Scene(phases_rad=(0.0, point["dphi_rad"])), SimOptions(duration_s=point.get("duration_s", 2.0)))
     return ds[["x", "y"]]
+
+
+def pendulum_or_crash(point: dict, seed: int) -> xr.Dataset:
+    """:func:`pendulum`, except that a negative damping kills the worker process
+    outright (SIGKILL), as a crash in C code or the out-of-memory killer would."""
+    if point["damping_Nms"] < 0:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return pendulum(point, seed)

@@ -6,6 +6,7 @@ function, real process pools, a real Dask LocalCluster, a real SIGKILL.
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import signal
@@ -150,6 +151,25 @@ def test_failures_in_worker_processes(tmp_path):
     res = run_sweep(sweep_funcs.pendulum_batch, grid, tmp_path / "fb", workers=1, batch=4, batched=True,
                     progress=False)
     assert sorted(f.point["damping_Nms"] for f in res.failures) == [-0.1, -0.05] and res.n_computed == 2
+
+
+def test_lost_worker_process(tmp_path):
+    """A run that kills its worker process is retried, then reported; the pool is rebuilt for the rest."""
+    grid = Grid(axes={"damping_Nms": [0.1, 0.2, -1.0, 0.3, 0.4, 0.5], "length_m": [0.5]})
+    res = run_sweep(sweep_funcs.pendulum_or_crash, grid, tmp_path / "crash", workers=2, batch=2, progress=False)
+    (f,) = res.failures
+    assert f.point["damping_Nms"] == -1.0 and f.error.startswith("WorkerLost: its worker process died 3 times")
+    assert res.n_computed == 5 and not res.dataset["run_failed"].sel(damping_Nms=[0.1, 0.5]).any()
+
+
+def test_progress_lines_when_not_a_terminal(tmp_path):
+    log = io.StringIO()  # not a tty: plain lines (for CI logs), then the summary
+    grid = Grid(axes={"damping_Nms": [0.1, -0.05, 0.2, 0.3], "length_m": [0.5]})
+    run_sweep(sweep_funcs.pendulum, grid, tmp_path / "p", workers=1, stream=log)
+    text = log.getvalue()
+    assert "4 runs, 0 already in" in text
+    assert "sweep: 4/4 runs (100%), 1 failed" in text and "runs/s" in text and "ETA" in text
+    assert "sweep done" in text and "1 run(s) FAILED" in text and "damping_Nms=-0.05" in text
 
 
 # ---- the store refuses what it should ---------------------------------------------------------

@@ -49,63 +49,118 @@ def run_local(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost, *, work
 
     Spawned, never forked: a forked child would inherit whatever the parent
     holds (a GL context, MuJoCo's thread pools, open HDF5 handles).  At most
-    ``2 * workers`` chunks are queued at a time, so a dead worker costs at
-    most those, and Ctrl-C stops promptly.  When a worker process dies (killed,
-    out of memory, a crash in C), the pool is rebuilt and the chunks it was
-    running are retried one run at a time; a run whose process dies
-    :data:`MAX_ATTEMPTS` times is given up and reported.
+    ``2 * workers`` chunks are queued at a time, so Ctrl-C stops promptly and
+    a dead worker takes few chunks down with it.
+
+    When a worker process dies (killed, out of memory, a crash in C) the pool
+    breaks, and every chunk in flight with it.  Their unsaved runs are then
+    *quarantined*: run one at a time in a one-process pool, so the run that
+    kills its process is the one identified (and moved to the back of the
+    queue to try the others first).  A run that kills its process
+    :data:`MAX_ATTEMPTS` times is given up and reported; the others go on in
+    a fresh pool.  If processes die :data:`MAX_ATTEMPTS` times in a row
+    before any task ever finished, the workers cannot work at all (cannot
+    import the function, a script without a ``__main__`` guard): raise.
     """
     ctx = multiprocessing.get_context("spawn")
-    pending: deque[tuple[Chunk, int]] = deque((c, 0) for c in chunks)
-    breaks_in_a_row = 0
+    health = _Health()
+    pending: deque[Chunk] = deque(chunks)
     while pending:
-        pool = ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_local_worker)
-        inflight: dict[Future, tuple[Chunk, int]] = {}
-        broken: list[tuple[Chunk, int]] = []
+        suspects = _run_pool(ctx, workers, pending, on_done, health)
+        if suspects:
+            _quarantine(ctx, suspects, on_done, on_lost, health)
+
+
+class _Health:
+    """Tells a worker that died on one run from workers that cannot run anything."""
+
+    def __init__(self):
+        self.any_done = False
+        self.breaks_in_a_row = 0
+
+    def done(self) -> None:
+        self.any_done = True
+        self.breaks_in_a_row = 0
+
+    def broke(self) -> None:
+        self.breaks_in_a_row += 1
+        if self.breaks_in_a_row >= MAX_ATTEMPTS and not self.any_done:
+            raise UndulateError(
+                f"the local worker processes died {self.breaks_in_a_row} times in a row without finishing a "
+                "task. Can they import the sweep function? Does the script that calls run_sweep guard it "
+                "with `if __name__ == \"__main__\":` (new processes import that script)? Finished runs "
+                "are saved; rerun to resume, or use workers=1 to see errors in this process"
+            )
+
+
+def _new_pool(ctx, workers: int) -> ProcessPoolExecutor:
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_local_worker)
+
+
+def _run_pool(ctx, workers: int, pending: deque[Chunk], on_done: OnDone, health: _Health) -> list[Chunk]:
+    """Run ``pending`` on one pool until it is empty or the pool breaks; return the chunks lost in a break."""
+    pool = _new_pool(ctx, workers)
+    inflight: dict[Future, Chunk] = {}
+    broken: list[Chunk] = []
+    try:
+        while (pending or inflight) and not broken:
+            while pending and len(inflight) < 2 * workers:
+                chunk = pending.popleft()
+                inflight[pool.submit(run_chunk, chunk)] = chunk
+            done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+            for fut in done:
+                chunk = inflight.pop(fut)
+                try:
+                    outcomes = fut.result()
+                except BrokenProcessPool:
+                    broken.append(chunk)
+                    continue
+                health.done()
+                on_done(chunk, outcomes)
+        if broken:
+            health.broke()
+            for fut, chunk in inflight.items():  # the rest of the pool's chunks fail with it
+                try:
+                    outcomes = fut.result()
+                except BrokenProcessPool:
+                    broken.append(chunk)
+                    continue
+                on_done(chunk, outcomes)
+        return broken
+    except BaseException:
+        _stop_now(pool)
+        raise
+    finally:
+        pool.shutdown(wait=not broken, cancel_futures=True)
+
+
+def _quarantine(ctx, chunks: list[Chunk], on_done: OnDone, on_lost: OnLost, health: _Health) -> None:
+    """Run the runs of ``chunks`` one by one, alone, to find the one that kills its process."""
+    queue: deque[Chunk] = deque(replace(c, runs=(r,)) for c in chunks for r in c.runs)
+    deaths: dict[str, int] = {}
+    while queue:
+        pool = _new_pool(ctx, 1)
         try:
-            while (pending or inflight) and not broken:
-                while pending and len(inflight) < 2 * workers:
-                    chunk, attempts = pending.popleft()
-                    inflight[pool.submit(run_chunk, chunk)] = (chunk, attempts)
-                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
-                for fut in done:
-                    chunk, attempts = inflight.pop(fut)
-                    try:
-                        outcomes = fut.result()
-                    except BrokenProcessPool:
-                        broken.append((chunk, attempts))
-                        continue
-                    breaks_in_a_row = 0
-                    on_done(chunk, outcomes)
-            if broken:
-                breaks_in_a_row += 1
-                if breaks_in_a_row >= MAX_ATTEMPTS:
-                    raise UndulateError(
-                        f"the local worker processes died {breaks_in_a_row} times in a row without finishing a "
-                        "task. Can they import the sweep function? Does the script that calls run_sweep guard it "
-                        "with `if __name__ == \"__main__\":` (new processes import that script)? Finished runs "
-                        "are saved; rerun to resume, or use workers=1 to see errors in this process"
-                    )
-                # Every other in-flight chunk fails with the pool as well.
-                for fut, (chunk, attempts) in inflight.items():
-                    try:
-                        on_done(chunk, fut.result())
-                    except BrokenProcessPool:
-                        broken.append((chunk, attempts))
-                inflight.clear()
-                retry = []
-                for chunk, attempts in broken:
-                    if attempts + 1 >= MAX_ATTEMPTS:
-                        on_lost(chunk, f"worker process died {attempts + 1} times running this run")
-                        continue
-                    # Singles isolate a run that kills its process.
-                    retry += [(replace(chunk, runs=(r,)), attempts + 1) for r in chunk.runs]
-                pending.extendleft(reversed(retry))
+            while queue:
+                single = queue.popleft()
+                try:
+                    outcomes = pool.submit(run_chunk, single).result()
+                except BrokenProcessPool:
+                    key = single.runs[0].key
+                    deaths[key] = deaths.get(key, 0) + 1
+                    health.broke()
+                    if deaths[key] >= MAX_ATTEMPTS:
+                        on_lost(single, f"its worker process died {deaths[key]} times running it")
+                    else:
+                        queue.append(single)
+                    break  # a new pool for the rest
+                health.done()
+                on_done(single, outcomes)
         except BaseException:
             _stop_now(pool)
             raise
         finally:
-            pool.shutdown(wait=not broken, cancel_futures=True)
+            pool.shutdown(wait=False, cancel_futures=True)
 
 
 def _stop_now(pool: ProcessPoolExecutor) -> None:
@@ -137,7 +192,7 @@ def connect(scheduler: Any):
     if isinstance(scheduler, distributed.Client):
         return scheduler, False
     if isinstance(scheduler, os.PathLike) or (isinstance(scheduler, str) and "://" not in scheduler):
-        path = Path(scheduler)
+        path = Path(scheduler).expanduser()
         if not path.is_file():
             raise ParameterError(
                 "scheduler", "a Dask scheduler address tcp://HOST:PORT or the path of an existing scheduler file", str(scheduler)

@@ -200,8 +200,9 @@ def run_sweep(
         try:
             if client is not None:
                 _executors.check_shared_dir(client, str(store.runs_dir))
-                n_workers = _executors.dask_threads(client) or 8
-                where = f"Dask at {client.scheduler.address} ({_executors.dask_threads(client)} worker threads now)"
+                threads = _executors.dask_threads(client)
+                n_workers = threads or 8  # workers still starting: assume a few for the chunk size
+                where = f"Dask at {client.scheduler.address} ({threads} worker threads now)"
             else:
                 n_workers = min(workers or _executors.default_workers(), max(len(todo), 1))
                 where = "this process" if n_workers == 1 else f"{n_workers} local processes"
@@ -232,6 +233,7 @@ def run_sweep(
                     write_failure(store.runs_dir, r, None, f"WorkerLost: {why}")
                     log.info("run %s lost: %s", r.key, why)
                 counts[FAILED] += len(lost)
+                counts[OK] += len(chunk.runs) - len(lost)  # saved before the worker was lost
                 bar.update(len(chunk.runs) - len(lost), len(lost))
 
             try:
