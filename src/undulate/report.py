@@ -2,8 +2,8 @@
 
 The page uses relative links only, so the folder can be moved, zipped or
 opened offline.  It shows every study's figure, the table of the paper's
-claims (each study's summary carries its own ``claims``: the claim, the
-paper's statement, the measured number and whether it holds), provenance,
+claims (the claim, the paper's statement, the measured number and whether it holds: see
+:mod:`undulate.claims`), provenance,
 wall times, animations and links to every data file.  A failed study is
 shown as failed, with its error.
 """
@@ -18,6 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from ._io import atomic_output
+from .claims import evaluate
 from .provenance import provenance
 
 __all__ = ["write_report"]
@@ -92,9 +93,10 @@ def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: s
     # claims
     add("<h2 id='claims'>The paper's claims</h2>")
     add("<table><tr><th>study</th><th>claim</th><th>paper</th><th>measured</th><th>holds</th></tr>")
+    summaries = {n: d.get("summary", {}) for n, d in docs.items()}
     for st in statuses:
         name = st["name"]
-        claims = docs.get(name, {}).get("summary", {}).get("claims", [])
+        claims = evaluate(name, summaries) if st.get("ok") else []
         if not st.get("ok"):
             add(f"<tr><td>{_esc(name)}</td><td colspan='3' class='no'>study failed: {_esc(st.get('error'))}</td>"
                 "<td class='no'>—</td></tr>")
