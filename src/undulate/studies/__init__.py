@@ -26,6 +26,11 @@ STUDY_MODULES: tuple[str, ...] = (
     "compatibility",
     "links",
     "groups",
+    "packing",
+    "basins",
+    "confinement",
+    "potential",
+    "swimming",
 )
 
 __all__ = [

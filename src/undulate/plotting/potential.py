@@ -1,0 +1,115 @@
+"""Paper Fig. 10: contact impulse vs detuning, and the cohesion stiffness."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from . import new_figure, phase_axis
+
+__all__ = ["plot_potential"]
+
+_COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple")
+
+
+def plot_potential(ds):
+    """Figure from the ``potential`` study dataset.
+
+    (a) contact impulse over the first two periods against dphi (grey: each
+    common phase; black: their mean) with the fit ``a |dphi| + b``; (b)
+    period means of ``dx/lambda`` over time under each force (middle beta,
+    ``d/2A`` nearest 1.2); (c) ``dF`` against ``dx/lambda`` for three
+    confinements (middle beta) with the fitted lines, broken pairs hollow;
+    (d) stiffness k against ``d/2A`` per beta (log scale) and (e) against
+    ``d`` in metres (no collapse expected); (f) fitted ``dx0/lambda`` against
+    ``d/2A`` with the compatibility model (dashed: sinusoids, dotted: bodies).
+    """
+    fig = new_figure(14.0, 8.0)
+    gs = fig.add_gridspec(2, 3)
+    lam = float(ds.attrs["wavelength_m"])
+
+    ax = fig.add_subplot(gs[0, 0])
+    dphi = ds["dphi"].values
+    if "impulse_all" in ds:
+        for series in ds["impulse_all"].values.T:
+            ax.plot(dphi, series, ".", color="0.6", ms=4)
+        ax.plot([], [], ".", color="0.6", label=r"each common phase $\phi_a$")
+    ax.plot(dphi, ds["impulse"].values, "o", color="k", label="mean")
+    a, b, r2 = ds.attrs["impulse_fit_abs"]
+    if np.isfinite(a):
+        pp = np.linspace(dphi.min(), dphi.max(), 201)
+        ax.plot(pp, a * np.abs(pp) + b, "--", color="tab:red", label=rf"$a|\Delta\phi|+b$, $R^2$ = {r2:.3f}")
+    ax.legend(fontsize=8)
+    phase_axis(ax.xaxis)
+    ax.set_xlabel(r"$\Delta\phi$ (rad)")
+    ax.set_ylabel("contact impulse, first 2 periods (N s)")
+    ax.set_title(r"(a) $\Delta x_0 = 0$", fontsize=10)
+
+    nb, nr = ds.sizes["beta"], ds.sizes["d_over_2A"]
+    ib = nb // 2
+    ir = int(np.argmin(np.abs(ds["d_over_2A"].values - 1.2)))  # a confinement with a visible response
+    beta = ds["beta"].values
+    R = ds["d_over_2A"].values
+    forces = ds["force"].values
+
+    ax = fig.add_subplot(gs[0, 1])
+    t = ds["period_time"].values
+    import matplotlib as mpl
+
+    cmap = mpl.colormaps["plasma"]
+    for m, f in enumerate(forces):
+        ax.plot(t, ds["dx_period"].values[ib, ir, m], ".-", color=cmap(m / max(len(forces), 1)), lw=0.9,
+                label=f"{f:g} N" if m in (0, len(forces) - 1) else None)
+    ax.axvline(float(ds.attrs["settle_s"]), color="0.5", ls=":")
+    ax.set_xlabel("time (s)")
+    ax.set_ylabel(r"period mean of $\Delta x/\lambda$")
+    shown = ds["dx_period"].values[ib, ir]
+    top = float(np.nanmax(np.where(ds["broken"].values[ib, ir][:, None], np.nan, shown))) if np.isfinite(shown).any() else 0.5
+    ax.set_ylim(-0.02, min(0.6, (top if np.isfinite(top) else 0.5) + 0.05))
+    ax.set_title(rf"(b) $\pm\delta F$ from t = {float(ds.attrs['settle_s']):g} s; "
+                 rf"$\beta$ = {beta[ib]:g}$^\circ$, $d/2A$ = {R[ir]:g}", fontsize=10)
+    ax.legend(fontsize=8)
+
+    ax = fig.add_subplot(gs[0, 2])
+    picks = sorted({0, nr // 2, nr - 1})
+    for c, j in enumerate(picks):
+        col = _COLOURS[c % len(_COLOURS)]
+        dx = ds["dx"].values[ib, j]
+        br = ds["broken"].values[ib, j]
+        ax.plot(dx[~br], forces[~br], "o", color=col, label=rf"$d/2A$ = {R[j]:g}")
+        ax.plot(np.clip(dx[br], None, 0.6), forces[br], "o", mfc="none", color=col)
+        k, x0 = ds["stiffness"].values[ib, j], ds["dx0"].values[ib, j]
+        if np.isfinite(k):
+            xx = np.linspace(max(x0, 0.0), np.nanmax(np.where(br, np.nan, dx)), 20)
+            ax.plot(xx, k * (xx - x0) * lam, "-", color=col, lw=1)
+    ax.set_xlim(-0.01, 0.6)
+    ax.set_xlabel(r"$\delta x/\lambda$")
+    ax.set_ylabel(r"$\delta F$ (N)")
+    ax.set_title(rf"(c) $\beta$ = {beta[ib]:g}$^\circ$; hollow: broke apart", fontsize=10)
+    ax.legend(fontsize=8)
+
+    ax_k = fig.add_subplot(gs[1, 0])
+    ax_d = fig.add_subplot(gs[1, 1])
+    ax_0 = fig.add_subplot(gs[1, 2])
+    for i in range(nb):
+        col = _COLOURS[i % len(_COLOURS)]
+        k = ds["stiffness"].values[i]
+        pos = k > 0
+        ax_k.plot(R[pos], k[pos], "o-", color=col, label=rf"$\beta$ = {beta[i]:g}$^\circ$")
+        ax_d.plot(ds["channel_width"].values[i][pos], k[pos], "o-", color=col)
+        ax_0.plot(R, ds["dx0"].values[i], "o-", color=col, label=rf"$\beta$ = {beta[i]:g}$^\circ$")
+        ax_0.plot(R, ds["model_dx0_bodies"].values[i], ":", color=col)
+    ax_0.plot(R, ds["model_dx0_thin"].values[0], "--", color="k", label=r"model, $\Delta y = d - 2A$")
+    ax_0.plot([], [], ":", color="k", label=r"model, $\Delta y = d - 2A - 2w$")
+    for ax in (ax_k, ax_d):
+        ax.set_yscale("log")
+        ax.set_ylabel(r"stiffness $k$ (N/m)")
+    ax_k.set_xlabel(r"$d/2A$")
+    ax_k.set_title(r"(d) $\delta F = k(\delta x - \delta x_0)$", fontsize=10)
+    ax_k.legend(fontsize=8)
+    ax_d.set_xlabel(r"wall spacing $d$ (m)")
+    ax_d.set_title("(e) the same against d", fontsize=10)
+    ax_0.set_xlabel(r"$d/2A$")
+    ax_0.set_ylabel(r"$\delta x_0/\lambda$")
+    ax_0.set_title(r"(f) offset $\delta x_0$", fontsize=10)
+    ax_0.legend(fontsize=7)
+    return fig

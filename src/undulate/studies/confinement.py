@@ -1,0 +1,165 @@
+"""Study ``confinement`` (paper Fig. 9): the central state against wall spacing.
+
+Pairs with ``dphi = 0`` start laterally in contact at ``dx0 / lambda``
+across ``[-1, 1]`` in channels of width ``d``, with ``d / 2A`` (``A`` the
+measured gait amplitude of a free swimmer) from 0.6 to 1.2, the paper's
+range, and on to 1.6 (full mode) to show where the walls stop holding the
+pair together.  The final ``dx / lambda`` (mean of the last 3 of 20
+periods) is plotted against the start, per confinement.
+
+The *central state* of one confinement is the set of final offsets of the
+starts that end near 0 (``|dx_f / lambda| < 0.5``, i.e. not pushed to a
+neighbouring branch ``+-lambda``).  Its width is the range ``max - min`` of
+those final offsets (:func:`central_state`); a pair that always returns to
+exactly 0 has width 0.  The compatibility model predicts a band of
+half-width ``(1 / pi) arcsin(dy / 2A)`` (in lambda) for a lateral clearance
+``dy`` (see :mod:`undulate.studies.potential` for the clearance the walls
+leave): the model widths are stored beside the measured ones.
+"""
+
+from __future__ import annotations
+
+import functools
+from typing import Any
+
+import numpy as np
+
+from ..params import Gait, SwimmerGeometry
+from ._registry import StudyConfig, StudyResult, register
+from .basins import pair_point
+from .packing import measure_lone_swimmers, round_amplitude, study_sweep
+
+__all__ = ["ConfinementPlan", "plan", "central_state", "compute", "PAPER_RANGE"]
+
+DURATION_S = 40.0
+"""20 gait periods, s: long enough for the widest channels' central state to settle."""
+CENTRAL = 0.5
+"""A start ends in the central state when its final |dx / lambda| < CENTRAL."""
+PAPER_RANGE = (0.6, 1.2)
+
+
+class ConfinementPlan:
+    """Grid: ``d_over_2A`` x ``dx0_over_lambda``."""
+
+    def __init__(self, d_over_2A, dx0_over_lambda, duration_s: float = DURATION_S):
+        self.d_over_2A = [float(v) for v in d_over_2A]
+        self.dx0_over_lambda = [float(v) for v in dx0_over_lambda]
+        self.duration_s = float(duration_s)
+
+
+def plan(quick: bool) -> ConfinementPlan:
+    """Full: d/2A 0.6 to 1.6 in 0.1 (11) x 41 starts = 451 runs; quick: 4 x 11 = 44."""
+    if quick:
+        return ConfinementPlan([0.6, 0.9, 1.2, 1.5], np.linspace(-1, 1, 11))
+    return ConfinementPlan(np.round(np.arange(0.6, 1.61, 0.1), 10), np.linspace(-1, 1, 41))
+
+
+def central_state(dx0, dx_final) -> dict[str, float]:
+    """Width and extent of the central state along one confinement.
+
+    ``dx0``, ``dx_final``: starts and final offsets, in lambda.  Returns
+    ``width`` (max - min of the final offsets with ``|dx_f| < CENTRAL``),
+    ``lo``/``hi`` (their extremes), ``basin_lo``/``basin_hi`` (the extreme
+    starts that ended there) and ``n`` (how many did); NaN when none did.
+    """
+    x0 = np.asarray(dx0, float)
+    xf = np.asarray(dx_final, float)
+    c = np.isfinite(xf) & (np.abs(xf) < CENTRAL)
+    if not c.any():
+        nan = float("nan")
+        return {"width": nan, "lo": nan, "hi": nan, "basin_lo": nan, "basin_hi": nan, "n": 0}
+    return {"width": float(xf[c].max() - xf[c].min()), "lo": float(xf[c].min()), "hi": float(xf[c].max()),
+            "basin_lo": float(x0[c].min()), "basin_hi": float(x0[c].max()), "n": int(c.sum())}
+
+
+def compute(config: StudyConfig, p: ConfinementPlan) -> StudyResult:
+    """Run the confinement study on plan ``p`` (used by :func:`run` and the tests)."""
+    import xarray as xr
+
+    from ..plotting.confinement import plot_confinement
+    from ..sweep import Grid
+    from .potential import model_dx0_m
+
+    geo = SwimmerGeometry()
+    lam = Gait().wavelength_m(geo.length_m)
+    lone = measure_lone_swimmers(config, "confinement", [Gait().amplitude_rad])
+    amp = round_amplitude(float(lone["amplitude_m"].item()))
+    fn = functools.partial(pair_point, duration_s=p.duration_s, amplitude_m=amp)
+    grid = Grid(axes={"d_over_2A": p.d_over_2A, "dx0_over_lambda": p.dx0_over_lambda}, seed=config.seed)
+    res = study_sweep(config, "confinement", "grid", fn, grid)
+    g = res.dataset.isel(replicate=0)
+    xf = g["dx_final_over_lambda"].values
+    x0 = g["dx0_over_lambda"].values
+    stats = [central_state(x0, xf[i]) for i in range(xf.shape[0])]
+    r = np.asarray(p.d_over_2A)
+    one = {"units": "1"}
+    failed = g["run_failed"].values.astype(bool)
+    ds = xr.Dataset(
+        {
+            "dx_final_over_lambda": (("d_over_2A", "dx0"), xf, {**one, "long_name": "final dx / lambda"}),
+            "dx_over_lambda": (("d_over_2A", "dx0", "time"), g["dx_over_lambda"].values, {
+                **one, "long_name": "dx / lambda over time"}),
+            "steady": (("d_over_2A", "dx0"), np.where(failed, False, g["steady"].values == 1), {
+                "long_name": "steady by the end"}),
+            "run_failed": (("d_over_2A", "dx0"), failed, {}),
+            "mean_joint_error": (("d_over_2A", "dx0"), g["mean_joint_error_rad"].values, {"units": "rad"}),
+            "central_width": (("d_over_2A",), [s["width"] for s in stats], {
+                **one, "long_name": "range of final dx / lambda in the central state"}),
+            "central_lo": (("d_over_2A",), [s["lo"] for s in stats], {**one}),
+            "central_hi": (("d_over_2A",), [s["hi"] for s in stats], {**one}),
+            "basin_lo": (("d_over_2A",), [s["basin_lo"] for s in stats], {
+                **one, "long_name": "most negative start ending in the central state"}),
+            "basin_hi": (("d_over_2A",), [s["basin_hi"] for s in stats], {
+                **one, "long_name": "most positive start ending in the central state"}),
+            "model_width_thin": (("d_over_2A",), 2 * model_dx0_m(r * 2 * amp, amp, lam) / lam, {
+                **one, "long_name": "compatibility band width, sinusoids (clearance d - 2A)"}),
+            "model_width_bodies": (("d_over_2A",), 2 * model_dx0_m(r * 2 * amp, amp, lam, geo.width_m) / lam, {
+                **one, "long_name": "compatibility band width, bodies of width w (clearance d - 2A - 2w)"}),
+            "amplitude": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
+        },
+        coords={
+            "d_over_2A": ("d_over_2A", r, {**one, "long_name": "wall spacing over peak-to-peak amplitude"}),
+            "dx0": ("dx0", x0, {**one, "long_name": "initial dx0 / lambda"}),
+            "time": ("time", g["time"].values, {"units": "s"}),
+            "channel_width": ("d_over_2A", r * 2 * amp, {"units": "m", "long_name": "wall spacing d"}),
+        },
+        attrs={"title": "final offset against start per confinement, dphi = 0 (paper Fig. 9)",
+               "duration_s": p.duration_s, "paper_range_d_over_2A": list(PAPER_RANGE)},
+    )
+    summary = _summary(ds, res)
+    return StudyResult(dataset=ds, figure=plot_confinement(ds), summary=summary)
+
+
+def _summary(ds, res) -> dict[str, Any]:
+    r = ds["d_over_2A"].values
+    w = ds["central_width"].values
+    in_paper = (r >= PAPER_RANGE[0] - 1e-9) & (r <= PAPER_RANGE[1] + 1e-9)
+    ok = np.isfinite(w)
+    grows = bool(np.all(np.diff(w[ok]) >= -0.01)) if ok.sum() > 1 else None
+    broad = r[ok & (w > 0.01)]
+    return {
+        "amplitude_m": float(ds["amplitude"]),
+        "d_over_2A": r,
+        "channel_width_m": ds["channel_width"].values,
+        "central_width_over_lambda": w,
+        "central_range_over_lambda": np.stack([ds["central_lo"].values, ds["central_hi"].values], axis=-1),
+        "basin_of_central_state_dx0_over_lambda": np.stack([ds["basin_lo"].values, ds["basin_hi"].values], axis=-1),
+        "model_width_thin_over_lambda": ds["model_width_thin"].values,
+        "model_width_bodies_over_lambda": ds["model_width_bodies"].values,
+        "width_never_shrinks_with_d": grows,
+        "smallest_d_over_2A_with_width_above_0.01": float(broad.min()) if broad.size else None,
+        "max_width_in_paper_range": float(np.nanmax(w[in_paper])) if np.any(in_paper & ok) else None,
+        "n_runs": int(ds["run_failed"].size),
+        "n_failed": len(res.failures),
+        "failures": [str(f) for f in res.failures[:20]],
+        "n_not_steady": int((~ds["steady"].values & ~ds["run_failed"].values).sum()),
+        "sweep_elapsed_s": float(res.elapsed_s),
+        "rule": f"central state: final |dx/lambda| < {CENTRAL}; final = mean of the last 3 periods",
+    }
+
+
+@register("confinement", paper_figure="9",
+          description="dphi = 0 pairs from dx0/lambda in [-1, 1] in channels of d/2A = 0.6 to 1.2 "
+                      "(and wider): final dx/lambda against the start; width of the central state.")
+def run(config: StudyConfig) -> StudyResult:
+    return compute(config, plan(config.quick))

@@ -1,0 +1,426 @@
+"""Study ``packing`` (paper Fig. 7): phase spread against lateral density in a group of 50.
+
+Setup (paper section "Gait compatibility influences spatial packing"):
+``N = 50`` three-link swimmers side by side in the short channel (end walls
+``1.1 L`` apart), all heads toward -x, phases drawn uniformly from
+``[0, phi_max]`` in random lateral order.  The channel width ``Y`` is set
+from the normalised density ``rho~ = 2 A N / Y`` (``A`` the gait amplitude
+of a free swimmer, measured here by :func:`lone_swimmer_point`), and the
+swimmers start straight, evenly spread across it: centre lines ``Y / N``
+apart (``Scene.lateral_gap_m = Y / N - w``), so each outer swimmer has half
+a pitch to its wall.
+
+Contact metric: the mean joint error ``|alpha - alpha_cmd|`` over every
+swimmer and joint and over ``t >= SKIP_S`` (the first period, the start from
+straight bodies, is left out; the lone swimmer is averaged the same way).
+The *simulated compatibility threshold* for one phase draw is the lowest
+density at which that mean exceeds the lone swimmer's by ``0.01 rad``
+(:func:`density_threshold`): interpolated linearly in ``rho~`` between the
+last grid density below and the first above; when the first density above
+is a run that diverged (dense, jammed packs can trip the simulator's
+divergence check; the sweep records those runs as failed) it counts as
+above, and the threshold is the midpoint of the bracket.  Error bars: the
+standard deviation over the phase draws (replicates).
+
+Common random numbers: replicate ``r`` draws its unit-uniform numbers
+``u`` once from ``numpy.random.default_rng([seed, r])`` (``seed`` the study
+seed) and uses ``phases = phi_max * u`` at every ``(phi_max, rho~)``, so a
+replicate's threshold along ``rho~`` is measured on one phase set.
+
+Theory on the same axes (:mod:`undulate.theory`): the closed form
+``packing_density(phi_max, w / 2A)`` (paper Eq. rho_tilde), its Monte-Carlo
+estimate ``packing_density_mc`` with ``N = 50``, and, dotted, the closed
+form with the room the side walls take: a swimmer next to a wall needs
+``A + w / 2`` to it, so ``N`` swimmers need ``Y = (N - 1) y~ + N w + 2 A``
+and ``rho~_walls = 1 / ((N - 1) / N * y~/2A + w/2A + 1/N)``.  At
+``phi_max = 0`` this is the jamming density of an in-phase stack between
+walls (~6.1 at the defaults instead of ``2A / w`` ~ 7).
+
+This module also holds the helpers the other studies of this group share:
+:func:`lone_swimmer_point` (gait amplitude, baseline joint error, free
+swimming speed) and :func:`sweep_dir` / :func:`study_sweep`.
+"""
+
+from __future__ import annotations
+
+import functools
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .. import theory
+from ..params import Channel, Gait, Ground, Scene, SimOptions, SwimmerGeometry
+from ._registry import StudyConfig, StudyResult, register
+
+__all__ = [
+    "N_SWIMMERS",
+    "THRESHOLD_RAD",
+    "PackingPlan",
+    "plan",
+    "lone_swimmer_point",
+    "measure_lone_swimmers",
+    "packing_point",
+    "density_threshold",
+    "walled_packing_density",
+    "sweep_dir",
+    "study_sweep",
+    "compute",
+]
+
+N_SWIMMERS = 50
+THRESHOLD_RAD = 0.01
+"""Mean joint error above the lone swimmer's that counts as contact, rad (paper: 0.01 rad)."""
+SHORT_CHANNEL_OVER_L = 1.1
+DURATION_S = 10.0
+SKIP_S = 2.0
+"""Joint error is averaged over t >= SKIP_S (one gait period), s."""
+SAMPLE_RATE_HZ = 10.0
+LONE_CHANNEL_WIDTH_M = 1.0
+"""Channel width for the free (lone) swimmer, m: far wider than its stroke."""
+AMPLITUDE_ROUND_M = 1e-5
+"""Measured amplitudes are rounded to this (m) before they set channel widths, so a
+resumed sweep finds the same parameters after a bitwise-different re-measurement."""
+
+
+# ------------------------------------------------------------------ shared helpers
+def sweep_dir(config: StudyConfig, name: str, part: str) -> Path:
+    """Resumable store of one sweep of study ``name``:
+    ``out_dir/.sweeps/NAME/PART-{quick|full}-seedS``."""
+    mode = "quick" if config.quick else "full"
+    return Path(config.out_dir) / ".sweeps" / name / f"{part}-{mode}-seed{config.seed}"
+
+
+SERIAL_BELOW = 4
+"""Sweeps of fewer runs than this run in this process (starting worker processes costs more)."""
+
+
+def study_sweep(config: StudyConfig, name: str, part: str, fn, grid, progress: bool = True):
+    """Run ``fn`` over ``grid`` through :func:`undulate.sweep.run_sweep` into
+    :func:`sweep_dir` (local cores, or ``config.scheduler``).  Failed runs do not
+    raise: they are NaN in the result and listed in ``.failures``."""
+    from ..sweep import run_sweep
+
+    workers = 1 if config.scheduler is None and grid.n_runs < SERIAL_BELOW else None
+    return run_sweep(fn, grid, sweep_dir(config, name, part), scheduler=config.scheduler,
+                     workers=workers, progress=progress)
+
+
+def round_amplitude(a_m: float) -> float:
+    """A measured amplitude (m) rounded to :data:`AMPLITUDE_ROUND_M`."""
+    return float(round(a_m / AMPLITUDE_ROUND_M) * AMPLITUDE_ROUND_M)
+
+
+def lone_swimmer_point(point: dict, seed: int, *, duration_s: float = DURATION_S,
+                       ground: str = "viscous", skip_s: float = SKIP_S):
+    """A free swimmer (sweep function): its gait amplitude, joint error and speed.
+
+    ``point``: ``amplitude_rad`` (beta, rad; default 45 degrees).  One swimmer
+    in a :data:`LONE_CHANNEL_WIDTH_M` wide channel for ``duration_s``, on the
+    default viscous ground or (``ground="swimming"``) in
+    :meth:`Ground.swimming`.  Returns ``amplitude_m`` (A, from
+    :func:`~undulate.observables.gait_amplitude` over the last period),
+    ``mean_joint_error_rad`` (mean over joints and t >= ``skip_s``),
+    ``speed_m_s`` (forward speed toward -x, from a straight-line fit of the
+    period-averaged centre x over the second half of the run) and
+    ``x_period_m`` (period-averaged centre x).  ``seed`` is unused (deterministic).
+    """
+    import xarray as xr
+
+    from ..observables import gait_amplitude, period_average
+    from ..simulate import simulate
+
+    beta = float(point.get("amplitude_rad", Gait().amplitude_rad))
+    g = Ground.swimming() if ground == "swimming" else Ground()
+    scene = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=beta), ground=g,
+                  channel=Channel(width_m=LONE_CHANNEL_WIDTH_M))
+    ds = simulate(scene, SimOptions(duration_s=duration_s))
+    period = scene.gait.period_s
+    amp = gait_amplitude(ds, periods=1)
+    je = float(ds["joint_error"].where(ds["time"] >= skip_s).mean())
+    xp = period_average(ds["x"].isel(swimmer=0), period)
+    half = xp.sizes["time"] // 2
+    tt, xx = xp["time"].values[half:], xp.values[half:]
+    speed = -float(np.polyfit(tt, xx, 1)[0]) if len(tt) >= 2 else float("nan")
+    return xr.Dataset(
+        {
+            "amplitude_m": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
+            "mean_joint_error_rad": ((), je, {"units": "rad", "long_name": "mean joint error, free swimmer"}),
+            "speed_m_s": ((), speed, {"units": "m/s", "long_name": "forward speed toward -x"}),
+            "x_period_m": (("period_time",), xp.values, {"units": "m", "long_name": "period-averaged centre x"}),
+        },
+        coords={"period_time": ("period_time", xp["time"].values, {"units": "s"})},
+    )
+
+
+def measure_lone_swimmers(config: StudyConfig, name: str, amplitudes_rad, *,
+                          duration_s: float = DURATION_S, ground: str = "viscous",
+                          skip_s: float = SKIP_S):
+    """Free swimmers at each beta in ``amplitudes_rad`` (one sweep, cached under
+    :func:`sweep_dir` as part ``lone``): the merged sweep Dataset over ``amplitude_rad``."""
+    from ..sweep import Grid
+
+    fn = functools.partial(lone_swimmer_point, duration_s=float(duration_s), ground=ground,
+                           skip_s=float(skip_s))
+    grid = Grid(axes={"amplitude_rad": [float(a) for a in amplitudes_rad]}, seed=config.seed)
+    res = study_sweep(config, name, f"lone-{ground}", fn, grid)
+    res.raise_if_failed()
+    return res.dataset.isel(replicate=0)
+
+
+# --------------------------------------------------------------------- the study
+class PackingPlan:
+    """Grid of the packing study: ``phi_max_rad`` x ``rho_tilde`` x ``draws``."""
+
+    def __init__(self, phi_max_rad, rho_tilde, draws: int, n_swimmers: int = N_SWIMMERS,
+                 duration_s: float = DURATION_S):
+        self.phi_max_rad = [float(v) for v in phi_max_rad]
+        self.rho_tilde = sorted(float(v) for v in rho_tilde)
+        self.draws = int(draws)
+        self.n_swimmers = int(n_swimmers)
+        self.duration_s = float(duration_s)
+
+
+def plan(quick: bool) -> PackingPlan:
+    """Full: 13 phase spreads (0 to 2 pi in pi/6) x 19 densities (0.5; 1 to 4 in 0.25,
+    where the thresholds lie; 4.5 to 6.5 in 0.5) x 5 draws = 1235 runs of 50 swimmers,
+    10 s each.  Quick: 4 x 5 x 2 = 40 runs of 8 s."""
+    if quick:
+        return PackingPlan([0.0, np.pi / 2, np.pi, 2 * np.pi], [1.5, 2.5, 3.5, 4.5, 5.5], draws=2,
+                           duration_s=8.0)
+    rho = np.round(np.r_[0.5, np.arange(1.0, 4.01, 0.25), np.arange(4.5, 6.51, 0.5)], 10)
+    return PackingPlan(np.linspace(0, 2 * np.pi, 13), rho, draws=5)
+
+
+def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
+                  n_swimmers: int = N_SWIMMERS, duration_s: float = DURATION_S,
+                  skip_s: float = SKIP_S):
+    """One packing run (sweep function).
+
+    ``point``: ``phi_max_rad`` (phase spread, rad), ``rho_tilde`` (normalised
+    density 2AN/Y, dimensionless), ``draw`` (phase-draw number).  Phases are
+    ``phi_max * u`` with ``u ~ U[0, 1)^N`` from ``default_rng([base_seed,
+    draw])`` (the sweep's per-run ``seed`` is not used: see the module
+    docstring).  ``amplitude_m``: A, m.  Raises
+    :class:`~undulate.errors.DivergenceError` when the run blows up (the
+    sweep records it).
+    """
+    import xarray as xr
+
+    from ..observables import mean_contact_force
+    from ..simulate import simulate
+
+    geo = SwimmerGeometry()
+    n = int(n_swimmers)
+    u = np.random.default_rng([int(base_seed), int(point["draw"])]).random(n)
+    phases = float(point["phi_max_rad"]) * u
+    width = 2.0 * amplitude_m * n / float(point["rho_tilde"])
+    scene = Scene(
+        phases_rad=tuple(phases),
+        channel=Channel(width_m=width, end_walls_m=SHORT_CHANNEL_OVER_L * geo.length_m),
+        lateral_gap_m=width / n - geo.width_m,
+    )
+    ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=SAMPLE_RATE_HZ))
+    late = ds["time"] >= skip_s
+    je = ds["joint_error"].where(late)
+    f = mean_contact_force(ds, skip_s)
+    return xr.Dataset(
+        {
+            "mean_joint_error_rad": ((), float(je.mean()), {
+                "units": "rad", "long_name": "mean joint error over swimmers, joints and t >= skip"}),
+            "max_joint_error_rad": ((), float(je.mean(("swimmer", "joint")).max()), {
+                "units": "rad", "long_name": "largest group-mean joint error over time"}),
+            "channel_width_m": ((), width, {"units": "m", "long_name": "channel width Y"}),
+            "mean_pair_force_N": ((), float(f["pair"].mean()), {
+                "units": "N", "long_name": "time-mean swimmer-swimmer contact force per pair"}),
+            "mean_wall_force_N": ((), float(f["wall"].sum()), {
+                "units": "N", "long_name": "time-mean contact force on all walls"}),
+            "max_penetration_m": ((), float(ds["penetration"].max()), {
+                "units": "m", "long_name": "deepest interpenetration"}),
+        }
+    )
+
+
+def density_threshold(rho_tilde, excess, failed=None) -> tuple[float, float, float]:
+    """Lowest density at which contact appears, along one phase draw.
+
+    ``rho_tilde``: increasing densities; ``excess``: mean joint error minus
+    the lone swimmer's minus the threshold (rad; > 0 means contact);
+    ``failed``: runs that diverged (count as above; their ``excess`` may be NaN).
+    Returns ``(threshold, lo, hi)``: the first crossing, interpolated
+    linearly between the last density below and the first above (the
+    bracket midpoint when that one failed), and the bracket ``[lo, hi]``.
+    ``(nan, nan, rho[0])`` if the lowest density is already above;
+    ``(nan, rho[-1], nan)`` if none is.
+    """
+    r = np.asarray(rho_tilde, dtype=float)
+    e = np.asarray(excess, dtype=float)
+    bad = np.zeros(r.shape, bool) if failed is None else np.asarray(failed, dtype=bool)
+    above = bad | (e > 0)
+    if not above.any():
+        return float("nan"), float(r[-1]), float("nan")
+    i = int(np.argmax(above))
+    if i == 0:
+        return float("nan"), float("nan"), float(r[0])
+    lo, hi = r[i - 1], r[i]
+    if bad[i] or not np.isfinite(e[i]):
+        return float(0.5 * (lo + hi)), float(lo), float(hi)
+    e0, e1 = e[i - 1], e[i]
+    t = lo + (hi - lo) * (0.0 - e0) / (e1 - e0)
+    return float(t), float(lo), float(hi)
+
+
+def walled_packing_density(phi_max_rad, w_over_2A, n_swimmers: int = N_SWIMMERS):
+    """Closed-form density with the side walls' room (module docstring), dimensionless."""
+    n = float(n_swimmers)
+    return 1.0 / ((n - 1) / n * theory.packing_spacing(phi_max_rad) + np.asarray(w_over_2A) + 1.0 / n)
+
+
+def compute(config: StudyConfig, p: PackingPlan) -> StudyResult:
+    """Run the packing study on plan ``p`` (used by :func:`run` and the tests)."""
+    import xarray as xr
+
+    from ..plotting.packing import plot_packing
+    from ..sweep import Grid
+
+    geo = SwimmerGeometry()
+    lone = measure_lone_swimmers(config, "packing", [Gait().amplitude_rad], duration_s=p.duration_s)
+    amp = round_amplitude(float(lone["amplitude_m"].item()))
+    base_err = float(lone["mean_joint_error_rad"].item())
+
+    fn = functools.partial(packing_point, amplitude_m=amp, base_seed=int(config.seed),
+                           n_swimmers=p.n_swimmers, duration_s=p.duration_s)
+    grid = Grid(axes={"phi_max_rad": p.phi_max_rad, "rho_tilde": p.rho_tilde,
+                      "draw": list(range(p.draws))}, seed=config.seed)
+    res = study_sweep(config, "packing", "groups", fn, grid)
+    sw = res.dataset.isel(replicate=0)
+    failed = sw["run_failed"].values.astype(bool)  # (phi, rho, draw)
+    err = sw["mean_joint_error_rad"].values
+    excess = err - base_err - THRESHOLD_RAD
+
+    nphi, nrho, ndraw = err.shape
+    thr = np.full((nphi, ndraw), np.nan)
+    lo = np.full_like(thr, np.nan)
+    hi = np.full_like(thr, np.nan)
+    for i in range(nphi):
+        for k in range(ndraw):
+            thr[i, k], lo[i, k], hi[i, k] = density_threshold(p.rho_tilde, excess[i, :, k], failed[i, :, k])
+
+    w2a = geo.width_m / (2 * amp)
+    phi_fine = np.linspace(0.0, 2 * np.pi, 181)
+    mc = theory.packing_density_mc(phi_fine, w2a, n_swimmers=p.n_swimmers, n_samples=4000,
+                                   seed=int(config.seed))
+    one = {"units": "1"}
+    ds = xr.Dataset(
+        {
+            "mean_joint_error": (("phi_max", "rho_tilde", "draw"), err, {
+                "units": "rad", "long_name": "mean joint error (swimmers, joints, t >= 2 s); NaN: run failed"}),
+            "run_failed": (("phi_max", "rho_tilde", "draw"), failed, {
+                "long_name": "run diverged (DivergenceError) or failed"}),
+            "channel_width": (("phi_max", "rho_tilde", "draw"), sw["channel_width_m"].values, {
+                "units": "m", "long_name": "channel width Y (2 A N / rho~)"}),
+            "mean_pair_force": (("phi_max", "rho_tilde", "draw"), sw["mean_pair_force_N"].values, {
+                "units": "N", "long_name": "time-mean swimmer-swimmer contact force per neighbouring pair"}),
+            "max_penetration": (("phi_max", "rho_tilde", "draw"), sw["max_penetration_m"].values, {
+                "units": "m", "long_name": "deepest interpenetration"}),
+            "threshold_rho_tilde": (("phi_max", "draw"), thr, {
+                **one, "long_name": "simulated compatibility threshold (first rho~ with excess joint error)"}),
+            "threshold_lo": (("phi_max", "draw"), lo, {**one, "long_name": "last density below threshold"}),
+            "threshold_hi": (("phi_max", "draw"), hi, {**one, "long_name": "first density above threshold"}),
+            "rho_closed_form": (("phi_fine",), theory.packing_density(phi_fine, w2a), {
+                **one, "long_name": "closed-form compatible density (paper Eq. rho_tilde)"}),
+            "rho_monte_carlo": (("phi_fine",), mc.mean, {
+                **one, "long_name": f"Monte-Carlo compatible density, N = {p.n_swimmers}"}),
+            "rho_monte_carlo_stderr": (("phi_fine",), mc.stderr, {**one, "long_name": "its standard error"}),
+            "rho_closed_form_walls": (("phi_fine",), walled_packing_density(phi_fine, w2a, p.n_swimmers), {
+                **one, "long_name": "closed form with the side walls' room 2A"}),
+            "lone_mean_joint_error": ((), base_err, {"units": "rad", "long_name": "mean joint error, lone swimmer"}),
+            "amplitude": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
+        },
+        coords={
+            "phi_max": ("phi_max", np.asarray(p.phi_max_rad), {"units": "rad", "long_name": "phase spread phi_max"}),
+            "rho_tilde": ("rho_tilde", np.asarray(p.rho_tilde), {**one, "long_name": "normalised density 2AN/Y"}),
+            "draw": ("draw", np.arange(ndraw), {**one, "long_name": "phase draw (replicate)"}),
+            "phi_fine": ("phi_fine", phi_fine, {"units": "rad", "long_name": "phase spread phi_max (theory)"}),
+        },
+        attrs={
+            "title": "packing of 50 swimmers: joint error over phase spread and density (paper Fig. 7)",
+            "n_swimmers": p.n_swimmers,
+            "threshold_rad": THRESHOLD_RAD,
+            "w_over_2A": w2a,
+            "duration_s": p.duration_s,
+            "short_channel_m": SHORT_CHANNEL_OVER_L * geo.length_m,
+        },
+    )
+    summary = _summary(ds, res, p)
+    return StudyResult(dataset=ds, figure=plot_packing(ds), summary=summary)
+
+
+def _summary(ds, res, p: PackingPlan) -> dict[str, Any]:
+    thr = ds["threshold_rho_tilde"]
+    mean, std = thr.mean("draw", skipna=True), thr.std("draw", skipna=True)
+    phi = ds["phi_max"].values
+    cf = theory.packing_density(phi, float(ds.attrs["w_over_2A"]))
+    mc_on = np.interp(phi, ds["phi_fine"].values, ds["rho_monte_carlo"].values)
+    walls = walled_packing_density(phi, float(ds.attrs["w_over_2A"]), p.n_swimmers)
+    m = mean.values
+    rel_mc = np.abs(ds["rho_closed_form"] - ds["rho_monte_carlo"]) / ds["rho_closed_form"]
+    failed = ds["run_failed"]
+    where = {}
+    for i, ph in enumerate(phi):
+        rows = np.flatnonzero(failed.values[i].any(axis=-1))
+        if rows.size:
+            where[f"{ph:.3f}"] = {"n_failed": int(failed.values[i].sum()),
+                                  "rho_tilde_failed": [float(ds["rho_tilde"].values[j]) for j in rows]}
+    return {
+        "amplitude_m": float(ds["amplitude"]),
+        "lone_mean_joint_error_rad": float(ds["lone_mean_joint_error"]),
+        "w_over_2A": float(ds.attrs["w_over_2A"]),
+        "phi_max_rad": phi,
+        "threshold_rho_tilde_mean": m,
+        "threshold_rho_tilde_std": std.values,
+        "threshold_n_draws": thr.notnull().sum("draw").values,
+        "closed_form_rho_tilde": cf,
+        "monte_carlo_rho_tilde": mc_on,
+        "closed_form_walls_rho_tilde": walls,
+        "threshold_bracket_lo_mean": ds["threshold_lo"].mean("draw", skipna=True).values,
+        "threshold_bracket_hi_mean": ds["threshold_hi"].mean("draw", skipna=True).values,
+        "threshold_above_grid": [bool(np.all(np.isnan(ds["threshold_hi"].values[i]))) for i in range(phi.size)],
+        "threshold_never_rises_with_phase_spread": _never_rises(m, ds),
+        "max_rel_diff_closed_form_vs_monte_carlo": float(rel_mc.max()),
+        "n_runs": int(failed.size),
+        "n_failed": int(failed.sum()),
+        "failures_by_phi_max": where,
+        "sweep_elapsed_s": float(res.elapsed_s),
+        "threshold_rule": f"mean joint error > lone swimmer + {THRESHOLD_RAD} rad; "
+                          "linear interpolation in rho~; a diverged run counts as above",
+    }
+
+
+def _never_rises(mean, ds) -> bool:
+    """True if the mean threshold does not rise with phi_max by more than half a grid
+    step (a threshold above the grid counts as +inf)."""
+    rho = ds["rho_tilde"].values
+    t = np.where(np.isfinite(mean), mean, np.nan)
+    above = np.all(np.isnan(ds["threshold_hi"].values), axis=-1) & ~np.isfinite(mean)
+    t = np.where(above, 1e9, t)
+    t = t[~np.isnan(t)]
+    step = float(np.min(np.diff(rho))) if rho.size > 1 else 0.0
+    return bool(np.all(np.diff(t) <= step / 2 + 1e-12)) if t.size > 1 else True
+
+
+def _spearman(x, y) -> float:
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    if x.size < 3:
+        return float("nan")
+    rx = np.argsort(np.argsort(x)).astype(float)
+    ry = np.argsort(np.argsort(y)).astype(float)
+    return float(np.corrcoef(rx, ry)[0, 1])
+
+
+@register("packing", paper_figure="7",
+          description="50 swimmers in the short channel: mean joint error over phase spread and "
+                      "normalised density, the simulated compatibility threshold, and the "
+                      "closed-form and Monte-Carlo packing densities.")
+def run(config: StudyConfig) -> StudyResult:
+    return compute(config, plan(config.quick))

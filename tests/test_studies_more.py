@@ -1,0 +1,239 @@
+"""Studies packing, basins, confinement, potential and swimming (paper Figs. 7-10, Methods).
+
+The analysis functions are checked against synthetic data with known
+answers; every study runs for real (no mocks) in quick mode through the
+registry and writes its four files, and the physics each one is there to
+show is asserted on the quick result.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from undulate import studies
+from undulate.studies import basins, confinement, packing, potential
+
+MINE = ("packing", "basins", "confinement", "potential", "swimming")
+
+
+# ----------------------------------------------------------------- pure helpers
+def test_fit_stiffness_recovers_slope_and_offset():
+    rng = np.random.default_rng(1)
+    k_true, x0_true = 4.2, 0.031  # N/m, m
+    dF = np.linspace(0.02, 0.3, 12)
+    dx = x0_true + dF / k_true + rng.normal(0, 2e-4, dF.size)
+    broken = np.zeros(dF.size, bool)
+    broken[-2:] = True  # the pair broke apart: huge separations, to be ignored
+    dx[-2:] = [3.0, 7.0]
+    dx[3] = np.nan  # a failed run
+    k, x0, r2 = potential.fit_stiffness(dF, dx, ~broken)
+    assert k == pytest.approx(k_true, rel=0.02)
+    assert x0 == pytest.approx(x0_true, abs=5e-4)
+    assert 0.99 < r2 <= 1.0
+    # exact data: exact answer; too few points: NaN
+    k, x0, r2 = potential.fit_stiffness([1.0, 2.0, 3.0], [0.5, 0.75, 1.0])
+    assert (k, x0, r2) == pytest.approx((4.0, 0.25, 1.0))
+    assert all(math.isnan(v) for v in potential.fit_stiffness([1.0, 2.0], [0.1, 0.2]))
+    assert all(math.isnan(v) for v in potential.fit_stiffness([1, 2, 3], [0.1, 0.1, 0.1]))
+
+
+def test_fit_abs_linear_is_symmetric_in_dphi():
+    dphi = np.linspace(-np.pi, np.pi, 9)
+    a, b, r2 = potential.fit_abs_linear(dphi, 0.3 * np.abs(dphi) + 0.05)
+    assert (a, b, r2) == pytest.approx((0.3, 0.05, 1.0))
+
+
+def test_compatibility_model_offset():
+    A, lam, w = 0.05, 0.54, 0.015
+    # d = 2A leaves no room; d = 4A (dy = 2A) frees every offset up to half a wavelength
+    assert potential.model_dx0_m(2 * A, A, lam) == pytest.approx(0.0)
+    assert potential.model_dx0_m(4 * A, A, lam) == pytest.approx(lam / 2)
+    d = 1.3 * 2 * A
+    assert potential.model_dx0_m(d, A, lam) == pytest.approx(lam / np.pi * np.arcsin(0.3))
+    assert potential.model_dx0_m(d, A, lam, w) == pytest.approx(lam / np.pi * np.arcsin(0.3 - w / A))
+    assert potential.lateral_clearance_m(0.1, A, w) == 0.0
+
+
+def test_density_threshold_rule():
+    rho = [1.0, 2.0, 3.0, 4.0]
+    # crossing between 2 and 3 at a quarter of the way
+    assert packing.density_threshold(rho, [-0.01, -0.003, 0.009, 0.05]) == pytest.approx((2.25, 2.0, 3.0))
+    # the first density above diverged: midpoint of the bracket
+    t = packing.density_threshold(rho, [-0.01, -0.01, np.nan, np.nan], [False, False, True, True])
+    assert t == pytest.approx((2.5, 2.0, 3.0))
+    lo_all = packing.density_threshold(rho, [0.1, 0.1, 0.1, 0.1])
+    assert math.isnan(lo_all[0]) and lo_all[2] == 1.0
+    none = packing.density_threshold(rho, [-0.1] * 4)
+    assert math.isnan(none[0]) and none[1] == 4.0
+
+
+def test_walled_density_is_below_the_open_closed_form():
+    from undulate import theory
+
+    phi = np.linspace(0, 2 * np.pi, 7)
+    w2a = 0.143
+    walls = packing.walled_packing_density(phi, w2a, 50)
+    assert np.all(walls < theory.packing_density(phi, w2a))
+    assert walls[0] == pytest.approx(1 / (w2a + 1 / 50))
+
+
+def test_basin_threshold_bracket():
+    x0 = [0.1, 0.2, 0.3, 0.4, 0.05]
+    ret = [True, True, False, False, True]
+    assert basins.bracket_threshold(x0, ret) == (0.2, 0.3)
+    inner, outer = basins.bracket_threshold([-0.1, -0.2], [True, True])
+    assert inner == -0.2 and math.isnan(outer)
+    assert math.isnan(basins.bracket_threshold([0.1, 0.2], [False, True])[0])
+    assert list(basins.returns_to_zero([0.01, -0.04, 0.06, -0.9])) == [True, True, False, False]
+
+
+def test_central_state_width():
+    s = confinement.central_state([-1, -0.5, 0, 0.5, 1], [-0.95, -0.02, 0.0, 0.03, 0.95])
+    assert s["width"] == pytest.approx(0.05) and s["n"] == 3
+    assert (s["basin_lo"], s["basin_hi"]) == (-0.5, 0.5)
+    assert math.isnan(confinement.central_state([0.5], [0.9])["width"])
+
+
+def test_pair_scene_maps_the_point():
+    s = basins.pair_scene({"dx0_over_lambda": 0.25, "dphi_rad": 1.0, "d_over_2A": 1.1, "force_N": 0.2},
+                          amplitude_m=0.05, force_onset_s=6.0)
+    assert s.phases_rad == (0.0, 1.0)
+    assert s.channel.width_m == pytest.approx(0.11)
+    assert s.dx0_m == pytest.approx((0.25 * 0.54,))
+    assert s.forces_N == (-0.2, 0.2) and s.force_onset_s == 6.0
+    with pytest.raises(ValueError):
+        basins.pair_scene({"bogus": 1})
+
+
+# ------------------------------------------------------------- the studies, real
+def test_my_studies_are_registered():
+    names = studies.names()
+    for n in MINE:
+        assert n in names and studies.describe(n).needs_simulation
+
+
+@pytest.fixture(scope="module")
+def quick_runs(tmp_path_factory):
+    """Run a study once in quick mode (through the registry) and keep its files."""
+    out = tmp_path_factory.mktemp("quick")
+    done = {}
+
+    def get(name):
+        if name not in done:
+            nc = studies.run_study(name, out, quick=True, seed=0)
+            assert nc == out / f"{name}.nc"
+            for ext in ("png", "pdf", "json"):
+                assert (out / f"{name}.{ext}").stat().st_size > 0
+            assert (out / f"{name}.pdf").read_bytes()[:4] == b"%PDF"
+            ds = xr.load_dataset(nc, engine="h5netcdf")
+            assert ds.attrs["study"] == name
+            doc = json.loads((out / f"{name}.json").read_text())
+            assert doc["study"] == name
+            done[name] = (ds, doc["summary"], out)
+        return done[name]
+
+    return get
+
+
+def test_swimming_quick(quick_runs):
+    ds, summary, out = quick_runs("swimming")
+    # the lone swimmer advances head first (toward -x) in the fluid; on the viscous ground
+    # it only creeps (the integrator's O(dt) drift)
+    assert 0.004 < summary["lone_swimmer_speed_m_s"] < 0.02
+    assert abs(summary["lone_viscous_speed_m_s"]) < 1e-3
+    vis = summary["modes"]["viscous"]
+    assert 0.8 < vis["slope"] < 1.2 and vis["rms_residual_over_lambda"] < 0.08
+    sw = ds["dx_final_over_lambda"].sel(mode="swimming")
+    # small detuning: swimming pairs settle where non-swimming ones do
+    small = np.abs(ds["dphi"]) <= np.pi / 4 + 1e-9
+    np.testing.assert_allclose(sw.where(small, drop=True),
+                               ds["dx_final_over_lambda"].sel(mode="viscous").where(small, drop=True), atol=0.05)
+    # resuming: a second call reuses every run
+    studies.run_study("swimming", out, quick=True, seed=0)
+    assert "runs" in {p.name for p in (out / ".sweeps" / "swimming").rglob("runs")}
+
+
+def test_confinement_quick(quick_runs):
+    ds, summary, _ = quick_runs("confinement")
+    w = ds["central_width"].values
+    assert np.all(np.isfinite(w))
+    # the central state broadens (never narrows) as the walls move apart
+    assert w[-1] >= w[0] and summary["width_never_shrinks_with_d"]
+    # a start at dx0 = 0 stays at the compatible dx = 0
+    assert np.all(np.abs(ds["dx_final_over_lambda"].sel(dx0=0.0, method="nearest")) < 0.05)
+
+
+def test_potential_quick(quick_runs):
+    ds, summary, _ = quick_runs("potential")
+    imp = ds["impulse"]
+    # (a) contact grows with the detuning from compatibility (on both sides)
+    for sign in (1, -1):
+        at = [float(imp.sel(dphi=sign * q * np.pi, method="nearest")) for q in (0, 0.25, 0.5, 1.0)]
+        assert at[0] < at[1] < at[2] < at[3]
+    assert 0 <= summary["impulse_fit"]["r2"] <= 1 and summary["impulse_fit"]["slope_Ns_per_rad"] > 0
+    # (b-d) a linear, positive stiffness that falls as the walls move apart
+    k = ds["stiffness"]
+    assert int(np.isfinite(k).sum()) >= 6
+    assert float(np.nanmin(k)) > 0
+    for b in ds["beta"].values:
+        kb = k.sel(beta=b).values
+        assert kb[0] > kb[-1]
+
+
+def test_basins_quick(quick_runs):
+    ds, summary, _ = quick_runs("basins")
+    _check_basins(ds, summary)
+
+
+@pytest.mark.slow
+def test_packing_quick(quick_runs):
+    ds, summary, _ = quick_runs("packing")
+    _check_packing(ds, summary)
+
+
+def _check_basins(ds, summary):
+    start, ret = ds["start"].values, ds["scan_returned"].values
+    # nearby starts return to the compatible dx = 0, far ones do not
+    assert ret[np.argmin(np.abs(start - 0.1))] and ret[np.argmin(np.abs(start + 0.1))]
+    assert not ret[np.argmin(np.abs(start - 0.8))] and not ret[np.argmin(np.abs(start + 0.8))]
+    thr = summary["return_threshold"]
+    for side in ("positive", "negative"):
+        t = thr[side]["threshold_dx0_over_lambda"]
+        assert t is not None and 0.05 < abs(t) < 0.8
+    assert ds["theory_displacement_over_lambda"].shape == ds["grid_displacement_over_lambda"].shape
+
+
+def _check_packing(ds, summary):
+    n = int(ds.attrs["n_swimmers"])
+    amp = float(ds["amplitude"])
+    width = ds["channel_width"]
+    ok = np.isfinite(width)
+    assert bool(ok.any())
+    # the stored widths reproduce the requested normalised densities: rho~ = 2AN/Y
+    rho = (2 * amp * n / width).where(ok)
+    expect = ds["rho_tilde"].broadcast_like(width).where(ok)
+    np.testing.assert_allclose(rho.values[ok.values], expect.values[ok.values], rtol=1e-12)
+    # the closed form matches Monte Carlo
+    assert summary["max_rel_diff_closed_form_vs_monte_carlo"] < 0.01
+    # contact (joint error) rises with density along the in-phase column
+    col = ds["mean_joint_error"].isel(phi_max=0).mean("draw")
+    assert float(col.isel(rho_tilde=0)) < packing.THRESHOLD_RAD
+
+
+def test_packing_reduced(tmp_path):
+    """A reduced real packing run (the quick run, 40 runs of 50 swimmers, is marked slow)."""
+    cfg = studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0)
+    res = packing.compute(cfg, packing.PackingPlan([0.0, 2 * np.pi], [1.0, 3.0], draws=1, duration_s=4.0))
+    ds, summary = res.dataset, res.summary
+    _check_packing(ds, summary)
+    # the in-phase group fits at rho~ = 3 without contact; a full phase spread does not
+    # (its joint error crosses the threshold or the jammed run diverges)
+    assert float(ds["mean_joint_error"].sel(phi_max=0.0, rho_tilde=3.0).item()) < packing.THRESHOLD_RAD
+    spread = ds.sel(phi_max=2 * np.pi, rho_tilde=3.0)
+    assert bool(spread["run_failed"].item()) or float(spread["mean_joint_error"].item()) > 0.01
+    res.figure.savefig(tmp_path / "packing.png")
