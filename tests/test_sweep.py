@@ -185,6 +185,9 @@ def test_resume_into_other_sweep_is_refused(tmp_path):
         run_sweep(sweep_funcs.pendulum_batch, grid, out, workers=1, progress=False, batched=True)
     with pytest.raises(ParameterError, match="seed"):
         run_sweep(sweep_funcs.pendulum, Grid(axes=grid.axes, seed=1), out, workers=1, progress=False)
+    with pytest.raises(ParameterError) as e:
+        run_sweep(sweep_funcs.pendulum, grid, tmp_path / "new", scheduler=str(tmp_path / "no-scheduler.json"))
+    assert e.value.name == "scheduler"
     (tmp_path / "junk").mkdir()
     (tmp_path / "junk" / "notes.txt").write_text("mine")
     with pytest.raises(ParameterError, match="no manifest.json"):

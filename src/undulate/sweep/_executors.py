@@ -191,19 +191,20 @@ def connect(scheduler: Any):
         ) from None
     if isinstance(scheduler, distributed.Client):
         return scheduler, False
-    if isinstance(scheduler, os.PathLike) or (isinstance(scheduler, str) and "://" not in scheduler):
+    if isinstance(scheduler, str | os.PathLike):
         path = Path(scheduler).expanduser()
-        if not path.is_file():
-            raise ParameterError(
-                "scheduler", "a Dask scheduler address tcp://HOST:PORT or the path of an existing scheduler file", str(scheduler)
-            )
-        return distributed.Client(scheduler_file=str(path)), True
-    if isinstance(scheduler, str):
-        try:
-            return distributed.Client(scheduler, timeout="30s"), True
-        except OSError as e:
-            raise ParameterError("scheduler", f"the address of a running Dask scheduler ({e})", scheduler) from None
-    raise ParameterError("scheduler", "a Dask scheduler address, a scheduler-file path or a distributed.Client", scheduler)
+        if path.is_file():
+            return distributed.Client(scheduler_file=str(path)), True
+        if isinstance(scheduler, str) and ":" in scheduler:
+            try:
+                return distributed.Client(scheduler, timeout="30s"), True
+            except OSError as e:
+                raise ParameterError("scheduler", f"the address of a running Dask scheduler ({e})", scheduler) from None
+    raise ParameterError(
+        "scheduler",
+        "a Dask scheduler address tcp://HOST:PORT, the path of an existing scheduler file, or a distributed.Client",
+        scheduler,
+    )
 
 
 def dask_threads(client) -> int:
