@@ -18,8 +18,8 @@ density at which that mean exceeds the lone swimmer's by ``0.01 rad``
 (:func:`density_threshold`): interpolated linearly in ``rho~`` between the
 last grid density below and the first above; when the first density above
 is a run that diverged (dense, jammed packs can trip the simulator's
-divergence check; the sweep records those runs as failed) it counts as
-above, and the threshold is the midpoint of the bracket.  Error bars: the
+divergence check; such a run is stored as a result flagged ``diverged``)
+it counts as above, and the threshold is the midpoint of the bracket.  Error bars: the
 standard deviation over the phase draws (replicates).
 
 Common random numbers: replicate ``r`` draws its unit-uniform numbers
@@ -201,12 +201,14 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
     density 2AN/Y, dimensionless), ``draw`` (phase-draw number).  Phases are
     ``phi_max * u`` with ``u ~ U[0, 1)^N`` from ``default_rng([base_seed,
     draw])`` (the sweep's per-run ``seed`` is not used: see the module
-    docstring).  ``amplitude_m``: A, m.  Raises
-    :class:`~undulate.errors.DivergenceError` when the run blows up (the
-    sweep records it).
+    docstring).  ``amplitude_m``: A, m.  A run that blows up
+    (:class:`~undulate.errors.DivergenceError`: dense, jammed packs do) is a
+    result, not a failure: ``diverged`` is True and the measurements are NaN,
+    so a resumed sweep does not redo it.
     """
     import xarray as xr
 
+    from ..errors import DivergenceError
     from ..observables import mean_contact_force
     from ..simulate import simulate
 
@@ -220,23 +222,32 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
         channel=Channel(width_m=width, end_walls_m=SHORT_CHANNEL_OVER_L * geo.length_m),
         lateral_gap_m=width / n - geo.width_m,
     )
-    ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=SAMPLE_RATE_HZ))
-    late = ds["time"] >= skip_s
-    je = ds["joint_error"].where(late)
-    f = mean_contact_force(ds, skip_s)
+    nan = float("nan")
+    je_mean = je_max = pair_f = wall_f = pen = nan
+    diverged = False
+    try:
+        ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=SAMPLE_RATE_HZ))
+    except DivergenceError:
+        diverged = True
+    else:
+        je = ds["joint_error"].where(ds["time"] >= skip_s)
+        f = mean_contact_force(ds, skip_s)
+        je_mean, je_max = float(je.mean()), float(je.mean(("swimmer", "joint")).max())
+        pair_f, wall_f = float(f["pair"].mean()), float(f["wall"].sum())
+        pen = float(ds["penetration"].max())
     return xr.Dataset(
         {
-            "mean_joint_error_rad": ((), float(je.mean()), {
+            "mean_joint_error_rad": ((), je_mean, {
                 "units": "rad", "long_name": "mean joint error over swimmers, joints and t >= skip"}),
-            "max_joint_error_rad": ((), float(je.mean(("swimmer", "joint")).max()), {
+            "max_joint_error_rad": ((), je_max, {
                 "units": "rad", "long_name": "largest group-mean joint error over time"}),
             "channel_width_m": ((), width, {"units": "m", "long_name": "channel width Y"}),
-            "mean_pair_force_N": ((), float(f["pair"].mean()), {
+            "mean_pair_force_N": ((), pair_f, {
                 "units": "N", "long_name": "time-mean swimmer-swimmer contact force per pair"}),
-            "mean_wall_force_N": ((), float(f["wall"].sum()), {
+            "mean_wall_force_N": ((), wall_f, {
                 "units": "N", "long_name": "time-mean contact force on all walls"}),
-            "max_penetration_m": ((), float(ds["penetration"].max()), {
-                "units": "m", "long_name": "deepest interpenetration"}),
+            "max_penetration_m": ((), pen, {"units": "m", "long_name": "deepest interpenetration"}),
+            "diverged": ((), diverged, {"long_name": "the simulation blew up (DivergenceError)"}),
         }
     )
 
@@ -294,7 +305,8 @@ def compute(config: StudyConfig, p: PackingPlan) -> StudyResult:
                       "draw": list(range(p.draws))}, seed=config.seed)
     res = study_sweep(config, "packing", "groups", fn, grid)
     sw = res.dataset.isel(replicate=0)
-    failed = sw["run_failed"].values.astype(bool)  # (phi, rho, draw)
+    diverged = sw["diverged"].values == 1  # (phi, rho, draw)
+    failed = sw["run_failed"].values.astype(bool) | diverged
     err = sw["mean_joint_error_rad"].values
     excess = err - base_err - THRESHOLD_RAD
 
@@ -317,6 +329,8 @@ def compute(config: StudyConfig, p: PackingPlan) -> StudyResult:
                 "units": "rad", "long_name": "mean joint error (swimmers, joints, t >= 2 s); NaN: run failed"}),
             "run_failed": (("phi_max", "rho_tilde", "draw"), failed, {
                 "long_name": "run diverged (DivergenceError) or failed"}),
+            "diverged": (("phi_max", "rho_tilde", "draw"), diverged, {
+                "long_name": "run diverged (DivergenceError)"}),
             "channel_width": (("phi_max", "rho_tilde", "draw"), sw["channel_width_m"].values, {
                 "units": "m", "long_name": "channel width Y (2 A N / rho~)"}),
             "mean_pair_force": (("phi_max", "rho_tilde", "draw"), sw["mean_pair_force_N"].values, {
@@ -386,27 +400,30 @@ def _summary(ds, res, p: PackingPlan) -> dict[str, Any]:
         "threshold_bracket_lo_mean": ds["threshold_lo"].mean("draw", skipna=True).values,
         "threshold_bracket_hi_mean": ds["threshold_hi"].mean("draw", skipna=True).values,
         "threshold_above_grid": [bool(np.all(np.isnan(ds["threshold_hi"].values[i]))) for i in range(phi.size)],
-        "threshold_never_rises_with_phase_spread": _never_rises(m, ds),
+        "spearman_threshold_vs_phi_max": _spearman(phi[np.isfinite(m)], m[np.isfinite(m)]),
+        "largest_rise_of_threshold_between_neighbouring_phi_max": _largest_rise(m, ds),
         "max_rel_diff_closed_form_vs_monte_carlo": float(rel_mc.max()),
         "n_runs": int(failed.size),
         "n_failed": int(failed.sum()),
-        "failures_by_phi_max": where,
+        "n_diverged": int(ds["diverged"].sum()),
+        "n_failed_otherwise": len(res.failures),
+        "failures_otherwise": [str(f) for f in res.failures[:20]],
+        "diverged_or_failed_by_phi_max": where,
         "sweep_elapsed_s": float(res.elapsed_s),
         "threshold_rule": f"mean joint error > lone swimmer + {THRESHOLD_RAD} rad; "
                           "linear interpolation in rho~; a diverged run counts as above",
     }
 
 
-def _never_rises(mean, ds) -> bool:
-    """True if the mean threshold does not rise with phi_max by more than half a grid
-    step (a threshold above the grid counts as +inf)."""
-    rho = ds["rho_tilde"].values
-    t = np.where(np.isfinite(mean), mean, np.nan)
-    above = np.all(np.isnan(ds["threshold_hi"].values), axis=-1) & ~np.isfinite(mean)
+def _largest_rise(mean, ds) -> float:
+    """Largest increase of the mean threshold from one phi_max to the next (a
+    threshold above the density grid counts as larger than any); <= 0 when it
+    never rises."""
+    t = np.asarray(mean, float)
+    above = np.all(np.isnan(ds["threshold_hi"].values), axis=-1) & ~np.isfinite(t)
     t = np.where(above, 1e9, t)
     t = t[~np.isnan(t)]
-    step = float(np.min(np.diff(rho))) if rho.size > 1 else 0.0
-    return bool(np.all(np.diff(t) <= step / 2 + 1e-12)) if t.size > 1 else True
+    return float(np.max(np.diff(t))) if t.size > 1 else float("nan")
 
 
 def _spearman(x, y) -> float:
