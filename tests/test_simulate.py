@@ -187,3 +187,15 @@ def test_swimming_mode_advances_head_first_default_mode_does_not():
     assert swim < -5e-3  # heads point to -x: head first is -x, at > 5 mm/s
     assert abs(still) < 5e-4  # only the O(dt) integration creep
     assert abs(swim) > 10 * abs(still)
+
+
+def test_jammed_fifty_swimmer_pack_runs_without_solver_blow_up():
+    # phi_max = 2 pi at rho~ = 3: far above the packing threshold (MuJoCo's sparse Newton blew up here)
+    rng = np.random.default_rng(0)
+    n, A = 50, 0.0525
+    Y = 2 * A * n / 3.0
+    sc = Scene(phases_rad=tuple(rng.uniform(0, 2 * np.pi, n)), channel=Channel(width_m=Y, end_walls_m=1.1 * 0.54),
+               lateral_gap_m=Y / n - 0.015 * (1 + 1e-6))
+    ds = simulate(sc, SimOptions(duration_s=4.0, sample_rate_hz=5))
+    assert float(ds["joint_error"].mean()) > 0.01  # jammed: the servos are held off their gait
+    assert float(ds["penetration"].sel(time=slice(1, None)).max()) < 5e-3

@@ -55,6 +55,12 @@ def compile_scene(scene: Scene, options: SimOptions) -> CompiledScene:
     """Build the model for ``scene`` with the solver settings the runner needs."""
     cs = build(scene, options.timestep_s)
     cs.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
+    m = cs.model
+    solver = options.solver
+    if solver == "auto":
+        solver = "newton" if m.nv < 60 else "cg"  # 60: where MuJoCo's "auto" Jacobian turns sparse
+    m.opt.solver = {"newton": mujoco.mjtSolver.mjSOL_NEWTON, "cg": mujoco.mjtSolver.mjSOL_CG,
+                    "pgs": mujoco.mjtSolver.mjSOL_PGS}[solver]
     cs.model.opt.integrator = {
         "implicitfast": mujoco.mjtIntegrator.mjINT_IMPLICITFAST,
         "rk4": mujoco.mjtIntegrator.mjINT_RK4,
@@ -193,23 +199,25 @@ def simulate_batch(
             depth = np.where(sd[..., md] > 0, np.maximum(0.0, -sd[..., md + 1]), 0.0)
             pen[:, s_lo + 1:s_lo + 1 + ns] = depth.reshape(nb, ns, sps).max(axis=2)
             cur = st[:, k - 1].copy()
-            # divergence: non-finite state or deep interpenetration
-            bad = ~(np.abs(st) < _HUGE).all(axis=(1, 2))
-            deep = depth.max(axis=1) > max_pen
-            if bad.any() or deep.any():
-                b = int(np.flatnonzero(bad | deep)[0])
-                if bad[b]:
-                    step = int(np.argmax(~np.isfinite(st[b]).all(axis=1)))
-                    raise _diagnose(compiled[b], options, (done + step + 1) * dt, "non-finite state (NaN/inf)")
-                step = int(np.argmax(depth[b] > max_pen))
-                raise _diagnose(
-                    compiled[b], options, (done + step + 1) * dt,
-                    f"interpenetration {depth[b, step] * 1e3:.2f} mm exceeds the "
-                    f"{compiled[b].scene.contact.max_penetration_m * 1e3:g} mm bound",
-                )
-            for d in datas:
-                if d.warning[mujoco.mjtWarning.mjWARN_BADQACC].number > 0:
-                    raise _diagnose(compiled[0], options, float(d.time), "MuJoCo reported bad accelerations")
+            # divergence: huge or non-finite state, a MuJoCo reset (it restarts the data after
+            # bad accelerations: the state's clock jumps back), or deep interpenetration
+            t_expected = (done + 1 + np.arange(k)) * dt
+            huge = ~(np.abs(st) < _HUGE).all(axis=2)
+            reset = np.abs(st[..., 0] - t_expected) > 0.5 * dt
+            deep = depth > max_pen
+            bad = huge | reset | deep
+            if bad.any():
+                b = int(np.flatnonzero(bad.any(axis=1))[0])
+                step = int(np.argmax(bad[b]))
+                t_bad = float(t_expected[step])
+                if huge[b, step]:
+                    what = "non-finite or huge state (NaN, inf or > 1e6)"
+                elif reset[b, step]:
+                    what = "MuJoCo found bad accelerations (solver failure) and reset the state"
+                else:
+                    what = (f"interpenetration {depth[b, step] * 1e3:.2f} mm exceeds the "
+                            f"{compiled[b].scene.contact.max_penetration_m * 1e3:g} mm bound")
+                raise _diagnose(compiled[b], options, t_bad, what)
             done += k
     finally:
         runner.close()
