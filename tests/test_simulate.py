@@ -198,4 +198,6 @@ def test_jammed_fifty_swimmer_pack_runs_without_solver_blow_up():
                lateral_gap_m=Y / n - 0.015 * (1 + 1e-6))
     ds = simulate(sc, SimOptions(duration_s=4.0, sample_rate_hz=5))
     assert float(ds["joint_error"].mean()) > 0.01  # jammed: the servos are held off their gait
-    assert float(ds["penetration"].sel(time=slice(1, None)).max()) < 5e-3
+    pen = float(ds["penetration"].sel(time=slice(1, None)).max())
+    print(f"jammed pack: mean joint error {float(ds['joint_error'].mean()):.3f} rad, penetration {pen * 1e3:.1f} mm")
+    assert pen < sc.contact.max_penetration_m  # soft contact yields under the squeeze, but holds
