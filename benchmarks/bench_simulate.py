@@ -33,7 +33,7 @@ from mujoco import rollout
 
 from undulate import Channel, Scene, SimOptions, simulate
 from undulate.observables import neighbour_offsets
-from undulate.simulate import compile_scene, controls
+from undulate.simulation import compile_scene, controls
 
 
 def group_scene(n: int, seed: int = 0) -> Scene:

@@ -36,7 +36,7 @@ import xarray as xr
 def pair_run(point: dict, seed: int) -> xr.Dataset:
     """One pair simulation; returns centres and contact force (what the pair study keeps)."""
     from undulate.params import Scene, SimOptions
-    from undulate.simulate import simulate
+    from undulate.simulation import simulate
 
     ds = simulate(Scene(phases_rad=(0.0, point["dphi_rad"])), SimOptions(duration_s=point["duration_s"]))
     return ds[["x", "y", "contact_force_pair"]]

@@ -80,7 +80,7 @@ def swimmer_pair(point: dict, seed: int) -> xr.Dataset:
     unused (the simulation is deterministic).
     """
     from undulate.params import Scene, SimOptions
-    from undulate.simulate import simulate
+    from undulate.simulation import simulate
 
     ds = simulate(Scene(phases_rad=(0.0, point["dphi_rad"])), SimOptions(duration_s=point.get("duration_s", 2.0)))
     return ds[["x", "y"]]

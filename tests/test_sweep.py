@@ -238,7 +238,7 @@ def test_sigkill_then_resume(tmp_path):
 
 # ---- real swimmers ----------------------------------------------------------------------------
 def test_swimmer_pair_sweep(tmp_path):
-    pytest.importorskip("undulate.simulate")
+    pytest.importorskip("undulate.simulation")
     grid = Grid(axes={"dphi_rad": [0.0, np.pi / 2], "duration_s": [1.0]})
     res = run_sweep(sweep_funcs.swimmer_pair, grid, tmp_path / "pair", workers=1, progress=False)
     assert res.ok, "\n".join(f.traceback for f in res.failures)

@@ -129,7 +129,7 @@ def simulate(
     except ParameterError as e:
         _fail(str(e), 2)
 
-    from .simulate import simulate as run
+    from .simulation import simulate as run
 
     try:
         ds = run(scene, options)

@@ -63,7 +63,7 @@ def _study_done(out: Path, name: str, quick: bool) -> bool:
 def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: float) -> dict:
     from .animate import animate
     from .params import Channel, Scene, SimOptions
-    from .simulate import simulate
+    from .simulation import simulate
     from .cli import write_netcdf_atomic
 
     anim_dir = out / "animations"

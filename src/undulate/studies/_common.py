@@ -116,7 +116,7 @@ def simulate_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, cha
     of the initial stack), ``penetration_max`` (m), and the wavelength
     ``wavelength`` (m, inf for xi = 0).
     """
-    from ..simulate import simulate
+    from ..simulation import simulate
 
     xi = float(point.get("waves_per_body", 1.0))
     n_links = int(point.get("n_links", 3))
@@ -160,7 +160,7 @@ def free_amplitude(point: dict[str, Any], seed: int, *, periods: int = 3) -> xr.
     ``periods``.  Returns the scalar ``amplitude`` (m).
     """
     from ..observables import gait_amplitude
-    from ..simulate import simulate
+    from ..simulation import simulate
 
     gait = Gait(amplitude_rad=float(point.get("amplitude_rad", math.radians(45.0))),
                 waves_per_body=float(point.get("waves_per_body", 1.0)))

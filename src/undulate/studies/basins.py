@@ -124,7 +124,7 @@ def pair_point(point: dict, seed: int, *, duration_s: float = DURATION_S,
     import xarray as xr
 
     from ..observables import contact_impulse, neighbour_offsets, period_average, steady_state
-    from ..simulate import simulate
+    from ..simulation import simulate
 
     scene = pair_scene(point, amplitude_m=amplitude_m, force_onset_s=force_onset_s)
     ds = simulate(scene, SimOptions(duration_s=duration_s))

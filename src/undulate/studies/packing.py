@@ -128,7 +128,7 @@ def lone_swimmer_point(point: dict, seed: int, *, duration_s: float = DURATION_S
     import xarray as xr
 
     from ..observables import gait_amplitude, period_average
-    from ..simulate import simulate
+    from ..simulation import simulate
 
     beta = float(point.get("amplitude_rad", Gait().amplitude_rad))
     g = Ground.swimming() if ground == "swimming" else Ground()
@@ -210,7 +210,7 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
 
     from ..errors import DivergenceError
     from ..observables import mean_contact_force
-    from ..simulate import simulate
+    from ..simulation import simulate
 
     geo = SwimmerGeometry()
     n = int(n_swimmers)

@@ -22,7 +22,7 @@ from undulate import (
     simulate_batch,
 )
 from undulate.observables import period_average
-from undulate.simulate import compile_scene, controls
+from undulate.simulation import compile_scene, controls
 
 WIDE = Channel(width_m=2.0)
 
@@ -201,3 +201,12 @@ def test_jammed_fifty_swimmer_pack_runs_without_solver_blow_up():
     pen = float(ds["penetration"].sel(time=slice(1, None)).max())
     print(f"jammed pack: mean joint error {float(ds['joint_error'].mean()):.3f} rad, penetration {pen * 1e3:.1f} mm")
     assert pen < sc.contact.max_penetration_m  # soft contact yields under the squeeze, but holds
+
+
+def test_top_level_simulate_is_the_function_even_after_importing_the_module():
+    import importlib
+
+    importlib.import_module("undulate.simulation")
+    import undulate
+
+    assert callable(undulate.simulate) and undulate.simulate.__name__ == "simulate"
