@@ -33,3 +33,23 @@ def test_groups_claim_compares_with_pairs():
     assert [r["holds"] for r in evaluate("groups", {"groups": g, "pairs": pairs_summary(rms1=0.03)})] == [True, True]
     assert [r["holds"] for r in evaluate("groups", {"groups": g, "pairs": pairs_summary(rms1=0.2)})] == [False, False]
     assert evaluate("unknown-study", {}) == []
+
+
+def test_every_claim_gives_no_verdict_without_data():
+    from undulate.claims import CLAIMS
+
+    for name in CLAIMS:
+        rows = evaluate(name, {})
+        assert rows and all(r["holds"] is None and r["measured"] == "no result" for r in rows), name
+
+
+def test_confinement_and_potential_claims():
+    c = {"d_over_2A": [0.6, 1.2], "central_width_over_lambda": [0.0, 0.05], "max_width_in_paper_range": 0.05,
+         "width_never_shrinks_with_d": True}
+    assert evaluate("confinement", {"confinement": c})[0]["holds"] is True
+    c["max_width_in_paper_range"] = 0.0
+    assert evaluate("confinement", {"confinement": c})[0]["holds"] is False
+    p = {"impulse_fit": {"r2": 0.95, "slope_Ns_per_rad": 4.0}, "median_fit_r2": 0.97,
+         "per_beta": {"45": {"spearman_k_vs_d": -1.0}, "60": {"spearman_k_vs_d": 0.5}},
+         "collapse_rms_log10k_vs_d_over_2A": 0.1, "collapse_rms_log10k_vs_d_m": 0.5}
+    assert [r["holds"] for r in evaluate("potential", {"potential": p})] == [True, True, False, True]

@@ -109,11 +109,115 @@ def _groups(s: Summaries) -> list[Row]:
     return rows
 
 
+def _packing(s: Summaries) -> list[Row]:
+    p = _get(s, "packing") or {}
+    phi, thr = p.get("phi_max_rad") or [], p.get("threshold_rho_tilde_mean") or []
+    pairs = [(f, t) for f, t in zip(phi, thr) if _num(t) is not None]
+    falls = None if len(pairs) < 2 else (p.get("threshold_never_rises_with_phase_spread") is True
+                                         and pairs[-1][1] < pairs[0][1])
+    rel = _num(p.get("max_rel_diff_closed_form_vs_monte_carlo"))
+    return [
+        _row("the density at which swimmers start to collide falls as the phase spread grows "
+             "(more phase spread needs more lateral room)",
+             "as the phase variation increases the lateral spacing must increase or swimmers collide",
+             "no result" if falls is None else
+             "simulated threshold rho~ at phi_max = " + ", ".join(f"{f:.2f}: {t:.2f}" for f, t in pairs)
+             + (f" ({p.get('n_failed')} of {p.get('n_runs')} dense runs diverged; counted above threshold)"
+                if p.get("n_failed") else "") + " (holds if it never rises and falls overall)", falls),
+        _row("the closed form for the compatible density matches the Monte-Carlo estimate",
+             "the expected value calculation agrees extremely well with the Monte-Carlo simulation",
+             "no result" if rel is None else f"largest relative difference {rel:.2%} (holds if below 1%)",
+             None if rel is None else rel < 0.01),
+    ]
+
+
+def _basins(s: Summaries) -> list[Row]:
+    b = _get(s, "basins") or {}
+    ret, away = b.get("n_returned"), b.get("n_pushed_away_from_zero")
+    tp = _num(_get(b, "return_threshold", "positive", "threshold_dx0_over_lambda"))
+    tn = _num(_get(b, "return_threshold", "negative", "threshold_dx0_over_lambda"))
+    holds = None if ret is None or away is None else (ret > 0 and away > 0)
+    return [_row(
+        "dphi = 0 pairs return to dx = 0 from nearby starts and are pushed away from far ones",
+        "starts close enough to zero evolve to dx_f = 0; beyond a threshold (withheld) they are pushed away",
+        "no result" if holds is None else
+        f"{ret} of {b.get('n_starts_dphi0')} starts returned, {away} were pushed away; return threshold "
+        + (f"dx0/lambda = {tn:+.3f} / {tp:+.3f}" if tp is not None and tn is not None else "not bracketed")
+        + " (holds if both behaviours occur)", holds)]
+
+
+def _confinement(s: Summaries) -> list[Row]:
+    c = _get(s, "confinement") or {}
+    d, w = c.get("d_over_2A") or [], c.get("central_width_over_lambda") or []
+    inside = _num(c.get("max_width_in_paper_range"))
+    holds = None if inside is None else (inside > 0.01 and c.get("width_never_shrinks_with_d") is True)
+    return [_row(
+        "the central (dx = 0) state broadens as the confinement d/2A grows (over 0.6-1.2)",
+        "increasing the wall distance increased the range of final spacings; the central state broadened",
+        "no result" if holds is None else
+        "width of the central state / lambda at d/2A = " + ", ".join(f"{a:.2f}: {x:.3f}" for a, x in zip(d, w))
+        + " (holds if it never shrinks and exceeds 0.01 lambda within d/2A <= 1.2)", holds)]
+
+
+def _potential(s: Summaries) -> list[Row]:
+    p = _get(s, "potential") or {}
+    r2 = _num(_get(p, "impulse_fit", "r2"))
+    rows = [_row(
+        "the contact force over the first two periods grows linearly with |dphi|",
+        "cumulative contact forces over the first two periods are linearly dependent on dphi",
+        "no result" if r2 is None else
+        f"fit impulse = a|dphi| + b: a = {_get(p, 'impulse_fit', 'slope_Ns_per_rad'):.3g} N s/rad, "
+        f"R^2 = {r2:.2f} (holds if R^2 >= 0.9)", None if r2 is None else r2 >= 0.9)]
+    med = _num(p.get("median_fit_r2"))
+    rows.append(_row(
+        "dF against dx is linear (a harmonic well around compatibility)",
+        "a linear relationship between the applied force and the steady separation",
+        "no result" if med is None else f"median R^2 of the dF = k (dx - dx0) fits {med:.3f} (holds if >= 0.9)",
+        None if med is None else med >= 0.9))
+    per_beta = p.get("per_beta") or {}
+    rho = {b: _num(v.get("spearman_k_vs_d")) for b, v in per_beta.items()}
+    falls = None if not rho or any(r is None for r in rho.values()) else all(r < 0 for r in rho.values())
+    rows.append(_row(
+        "the cohesion stiffness k falls as the channel widens",
+        "stiffness decreases with increasing wall width",
+        "no result" if falls is None else
+        "Spearman rank correlation of k with d per beta: " + ", ".join(f"{b} deg: {r:+.2f}" for b, r in rho.items())
+        + " (holds if negative for every beta)", falls))
+    a, m = _num(p.get("collapse_rms_log10k_vs_d_over_2A")), _num(p.get("collapse_rms_log10k_vs_d_m"))
+    rows.append(_row(
+        "stiffness curves for different amplitudes collapse when d is scaled by 2A",
+        "when we normalise the wall width by gait amplitude the stiffness curves follow a similar trend",
+        "no result" if a is None or m is None else
+        f"scatter of log10 k about one curve: {a:.2f} decades against d/2A, {m:.2f} against d (holds if smaller)",
+        None if a is None or m is None else a < m))
+    return rows
+
+
+def _swimming(s: Summaries) -> list[Row]:
+    w = _get(s, "swimming") or {}
+    v = _num(w.get("lone_swimmer_speed_m_s"))
+    sv, ss = _get(w, "modes", "viscous", "slope"), _get(w, "modes", "swimming", "slope")
+    rv, rs = _get(w, "modes", "viscous", "rms_residual_over_lambda"), _get(w, "modes", "swimming", "rms_residual_over_lambda")
+    holds = None if None in (sv, ss, rv, rs) else (abs(ss - 1) < SLOPE_TOL and rs < RMS_TOL)
+    return [_row(
+        "swimming (anisotropic drag) pairs behave like non-swimming ones",
+        "we found no qualitative difference in spatial dynamics between locomoting and non-locomoting simulations",
+        "no result" if holds is None else
+        f"lone swimmer {v * 1e3:.1f} mm/s head first; slope / RMS residual: swimming {ss:.2f} / {rs:.3f} lambda, "
+        f"not swimming {sv:.2f} / {rv:.3f} lambda (holds if swimming pairs also follow the line: "
+        f"|slope - 1| < {SLOPE_TOL}, RMS < {RMS_TOL} lambda)", holds)]
+
+
 #: study name -> claim function (the report shows the rows under that study)
 CLAIMS: dict[str, Callable[[Summaries], list[Row]]] = {
     "pairs": _pairs,
     "links": _links,
     "groups": _groups,
+    "packing": _packing,
+    "basins": _basins,
+    "confinement": _confinement,
+    "potential": _potential,
+    "swimming": _swimming,
 }
 
 
