@@ -36,6 +36,7 @@ time-integral over the run (every step contributes).
 from __future__ import annotations
 
 import json
+import logging
 import math
 from collections.abc import Sequence
 
@@ -88,6 +89,13 @@ def _initial_state(m: mujoco.MjModel) -> np.ndarray:
     return s, d.sensordata.copy()
 
 
+_log = logging.getLogger(__name__)
+
+
+def _log_mujoco_warning(msg: str) -> None:
+    _log.debug("MuJoCo: %s", msg)
+
+
 _HUGE = 1e6  # |state entry| beyond this (m, rad, m/s, rad/s) means the integration blew up
 
 
@@ -106,8 +114,9 @@ def _diagnose(cs: CompiledScene, options: SimOptions, t: float, what: str) -> Di
     return DivergenceError(
         f"simulation diverged at t = {t:.3f} s: {what}. Likely cause: the time step "
         f"({options.timestep_s:g} s) is too large for the contact stiffness "
-        f"(time constant {tc:g} s) or servo gains; try a smaller --timestep "
-        f"or a softer contact (larger timeconst_s)."
+        f"(time constant {tc:g} s) or servo gains, or the constraint solver failed to converge; "
+        f"try a smaller --timestep, a softer contact (larger timeconst_s) or another solver "
+        f"(SimOptions.solver = 'cg' or 'pgs')."
     )
 
 
@@ -166,6 +175,10 @@ def simulate_batch(
     models = [c.model for c in compiled]
     datas = [mujoco.MjData(m0) for _ in range(max(1, nthread))]
     runner = _rollout.Rollout(nthread=nthread)
+    # MuJoCo's own warnings (printed and appended to ./MUJOCO_LOG.TXT by default) go to the
+    # log instead while we step: a divergence is diagnosed below from the state itself.
+    previous_handler = mujoco.get_mju_user_warning()
+    mujoco.set_mju_user_warning(_log_mujoco_warning)
     state_buf = np.empty((nb, chunk, nstate))
     sens_buf = np.empty((nb, chunk, m0.nsensordata))
     ctrl_buf = np.empty((nb, chunk, m0.nu))
@@ -221,6 +234,7 @@ def simulate_batch(
             done += k
     finally:
         runner.close()
+        mujoco.set_mju_user_warning(previous_handler)
 
     return [
         _to_dataset(cs, options, qpos_s[b], sens_s[b], fpair[b], fwall[b], pen[b])
