@@ -113,8 +113,9 @@ def _packing(s: Summaries) -> list[Row]:
     p = _get(s, "packing") or {}
     phi, thr = p.get("phi_max_rad") or [], p.get("threshold_rho_tilde_mean") or []
     pairs = [(f, t) for f, t in zip(phi, thr) if _num(t) is not None]
-    falls = None if len(pairs) < 2 else (p.get("threshold_never_rises_with_phase_spread") is True
-                                         and pairs[-1][1] < pairs[0][1])
+    rho, rise = _num(p.get("spearman_threshold_vs_phi_max")), _num(
+        p.get("largest_rise_of_threshold_between_neighbouring_phi_max"))
+    falls = None if len(pairs) < 2 or rho is None or rise is None else (rho < 0 and rise <= 0)
     rel = _num(p.get("max_rel_diff_closed_form_vs_monte_carlo"))
     return [
         _row("the density at which swimmers start to collide falls as the phase spread grows "
@@ -122,8 +123,11 @@ def _packing(s: Summaries) -> list[Row]:
              "as the phase variation increases the lateral spacing must increase or swimmers collide",
              "no result" if falls is None else
              "simulated threshold rho~ at phi_max = " + ", ".join(f"{f:.2f}: {t:.2f}" for f, t in pairs)
-             + (f" ({p.get('n_failed')} of {p.get('n_runs')} dense runs diverged; counted above threshold)"
-                if p.get("n_failed") else "") + " (holds if it never rises and falls overall)", falls),
+             + ("; above the densest grid point at phi_max = 0" if (p.get("threshold_above_grid") or [False])[0] else "")
+             + (f"; {p.get('n_diverged')} of {p.get('n_runs')} jammed runs diverged, counted above threshold"
+                if p.get("n_diverged") else "")
+             + f"; Spearman {rho:+.2f} (holds if it falls: negative rank correlation, no rise between neighbours)",
+             falls),
         _row("the closed form for the compatible density matches the Monte-Carlo estimate",
              "the expected value calculation agrees extremely well with the Monte-Carlo simulation",
              "no result" if rel is None else f"largest relative difference {rel:.2%} (holds if below 1%)",
