@@ -22,7 +22,7 @@ from undulate import (
     simulate_batch,
 )
 from undulate.observables import period_average
-from undulate.simulation import compile_scene, controls
+from undulate.simulation import compile_scene, controls, resolve_options
 
 WIDE = Channel(width_m=2.0)
 
@@ -103,6 +103,7 @@ def test_rollout_path_equals_plain_mj_step_loop_exactly():
     sc = Scene(phases_rad=(0.0, 2.0), dx0_m=0.05)
     opt = SimOptions(duration_s=1.5, sample_rate_hz=100, chunk_steps=137)  # chunks not aligned with anything
     ds = simulate(sc, opt)
+    opt = resolve_options(sc, opt)
     cs = compile_scene(sc, opt)
     m, d = cs.model, mujoco.MjData(cs.model)
     mujoco.mj_forward(m, d)

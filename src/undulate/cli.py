@@ -79,7 +79,7 @@ def simulate(
     dx0: float = typer.Option(0.0, help="Initial longitudinal offset of each swimmer from the previous one, m."),
     separating_force: float = typer.Option(0.0, help="Longitudinal force, N: +F on the second swimmer and -F on the first."),
     duration: float = typer.Option(30.0, help="Simulated time, s."),
-    timestep: float = typer.Option(0.002, help="Integrator time step, s (<= 0.004)."),
+    timestep: Optional[float] = typer.Option(None, help="Integrator time step, s (<= 0.004); default: the step the model needs (2 ms for 3 links, shorter for more links; see README)."),
     sample_rate: float = typer.Option(20.0, help="Recording rate, Hz."),
     body_length: float = typer.Option(0.54, help="Total body length L, m."),
     width: float = typer.Option(0.015, help="Link width w, m."),

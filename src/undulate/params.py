@@ -466,10 +466,13 @@ class SimOptions(_Params):
 
     duration_s: float = 30.0
     """Simulated time, s (> 0)."""
-    timestep_s: float = 0.002
-    """Integrator time step, s.  Allowed (0, 0.004]; larger steps are unstable
-    with the servo and contact stiffness (the pair study jams at 0.004 s and
-    diverges at 0.005 s; 0.002 s is converged, see benchmarks/bench_simulate.py)."""
+    timestep_s: float | None = None
+    """Integrator time step, s, or None (default) for the step the model needs:
+    :func:`undulate.scene.auto_timestep` derives it from the compiled swimmer
+    (the fastest servo mode, ``omega dt <= 0.5``, capped at 2 ms; 2 ms for the
+    paper's 3-link swimmer, 0.25 ms for 12 links).  An explicit value overrides
+    it; allowed (0, 0.004] (larger steps are unstable with the servo and
+    contact stiffness).  The dataset records the step used (attr ``timestep``)."""
     sample_rate_hz: float = 20.0
     """Recording rate, Hz (<= 1/timestep)."""
     chunk_steps: int = 2000
@@ -491,14 +494,17 @@ class SimOptions(_Params):
 
     def __post_init__(self):
         _positive("duration_s", self.duration_s, "s")
-        dt = _positive("timestep_s", self.timestep_s, "s")
-        if dt > self.MAX_TIMESTEP_S:
-            raise ParameterError("timestep_s", f"in (0, {self.MAX_TIMESTEP_S}] s for a stable simulation", self.timestep_s)
         sr = _positive("sample_rate_hz", self.sample_rate_hz, "Hz")
-        if sr > 1.0 / dt * (1 + 1e-9):
-            raise ParameterError("sample_rate_hz", f"<= 1/timestep = {1 / dt:g} Hz", self.sample_rate_hz)
-        if self.duration_s < dt:
-            raise ParameterError("duration_s", f">= one time step ({dt:g} s)", self.duration_s)
+        if self.timestep_s is not None:
+            dt = _positive("timestep_s", self.timestep_s, "s")
+            if dt > self.MAX_TIMESTEP_S:
+                raise ParameterError("timestep_s", f"in (0, {self.MAX_TIMESTEP_S}] s for a stable simulation",
+                                     self.timestep_s)
+            object.__setattr__(self, "timestep_s", dt)
+            if sr > 1.0 / dt * (1 + 1e-9):
+                raise ParameterError("sample_rate_hz", f"<= 1/timestep = {1 / dt:g} Hz", self.sample_rate_hz)
+            if self.duration_s < dt:
+                raise ParameterError("duration_s", f">= one time step ({dt:g} s)", self.duration_s)
         if self.solver not in ("auto", "newton", "cg", "pgs"):
             raise ParameterError("solver", "'auto', 'newton', 'cg' or 'pgs'", self.solver)
         if self.integrator not in ("implicitfast", "rk4"):
@@ -506,10 +512,22 @@ class SimOptions(_Params):
         if int(self.chunk_steps) != self.chunk_steps or self.chunk_steps < 1:
             raise ParameterError("chunk_steps", "a positive integer", self.chunk_steps)
 
+    def with_timestep(self, timestep_s: float) -> "SimOptions":
+        """A copy with the time step set (validated as an explicit step)."""
+        return dataclasses.replace(self, timestep_s=float(timestep_s))
+
+    def _dt(self) -> float:
+        if self.timestep_s is None:
+            raise ParameterError("timestep_s", "resolved before counting steps "
+                                 "(undulate.simulation.resolve_options)", None)
+        return self.timestep_s
+
     @property
     def n_steps(self) -> int:
-        return int(round(self.duration_s / self.timestep_s))
+        """Number of integrator steps (needs a resolved ``timestep_s``)."""
+        return int(round(self.duration_s / self._dt()))
 
     @property
     def steps_per_sample(self) -> int:
-        return max(1, int(round(1.0 / (self.sample_rate_hz * self.timestep_s))))
+        """Integrator steps per recorded sample (needs a resolved ``timestep_s``)."""
+        return max(1, int(round(1.0 / (self.sample_rate_hz * self._dt()))))

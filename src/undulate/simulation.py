@@ -47,13 +47,28 @@ from mujoco import rollout as _rollout
 
 from .errors import DivergenceError, ParameterError
 from .params import Scene, SimOptions
-from .scene import CompiledScene, build
+from .scene import CompiledScene, auto_timestep, build
 
-__all__ = ["simulate", "simulate_batch", "compile_scene", "controls"]
+__all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options"]
+
+
+def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
+    """``options`` with a concrete time step: the explicit one, or the
+    time-step rule's (:func:`undulate.scene.auto_timestep`) for ``scene``."""
+    if options.timestep_s is not None:
+        return options
+    dt = auto_timestep(scene)
+    try:
+        return options.with_timestep(dt)
+    except ParameterError as e:  # e.g. a sample rate above 1/dt
+        raise ParameterError(e.name, f"{e.allowed} (automatic time step for this scene: {dt:g} s)",
+                             e.got) from None
 
 
 def compile_scene(scene: Scene, options: SimOptions) -> CompiledScene:
-    """Build the model for ``scene`` with the solver settings the runner needs."""
+    """Build the model for ``scene`` with the solver settings the runner needs
+    (``options.timestep_s`` must be resolved: :func:`resolve_options`)."""
+    options = resolve_options(scene, options)
     cs = build(scene, options.timestep_s)
     cs.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
     m = cs.model
@@ -135,6 +150,12 @@ def simulate_batch(
     options = options or SimOptions()
     if len(scenes) == 0:
         raise ParameterError("scenes", "a non-empty sequence of Scene", scenes)
+    requested = options
+    resolved = [resolve_options(s, options) for s in scenes]
+    if len({o.timestep_s for o in resolved}) > 1:
+        raise ParameterError("scenes", "of one time step in a batch (same links and servo, or an "
+                             "explicit SimOptions.timestep_s)", sorted({o.timestep_s for o in resolved}))
+    options = resolved[0]
     compiled = [compile_scene(s, options) for s in scenes]
     _check_same_structure(compiled)
     m0 = compiled[0].model
@@ -237,7 +258,8 @@ def simulate_batch(
         mujoco.set_mju_user_warning(previous_handler)
 
     return [
-        _to_dataset(cs, options, qpos_s[b], sens_s[b], fpair[b], fwall[b], pen[b])
+        _to_dataset(cs, options, qpos_s[b], sens_s[b], fpair[b], fwall[b], pen[b],
+                    timestep_auto=requested.timestep_s is None)
         for b, cs in enumerate(compiled)
     ]
 
@@ -259,7 +281,8 @@ def _link_angles(yaw: np.ndarray, joints: np.ndarray) -> np.ndarray:
     return yaw[..., None] + np.concatenate([np.zeros_like(joints[..., :1]), np.cumsum(joints, axis=-1)], axis=-1)
 
 
-def _to_dataset(cs: CompiledScene, options: SimOptions, qpos, sens, fpair, fwall, pen) -> xr.Dataset:
+def _to_dataset(cs: CompiledScene, options: SimOptions, qpos, sens, fpair, fwall, pen, *,
+                timestep_auto: bool = False) -> xr.Dataset:
     from .provenance import provenance
 
     sc, ix = cs.scene, cs.index
@@ -283,7 +306,7 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, qpos, sens, fpair, fwall
     def var(dims, data, units, long_name):
         return xr.Variable(dims, data, attrs={"units": units, "long_name": long_name})
 
-    config = {"scene": sc.to_dict(), "options": options.to_dict()}
+    config = {"scene": sc.to_dict(), "options": options.to_dict(), "timestep_auto": timestep_auto}
     ds = xr.Dataset(
         {
             "x": var(("time", "swimmer"), com[..., 0], "m", "centre of mass x"),
@@ -322,6 +345,8 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, qpos, sens, fpair, fwall
             "period": sc.gait.period_s,
             "period_units": "s",
             "timestep": options.timestep_s,
+            "timestep_units": "s",
+            "timestep_source": "auto (undulate.scene.auto_timestep)" if timestep_auto else "explicit",
             "sample_interval": sps * options.timestep_s,
             "conventions": "heads toward -x; body wave travels +x; dx = x_upper - x_lower, "
                            "dphi = phi_upper - phi_lower; compatibility dx = lambda dphi / 2pi",

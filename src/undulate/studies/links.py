@@ -10,12 +10,12 @@ with N, so two rules are run side by side:
   length as the 3-link body (the same curvature wave, more finely
   discretised).
 
-Time step: 2 ms (3 links), 1 ms (5, 7), 0.5 ms (9).  Lighter, shorter
-links need a shorter step: at 2 ms 7-link pairs interpenetrate beyond the
-divergence bound and 9-link pairs diverge in the first second; with these
-steps the steady dx/lambda agrees with half the step to 1e-3 (checked
-for the fixed rule while writing this study: N = 5 at 2 and 1 ms, N = 7 at 1 and 0.5 ms, N = 9
-at 0.5 and 0.25 ms).
+Time step: the simulator's time-step rule (:func:`undulate.scene.auto_timestep`:
+2 ms for 3 links, 0.67 ms for 5, 0.5 ms for 7, 0.4 ms for 9).  Lighter,
+shorter links need a shorter step: at a fixed 2 ms, 7-link pairs
+interpenetrate beyond the divergence bound and 9-link pairs diverge in the
+first second; with the rule's steps the steady dx/lambda agrees with a
+quarter of the step to 1e-3 (docs/timestep.md).
 
 Summary per rule and N: RMS distance of the steady dx from the nearest
 compatibility branch (paper: it falls as links are added), the slope, and
@@ -36,7 +36,6 @@ from ._registry import StudyConfig, StudyResult, register
 N_LINKS = (3, 5, 7, 9)
 RULES = ("fixed", "curvature")
 BETA_3_LINKS_RAD = math.radians(45.0)
-TIMESTEP_S = {3: 0.002, 5: 0.001, 7: 0.001, 9: 0.0005}
 CHANNEL_WIDTH_M = 0.13
 XI = 1.0
 FULL_PHASES = 33  # step pi/16; contains the paper's nine values
@@ -48,8 +47,11 @@ def joint_amplitude(rule: str, n_links: int) -> float:
 
 
 def timestep(n_links: int) -> float:
-    """Integrator step for N links, s (module docstring)."""
-    return TIMESTEP_S.get(n_links, 0.0005 if n_links > 5 else 0.001)
+    """Integrator step for N links, s: the simulator's rule (module docstring)."""
+    from ..params import Scene, SwimmerGeometry
+    from ..scene import auto_timestep
+
+    return auto_timestep(Scene(geometry=SwimmerGeometry(n_links=n_links)))
 
 
 def _gait_point(rule: str, n: int) -> dict:
