@@ -253,9 +253,13 @@ class CompiledScene:
         return u
 
 
-def scene_spec(scene: Scene, timestep_s: float) -> tuple[mujoco.MjSpec, tuple[str, ...]]:
+def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True
+               ) -> tuple[mujoco.MjSpec, tuple[str, ...]]:
     """The full scene: channel walls plus ``scene.n_swimmers`` attached swimmers.
 
+    ``pair_sensors=False`` leaves out the swimmer-swimmer contact-force
+    sensors (each scans every contact every step: in a jammed 50-swimmer
+    pack they cost more than the collision detection).
     Returns the spec and the wall geom names (lower, upper[, end_lo, end_hi]).
     """
     g = scene.geometry
@@ -307,7 +311,7 @@ def scene_spec(scene: Scene, timestep_s: float) -> tuple[mujoco.MjSpec, tuple[st
         spec.add_sensor(name=f"s{j}_com", type=mujoco.mjtSensor.mjSENS_SUBTREECOM,
                         objtype=mujoco.mjtObj.mjOBJ_BODY, objname=f"s{j}_link0")
     _FORCE, _NET = 2, 3  # contact sensor: data="force", reduce="netforce"
-    for j in range(scene.n_swimmers - 1):
+    for j in range(scene.n_swimmers - 1 if pair_sensors else 0):
         s = spec.add_sensor(name=f"pair{j}_force", type=mujoco.mjtSensor.mjSENS_CONTACT,
                             objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=f"s{j}_link0",
                             reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=f"s{j + 1}_link0")
@@ -322,12 +326,13 @@ def scene_spec(scene: Scene, timestep_s: float) -> tuple[mujoco.MjSpec, tuple[st
     return spec, tuple(walls)
 
 
-def build(scene: Scene, timestep_s: float | None = None) -> CompiledScene:
+def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool = True) -> CompiledScene:
     """Compile ``scene`` (time step: ``timestep_s``, or :func:`auto_timestep`)
-    and resolve every address by name."""
+    and resolve every address by name.  ``pair_sensors``: see :func:`scene_spec`
+    (without them ``index.sens_pair`` is empty)."""
     if timestep_s is None:
         timestep_s = auto_timestep(scene)
-    spec, walls = scene_spec(scene, timestep_s)
+    spec, walls = scene_spec(scene, timestep_s, pair_sensors=pair_sensors)
     model = spec.compile()
     n, nj = scene.n_swimmers, scene.geometry.n_links - 1
 
@@ -351,7 +356,7 @@ def build(scene: Scene, timestep_s: float | None = None) -> CompiledScene:
         ctrl_vel=np.array([[cadr(f"s{j}_servo{i}") + 1 for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
         ctrl_push=np.array([cadr(f"s{j}_push") for j in range(n)], dtype=int),
         sens_com=np.array([sadr(f"s{j}_com") for j in range(n)], dtype=int),
-        sens_pair=np.array([sadr(f"pair{j}_force") for j in range(n - 1)], dtype=int),
+        sens_pair=np.array([sadr(f"pair{j}_force") for j in range(n - 1 if pair_sensors else 0)], dtype=int),
         sens_wall=np.array([sadr(f"{w}_force") for w in walls], dtype=int),
         sens_mindist=sadr("mindist"),
         wall_names=walls,
