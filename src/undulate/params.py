@@ -183,6 +183,16 @@ class SwimmerGeometry(_Params):
     collision_shape: str = "capsule"
     """``"capsule"`` (default: radius w/2 spanning the link; same flanks as the
     box, rounded ends, one analytic test per pair) or ``"box"`` (l x w x h)."""
+    collision_segments: int = 2
+    """Capsules per link (``collision_shape="capsule"``): the link's capsule is
+    split into this many capsules whose union is the same body (their axes
+    tile the link's), so two nearly parallel links touch at up to two points
+    per segment pair instead of one.  MuJoCo's capsule-capsule test returns a
+    single contact at the closest points (two only when exactly parallel); with
+    one capsule per link that contact jumps between the ends of the overlap
+    from step to step and the free end rocks inward, 1-5 mm deep in jammed
+    packs (docs/contact.md).  Two segments halve that lever; 1 restores the
+    single capsule."""
 
     def __post_init__(self):
         try:
@@ -198,6 +208,8 @@ class SwimmerGeometry(_Params):
         _positive("mass_kg", self.mass_kg, "kg")
         if self.collision_shape not in ("capsule", "box"):
             raise ParameterError("collision_shape", "'capsule' or 'box'", self.collision_shape)
+        if self.collision_segments not in range(1, 9):
+            raise ParameterError("collision_segments", "an integer in [1, 8]", self.collision_segments)
         if w >= L / n:
             raise ParameterError("width_m", f"smaller than the link length L/N = {L / n:g} m", self.width_m)
 
@@ -320,9 +332,16 @@ class ContactModel(_Params):
 
     ``solref = (timeconst_s, dampratio)``, ``solimp = (dmin, dmax, width_m)``.
     The default time constant is two time steps, the stiffest MuJoCo's
-    implicit constraint model keeps stable; with it, steady interpenetration
-    stays below 1 mm and start-up penetration near 2 mm at the default time
-    step (measured in tests/test_simulate.py).
+    implicit constraint model keeps stable.  A contact struck at speed ``v``
+    then yields about ``v * timeconst / e`` before it stops the bodies, so the
+    time-step rule (:func:`undulate.scene.auto_timestep`) keeps
+    ``2 v_max dt / e <= target_penetration_m`` in any scene where bodies can
+    touch.  The soft constraint's regularisation uses MuJoCo's exact
+    Delassus diagonal (``mjENBL_DIAGEXACT``; the default approximation from
+    body weights at the straight pose made jammed contacts softer than
+    ``solref``/``solimp`` say).  Measured (docs/contact.md,
+    tests/test_simulation.py): steady interpenetration < 1 mm and start-up
+    < 2 mm for pairs and for jammed 50-swimmer packs.
     """
 
     timeconst_s: float | None = None
@@ -338,6 +357,9 @@ class ContactModel(_Params):
     max_penetration_m: float = 0.0075
     """Interpenetration beyond this stops the run as diverged, m (default:
     half the default body width: the bodies are passing through each other)."""
+    target_penetration_m: float = 0.001
+    """Penetration the automatic time step allows one impact at the fastest
+    approach speed, m (see the class docstring)."""
 
     def __post_init__(self):
         if self.timeconst_s is not None:
@@ -350,6 +372,7 @@ class ContactModel(_Params):
         _positive("width_m", self.width_m, "m")
         _nonneg("margin_m", self.margin_m, "m")
         _positive("max_penetration_m", self.max_penetration_m, "m")
+        _positive("target_penetration_m", self.target_penetration_m, "m")
 
 
 @dataclass(frozen=True)

@@ -59,7 +59,7 @@ import numpy as np
 from .params import Scene
 
 __all__ = ["SceneIndex", "CompiledScene", "swimmer_spec", "scene_spec", "build", "servo_frequency_rad_s",
-           "auto_timestep"]
+           "auto_timestep", "contact_possible", "approach_speed_m_s"]
 
 _Q_ALONG_Y_UP = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)  # plane normal +y
 _Q_ALONG_Y_DOWN = (math.sqrt(0.5), math.sqrt(0.5), 0.0, 0.0)  # plane normal -y
@@ -127,21 +127,30 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
         else:
             body.add_joint(name=f"j{k - 1}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
         r = w / 2
-        shape = (
-            dict(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[r, 0, 0, l - r, 0, 0], size=[r, 0, 0])
-            if g.collision_shape == "capsule"
-            else dict(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[l / 2, 0, 0], size=[l / 2, r, g.height_m / 2])
-        )
-        body.add_geom(
-            name=f"g{k}",
-            **shape,
-            **_contact_attrs(scene, timestep_s),
-            contype=1,
-            conaffinity=1,
-            rgba=list(_SWIMMER_RGBA),
-            mass=0,  # inertia is explicit
-            fluid_ellipsoid=1 if scene.ground.mode == "swimming" else 0,
-        )
+        if g.collision_shape == "capsule":
+            # k capsules whose segments tile [r, l - r]: their union is the one capsule
+            ks = g.collision_segments
+            ends = np.linspace(r, l - r, ks + 1)
+            shapes = [dict(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[a, 0, 0, b, 0, 0], size=[r, 0, 0])
+                      for a, b in zip(ends[:-1], ends[1:])]
+        else:
+            shapes = [dict(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[l / 2, 0, 0], size=[l / 2, r, g.height_m / 2])]
+        swimming = scene.ground.mode == "swimming"
+        for s_i, shape in enumerate(shapes):
+            body.add_geom(
+                name=f"g{k}" if s_i == 0 else f"g{k}_{s_i}",
+                **shape,
+                **_contact_attrs(scene, timestep_s),
+                contype=1,
+                conaffinity=1,
+                rgba=list(_SWIMMER_RGBA),
+                mass=0,  # inertia is explicit
+                fluid_ellipsoid=1 if (swimming and len(shapes) == 1) else 0,
+            )
+        if swimming and len(shapes) > 1:  # the fluid model sees the whole link: one non-colliding capsule
+            body.add_geom(name=f"g{k}_fluid", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                          fromto=[r, 0, 0, l - r, 0, 0], size=[r, 0, 0], contype=0, conaffinity=0,
+                          group=3, mass=0, fluid_ellipsoid=1)
         parent = body
     for i in range(n - 1):
         a = spec.add_actuator(name=f"servo{i}", target=f"j{i}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
@@ -179,22 +188,48 @@ def servo_frequency_rad_s(scene: Scene) -> float:
     return float(np.sqrt(scene.servo.kp_Nm_per_rad * inv_diag.max()))
 
 
+def contact_possible(scene: Scene) -> bool:
+    """Whether bodies of ``scene`` can touch: two or more swimmers, end walls,
+    or side walls closer than half a body length to the centre line."""
+    ch = scene.channel
+    return scene.n_swimmers > 1 or ch.end_walls_m is not None or ch.width_m < scene.geometry.length_m
+
+
+def approach_speed_m_s(scene: Scene) -> float:
+    """Fastest speed at which a link can strike another body, m/s: the far end
+    of a link turned at the servo's top speed (its set-point slew limit; if
+    unlimited, twice the gait's peak joint speed), ``omega_max * l``."""
+    sv, g = scene.servo, scene.gait
+    omega = sv.max_speed_rad_s if sv.max_speed_rad_s > 0 else 2.0 * g.amplitude_rad * g.angular_frequency_rad_s
+    return omega * scene.geometry.link_length_m
+
+
 def auto_timestep(scene: Scene) -> float:
     """The integrator step the scene needs, s: the time-step rule.
 
-    ``dt = 2 ms / k`` with the smallest integer ``k`` such that
-    ``omega_servo dt <= 0.5`` (:func:`servo_frequency_rad_s`).  The servo is
-    integrated explicitly in its stiffness (implicitfast treats only damping
-    implicitly), the contact time constant is two steps, and both resolve
-    the fastest body motion only while the servo's period spans >= 12 steps.
+    ``dt = 2 ms / k`` with the smallest integer ``k`` that meets both
+    criteria:
+
+    * **servo**: ``omega_servo dt <= 0.5`` (:func:`servo_frequency_rad_s`).
+      The servo stiffness is integrated explicitly (implicitfast treats only
+      damping implicitly); the servo's period then spans >= 12 steps.
+    * **contact** (only where bodies can touch, :func:`contact_possible`):
+      ``2 v_max dt / e <= target_penetration_m`` (1 mm), with ``v_max``
+      from :func:`approach_speed_m_s`.  A soft contact with time constant
+      ``2 dt`` (critically damped) yields ``v tc / e`` before it stops a body
+      struck at ``v``, and a body arriving at ``v`` is already up to
+      ``v dt`` deep when the contact is first detected.
+
     ``2 ms / k`` keeps every recording interval that is a multiple of 2 ms an
-    exact number of steps.  Measured (docs/timestep.md): a Delta phi = 90 deg
-    pair's steady Delta x / lambda agrees with the same run at a quarter of
-    the step to < 1e-3 for N = 2..12, while fixed 2 ms steps diverge from
-    N = 7 on.  Results: 2 ms for N = 2, 3; 1 ms for 4; 0.67 ms for 5, 6;
-    0.5 ms for 7; 0.4 ms for 8, 9; 0.33 ms for 10; 0.29 ms for 11; 0.25 ms for 12.
+    exact number of steps.  Results at the defaults: 2 ms for a lone 3-link
+    swimmer away from walls; 1 ms for 3-link scenes with contact (pairs,
+    groups, packs); servo-limited from 4 links on (0.67 ms for 5, 0.5 ms for 7,
+    0.4 ms for 9, 0.25 ms for 12).  Convergence and penetration:
+    docs/timestep.md and docs/contact.md.
     """
     raw = SERVO_STEP_FRACTION / servo_frequency_rad_s(scene)
+    if contact_possible(scene):
+        raw = min(raw, math.e * scene.contact.target_penetration_m / (2.0 * approach_speed_m_s(scene)))
     k = max(1, math.ceil(MAX_AUTO_TIMESTEP_S / raw - 1e-9))
     return MAX_AUTO_TIMESTEP_S / k
 
@@ -275,6 +310,7 @@ def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True
     opt.viscosity = drag_viscosity(scene)
     opt.density = scene.ground.fluid_density_kg_m3 if scene.ground.mode == "swimming" else 0.0
     opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
+    opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)  # exact constraint regularisation
 
     half_d = ch.width_m / 2
     wall_common = dict(
