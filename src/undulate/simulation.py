@@ -289,7 +289,7 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, qpos, sens, fpair, fwall
     g = sc.geometry
     n, nj = sc.n_swimmers, g.n_links - 1
     sps = options.steps_per_sample
-    t = np.arange(qpos.shape[0]) * sps * options.timestep_s
+    t = np.round(np.arange(qpos.shape[0]) * (sps * options.timestep_s), 12)  # s; equal rates, equal clocks
     # root pose at the head tip (frame origin), plus the attach offset
     xs0, ys0 = sc.initial_x_m() - g.length_m / 2, sc.initial_y_m()
     root = qpos[:, ix.qpos_root]  # (T, n, 3)
