@@ -27,14 +27,15 @@ def test_servo_frequency_grows_like_n_to_the_three_halves():
 def test_rule_keeps_the_paper_default_and_shrinks_the_step_with_links():
     lone = Scene(phases_rad=(0.0,), channel=Channel(width_m=2.0))
     assert not contact_possible(lone) and auto_timestep(lone) == 0.002  # no contact: the servo rule alone
-    assert contact_possible(_pair(3)) and auto_timestep(_pair(3)) == 0.001
+    assert contact_possible(_pair(3)) and auto_timestep(_pair(3)) == pytest.approx(0.002 / 3)
     steps = [auto_timestep(_pair(n)) for n in LINKS]
     assert all(0.002 / s == pytest.approx(round(0.002 / s)) for s in steps)  # 2 ms / k
     assert steps[3:] == sorted(steps[3:], reverse=True)  # servo-limited from 5 links on: monotone
+    assert steps[:3] == pytest.approx([0.0005, 0.002 / 3, 0.001])  # contact-limited: 2, 3 links
     for n, dt in zip(LINKS, steps):
         sc = _pair(n)
         assert servo_frequency_rad_s(sc) * dt <= 0.5 + 1e-12
-        assert 2 * approach_speed_m_s(sc) * dt / math.e <= sc.contact.target_penetration_m * (1 + 1e-12)
+        assert approach_speed_m_s(sc) * dt <= sc.contact.target_penetration_m * (1 + 1e-12)
 
 
 @pytest.mark.parametrize("n_links", list(LINKS))

@@ -125,7 +125,9 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
             body.add_joint(name="y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
             body.add_joint(name="yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
         else:
-            body.add_joint(name=f"j{k - 1}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
+            # the motor's back-EMF: a damping outside the servo's saturation (Servo.back_emf)
+            body.add_joint(name=f"j{k - 1}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1],
+                           damping=sv.back_emf_Nms_per_rad)
         r = w / 2
         if g.collision_shape == "capsule":
             # k capsules whose segments tile [r, l - r]: their union is the one capsule
@@ -171,6 +173,23 @@ SERVO_STEP_FRACTION = 0.5
 """``omega_servo * dt`` that :func:`auto_timestep` allows (rad)."""
 
 
+def _joint_inverse_inertia(scene: Scene) -> float:
+    """``max_i (M^-1)_ii`` over the actuated joints of one free swimmer, 1/(kg m^2)."""
+    m = swimmer_spec(scene, MAX_AUTO_TIMESTEP_S).compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    return float(np.diag(np.linalg.inv(M))[3:].max())  # hinge joints after the (x, y, yaw) root
+
+
+def servo_damping_rate_per_s(scene: Scene) -> float:
+    """Fastest decay rate of a servo joint's damping, 1/s: ``(kd + b) max_i (M^-1)_ii``
+    (``b`` the back-EMF).  Only explicit integrators (``rk4``) must resolve it."""
+    sv = scene.servo
+    return (sv.kd_Nms_per_rad + sv.back_emf_Nms_per_rad) * _joint_inverse_inertia(scene)
+
+
 def servo_frequency_rad_s(scene: Scene) -> float:
     """Natural frequency of the fastest servo mode of one free swimmer, rad/s.
 
@@ -179,13 +198,7 @@ def servo_frequency_rad_s(scene: Scene) -> float:
     of freedom free: the smallest effective inertia a servo drives).  It
     grows like ``N^1.5`` with the link count (link inertia ``~ N^-3``).
     """
-    m = swimmer_spec(scene, MAX_AUTO_TIMESTEP_S).compile()
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    M = np.zeros((m.nv, m.nv))
-    mujoco.mj_fullM(m, d, M)
-    inv_diag = np.diag(np.linalg.inv(M))[3:]  # hinge joints after the (x, y, yaw) root
-    return float(np.sqrt(scene.servo.kp_Nm_per_rad * inv_diag.max()))
+    return float(np.sqrt(scene.servo.kp_Nm_per_rad * _joint_inverse_inertia(scene)))
 
 
 def contact_possible(scene: Scene) -> bool:
@@ -204,6 +217,12 @@ def approach_speed_m_s(scene: Scene) -> float:
     return omega * scene.geometry.link_length_m
 
 
+def snap_timestep(raw_s: float) -> float:
+    """The largest ``2 ms / k`` (integer ``k``) not above ``raw_s``, s."""
+    k = max(1, math.ceil(MAX_AUTO_TIMESTEP_S / raw_s - 1e-9))
+    return MAX_AUTO_TIMESTEP_S / k
+
+
 def auto_timestep(scene: Scene) -> float:
     """The integrator step the scene needs, s: the time-step rule.
 
@@ -214,24 +233,26 @@ def auto_timestep(scene: Scene) -> float:
       The servo stiffness is integrated explicitly (implicitfast treats only
       damping implicitly); the servo's period then spans >= 12 steps.
     * **contact** (only where bodies can touch, :func:`contact_possible`):
-      ``2 v_max dt / e <= target_penetration_m`` (1 mm), with ``v_max``
-      from :func:`approach_speed_m_s`.  A soft contact with time constant
-      ``2 dt`` (critically damped) yields ``v tc / e`` before it stops a body
-      struck at ``v``, and a body arriving at ``v`` is already up to
-      ``v dt`` deep when the contact is first detected.
+      ``v_max dt <= target_penetration_m`` (1 mm), with ``v_max`` from
+      :func:`approach_speed_m_s`: no point of a body moves further than the
+      penetration bound in one step.  Contacts are detected only at the
+      steps, so a body arriving at ``v`` is up to ``v dt`` deep when its
+      contact first exists; the soft contact (time constant ``2 dt``) then
+      stops it within a few steps.  Measured in jammed packs: the deepest
+      contacts arrive at ~1.1 m/s and reach ~1.2 ``v dt``.
 
     ``2 ms / k`` keeps every recording interval that is a multiple of 2 ms an
     exact number of steps.  Results at the defaults: 2 ms for a lone 3-link
-    swimmer away from walls; 1 ms for 3-link scenes with contact (pairs,
-    groups, packs); servo-limited from 4 links on (0.67 ms for 5, 0.5 ms for 7,
-    0.4 ms for 9, 0.25 ms for 12).  Convergence and penetration:
+    swimmer away from walls; 0.67 ms for 3-link scenes with contact (pairs,
+    groups, packs: 1.08 m/s top speed); 0.5 ms for 2 links; 1 ms for 4;
+    servo-limited from 5 links on (0.67 ms for 5, 0.5 ms for 7, 0.4 ms for 9,
+    0.25 ms for 12).  Convergence and penetration:
     docs/timestep.md and docs/contact.md.
     """
     raw = SERVO_STEP_FRACTION / servo_frequency_rad_s(scene)
     if contact_possible(scene):
-        raw = min(raw, math.e * scene.contact.target_penetration_m / (2.0 * approach_speed_m_s(scene)))
-    k = max(1, math.ceil(MAX_AUTO_TIMESTEP_S / raw - 1e-9))
-    return MAX_AUTO_TIMESTEP_S / k
+        raw = min(raw, scene.contact.target_penetration_m / approach_speed_m_s(scene))
+    return snap_timestep(raw)
 
 
 @dataclass(frozen=True)
@@ -274,14 +295,18 @@ class CompiledScene:
         """Open-loop control vectors at times ``t_s`` (shape ``T``) -> ``T x nu``.
 
         Servo inputs are the gait's angle and angular-velocity set-points (rad,
-        rad/s); push inputs are the perturbation forces (N), on from
+        rad/s; the angle set-point leads by ``b omega_cmd / kp``, the back-EMF
+        feed-forward of :attr:`~undulate.params.Servo.back_emf`); push inputs are the perturbation forces (N), on from
         ``scene.force_onset_s``.
         """
         sc, ix = self.scene, self.index
         n_links = sc.geometry.n_links
         u = np.zeros((len(t_s), self.model.nu))
-        u[:, ix.ctrl_pos] = sc.gait.joint_angles(t_s, sc.phases_rad, n_links)
-        u[:, ix.ctrl_vel] = sc.gait.joint_velocities(t_s, sc.phases_rad, n_links)
+        omega_cmd = sc.gait.joint_velocities(t_s, sc.phases_rad, n_links)
+        # back-EMF feed-forward b omega_cmd, expressed as a position set-point offset b omega_cmd / kp
+        lead = sc.servo.back_emf_Nms_per_rad / sc.servo.kp_Nm_per_rad
+        u[:, ix.ctrl_pos] = sc.gait.joint_angles(t_s, sc.phases_rad, n_links) + lead * omega_cmd
+        u[:, ix.ctrl_vel] = omega_cmd
         if sc.forces_N is not None:
             on = (np.asarray(t_s) >= sc.force_onset_s)[:, None]
             u[:, ix.ctrl_push] = np.where(on, np.asarray(sc.forces_N)[None, :], 0.0)

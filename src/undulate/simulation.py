@@ -47,9 +47,13 @@ from mujoco import rollout as _rollout
 
 from .errors import DivergenceError, ParameterError
 from .params import Scene, SimOptions
-from .scene import CompiledScene, auto_timestep, build
+from .scene import CompiledScene, auto_timestep, build, servo_damping_rate_per_s, snap_timestep
 
 __all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options"]
+
+
+RK4_DAMPING_STEP = 1.0
+"""``rate dt`` allowed for the servo damping under ``rk4`` (its real-axis stability limit is 2.79)."""
 
 
 def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
@@ -58,6 +62,8 @@ def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
     if options.timestep_s is not None:
         return options
     dt = auto_timestep(scene)
+    if options.integrator == "rk4":  # explicit in the servo damping too: resolve its decay
+        dt = min(dt, snap_timestep(RK4_DAMPING_STEP / servo_damping_rate_per_s(scene)))
     try:
         return options.with_timestep(dt)
     except ParameterError as e:  # e.g. a sample rate above 1/dt
