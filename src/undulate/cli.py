@@ -126,18 +126,26 @@ def simulate(
             raise _cli_name(e, {"duration_s": "--duration (s)", "timestep_s": "--timestep (s)",
                                 "sample_rate_hz": "--sample-rate (Hz)"}) from None
         check_writable("--out", out)
+        if out.suffix.lower() != ".nc":
+            raise ParameterError("--out", "a path ending in .nc (netCDF)", str(out))
     except ParameterError as e:
         _fail(str(e), 2)
 
     from .simulation import simulate as run
 
-    try:
-        ds = run(scene, options)
+    import signal
+
+    # a terminated run unwinds like Ctrl-C, so its half-written temporary file is removed
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    try:  # streamed to --out chunk by chunk: memory stays flat for any duration
+        ds = run(scene, options, out=out)
     except DivergenceError as e:
         _fail(str(e), 1)
-    write_netcdf_atomic(ds, out)
-    if not quiet:
-        typer.echo(_summary(ds, out))
+    except ParameterError as e:  # a recording that cannot fit on disk: refused before any step
+        _fail(str(e), 2)
+    with ds:
+        if not quiet:
+            typer.echo(_summary(ds, out))
 
 
 def _cli_name(e: ParameterError, names: dict[str, str]) -> ParameterError:
@@ -150,11 +158,15 @@ def _summary(ds, out: Path) -> str:
     from .observables import neighbour_offsets
 
     lam = float(ds.attrs["wavelength"])
-    off = neighbour_offsets(ds)
     period = float(ds.attrs["period"])
+    t_all = ds["time"].values
+    n_total, t_end = len(t_all), float(t_all[-1])
+    # read only the last two gait periods from the (possibly huge, lazily opened) file
+    ds = ds.sel(time=slice(t_end - 2 * period - 1e-9, None)).load()
+    off = neighbour_offsets(ds)
     t = ds["time"].values
     last = t >= t[-1] - period + 1e-9  # average over the last gait period
-    lines = [f"wrote {out}  ({len(t)} samples, {t[-1]:g} s, lambda = {lam:.4g} m)"]
+    lines = [f"wrote {out}  ({n_total} samples, {t_end:g} s, lambda = {lam:.4g} m)"]
     if off.sizes["pair"] == 0:
         lines.append("one swimmer: no neighbouring pairs")
     for p in range(off.sizes["pair"]):

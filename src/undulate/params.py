@@ -531,7 +531,20 @@ class SimOptions(_Params):
     O(dt) (0.3 mm/s at dt = 2 ms, i.e. 0.1 % of L per period); RK4 removes
     it (tests/test_simulate.py)."""
 
+    record: tuple[str, ...] | None = None
+    """Variables to record (names of :data:`undulate.simulation.RECORDABLE`), or
+    None for all.  Recording fewer saves memory and file size; without
+    ``"contact_force_pair"`` the swimmer-swimmer contact sensors are not built
+    at all (each scans every contact every step)."""
+
     MAX_TIMESTEP_S = 0.004
+    RECORDABLE = ("x", "y", "heading", "node_x", "node_y", "joint_angle", "joint_command", "joint_error",
+                  "contact_force_pair", "contact_force_wall", "penetration")
+
+    @property
+    def recorded(self) -> tuple[str, ...]:
+        """The variables this run records, in the dataset's order."""
+        return self.RECORDABLE if self.record is None else tuple(v for v in self.RECORDABLE if v in self.record)
 
     def __post_init__(self):
         _positive("duration_s", self.duration_s, "s")
@@ -550,6 +563,12 @@ class SimOptions(_Params):
             raise ParameterError("solver", "'auto', 'newton', 'cg' or 'pgs'", self.solver)
         if self.integrator not in ("implicitfast", "rk4"):
             raise ParameterError("integrator", "'implicitfast' or 'rk4'", self.integrator)
+        if self.record is not None:
+            rec = (self.record,) if isinstance(self.record, str) else tuple(self.record)
+            bad = [v for v in rec if v not in self.RECORDABLE]
+            if bad or not rec:
+                raise ParameterError("record", "a non-empty subset of " + ", ".join(self.RECORDABLE), self.record)
+            object.__setattr__(self, "record", rec)
         if int(self.chunk_steps) != self.chunk_steps or self.chunk_steps < 1:
             raise ParameterError("chunk_steps", "a positive integer", self.chunk_steps)
 

@@ -35,10 +35,14 @@ time-integral over the run (every step contributes).
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
+import os
+import shutil
 from collections.abc import Sequence
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -49,7 +53,7 @@ from .errors import DivergenceError, ParameterError
 from .params import Scene, SimOptions
 from .scene import CompiledScene, auto_timestep, build, servo_damping_rate_per_s, snap_timestep
 
-__all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options"]
+__all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE"]
 
 
 RK4_DAMPING_STEP = 1.0
@@ -75,7 +79,7 @@ def compile_scene(scene: Scene, options: SimOptions) -> CompiledScene:
     """Build the model for ``scene`` with the solver settings the runner needs
     (``options.timestep_s`` must be resolved: :func:`resolve_options`)."""
     options = resolve_options(scene, options)
-    cs = build(scene, options.timestep_s)
+    cs = build(scene, options.timestep_s, pair_sensors="contact_force_pair" in options.recorded)
     cs.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
     m = cs.model
     solver = options.solver
@@ -141,17 +145,159 @@ def _diagnose(cs: CompiledScene, options: SimOptions, t: float, what: str) -> Di
     )
 
 
+RECORDABLE = SimOptions.RECORDABLE
+"""Variables a run can record (``SimOptions.record``)."""
+
+
+def _per_sample_bytes(cs: CompiledScene, record: Sequence[str]) -> int:
+    """Bytes one recorded sample of one scene takes (float64), time included."""
+    sc = cs.scene
+    n, nj, nn = sc.n_swimmers, sc.geometry.n_links - 1, sc.geometry.n_links + 1
+    size = {"x": n, "y": n, "heading": n, "node_x": n * nn, "node_y": n * nn, "joint_angle": n * nj,
+            "joint_command": n * nj, "joint_error": n * nj, "contact_force_pair": max(0, n - 1),
+            "contact_force_wall": len(cs.index.wall_names), "penetration": 1}
+    return 8 * (1 + sum(size[v] for v in record))
+
+
+def _memory_available_bytes() -> int:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def _check_fits(compiled: Sequence[CompiledScene], record: Sequence[str], n_samples: int,
+                outs: Sequence[Path] | None) -> None:
+    """Refuse, before stepping, a recording that cannot fit in memory or on disk."""
+    need = sum(_per_sample_bytes(c, record) for c in compiled) * (n_samples + 1)
+    gib = 2.0**30
+    if outs is None:
+        have = _memory_available_bytes()
+        if 2 * need > have:  # the samples plus the Dataset built from them
+            raise ParameterError(
+                "duration_s / sample_rate_hz (--duration / --sample-rate)",
+                f"small enough for the recording to fit in memory: it needs {2 * need / gib:.3g} GiB, "
+                f"{have / gib:.3g} GiB is available (stream it to a file with out=, or record fewer "
+                f"variables with SimOptions.record)", None)
+    else:
+        for path in outs:
+            free = shutil.disk_usage(Path(path).resolve().parent).free
+            if need > free:
+                raise ParameterError(
+                    "duration_s / sample_rate_hz (--duration / --sample-rate)",
+                    f"small enough for the recording to fit on disk: it needs {need / gib:.3g} GiB, "
+                    f"{free / gib:.3g} GiB is free at {Path(path).resolve().parent}", None)
+
+
+class _MemoryRecorder:
+    """Collects each chunk's samples; the Dataset is built once at the end."""
+
+    def __init__(self):
+        self.blocks: list[dict] = []
+
+    def add(self, block: dict) -> None:
+        self.blocks.append(block)
+
+    def finish(self, build) -> xr.Dataset:
+        merged = {k: np.concatenate([b[k] for b in self.blocks]) for k in self.blocks[0]}
+        self.blocks = []
+        return build(merged)
+
+
+class _NetCDFRecorder:
+    """Writes each chunk's samples through to a netCDF file (unlimited ``time``).
+
+    The file is written to a temporary path beside ``path`` and renamed into
+    place by :meth:`finish`; :meth:`abort` removes it.
+    """
+
+    def __init__(self, path: Path):
+        import tempfile
+
+        self.path = Path(path)
+        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.resolve().parent)
+        os.close(fd)
+        self.tmp = Path(tmp)
+        self.file = None
+
+    def add(self, block: dict, build) -> None:
+        if self.file is None:  # the first block defines the file: variables, attrs, coordinates
+            import h5netcdf
+
+            ds = build(block)
+            # HDF5 chunks of ~1 MiB along time: chunking by the first block's shape would make one
+            # chunk per few samples, and HDF5's chunk index (held in memory) would grow with the run
+            enc = {name: {"chunksizes": (max(1, 2**17 // max(1, int(np.prod(v.shape[1:])))), *v.shape[1:])}
+                   for name, v in ds.variables.items() if v.dims[:1] == ("time",)}
+            ds.to_netcdf(self.tmp, engine="h5netcdf", unlimited_dims=["time"], encoding=enc)
+            self.file = h5netcdf.File(self.tmp, "a")  # kept open: reopening per chunk leaks memory
+            self.appended = [n for n, v in self.file.variables.items() if v.dimensions[:1] == ("time",)]
+            return
+        f = self.file
+        n0 = f.dimensions["time"].size
+        k = len(block["time"])
+        f.resize_dimension("time", n0 + k)
+        for name in self.appended:
+            f.variables[name][n0:n0 + k, ...] = block[name]
+
+    def _close(self) -> None:
+        if self.file is not None:
+            self.file.close()
+            self.file = None
+
+    def finish(self) -> xr.Dataset:
+        self._close()
+        os.chmod(self.tmp, 0o666 & ~_umask())
+        os.replace(self.tmp, self.path)
+        return xr.open_dataset(self.path, engine="h5netcdf")
+
+    def abort(self) -> None:
+        self._close()
+        self.tmp.unlink(missing_ok=True)
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def _outs(out, nb: int) -> list[Path] | None:
+    if out is None:
+        return None
+    paths = [Path(out)] if isinstance(out, (str, os.PathLike)) else [Path(p) for p in out]
+    if len(paths) != nb:
+        raise ParameterError("out", f"{nb} path(s), one per scene", out)
+    for p_ in paths:
+        if p_.suffix.lower() != ".nc":
+            raise ParameterError("out", "a path ending in .nc (netCDF)", str(p_))
+        if not p_.resolve().parent.is_dir():
+            raise ParameterError("out", "a path in an existing directory", str(p_))
+    return paths
+
+
 def simulate_batch(
     scenes: Sequence[Scene],
     options: SimOptions | None = None,
     *,
     nthread: int = 0,
+    out: str | os.PathLike | Sequence[str | os.PathLike] | None = None,
 ) -> list[xr.Dataset]:
     """Simulate several scenes of one structure together in one rollout.
 
     ``nthread = 0`` steps them on the calling thread; ``> 0`` uses MuJoCo's
     rollout thread pool.  Returns one Dataset per scene, identical to
     :func:`simulate` on each scene alone.
+
+    ``out``: one ``.nc`` path per scene (a single path for one scene) to
+    stream the samples to, chunk by chunk, so memory does not grow with the
+    duration; the Datasets returned are then opened lazily from those files
+    (close them when done).  Without ``out`` the recording is kept in memory,
+    and a run whose recording would not fit is refused before it starts.
     """
     options = options or SimOptions()
     if len(scenes) == 0:
@@ -162,6 +308,8 @@ def simulate_batch(
         raise ParameterError("scenes", "of one time step in a batch (same links and servo, or an "
                              "explicit SimOptions.timestep_s)", sorted({o.timestep_s for o in resolved}))
     options = resolved[0]
+    record = options.recorded
+    outs = _outs(out, len(scenes))
     compiled = [compile_scene(s, options) for s in scenes]
     _check_same_structure(compiled)
     m0 = compiled[0].model
@@ -171,33 +319,36 @@ def simulate_batch(
     n_samples = options.n_steps // sps
     if n_samples < 1:
         raise ParameterError("duration_s", f">= one sample interval ({sps * dt:g} s)", options.duration_s)
+    _check_fits(compiled, record, n_samples, outs)
     chunk = sps * max(1, options.chunk_steps // sps)
     q0, nstate = _state_layout(m0)
+    ix = compiled[0].index
+    pair_adr, wall_adr, md = ix.sens_pair, ix.sens_wall, ix.sens_mindist
+    npair = len(pair_adr)
+
+    def force_mag(sd: np.ndarray, adr: np.ndarray) -> np.ndarray:
+        cols = adr[..., None] + np.arange(3)
+        return np.linalg.norm(sd[..., cols], axis=-1)
+
+    def depth_of(sd: np.ndarray) -> np.ndarray:
+        return np.where(sd[..., md] > 0, np.maximum(0.0, -sd[..., md + 1]), 0.0)
 
     state0 = np.empty((nb, nstate))
     sens0 = np.empty((nb, m0.nsensordata))
     for b, cs in enumerate(compiled):
         state0[b], sens0[b] = _initial_state(cs.model)
 
-    # sampled outputs: (nb, n_samples + 1, ...)
-    qpos_s = np.empty((nb, n_samples + 1, m0.nq))
-    sens_s = np.empty((nb, n_samples + 1, m0.nsensordata))
-    qpos_s[:, 0] = state0[:, q0:q0 + m0.nq]
-    sens_s[:, 0] = sens0
-    ix = compiled[0].index
-    pair_adr, wall_adr, md = ix.sens_pair, ix.sens_wall, ix.sens_mindist
-    npair, nwall = len(pair_adr), len(wall_adr)
-    fpair = np.zeros((nb, n_samples + 1, npair))
-    fwall = np.zeros((nb, n_samples + 1, nwall))
-    pen = np.zeros((nb, n_samples + 1))
+    recorders = [_MemoryRecorder() for _ in range(nb)] if outs is None else [_NetCDFRecorder(p_) for p_ in outs]
+    builders = [functools.partial(_to_dataset, cs, options, record=record,
+                                  timestep_auto=requested.timestep_s is None) for cs in compiled]
 
-    def force_mag(sd: np.ndarray, adr: np.ndarray) -> np.ndarray:
-        cols = adr[..., None] + np.arange(3)
-        return np.linalg.norm(sd[..., cols], axis=-1)
-
-    fpair[:, 0] = force_mag(sens0, pair_adr) if npair else 0.0
-    fwall[:, 0] = force_mag(sens0, wall_adr)
-    pen[:, 0] = np.where(sens0[:, md] > 0, np.maximum(0.0, -sens0[:, md + 1]), 0.0)
+    def emit(b: int, i0: int, qpos, sens, fp, fw, pn) -> None:
+        t = np.round((i0 + np.arange(len(qpos))) * (sps * dt), 12)  # s; equal rates, equal clocks
+        block = _sample_vars(compiled[b], t, qpos, sens, fp, fw, pn, record)
+        if outs is None:
+            recorders[b].add(block)
+        else:
+            recorders[b].add(block, builders[b])
 
     models = [c.model for c in compiled]
     datas = [mujoco.MjData(m0) for _ in range(max(1, nthread))]
@@ -213,7 +364,12 @@ def simulate_batch(
     max_pen = max(c.scene.contact.max_penetration_m for c in compiled)
     total = n_samples * sps
     done = 0
+    ok = False
     try:
+        for b in range(nb):  # the initial sample (t = 0)
+            emit(b, 0, state0[b:b + 1, q0:q0 + m0.nq], sens0[b:b + 1],
+                 force_mag(sens0[b:b + 1], pair_adr) if npair else np.zeros((1, 0)),
+                 force_mag(sens0[b:b + 1], wall_adr), depth_of(sens0[b:b + 1]))
         while done < total:
             k = min(chunk, total - done)
             t = (done + np.arange(k)) * dt
@@ -228,16 +384,8 @@ def simulate_batch(
             st, sd = runner.rollout(models if nb > 1 else models[0], datas, cur, ctrl_buf,
                                     state=state_buf, sensordata=sens_buf)
             ns = k // sps
-            s_lo = done // sps
             rows = np.arange(sps - 1, k, sps)
-            qpos_s[:, s_lo + 1:s_lo + 1 + ns] = st[:, rows, q0:q0 + m0.nq]
-            sens_s[:, s_lo + 1:s_lo + 1 + ns] = sd[:, rows]
-            fp = force_mag(sd, pair_adr) if npair else np.zeros((nb, k, 0))
-            fpair[:, s_lo + 1:s_lo + 1 + ns] = fp.reshape(nb, ns, sps, npair).mean(axis=2)
-            fw = force_mag(sd, wall_adr)
-            fwall[:, s_lo + 1:s_lo + 1 + ns] = fw.reshape(nb, ns, sps, *fw.shape[2:]).mean(axis=2)
-            depth = np.where(sd[..., md] > 0, np.maximum(0.0, -sd[..., md + 1]), 0.0)
-            pen[:, s_lo + 1:s_lo + 1 + ns] = depth.reshape(nb, ns, sps).max(axis=2)
+            depth = depth_of(sd)
             cur = st[:, k - 1].copy()
             # divergence: huge or non-finite state, a MuJoCo reset (it restarts the data after
             # bad accelerations: the state's clock jumps back), or deep interpenetration
@@ -258,25 +406,37 @@ def simulate_batch(
                     what = (f"interpenetration {depth[b, step] * 1e3:.2f} mm exceeds the "
                             f"{compiled[b].scene.contact.max_penetration_m * 1e3:g} mm bound")
                 raise _diagnose(compiled[b], options, t_bad, what)
+            fp = force_mag(sd, pair_adr).reshape(nb, ns, sps, npair).mean(axis=2) if npair \
+                else np.zeros((nb, ns, 0))
+            fw = force_mag(sd, wall_adr)
+            fw = fw.reshape(nb, ns, sps, *fw.shape[2:]).mean(axis=2)
+            pn = depth.reshape(nb, ns, sps).max(axis=2)
+            for b in range(nb):
+                emit(b, done // sps + 1, st[b, rows, q0:q0 + m0.nq], sd[b, rows], fp[b], fw[b], pn[b])
             done += k
+        results = [r.finish(builders[b]) if outs is None else r.finish() for b, r in enumerate(recorders)]
+        ok = True
+        return results
     finally:
         runner.close()
         mujoco.set_mju_user_warning(previous_handler)
-
-    return [
-        _to_dataset(cs, options, qpos_s[b], sens_s[b], fpair[b], fwall[b], pen[b],
-                    timestep_auto=requested.timestep_s is None)
-        for b, cs in enumerate(compiled)
-    ]
+        if not ok and outs is not None:
+            for r in recorders:
+                r.abort()
 
 
-def simulate(scene: Scene, options: SimOptions | None = None) -> xr.Dataset:
+def simulate(scene: Scene, options: SimOptions | None = None, *,
+             out: str | os.PathLike | None = None) -> xr.Dataset:
     """Simulate one scene; see the module docstring for the recorded variables.
+
+    ``out``: a ``.nc`` path to stream the samples to (memory stays flat for
+    any duration); the Dataset returned is then opened lazily from it (close
+    it when done).
 
     >>> from undulate import Scene, SimOptions, simulate
     >>> ds = simulate(Scene(phases_rad=(0.0, 1.57)), SimOptions(duration_s=4))
     """
-    return simulate_batch([scene], options)[0]
+    return simulate_batch([scene], options, out=out)[0]
 
 
 def _link_angles(yaw: np.ndarray, joints: np.ndarray) -> np.ndarray:
@@ -287,7 +447,49 @@ def _link_angles(yaw: np.ndarray, joints: np.ndarray) -> np.ndarray:
     return yaw[..., None] + np.concatenate([np.zeros_like(joints[..., :1]), np.cumsum(joints, axis=-1)], axis=-1)
 
 
-def _to_dataset(cs: CompiledScene, options: SimOptions, qpos, sens, fpair, fwall, pen, *,
+def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record) -> dict:
+    """The recorded variables of a block of samples (leading axis: time) as arrays."""
+    sc, ix = cs.scene, cs.index
+    g = sc.geometry
+    out = {"time": t}
+    xs0, ys0 = sc.initial_x_m() - g.length_m / 2, sc.initial_y_m()
+    root = qpos[:, ix.qpos_root]  # (T, n, 3): root pose at the head tip, plus the attach offset
+    rx, ry, yaw = root[..., 0] + xs0, root[..., 1] + ys0, root[..., 2]
+    alpha = qpos[:, ix.qpos_joint]  # (T, n, nj)
+    theta = _link_angles(yaw, alpha)  # (T, n, N)
+    l = g.link_length_m
+    if "x" in record or "y" in record:
+        com = sens[:, ix.sens_com[:, None] + np.arange(2)]  # (T, n, 2)
+        out["x"], out["y"] = com[..., 0], com[..., 1]
+    if "heading" in record:
+        out["heading"] = theta.mean(axis=-1)
+    if "node_x" in record:
+        out["node_x"] = np.concatenate([rx[..., None], rx[..., None] + l * np.cumsum(np.cos(theta), axis=-1)], axis=-1)
+    if "node_y" in record:
+        out["node_y"] = np.concatenate([ry[..., None], ry[..., None] + l * np.cumsum(np.sin(theta), axis=-1)], axis=-1)
+    cmd = sc.gait.joint_angles(t, sc.phases_rad, g.n_links)
+    out["joint_angle"], out["joint_command"], out["joint_error"] = alpha, cmd, np.abs(alpha - cmd)
+    out["contact_force_pair"], out["contact_force_wall"], out["penetration"] = fpair, fwall, pen
+    return {k: v for k, v in out.items() if k == "time" or k in record}
+
+
+_VAR_META = {
+    "x": (("time", "swimmer"), "m", "centre of mass x"),
+    "y": (("time", "swimmer"), "m", "centre of mass y"),
+    "heading": (("time", "swimmer"), "rad", "mean link orientation relative to the start (0: head toward -x)"),
+    "node_x": (("time", "swimmer", "node"), "m", "centre-line node x, head to tail"),
+    "node_y": (("time", "swimmer", "node"), "m", "centre-line node y, head to tail"),
+    "joint_angle": (("time", "swimmer", "joint"), "rad", "joint angle alpha"),
+    "joint_command": (("time", "swimmer", "joint"), "rad", "commanded joint angle"),
+    "joint_error": (("time", "swimmer", "joint"), "rad", "joint error |alpha - alpha_cmd|"),
+    "contact_force_pair": (("time", "pair"), "N",
+                           "net contact force between swimmers pair and pair+1, interval mean"),
+    "contact_force_wall": (("time", "wall"), "N", "net contact force of all swimmers on each wall, interval mean"),
+    "penetration": (("time",), "m", "deepest interpenetration over the interval"),
+}
+
+
+def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=RECORDABLE,
                 timestep_auto: bool = False) -> xr.Dataset:
     from .provenance import provenance
 
@@ -295,44 +497,16 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, qpos, sens, fpair, fwall
     g = sc.geometry
     n, nj = sc.n_swimmers, g.n_links - 1
     sps = options.steps_per_sample
-    t = np.round(np.arange(qpos.shape[0]) * (sps * options.timestep_s), 12)  # s; equal rates, equal clocks
-    # root pose at the head tip (frame origin), plus the attach offset
-    xs0, ys0 = sc.initial_x_m() - g.length_m / 2, sc.initial_y_m()
-    root = qpos[:, ix.qpos_root]  # (T, n, 3)
-    rx, ry, yaw = root[..., 0] + xs0, root[..., 1] + ys0, root[..., 2]
-    alpha = qpos[:, ix.qpos_joint]  # (T, n, nj)
-    theta = _link_angles(yaw, alpha)  # (T, n, N)
-    l = g.link_length_m
-    node_x = np.concatenate([rx[..., None], rx[..., None] + l * np.cumsum(np.cos(theta), axis=-1)], axis=-1)
-    node_y = np.concatenate([ry[..., None], ry[..., None] + l * np.cumsum(np.sin(theta), axis=-1)], axis=-1)
-    com = sens[:, ix.sens_com[:, None] + np.arange(2)]  # (T, n, 2)
-    cmd = sc.gait.joint_angles(t, sc.phases_rad, g.n_links)
-    heading = theta.mean(axis=-1)
 
-    def var(dims, data, units, long_name):
-        return xr.Variable(dims, data, attrs={"units": units, "long_name": long_name})
+    def var(name):
+        dims, units, long_name = _VAR_META[name]
+        return xr.Variable(dims, block[name], attrs={"units": units, "long_name": long_name})
 
     config = {"scene": sc.to_dict(), "options": options.to_dict(), "timestep_auto": timestep_auto}
     ds = xr.Dataset(
-        {
-            "x": var(("time", "swimmer"), com[..., 0], "m", "centre of mass x"),
-            "y": var(("time", "swimmer"), com[..., 1], "m", "centre of mass y"),
-            "heading": var(("time", "swimmer"), heading, "rad",
-                           "mean link orientation relative to the start (0: head toward -x)"),
-            "node_x": var(("time", "swimmer", "node"), node_x, "m", "centre-line node x, head to tail"),
-            "node_y": var(("time", "swimmer", "node"), node_y, "m", "centre-line node y, head to tail"),
-            "joint_angle": var(("time", "swimmer", "joint"), alpha, "rad", "joint angle alpha"),
-            "joint_command": var(("time", "swimmer", "joint"), cmd, "rad", "commanded joint angle"),
-            "joint_error": var(("time", "swimmer", "joint"), np.abs(alpha - cmd), "rad",
-                               "joint error |alpha - alpha_cmd|"),
-            "contact_force_pair": var(("time", "pair"), fpair, "N",
-                                      "net contact force between swimmers pair and pair+1, interval mean"),
-            "contact_force_wall": var(("time", "wall"), fwall, "N",
-                                      "net contact force of all swimmers on each wall, interval mean"),
-            "penetration": var(("time",), pen, "m", "deepest interpenetration over the interval"),
-        },
+        {name: var(name) for name in RECORDABLE if name in record},
         coords={
-            "time": ("time", t, {"units": "s", "long_name": "time"}),
+            "time": ("time", block["time"], {"units": "s", "long_name": "time"}),
             "swimmer": ("swimmer", np.arange(n)),
             "joint": ("joint", np.arange(nj)),
             "node": ("node", np.arange(g.n_links + 1)),
