@@ -63,8 +63,12 @@ def test_density_threshold_rule():
     rho = [1.0, 2.0, 3.0, 4.0]
     # crossing between 2 and 3 at a quarter of the way
     assert packing.density_threshold(rho, [-0.01, -0.003, 0.009, 0.05]) == pytest.approx((2.25, 2.0, 3.0))
-    # the first density above diverged: midpoint of the bracket
+    # failed runs are left out, never counted as above; one inside the bracket leaves the threshold undefined
     t = packing.density_threshold(rho, [-0.01, -0.01, np.nan, np.nan], [False, False, True, True])
+    assert np.isnan(t[0]) and t[1] == 2.0 and np.isnan(t[2])
+    t = packing.density_threshold(rho, [-0.01, np.nan, 0.01, 0.05], [False, True, False, False])
+    assert np.isnan(t[0]) and (t[1], t[2]) == (1.0, 3.0)
+    t = packing.density_threshold(rho, [-0.01, -0.01, 0.01, np.nan], [False, False, False, True])
     assert t == pytest.approx((2.5, 2.0, 3.0))
     lo_all = packing.density_threshold(rho, [0.1, 0.1, 0.1, 0.1])
     assert math.isnan(lo_all[0]) and lo_all[2] == 1.0

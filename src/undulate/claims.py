@@ -124,7 +124,7 @@ def _packing(s: Summaries) -> list[Row]:
              "no result" if falls is None else
              "simulated threshold rho~ at phi_max = " + ", ".join(f"{f:.2f}: {t:.2f}" for f, t in pairs)
              + ("; above the densest grid point at phi_max = 0" if (p.get("threshold_above_grid") or [False])[0] else "")
-             + (f"; {p.get('n_diverged')} of {p.get('n_runs')} jammed runs diverged, counted above threshold"
+             + (f"; {p.get('n_diverged')} of {p.get('n_runs')} runs diverged (left out; a threshold bracketing one is undefined)"
                 if p.get("n_diverged") else "")
              + f"; Spearman {rho:+.2f} (holds if it falls: negative rank correlation, no rise between neighbours)",
              falls),

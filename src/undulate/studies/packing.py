@@ -16,10 +16,11 @@ straight bodies, is left out; the lone swimmer is averaged the same way).
 The *simulated compatibility threshold* for one phase draw is the lowest
 density at which that mean exceeds the lone swimmer's by ``0.01 rad``
 (:func:`density_threshold`): interpolated linearly in ``rho~`` between the
-last grid density below and the first above; when the first density above
-is a run that diverged (dense, jammed packs can trip the simulator's
-divergence check; such a run is stored as a result flagged ``diverged``)
-it counts as above, and the threshold is the midpoint of the bracket.  Error bars: the
+last grid density below and the first above.  No run is expected to
+diverge (the simulator keeps jammed packs below 1 mm of interpenetration:
+docs/contact.md); a run that does is stored flagged ``diverged``, left out
+of the threshold search, and a threshold whose bracket contains one is
+NaN rather than guessed.  Error bars: the
 standard deviation over the phase draws (replicates).
 
 Common random numbers: replicate ``r`` draws its unit-uniform numbers
@@ -209,7 +210,6 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
     import xarray as xr
 
     from ..errors import DivergenceError
-    from ..observables import mean_contact_force
     from ..simulation import simulate
 
     geo = SwimmerGeometry()
@@ -223,17 +223,19 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
         lateral_gap_m=width / n - geo.width_m,
     )
     nan = float("nan")
-    je_mean = je_max = pair_f = wall_f = pen = nan
+    je_mean = je_max = wall_f = pen = nan
     diverged = False
-    try:
-        ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=SAMPLE_RATE_HZ))
+    try:  # only what is measured here: no swimmer-swimmer force sensors (49 of them scan every contact)
+        ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=SAMPLE_RATE_HZ,
+                                        record=("joint_error", "contact_force_wall", "penetration")))
     except DivergenceError:
         diverged = True
     else:
         je = ds["joint_error"].where(ds["time"] >= skip_s)
-        f = mean_contact_force(ds, skip_s)
+        t = ds["time"].values
+        sel = t > skip_s + 1e-12  # sample t holds the mean over (t - interval, t]
         je_mean, je_max = float(je.mean()), float(je.mean(("swimmer", "joint")).max())
-        pair_f, wall_f = float(f["pair"].mean()), float(f["wall"].sum())
+        wall_f = float(ds["contact_force_wall"].values[sel].mean(axis=0).sum())
         pen = float(ds["penetration"].max())
     return xr.Dataset(
         {
@@ -242,8 +244,6 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
             "max_joint_error_rad": ((), je_max, {
                 "units": "rad", "long_name": "largest group-mean joint error over time"}),
             "channel_width_m": ((), width, {"units": "m", "long_name": "channel width Y"}),
-            "mean_pair_force_N": ((), pair_f, {
-                "units": "N", "long_name": "time-mean swimmer-swimmer contact force per pair"}),
             "mean_wall_force_N": ((), wall_f, {
                 "units": "N", "long_name": "time-mean contact force on all walls"}),
             "max_penetration_m": ((), pen, {"units": "m", "long_name": "deepest interpenetration"}),
@@ -257,25 +257,31 @@ def density_threshold(rho_tilde, excess, failed=None) -> tuple[float, float, flo
 
     ``rho_tilde``: increasing densities; ``excess``: mean joint error minus
     the lone swimmer's minus the threshold (rad; > 0 means contact);
-    ``failed``: runs that diverged (count as above; their ``excess`` may be NaN).
-    Returns ``(threshold, lo, hi)``: the first crossing, interpolated
-    linearly between the last density below and the first above (the
-    bracket midpoint when that one failed), and the bracket ``[lo, hi]``.
+    ``failed``: runs that diverged or failed (left out of the search; their
+    ``excess`` may be NaN).
+    Returns ``(threshold, lo, hi)``: the first crossing among the runs that
+    completed, interpolated linearly between the last density below and the
+    first above, and the bracket ``[lo, hi]``; the threshold is NaN when a
+    failed run lies inside the bracket (the crossing could be there).
     ``(nan, nan, rho[0])`` if the lowest density is already above;
-    ``(nan, rho[-1], nan)`` if none is.
+    ``(nan, rho[-1], nan)`` if none is (``rho[-1]`` of the completed runs).
     """
-    r = np.asarray(rho_tilde, dtype=float)
-    e = np.asarray(excess, dtype=float)
-    bad = np.zeros(r.shape, bool) if failed is None else np.asarray(failed, dtype=bool)
-    above = bad | (e > 0)
+    r_all = np.asarray(rho_tilde, dtype=float)
+    e_all = np.asarray(excess, dtype=float)
+    bad = np.zeros(r_all.shape, bool) if failed is None else np.asarray(failed, dtype=bool)
+    ok = ~bad & np.isfinite(e_all)
+    r, e = r_all[ok], e_all[ok]
+    if len(r) == 0:
+        return float("nan"), float("nan"), float("nan")
+    above = e > 0
     if not above.any():
         return float("nan"), float(r[-1]), float("nan")
     i = int(np.argmax(above))
     if i == 0:
         return float("nan"), float("nan"), float(r[0])
     lo, hi = r[i - 1], r[i]
-    if bad[i] or not np.isfinite(e[i]):
-        return float(0.5 * (lo + hi)), float(lo), float(hi)
+    if (~ok & (r_all > lo) & (r_all < hi)).any():
+        return float("nan"), float(lo), float(hi)
     e0, e1 = e[i - 1], e[i]
     t = lo + (hi - lo) * (0.0 - e0) / (e1 - e0)
     return float(t), float(lo), float(hi)
@@ -333,8 +339,6 @@ def compute(config: StudyConfig, p: PackingPlan) -> StudyResult:
                 "long_name": "run diverged (DivergenceError)"}),
             "channel_width": (("phi_max", "rho_tilde", "draw"), sw["channel_width_m"].values, {
                 "units": "m", "long_name": "channel width Y (2 A N / rho~)"}),
-            "mean_pair_force": (("phi_max", "rho_tilde", "draw"), sw["mean_pair_force_N"].values, {
-                "units": "N", "long_name": "time-mean swimmer-swimmer contact force per neighbouring pair"}),
             "max_penetration": (("phi_max", "rho_tilde", "draw"), sw["max_penetration_m"].values, {
                 "units": "m", "long_name": "deepest interpenetration"}),
             "threshold_rho_tilde": (("phi_max", "draw"), thr, {
@@ -411,7 +415,7 @@ def _summary(ds, res, p: PackingPlan) -> dict[str, Any]:
         "diverged_or_failed_by_phi_max": where,
         "sweep_elapsed_s": float(res.elapsed_s),
         "threshold_rule": f"mean joint error > lone swimmer + {THRESHOLD_RAD} rad; "
-                          "linear interpolation in rho~; a diverged run counts as above",
+                          "linear interpolation in rho~; runs that diverged or failed are left out (none expected)",
     }
 
 
