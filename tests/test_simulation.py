@@ -16,12 +16,14 @@ from undulate import (
     Gait,
     Scene,
     SimOptions,
+    SwimmerGeometry,
     gait_amplitude,
     neighbour_offsets,
     simulate,
     simulate_batch,
 )
 from undulate.observables import period_average
+from undulate.scene import root_link
 from undulate.simulation import compile_scene, controls, resolve_options
 
 WIDE = Channel(width_m=2.0)
@@ -39,29 +41,58 @@ def test_lone_swimmer_tracks_gait_and_its_centre_does_not_drift():
     rms = float(np.sqrt((err**2).mean()))
     print(f"lone swimmer RMS joint error {rms:.2e} rad")
     assert rms < 5e-3
-    # internal torques + equal isotropic drag on equal links: the centre of mass cannot move;
-    # the first-order integrator lets it creep by O(dt) (checked to converge below)
+    # internal torques + equal isotropic drag on equal links: the centre of mass only wobbles
     drift = float(np.hypot(ds["x"] - ds["x"][0], ds["y"] - ds["y"][0]).max())
-    print(f"lone swimmer centre drift over 10 s: {drift * 1e3:.2f} mm")
-    assert drift < 5e-3
+    print(f"lone swimmer centre excursion over 10 s: {drift * 1e3:.3f} mm")
+    assert drift < 1e-3
     # no contact anywhere
     assert float(ds["contact_force_wall"].max()) == 0.0
     assert float(ds["penetration"].max()) == 0.0
 
 
-def _com_drift(dt: float, integrator: str) -> float:
-    ds = simulate(Scene(phases_rad=(0.3,), channel=WIDE),
-                  SimOptions(duration_s=10.0, timestep_s=dt, integrator=integrator))
-    x, y = ds["x"].values[:, 0], ds["y"].values[:, 0]
-    return float(np.hypot(x[-1] - x[0], y[-1] - y[0]))
+def _drift_rate(dt, integrator="implicitfast", n_links=3) -> float:
+    """Speed of the period-averaged centre of mass of a lone swimmer over 20 s, m/s."""
+    sc = Scene(phases_rad=(0.3,), channel=WIDE, geometry=SwimmerGeometry(n_links=n_links))
+    ds = simulate(sc, SimOptions(duration_s=20.0, timestep_s=dt, integrator=integrator, sample_rate_hz=50))
+    px = period_average(ds["x"].isel(swimmer=0), sc.gait.period_s).values
+    py = period_average(ds["y"].isel(swimmer=0), sc.gait.period_s).values
+    return float(np.hypot(px[-1] - px[0], py[-1] - py[0]) / (sc.gait.period_s * (len(px) - 1)))
 
 
-def test_centre_of_mass_drift_is_integration_error_that_converges():
-    d2, d1 = _com_drift(0.002, "implicitfast"), _com_drift(0.001, "implicitfast")
-    rk = _com_drift(None, "rk4")  # the rule's step for rk4 (it resolves the servo damping)
-    print(f"COM drift over 10 s: implicitfast 2 ms {d2 * 1e3:.3f} mm, 1 ms {d1 * 1e3:.3f} mm; rk4 {rk * 1e6:.3f} um")
-    assert d1 == pytest.approx(d2 / 2, rel=0.1)  # first order in dt
-    assert rk < 0.02 * d2  # the fourth-order scheme keeps the centre (nearly) still
+def test_lone_swimmer_centre_stays_still_at_the_defaults():
+    # internal torques + equal isotropic drag cannot move the centre of mass. Rooted at its head, the
+    # first-order position update crept 0.28 mm/s at 2 ms (O(dt)); rooted at the middle link it must not
+    v2, v1 = _drift_rate(None), _drift_rate(0.001)
+    rk = _drift_rate(None, "rk4")  # the rule's step for rk4 (it resolves the servo damping)
+    print(f"lone swimmer drift: 2 ms {v2 * 1e3:.4f} mm/s, 1 ms {v1 * 1e3:.4f} mm/s, rk4 {rk * 1e3:.4f} mm/s")
+    assert v2 <= 0.05e-3
+    assert v1 <= 0.05e-3 and rk <= 0.05e-3
+    for n in (5, 7):  # odd link counts: the middle link is the body's centre
+        assert _drift_rate(None, n_links=n) <= 0.05e-3
+
+
+def test_recorded_nodes_are_mujocos_links():
+    # the centre line reconstructed from (root pose, joint angles) puts every link's midpoint where
+    # MuJoCo has the link's centre of mass, for a body rooted at its middle link (4 links: root link 1)
+    sc = Scene(phases_rad=(0.0, 2.0), dx0_m=0.05, geometry=SwimmerGeometry(n_links=4))
+    opt = resolve_options(sc, SimOptions(duration_s=1.0, sample_rate_hz=50))
+    ds = simulate(sc, opt)
+    nx, ny = ds["node_x"].values, ds["node_y"].values
+    L = sc.geometry.length_m
+    np.testing.assert_allclose(nx[0, :, 0], sc.initial_x_m() - L / 2, atol=1e-12)  # head tips at the start
+    np.testing.assert_allclose(np.hypot(np.diff(nx, axis=-1), np.diff(ny, axis=-1)), L / 4, atol=1e-12)
+    cs = compile_scene(sc, opt)
+    m, d = cs.model, mujoco.MjData(cs.model)
+    mujoco.mj_forward(m, d)
+    links = [[m.body(f"s{j}_link{k}").id for k in range(4)] for j in range(2)]
+    u = controls(cs, np.arange(opt.n_steps) * opt.timestep_s)
+    for k in range(opt.n_steps):
+        d.ctrl[:] = u[k]
+        mujoco.mj_step(m, d)
+    mujoco.mj_kinematics(m, d)
+    mid_x, mid_y = 0.5 * (nx[-1, :, 1:] + nx[-1, :, :-1]), 0.5 * (ny[-1, :, 1:] + ny[-1, :, :-1])
+    np.testing.assert_allclose(mid_x, d.xipos[links, 0], atol=1e-12)
+    np.testing.assert_allclose(mid_y, d.xipos[links, 1], atol=1e-12)
 
 
 def test_constant_force_gives_drift_velocity_F_over_total_drag():
@@ -111,16 +142,23 @@ def test_rollout_path_equals_plain_mj_step_loop_exactly():
     n = (len(ds["time"]) - 1) * sps
     u = controls(cs, np.arange(n) * opt.timestep_s)
     joints = [d.qpos[cs.index.qpos_joint].copy()]
-    coms = [d.sensordata[cs.index.sens_com[:, None] + np.arange(2)].copy()]
+    root = [cs.model.body(f"s{j}_link{root_link(sc.geometry.n_links)}").id for j in range(sc.n_swimmers)]
+
+    def com_now():  # subtree centre of mass at the current state (after the step)
+        mujoco.mj_kinematics(m, d)
+        mujoco.mj_comPos(m, d)
+        return d.subtree_com[root, :2].copy()
+
+    coms = [com_now()]
     for k in range(n):
         d.ctrl[:] = u[k]
         mujoco.mj_step(m, d)
         if (k + 1) % sps == 0:
             joints.append(d.qpos[cs.index.qpos_joint].copy())
-            coms.append(d.sensordata[cs.index.sens_com[:, None] + np.arange(2)].copy())
+            coms.append(com_now())
     np.testing.assert_array_equal(ds["joint_angle"].values, np.array(joints))
-    np.testing.assert_array_equal(ds["x"].values, np.array(coms)[..., 0])
-    np.testing.assert_array_equal(ds["y"].values, np.array(coms)[..., 1])
+    np.testing.assert_allclose(ds["x"].values, np.array(coms)[..., 0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(ds["y"].values, np.array(coms)[..., 1], rtol=0, atol=1e-12)
 
 
 def test_identical_inputs_give_identical_output_and_batch_equals_single():
@@ -186,7 +224,7 @@ def test_swimming_mode_advances_head_first_default_mode_does_not():
     swim, still = _lone_speed(Ground.swimming()), _lone_speed(Ground())
     print(f"lone swimmer speed: swimming {swim * 1e3:.2f} mm/s, viscous ground {still * 1e3:.3f} mm/s")
     assert swim < -5e-3  # heads point to -x: head first is -x, at > 5 mm/s
-    assert abs(still) < 5e-4  # only the O(dt) integration creep
+    assert abs(still) < 5e-5  # the centre of mass stays put
     assert abs(swim) > 10 * abs(still)
 
 

@@ -58,7 +58,7 @@ import numpy as np
 
 from .params import Scene
 
-__all__ = ["SceneIndex", "CompiledScene", "swimmer_spec", "scene_spec", "build", "servo_frequency_rad_s",
+__all__ = ["SceneIndex", "CompiledScene", "swimmer_spec", "root_link", "root_offset_m", "scene_spec", "build", "servo_frequency_rad_s",
            "auto_timestep", "contact_possible", "approach_speed_m_s"]
 
 _Q_ALONG_Y_UP = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)  # plane normal +y
@@ -100,44 +100,71 @@ def drag_viscosity(scene: Scene) -> float:
     return scene.ground.drag_N_s_per_m / (3.0 * math.pi * D)
 
 
+def root_link(n_links: int) -> int:
+    """Index of the link that carries a swimmer's free (x, y, yaw) joints: the middle one
+    (for even N, the one just head-side of the middle joint)."""
+    return (n_links - 1) // 2
+
+
+def root_offset_m(scene: Scene) -> float:
+    """Distance from the head tip to the root frame (the root link's centre) of a straight body, m."""
+    g = scene.geometry
+    return (root_link(g.n_links) + 0.5) * g.link_length_m
+
+
 def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
-    """One swimmer (head link at the origin, body along +x) as an ``MjSpec``.
+    """One swimmer (body along +x, root link centred at the origin) as an ``MjSpec``.
 
     Names (before the attach prefix): bodies ``link0..link{N-1}``, root
     joints ``x``, ``y``, ``yaw``, body joints ``j0..j{N-2}``, geoms
-    ``g0..g{N-1}``, servos ``servo0..``, perturbation actuator ``push``.
-    The root body's frame sits at the head tip; link ``k`` spans
-    ``[k l, (k+1) l]`` along the body axis when straight.
+    ``g{k}`` (and ``g{k}_{s}`` for further collision segments), servos
+    ``servo0..``, perturbation actuator ``push``.
+
+    The free joints sit on the **middle** link (:func:`root_link`), its frame
+    at the link's centre; the links toward the tail hang from it as a chain,
+    and so do the links toward the head.  Joint ``i`` always measures
+    ``alpha_i``, the angle of link ``i+1`` relative to link ``i``
+    (counter-clockwise about +z): head-side joints turn about -z because
+    their child is the head-side link.  Rooting at the middle matters for
+    the integrator: with semi-implicit Euler the centre of mass of a body
+    rooted at its head creeps by O(dt) (0.28 mm/s at 2 ms: the position
+    update is first order on a configuration space whose centre of mass is
+    curved in the joint angles); rooted at the middle the curvature terms of
+    the two half-chains cancel and a lone swimmer stays put to 1e-4 mm/s
+    (tests/test_simulation.py).
     """
     g, sv = scene.geometry, scene.servo
     n, l, w = g.n_links, g.link_length_m, g.width_m
+    rl = root_link(n)
+    r = w / 2
+    swimming = scene.ground.mode == "swimming"
     spec = mujoco.MjSpec()
-    parent = spec.worldbody
-    for k in range(n):
-        body = parent.add_body(name=f"link{k}", pos=[0.0 if k == 0 else l, 0, 0])
-        # inertia of the box link, centred on the link's midpoint
-        body.explicitinertial = True
+
+    def add_link(parent, k: int, pos: float, sign: float, joint: str | None, axis_z: float):
+        """Link ``k`` spanning ``[0, sign * l]`` from its frame (``+1``: toward the tail)."""
+        body = parent.add_body(name=f"link{k}", pos=[pos, 0, 0])
+        body.explicitinertial = True  # inertia of the box link, centred on the link's midpoint
         body.mass = g.link_mass_kg
-        body.ipos = [l / 2, 0, 0]
+        lo = 0.0 if sign > 0 else -l  # the link spans [lo, lo + l] along the body frame's x
+        if joint is None:  # the root link: frame at its centre
+            lo = -l / 2
+        body.ipos = [lo + l / 2, 0, 0]
         body.inertia = _box_inertia(g.link_mass_kg, l, w, g.height_m)
-        if k == 0:
+        if joint is None:
             body.add_joint(name="x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
             body.add_joint(name="y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
             body.add_joint(name="yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
         else:
             # the motor's back-EMF: a damping outside the servo's saturation (Servo.back_emf)
-            body.add_joint(name=f"j{k - 1}", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1],
+            body.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, axis_z],
                            damping=sv.back_emf_Nms_per_rad)
-        r = w / 2
         if g.collision_shape == "capsule":
-            # k capsules whose segments tile [r, l - r]: their union is the one capsule
-            ks = g.collision_segments
-            ends = np.linspace(r, l - r, ks + 1)
+            # capsules whose segments tile [lo + r, lo + l - r]: their union is the one capsule
+            ends = np.linspace(lo + r, lo + l - r, g.collision_segments + 1)
             shapes = [dict(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[a, 0, 0, b, 0, 0], size=[r, 0, 0])
                       for a, b in zip(ends[:-1], ends[1:])]
         else:
-            shapes = [dict(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[l / 2, 0, 0], size=[l / 2, r, g.height_m / 2])]
-        swimming = scene.ground.mode == "swimming"
+            shapes = [dict(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[lo + l / 2, 0, 0], size=[l / 2, r, g.height_m / 2])]
         for s_i, shape in enumerate(shapes):
             body.add_geom(
                 name=f"g{k}" if s_i == 0 else f"g{k}_{s_i}",
@@ -151,9 +178,17 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
             )
         if swimming and len(shapes) > 1:  # the fluid model sees the whole link: one non-colliding capsule
             body.add_geom(name=f"g{k}_fluid", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
-                          fromto=[r, 0, 0, l - r, 0, 0], size=[r, 0, 0], contype=0, conaffinity=0,
+                          fromto=[lo + r, 0, 0, lo + l - r, 0, 0], size=[r, 0, 0], contype=0, conaffinity=0,
                           group=3, mass=0, fluid_ellipsoid=1)
-        parent = body
+        return body
+
+    root = add_link(spec.worldbody, rl, 0.0, +1, None, 1.0)
+    parent, pos = root, l / 2
+    for k in range(rl + 1, n):  # toward the tail: joint k-1 in link k, alpha_{k-1} about +z
+        parent, pos = add_link(parent, k, pos, +1, f"j{k - 1}", 1.0), l
+    parent, pos = root, -l / 2
+    for k in range(rl - 1, -1, -1):  # toward the head: joint k in link k, link k turns by -alpha_k
+        parent, pos = add_link(parent, k, pos, -1, f"j{k}", -1.0), -l
     for i in range(n - 1):
         a = spec.add_actuator(name=f"servo{i}", target=f"j{i}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.set_to_pid(kp=sv.kp_Nm_per_rad, kv=sv.kd_Nms_per_rad,
@@ -364,18 +399,19 @@ def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True
     spec.copy_during_attach = True  # attach the same swimmer N times
     L = g.length_m
     for j in range(scene.n_swimmers):
-        frame = wb.add_frame(pos=[xs[j] - L / 2, ys[j], 0])
+        frame = wb.add_frame(pos=[xs[j] - L / 2 + root_offset_m(scene), ys[j], 0])
         spec.attach(one, prefix=f"s{j}_", frame=frame)
 
     # sensors: names resolved to addresses after compilation
+    rl = root_link(g.n_links)
     for j in range(scene.n_swimmers):
         spec.add_sensor(name=f"s{j}_com", type=mujoco.mjtSensor.mjSENS_SUBTREECOM,
-                        objtype=mujoco.mjtObj.mjOBJ_BODY, objname=f"s{j}_link0")
+                        objtype=mujoco.mjtObj.mjOBJ_BODY, objname=f"s{j}_link{rl}")
     _FORCE, _NET = 2, 3  # contact sensor: data="force", reduce="netforce"
     for j in range(scene.n_swimmers - 1 if pair_sensors else 0):
         s = spec.add_sensor(name=f"pair{j}_force", type=mujoco.mjtSensor.mjSENS_CONTACT,
-                            objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=f"s{j}_link0",
-                            reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=f"s{j + 1}_link0")
+                            objtype=mujoco.mjtObj.mjOBJ_XBODY, objname=f"s{j}_link{rl}",
+                            reftype=mujoco.mjtObj.mjOBJ_XBODY, refname=f"s{j + 1}_link{rl}")
         s.intprm[:3] = [_FORCE, _NET, 1]
     for wname in walls:
         s = spec.add_sensor(name=f"{wname}_force", type=mujoco.mjtSensor.mjSENS_CONTACT,

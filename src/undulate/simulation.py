@@ -51,7 +51,7 @@ from mujoco import rollout as _rollout
 
 from .errors import DivergenceError, ParameterError
 from .params import Scene, SimOptions
-from .scene import CompiledScene, auto_timestep, build, servo_damping_rate_per_s, snap_timestep
+from .scene import CompiledScene, auto_timestep, build, root_link, root_offset_m, servo_damping_rate_per_s, snap_timestep
 
 __all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE"]
 
@@ -439,12 +439,14 @@ def simulate(scene: Scene, options: SimOptions | None = None, *,
     return simulate_batch([scene], options, out=out)[0]
 
 
-def _link_angles(yaw: np.ndarray, joints: np.ndarray) -> np.ndarray:
+def _link_angles(yaw: np.ndarray, joints: np.ndarray, root: int) -> np.ndarray:
     """World orientation of each link's body axis (head->tail), rad.
 
-    ``yaw``: (..., ); ``joints``: (..., N-1) -> (..., N).
+    ``yaw``: (..., ) orientation of the root link ``root``; ``joints``:
+    (..., N-1) -> (..., N).
     """
-    return yaw[..., None] + np.concatenate([np.zeros_like(joints[..., :1]), np.cumsum(joints, axis=-1)], axis=-1)
+    c = np.concatenate([np.zeros_like(joints[..., :1]), np.cumsum(joints, axis=-1)], axis=-1)
+    return yaw[..., None] + c - c[..., root:root + 1]
 
 
 def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record) -> dict:
@@ -452,21 +454,28 @@ def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record) ->
     sc, ix = cs.scene, cs.index
     g = sc.geometry
     out = {"time": t}
-    xs0, ys0 = sc.initial_x_m() - g.length_m / 2, sc.initial_y_m()
-    root = qpos[:, ix.qpos_root]  # (T, n, 3): root pose at the head tip, plus the attach offset
-    rx, ry, yaw = root[..., 0] + xs0, root[..., 1] + ys0, root[..., 2]
+    rl = root_link(g.n_links)
+    xs0, ys0 = sc.initial_x_m() - g.length_m / 2 + root_offset_m(sc), sc.initial_y_m()
+    root = qpos[:, ix.qpos_root]  # (T, n, 3): root link's centre and orientation, plus the attach offset
     alpha = qpos[:, ix.qpos_joint]  # (T, n, nj)
-    theta = _link_angles(yaw, alpha)  # (T, n, N)
+    theta = _link_angles(root[..., 2], alpha, rl)  # (T, n, N)
     l = g.link_length_m
+    # the head tip: back from the root link's centre along the root link and the head-side links
+    cx, cy = np.cos(theta), np.sin(theta)
+    rx = root[..., 0] + xs0 - l / 2 * cx[..., rl] - l * cx[..., :rl].sum(axis=-1)
+    ry = root[..., 1] + ys0 - l / 2 * cy[..., rl] - l * cy[..., :rl].sum(axis=-1)
     if "x" in record or "y" in record:
-        com = sens[:, ix.sens_com[:, None] + np.arange(2)]  # (T, n, 2)
-        out["x"], out["y"] = com[..., 0], com[..., 1]
+        # centre of mass of equal links = mean of the link midpoints, at the recorded state itself (the
+        # subtree-COM sensor would read the state one step earlier)
+        hx = rx[..., None] + l * (np.cumsum(cx, axis=-1) - cx / 2)
+        hy = ry[..., None] + l * (np.cumsum(cy, axis=-1) - cy / 2)
+        out["x"], out["y"] = hx.mean(axis=-1), hy.mean(axis=-1)
     if "heading" in record:
         out["heading"] = theta.mean(axis=-1)
     if "node_x" in record:
-        out["node_x"] = np.concatenate([rx[..., None], rx[..., None] + l * np.cumsum(np.cos(theta), axis=-1)], axis=-1)
+        out["node_x"] = np.concatenate([rx[..., None], rx[..., None] + l * np.cumsum(cx, axis=-1)], axis=-1)
     if "node_y" in record:
-        out["node_y"] = np.concatenate([ry[..., None], ry[..., None] + l * np.cumsum(np.sin(theta), axis=-1)], axis=-1)
+        out["node_y"] = np.concatenate([ry[..., None], ry[..., None] + l * np.cumsum(cy, axis=-1)], axis=-1)
     cmd = sc.gait.joint_angles(t, sc.phases_rad, g.n_links)
     out["joint_angle"], out["joint_command"], out["joint_error"] = alpha, cmd, np.abs(alpha - cmd)
     out["contact_force_pair"], out["contact_force_wall"], out["penetration"] = fpair, fwall, pen
