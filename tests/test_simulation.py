@@ -67,7 +67,7 @@ def test_lone_swimmer_centre_stays_still_at_the_defaults():
     print(f"lone swimmer drift: 2 ms {v2 * 1e3:.4f} mm/s, 1 ms {v1 * 1e3:.4f} mm/s, rk4 {rk * 1e3:.4f} mm/s")
     assert v2 <= 0.05e-3
     assert v1 <= 0.05e-3 and rk <= 0.05e-3
-    for n in (5, 7):  # odd link counts: the middle link is the body's centre
+    for n in (2, 4, 5, 12):  # the root at the body's midpoint: a link's centre (odd N) or a joint (even N)
         assert _drift_rate(None, n_links=n) <= 0.05e-3
 
 
@@ -103,6 +103,9 @@ def test_constant_force_gives_drift_velocity_F_over_total_drag():
     v = (pa[-1] - pa[-2]) / sc.gait.period_s  # velocity, long after the 0.05 s relaxation
     expected = F / (sc.geometry.n_links * sc.ground.drag_N_s_per_m)
     assert v == pytest.approx(expected, rel=1e-3)
+    # spread equally over the links, the force translates the body without turning it
+    turn = period_average(ds["heading"].isel(swimmer=0), sc.gait.period_s).values
+    assert abs(turn[-1] - turn[0]) < 0.01  # rad over the run (applied at the head tip it turned ~1 rad)
 
 
 def test_contact_forces_vanish_while_swimmers_are_apart():

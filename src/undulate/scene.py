@@ -7,10 +7,15 @@ its address once, so nothing downstream indexes arrays by position.
 
 Model choices (documented here, tested in ``tests/``):
 
-* **Planar bodies.**  Each swimmer's head link carries three root degrees of
-  freedom (slide x, slide y, hinge z); links ``1..N-1`` hang from it through
-  hinge-z joints ``j0..j{N-2}``.  No gravity (the plane is horizontal and
-  its support is modelled by the ground drag alone).  Heads point to -x.
+* **Planar bodies.**  Each swimmer's middle link (the one holding the
+  body's midpoint) carries three root degrees of freedom (slide x, slide y,
+  hinge z) with their frame at the midpoint; the other links hang from it
+  toward the head and toward the tail through hinge-z joints
+  ``j0..j{N-2}`` (joint ``i`` measures link ``i+1`` relative to link ``i``
+  whichever way the chain runs).  Rooting at the midpoint keeps a lone
+  swimmer's centre of mass still under the first-order integrator
+  (:func:`swimmer_spec`).  No gravity (the plane is horizontal and its
+  support is modelled by the ground drag alone).  Heads point to -x.
 * **Mass and inertia** are those of a solid box ``l x w x h`` per link,
   ``l = L/N``, mass ``M/N``.
 * **Collision geometry** is a capsule of radius ``w/2`` spanning the link's
@@ -36,10 +41,10 @@ Model choices (documented here, tested in ``tests/``):
   torques alone.
 * **Servos** are MuJoCo ``pid`` actuators, inputs ``[pos, vel]``,
   ``forcerange = +-torque_limit``.
-* **Perturbation**: a ``motor`` actuator on each swimmer's root slide-x
-  degree of freedom applies the longitudinal force of
-  :attr:`~undulate.params.Scene.forces_N` (a pure translation force, no
-  torque on the body's joints).
+* **Perturbation**: ``motor`` actuators with site transmission apply
+  ``F/N`` along world x at each link's centre of mass, the longitudinal force
+  of :attr:`~undulate.params.Scene.forces_N` spread equally over the links
+  (it translates the body without turning it).
 * **Sensors** (all computed in C each step): each swimmer's centre of mass
   (``subtreecom``); the net contact force between neighbouring swimmers
   ``(j, j+1)`` (in the initial lateral order) and on each wall (lower,
@@ -101,15 +106,20 @@ def drag_viscosity(scene: Scene) -> float:
 
 
 def root_link(n_links: int) -> int:
-    """Index of the link that carries a swimmer's free (x, y, yaw) joints: the middle one
-    (for even N, the one just head-side of the middle joint)."""
-    return (n_links - 1) // 2
+    """Index of the link that carries a swimmer's free (x, y, yaw) joints: the one holding the
+    body's midpoint (odd N: the middle link; even N: the one just tail-side of the middle joint)."""
+    return n_links // 2
 
 
 def root_offset_m(scene: Scene) -> float:
-    """Distance from the head tip to the root frame (the root link's centre) of a straight body, m."""
-    g = scene.geometry
-    return (root_link(g.n_links) + 0.5) * g.link_length_m
+    """Distance from the head tip to the root frame (the body's midpoint) of a straight body, m."""
+    return scene.geometry.length_m / 2
+
+
+def _root_frame_in_link(n_links: int, link_length_m: float) -> float:
+    """Distance from the root link's head end to the root frame (the body's midpoint), m:
+    ``l/2`` (its centre) for odd N, 0 (the middle joint) for even N."""
+    return (n_links / 2 - root_link(n_links)) * link_length_m
 
 
 def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
@@ -120,18 +130,24 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
     ``g{k}`` (and ``g{k}_{s}`` for further collision segments), servos
     ``servo0..``, perturbation actuator ``push``.
 
-    The free joints sit on the **middle** link (:func:`root_link`), its frame
-    at the link's centre; the links toward the tail hang from it as a chain,
-    and so do the links toward the head.  Joint ``i`` always measures
+    The free joints sit on the link holding the body's **midpoint**
+    (:func:`root_link`), their frame at the midpoint (the middle link's
+    centre for odd N, the middle joint for even N); the links toward the
+    tail hang from it as a chain, and so do the links toward the head.  Joint ``i`` always measures
     ``alpha_i``, the angle of link ``i+1`` relative to link ``i``
     (counter-clockwise about +z): head-side joints turn about -z because
     their child is the head-side link.  Rooting at the middle matters for
     the integrator: with semi-implicit Euler the centre of mass of a body
     rooted at its head creeps by O(dt) (0.28 mm/s at 2 ms: the position
     update is first order on a configuration space whose centre of mass is
-    curved in the joint angles); rooted at the middle the curvature terms of
+    curved in the joint angles); rooted at the midpoint the curvature terms of
     the two half-chains cancel and a lone swimmer stays put to 1e-4 mm/s
     (tests/test_simulation.py).
+
+    The perturbation force (:attr:`~undulate.params.Scene.forces_N`) is
+    spread equally over the links: actuators ``push0..`` apply ``F/N`` along
+    world x at each link's centre of mass (sites ``c0..``), so it
+    translates the body without turning it.
     """
     g, sv = scene.geometry, scene.servo
     n, l, w = g.n_links, g.link_length_m, g.width_m
@@ -146,9 +162,10 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
         body.explicitinertial = True  # inertia of the box link, centred on the link's midpoint
         body.mass = g.link_mass_kg
         lo = 0.0 if sign > 0 else -l  # the link spans [lo, lo + l] along the body frame's x
-        if joint is None:  # the root link: frame at its centre
-            lo = -l / 2
+        if joint is None:  # the root link: frame at the body's midpoint
+            lo = -a_mid
         body.ipos = [lo + l / 2, 0, 0]
+        body.add_site(name=f"c{k}", pos=[lo + l / 2, 0, 0])  # where the perturbation force acts
         body.inertia = _box_inertia(g.link_mass_kg, l, w, g.height_m)
         if joint is None:
             body.add_joint(name="x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
@@ -182,11 +199,12 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
                           group=3, mass=0, fluid_ellipsoid=1)
         return body
 
+    a_mid = _root_frame_in_link(n, l)
     root = add_link(spec.worldbody, rl, 0.0, +1, None, 1.0)
-    parent, pos = root, l / 2
+    parent, pos = root, l - a_mid
     for k in range(rl + 1, n):  # toward the tail: joint k-1 in link k, alpha_{k-1} about +z
         parent, pos = add_link(parent, k, pos, +1, f"j{k - 1}", 1.0), l
-    parent, pos = root, -l / 2
+    parent, pos = root, -a_mid
     for k in range(rl - 1, -1, -1):  # toward the head: joint k in link k, link k turns by -alpha_k
         parent, pos = add_link(parent, k, pos, -1, f"j{k}", -1.0), -l
     for i in range(n - 1):
@@ -197,8 +215,11 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
                      slewmax=sv.max_speed_rad_s if sv.max_speed_rad_s > 0 else -1)
         a.forcelimited = True
         a.forcerange = [-sv.torque_limit_Nm, sv.torque_limit_Nm]
-    push = spec.add_actuator(name="push", target="x", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-    push.set_to_motor()
+    # the perturbation force, spread equally over the links: F/N along world x at each link's centre
+    spec.worldbody.add_site(name="ref")
+    for k in range(n):
+        push = spec.add_actuator(name=f"push{k}", target=f"c{k}", trntype=mujoco.mjtTrn.mjTRN_SITE, refsite="ref")
+        push.set_to_motor()
     return spec
 
 
@@ -297,7 +318,7 @@ class SceneIndex:
     All arrays have a leading swimmer axis.  ``qpos_root[j] = (x, y, yaw)``
     addresses, ``qpos_joint[j, i]`` the hinge of joint ``i``;
     ``ctrl_pos[j, i]`` / ``ctrl_vel[j, i]`` the servo's position / velocity
-    set-point inputs; ``ctrl_push[j]`` the perturbation force input;
+    set-point inputs; ``ctrl_push[j, k]`` the perturbation force input on link ``k`` (N);
     ``sens_com[j]`` the first of 3 sensordata entries of the centre of mass;
     ``sens_pair[p]`` the 3-vector net force between swimmers ``p, p+1``;
     ``sens_wall[k]`` the 3-vector net force of all swimmers on wall ``k``
@@ -344,7 +365,8 @@ class CompiledScene:
         u[:, ix.ctrl_vel] = omega_cmd
         if sc.forces_N is not None:
             on = (np.asarray(t_s) >= sc.force_onset_s)[:, None]
-            u[:, ix.ctrl_push] = np.where(on, np.asarray(sc.forces_N)[None, :], 0.0)
+            per_link = np.asarray(sc.forces_N)[:, None] / sc.geometry.n_links * np.ones(ix.ctrl_push.shape)
+            u[:, ix.ctrl_push] = np.where(on[..., None], per_link[None], 0.0)
         return u
 
 
@@ -451,7 +473,7 @@ def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool =
         qvel_root=np.array([[vadr(f"s{j}_{q}") for q in ("x", "y", "yaw")] for j in range(n)], dtype=int),
         ctrl_pos=np.array([[cadr(f"s{j}_servo{i}") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
         ctrl_vel=np.array([[cadr(f"s{j}_servo{i}") + 1 for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
-        ctrl_push=np.array([cadr(f"s{j}_push") for j in range(n)], dtype=int),
+        ctrl_push=np.array([[cadr(f"s{j}_push{k}") for k in range(nj + 1)] for j in range(n)], dtype=int),
         sens_com=np.array([sadr(f"s{j}_com") for j in range(n)], dtype=int),
         sens_pair=np.array([sadr(f"pair{j}_force") for j in range(n - 1 if pair_sensors else 0)], dtype=int),
         sens_wall=np.array([sadr(f"{w}_force") for w in walls], dtype=int),

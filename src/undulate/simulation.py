@@ -456,14 +456,15 @@ def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record) ->
     out = {"time": t}
     rl = root_link(g.n_links)
     xs0, ys0 = sc.initial_x_m() - g.length_m / 2 + root_offset_m(sc), sc.initial_y_m()
-    root = qpos[:, ix.qpos_root]  # (T, n, 3): root link's centre and orientation, plus the attach offset
+    root = qpos[:, ix.qpos_root]  # (T, n, 3): the body's midpoint and root-link orientation, plus the offset
     alpha = qpos[:, ix.qpos_joint]  # (T, n, nj)
     theta = _link_angles(root[..., 2], alpha, rl)  # (T, n, N)
     l = g.link_length_m
-    # the head tip: back from the root link's centre along the root link and the head-side links
+    # the head tip: back from the root frame (the body's midpoint) along the root link and the head-side links
     cx, cy = np.cos(theta), np.sin(theta)
-    rx = root[..., 0] + xs0 - l / 2 * cx[..., rl] - l * cx[..., :rl].sum(axis=-1)
-    ry = root[..., 1] + ys0 - l / 2 * cy[..., rl] - l * cy[..., :rl].sum(axis=-1)
+    a = root_offset_m(sc) - rl * l  # the root frame's distance behind the root link's head end
+    rx = root[..., 0] + xs0 - a * cx[..., rl] - l * cx[..., :rl].sum(axis=-1)
+    ry = root[..., 1] + ys0 - a * cy[..., rl] - l * cy[..., :rl].sum(axis=-1)
     if "x" in record or "y" in record:
         # centre of mass of equal links = mean of the link midpoints, at the recorded state itself (the
         # subtree-COM sensor would read the state one step earlier)
