@@ -13,6 +13,9 @@ Reports, on this machine:
 * the cost and physics of the collision geometry: capsules (default) against
   boxes for the 50-swimmer scene and a pair (penetration, final dx/lambda);
 * the time-step convergence of the pair's final dx/lambda.
+
+The jammed 50-swimmer packs the packing study actually runs are benchmarked
+in ``bench_packing.py`` (the scene here at rho~ = 0.7 barely touches).
 """
 
 from __future__ import annotations
@@ -33,7 +36,7 @@ from mujoco import rollout
 
 from undulate import Channel, Scene, SimOptions, simulate, simulate_batch
 from undulate.observables import neighbour_offsets
-from undulate.simulation import compile_scene, controls
+from undulate.simulation import compile_scene, controls, resolve_options
 
 
 def group_scene(n: int, seed: int = 0) -> Scene:
@@ -81,11 +84,12 @@ def throughput(quick: bool) -> None:
         dur = 10.0 if n == 50 else 30.0
         if quick:
             dur /= 5
-        opt = SimOptions(duration_s=dur)
+        opt = resolve_options(sc, SimOptions(duration_s=dur))
         w, _ = timed_simulate(sc, opt, repeat=1 if n == 50 else 3)
         bare = bare_rollout_us_per_step(compile_scene(sc, opt), opt.n_steps)
         per_step = w / opt.n_steps * 1e6
-        print(f"{n:3d} swimmers: {w / dur * 1e3:8.2f} ms wall per simulated s   {per_step:7.1f} us/step   "
+        print(f"{n:3d} swimmers (dt {opt.timestep_s * 1e3:.3g} ms): {w / dur * 1e3:8.2f} ms wall per simulated s   "
+              f"{per_step:7.1f} us/step   "
               f"bare rollout {bare:7.1f} us/step   ratio {per_step / bare:5.2f}")
     w, _ = timed_simulate(group_scene(2), SimOptions(duration_s=30.0))
     print(f"30 s pair run: {w:.3f} s compute (compile + rollout + dataset)")
@@ -97,8 +101,10 @@ BARE_SCRIPT = textwrap.dedent(
     from mujoco import rollout
     from undulate.params import Scene, SimOptions
     from undulate.scene import build
-    opt = SimOptions(duration_s=300.0)
-    cs = build(Scene(phases_rad=(0.0, math.pi / 2)), opt.timestep_s)
+    from undulate.simulation import resolve_options
+    sc = Scene(phases_rad=(0.0, math.pi / 2))
+    opt = resolve_options(sc, SimOptions(duration_s=300.0))
+    cs = build(sc, opt.timestep_s)
     m = cs.model; d = mujoco.MjData(m); mujoco.mj_forward(m, d)
     m.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
     s0 = np.empty(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))
@@ -138,7 +144,7 @@ def collision_geometry(quick: bool) -> None:
         for shape in ("capsule", "box"):
             sc = group_scene(n)
             sc = dataclasses.replace(sc, geometry=dataclasses.replace(sc.geometry, collision_shape=shape))
-            opt = SimOptions(duration_s=4.0 if n == 50 else 30.0)
+            opt = resolve_options(sc, SimOptions(duration_s=4.0 if n == 50 else 30.0))
             us = bare_rollout_us_per_step(compile_scene(sc, opt), min(opt.n_steps, 2000))
             ds = simulate(sc, opt)
             steady = ds["penetration"].sel(time=slice(opt.duration_s / 3, None))
