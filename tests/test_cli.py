@@ -85,3 +85,13 @@ def test_unwritable_output_path(tmp_path):
     assert r.returncode == 2 and "--out" in r.stderr and len(r.stderr.strip().splitlines()) == 1
     r = run("simulate", "--duration", "1", "--out", str(tmp_path))
     assert r.returncode == 2 and "--out" in r.stderr
+
+
+def test_cli_simulates_a_lone_swimmer(tmp_path):
+    from typer.testing import CliRunner
+
+    from undulate.cli import app
+
+    res = CliRunner().invoke(app, ["simulate", "--phases", "0", "--duration", "2", "--out", str(tmp_path / "one.nc")])
+    assert res.exit_code == 0, res.output
+    assert "one swimmer" in res.output

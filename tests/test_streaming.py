@@ -20,10 +20,11 @@ from undulate.simulation import compile_scene
 PAIR = Scene(phases_rad=(0.0, 1.0), dx0_m=0.02)
 
 
-def test_streamed_file_equals_the_in_memory_run_bitwise(tmp_path):
+@pytest.mark.parametrize("scene", [PAIR, Scene(phases_rad=(0.0,))], ids=["pair", "lone"])
+def test_streamed_file_equals_the_in_memory_run_bitwise(tmp_path, scene):
     opt = SimOptions(duration_s=3.0, sample_rate_hz=100, chunk_steps=137)  # chunks not aligned with samples
-    mem = simulate(PAIR, opt)
-    with simulate(PAIR, opt, out=tmp_path / "run.nc") as disk:
+    mem = simulate(scene, opt)
+    with simulate(scene, opt, out=tmp_path / "run.nc") as disk:  # lone: an empty pair dimension
         assert disk["x"].encoding.get("source")  # lazily backed by the file
         for name in mem.data_vars:
             np.testing.assert_array_equal(mem[name].values, disk[name].values, err_msg=name)

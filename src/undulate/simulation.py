@@ -231,7 +231,8 @@ class _NetCDFRecorder:
             ds = build(block)
             # HDF5 chunks of ~1 MiB along time: chunking by the first block's shape would make one
             # chunk per few samples, and HDF5's chunk index (held in memory) would grow with the run
-            enc = {name: {"chunksizes": (max(1, 2**17 // max(1, int(np.prod(v.shape[1:])))), *v.shape[1:])}
+            enc = {name: {"chunksizes": (max(1, 2**17 // max(1, int(np.prod(v.shape[1:])))),
+                                         *(max(1, n) for n in v.shape[1:]))}  # HDF5: no empty chunk sides
                    for name, v in ds.variables.items() if v.dims[:1] == ("time",)}
             ds.to_netcdf(self.tmp, engine="h5netcdf", unlimited_dims=["time"], encoding=enc)
             self.file = h5netcdf.File(self.tmp, "a")  # kept open: reopening per chunk leaks memory
