@@ -174,6 +174,13 @@ def test_identical_inputs_give_identical_output_and_batch_equals_single():
     batch = simulate_batch([a, b], opt, nthread=2)
     _data_vars_identical(batch[0], one)
     _data_vars_identical(batch[1], simulate(b, opt))
+    # a batch mixing scenes with and without perturbation forces compiles all of them with the
+    # push actuators (one structure); unused ones carry zero force and change nothing
+    c = Scene(phases_rad=(0.0, 1.0), forces_N=(-0.05, 0.05), force_onset_s=1.0)
+    mixed = simulate_batch([a, c], opt)
+    _data_vars_identical(mixed[0], one)
+    _data_vars_identical(mixed[1], simulate(c, opt))
+    assert float(np.abs(mixed[1]["x"] - one["x"]).max()) > 1e-3  # the force did act
 
 
 def _final_dx_over_lambda(dt: float) -> float:

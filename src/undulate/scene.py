@@ -122,13 +122,16 @@ def _root_frame_in_link(n_links: int, link_length_m: float) -> float:
     return (n_links / 2 - root_link(n_links)) * link_length_m
 
 
-def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
+def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None) -> mujoco.MjSpec:
     """One swimmer (body along +x, root link centred at the origin) as an ``MjSpec``.
 
     Names (before the attach prefix): bodies ``link0..link{N-1}``, root
     joints ``x``, ``y``, ``yaw``, body joints ``j0..j{N-2}``, geoms
     ``g{k}`` (and ``g{k}_{s}`` for further collision segments), servos
-    ``servo0..``, perturbation actuator ``push``.
+    ``servo0..``, and, when ``push`` (default: ``scene.forces_N`` is set), the perturbation
+    actuators ``push0..push{N-1}`` (a site transmission costs a Jacobian per
+    actuator and step: in a 50-swimmer pack the 150 unused push actuators
+    took 77 us of a ~600 us step).
 
     The free joints sit on the link holding the body's **midpoint**
     (:func:`root_link`), their frame at the midpoint (the middle link's
@@ -216,6 +219,8 @@ def swimmer_spec(scene: Scene, timestep_s: float) -> mujoco.MjSpec:
         a.forcelimited = True
         a.forcerange = [-sv.torque_limit_Nm, sv.torque_limit_Nm]
     # the perturbation force, spread equally over the links: F/N along world x at each link's centre
+    if not (scene.forces_N is not None if push is None else push):
+        return spec
     spec.worldbody.add_site(name="ref")
     for k in range(n):
         push = spec.add_actuator(name=f"push{k}", target=f"c{k}", trntype=mujoco.mjtTrn.mjTRN_SITE, refsite="ref")
@@ -318,7 +323,8 @@ class SceneIndex:
     All arrays have a leading swimmer axis.  ``qpos_root[j] = (x, y, yaw)``
     addresses, ``qpos_joint[j, i]`` the hinge of joint ``i``;
     ``ctrl_pos[j, i]`` / ``ctrl_vel[j, i]`` the servo's position / velocity
-    set-point inputs; ``ctrl_push[j, k]`` the perturbation force input on link ``k`` (N);
+    set-point inputs; ``ctrl_push[j, k]`` the perturbation force input on link ``k`` (N;
+    shape ``(n, 0)`` when the scene has no ``forces_N``);
     ``sens_com[j]`` the first of 3 sensordata entries of the centre of mass;
     ``sens_pair[p]`` the 3-vector net force between swimmers ``p, p+1``;
     ``sens_wall[k]`` the 3-vector net force of all swimmers on wall ``k``
@@ -370,7 +376,7 @@ class CompiledScene:
         return u
 
 
-def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True
+def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True, push: bool | None = None
                ) -> tuple[mujoco.MjSpec, tuple[str, ...]]:
     """The full scene: channel walls plus ``scene.n_swimmers`` attached swimmers.
 
@@ -417,7 +423,7 @@ def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True
         walls += ["wall_end_lo", "wall_end_hi"]
 
     xs, ys = scene.initial_x_m(), scene.initial_y_m()
-    one = swimmer_spec(scene, timestep_s)
+    one = swimmer_spec(scene, timestep_s, push=push)
     spec.copy_during_attach = True  # attach the same swimmer N times
     L = g.length_m
     for j in range(scene.n_swimmers):
@@ -445,13 +451,15 @@ def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True
     return spec, tuple(walls)
 
 
-def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool = True) -> CompiledScene:
+def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool = True,
+          push: bool | None = None) -> CompiledScene:
     """Compile ``scene`` (time step: ``timestep_s``, or :func:`auto_timestep`)
     and resolve every address by name.  ``pair_sensors``: see :func:`scene_spec`
     (without them ``index.sens_pair`` is empty)."""
     if timestep_s is None:
         timestep_s = auto_timestep(scene)
-    spec, walls = scene_spec(scene, timestep_s, pair_sensors=pair_sensors)
+    push = scene.forces_N is not None if push is None else push
+    spec, walls = scene_spec(scene, timestep_s, pair_sensors=pair_sensors, push=push)
     model = spec.compile()
     n, nj = scene.n_swimmers, scene.geometry.n_links - 1
 
@@ -473,7 +481,8 @@ def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool =
         qvel_root=np.array([[vadr(f"s{j}_{q}") for q in ("x", "y", "yaw")] for j in range(n)], dtype=int),
         ctrl_pos=np.array([[cadr(f"s{j}_servo{i}") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
         ctrl_vel=np.array([[cadr(f"s{j}_servo{i}") + 1 for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
-        ctrl_push=np.array([[cadr(f"s{j}_push{k}") for k in range(nj + 1)] for j in range(n)], dtype=int),
+        ctrl_push=np.array([[cadr(f"s{j}_push{k}") for k in range(nj + 1)] for j in range(n)] if push
+                           else np.zeros((n, 0)), dtype=int),
         sens_com=np.array([sadr(f"s{j}_com") for j in range(n)], dtype=int),
         sens_pair=np.array([sadr(f"pair{j}_force") for j in range(n - 1 if pair_sensors else 0)], dtype=int),
         sens_wall=np.array([sadr(f"{w}_force") for w in walls], dtype=int),

@@ -75,11 +75,13 @@ def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
                              e.got) from None
 
 
-def compile_scene(scene: Scene, options: SimOptions) -> CompiledScene:
+def compile_scene(scene: Scene, options: SimOptions, *, push: bool | None = None) -> CompiledScene:
     """Build the model for ``scene`` with the solver settings the runner needs
-    (``options.timestep_s`` must be resolved: :func:`resolve_options`)."""
+    (``options.timestep_s`` must be resolved: :func:`resolve_options`).
+    ``push``: include the perturbation-force actuators (default: only if
+    ``scene.forces_N`` is set; see :func:`undulate.scene.swimmer_spec`)."""
     options = resolve_options(scene, options)
-    cs = build(scene, options.timestep_s, pair_sensors="contact_force_pair" in options.recorded)
+    cs = build(scene, options.timestep_s, pair_sensors="contact_force_pair" in options.recorded, push=push)
     cs.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
     m = cs.model
     solver = options.solver
@@ -311,7 +313,8 @@ def simulate_batch(
     options = resolved[0]
     record = options.recorded
     outs = _outs(out, len(scenes))
-    compiled = [compile_scene(s, options) for s in scenes]
+    push = any(s.forces_N is not None for s in scenes)  # one structure: all or none carry them
+    compiled = [compile_scene(s, options, push=push) for s in scenes]
     _check_same_structure(compiled)
     m0 = compiled[0].model
     nb = len(compiled)
