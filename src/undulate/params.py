@@ -36,6 +36,7 @@ __all__ = [
     "Ground",
     "Channel",
     "ContactModel",
+    "ControllerParams",
     "Scene",
     "SimOptions",
 ]
@@ -393,6 +394,57 @@ class ContactModel(_Params):
         _positive("target_penetration_m", self.target_penetration_m, "m")
 
 
+CONTROLLER_KINDS = ("open-loop", "self-oscillating", "phase-oscillator")
+
+
+@dataclass(frozen=True)
+class ControllerParams(_Params):
+    """Which gait controller drives the servos, and its parameters.
+
+    The equations, units and references are in :mod:`undulate.control`.
+    ``open-loop`` (default) is the paper's travelling wave, stepped exactly
+    as before; the closed-loop kinds read each swimmer's joint angles,
+    speeds and servo torques every ``1 / control_rate_hz`` and set the
+    servos' targets, with MuJoCo stepping in C in between.
+    """
+
+    kind: str = "open-loop"
+    """``"open-loop"``, ``"self-oscillating"`` or ``"phase-oscillator"``."""
+    control_rate_hz: float = 100.0
+    """Control (servo-bus) rate, Hz: sensing and new targets this often.  The
+    control period is rounded to a whole number of integrator steps; the
+    dataset records the rate used (attr ``control_rate``)."""
+    coupling: float = 0.0
+    """``phase-oscillator``: load-feedback strength sigma, rad/s per N m (>= 0)."""
+    arrival_fraction: float = 0.9
+    """``self-oscillating``: a turning point counts as reached once the measured
+    joint angle is this fraction of beta on its side, in (0, 1]."""
+    max_hold_s: float | None = None
+    """``self-oscillating``: a joint stalled at its turning point releases it after
+    this long, s (None: a quarter period)."""
+    stall_speed_rad_s: float = 0.2
+    """``self-oscillating``: below this measured speed a held joint counts as stalled, rad/s."""
+
+    def __post_init__(self):
+        if self.kind not in CONTROLLER_KINDS:
+            raise ParameterError("controller", "one of " + ", ".join(CONTROLLER_KINDS), self.kind)
+        rate = _positive("control_rate_hz", self.control_rate_hz, "Hz")
+        if rate > 10000:
+            raise ParameterError("control_rate_hz", "in (0, 10000] Hz", self.control_rate_hz)
+        object.__setattr__(self, "control_rate_hz", rate)
+        object.__setattr__(self, "coupling", _nonneg("coupling", self.coupling, "rad/s per N m"))
+        a = _positive("arrival_fraction", self.arrival_fraction)
+        if a > 1:
+            raise ParameterError("arrival_fraction", "in (0, 1]", self.arrival_fraction)
+        if self.max_hold_s is not None:
+            _positive("max_hold_s", self.max_hold_s, "s")
+        _positive("stall_speed_rad_s", self.stall_speed_rad_s, "rad/s")
+
+    @property
+    def closed_loop(self) -> bool:
+        return self.kind != "open-loop"
+
+
 @dataclass(frozen=True)
 class Scene(_Params):
     """Swimmers side by side in a channel.
@@ -423,6 +475,11 @@ class Scene(_Params):
     """Constant longitudinal force on each swimmer, N (+x), or None."""
     force_onset_s: float = 0.0
     """Time at which ``forces_N`` switch on, s (they stay on)."""
+    controller: ControllerParams = field(default_factory=ControllerParams)
+    """The gait controller (default: the paper's open-loop travelling wave)."""
+    hold_x: bool = False
+    """Lock each swimmer's longitudinal position (its body midpoint's x): the
+    swimmer has no x degree of freedom; lateral motion and rotation stay free."""
 
     def __post_init__(self):
         try:
@@ -446,6 +503,11 @@ class Scene(_Params):
         object.__setattr__(self, "dx0_m", dx0)
         gap = _nonneg("lateral_gap_m", self.lateral_gap_m, "m")
         _nonneg("force_onset_s", self.force_onset_s, "s")
+        if not isinstance(self.controller, ControllerParams):
+            raise ParameterError("controller", "a ControllerParams", self.controller)
+        if not isinstance(self.hold_x, (bool, np.bool_)):
+            raise ParameterError("hold_x", "True or False", self.hold_x)
+        object.__setattr__(self, "hold_x", bool(self.hold_x))
         if self.forces_N is not None:
             forces = tuple(_finite("forces_N", f) for f in self.forces_N)
             if len(forces) != n:
@@ -498,6 +560,7 @@ _NESTED = {
     ("Scene", "ground"): Ground,
     ("Scene", "channel"): Channel,
     ("Scene", "contact"): ContactModel,
+    ("Scene", "controller"): ControllerParams,
 }
 
 
@@ -539,7 +602,7 @@ class SimOptions(_Params):
 
     MAX_TIMESTEP_S = 0.004
     RECORDABLE = ("x", "y", "heading", "node_x", "node_y", "joint_angle", "joint_command", "joint_error",
-                  "contact_force_pair", "contact_force_wall", "penetration")
+                  "contact_force_pair", "contact_force_wall", "penetration", "gait_phase")
 
     @property
     def recorded(self) -> tuple[str, ...]:

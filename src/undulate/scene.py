@@ -171,7 +171,8 @@ def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None) -
         body.add_site(name=f"c{k}", pos=[lo + l / 2, 0, 0])  # where the perturbation force acts
         body.inertia = _box_inertia(g.link_mass_kg, l, w, g.height_m)
         if joint is None:
-            body.add_joint(name="x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
+            if not scene.hold_x:  # Scene.hold_x: no longitudinal degree of freedom
+                body.add_joint(name="x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
             body.add_joint(name="y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
             body.add_joint(name="yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
         else:
@@ -321,7 +322,9 @@ class SceneIndex:
     """Addresses in the compiled model, resolved once by name.
 
     All arrays have a leading swimmer axis.  ``qpos_root[j] = (x, y, yaw)``
-    addresses, ``qpos_joint[j, i]`` the hinge of joint ``i``;
+    addresses (x is -1 for a scene with ``hold_x``: no x joint), ``qvel_joint[j, i]``
+    the hinge speed of joint ``i``, ``sens_load[j, i]`` the servo torque sensor of
+    joint ``i`` (closed-loop controllers only; shape ``(n, 0)`` otherwise), ``qpos_joint[j, i]`` the hinge of joint ``i``;
     ``ctrl_pos[j, i]`` / ``ctrl_vel[j, i]`` the servo's position / velocity
     set-point inputs; ``ctrl_push[j, k]`` the perturbation force input on link ``k`` (N;
     shape ``(n, 0)`` when the scene has no ``forces_N``);
@@ -335,6 +338,8 @@ class SceneIndex:
     qpos_root: np.ndarray
     qpos_joint: np.ndarray
     qvel_root: np.ndarray
+    qvel_joint: np.ndarray
+    sens_load: np.ndarray
     ctrl_pos: np.ndarray
     ctrl_vel: np.ndarray
     ctrl_push: np.ndarray
@@ -376,8 +381,8 @@ class CompiledScene:
         return u
 
 
-def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True, push: bool | None = None
-               ) -> tuple[mujoco.MjSpec, tuple[str, ...]]:
+def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True, push: bool | None = None,
+               loads: bool | None = None) -> tuple[mujoco.MjSpec, tuple[str, ...]]:
     """The full scene: channel walls plus ``scene.n_swimmers`` attached swimmers.
 
     ``pair_sensors=False`` leaves out the swimmer-swimmer contact-force
@@ -448,18 +453,25 @@ def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True, pu
     _FOUND_DIST, _MINDIST = 1 | 8, 1  # data="found dist", reduce="mindist"
     s = spec.add_sensor(name="mindist", type=mujoco.mjtSensor.mjSENS_CONTACT)
     s.intprm[:3] = [_FOUND_DIST, _MINDIST, 1]
+    if scene.controller.closed_loop if loads is None else loads:  # each servo's "present load": what a
+        # closed-loop controller senses
+        for j in range(scene.n_swimmers):
+            for i in range(g.n_links - 1):
+                spec.add_sensor(name=f"s{j}_load{i}", type=mujoco.mjtSensor.mjSENS_ACTUATORFRC,
+                                objtype=mujoco.mjtObj.mjOBJ_ACTUATOR, objname=f"s{j}_servo{i}")
     return spec, tuple(walls)
 
 
 def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool = True,
-          push: bool | None = None) -> CompiledScene:
+          push: bool | None = None, loads: bool | None = None) -> CompiledScene:
     """Compile ``scene`` (time step: ``timestep_s``, or :func:`auto_timestep`)
     and resolve every address by name.  ``pair_sensors``: see :func:`scene_spec`
     (without them ``index.sens_pair`` is empty)."""
     if timestep_s is None:
         timestep_s = auto_timestep(scene)
     push = scene.forces_N is not None if push is None else push
-    spec, walls = scene_spec(scene, timestep_s, pair_sensors=pair_sensors, push=push)
+    loads = scene.controller.closed_loop if loads is None else loads
+    spec, walls = scene_spec(scene, timestep_s, pair_sensors=pair_sensors, push=push, loads=loads)
     model = spec.compile()
     n, nj = scene.n_swimmers, scene.geometry.n_links - 1
 
@@ -476,9 +488,14 @@ def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool =
         return int(model.sensor_adr[model.sensor(name).id])
 
     index = SceneIndex(
-        qpos_root=np.array([[jadr(f"s{j}_{q}") for q in ("x", "y", "yaw")] for j in range(n)], dtype=int),
+        qpos_root=np.array([[jadr(f"s{j}_{q}") if not (q == "x" and scene.hold_x) else -1
+                             for q in ("x", "y", "yaw")] for j in range(n)], dtype=int),
         qpos_joint=np.array([[jadr(f"s{j}_j{i}") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
-        qvel_root=np.array([[vadr(f"s{j}_{q}") for q in ("x", "y", "yaw")] for j in range(n)], dtype=int),
+        qvel_root=np.array([[vadr(f"s{j}_{q}") if not (q == "x" and scene.hold_x) else -1
+                             for q in ("x", "y", "yaw")] for j in range(n)], dtype=int),
+        qvel_joint=np.array([[vadr(f"s{j}_j{i}") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
+        sens_load=np.array([[sadr(f"s{j}_load{i}") for i in range(nj)] for j in range(n)]
+                           if loads else np.zeros((n, 0)), dtype=int).reshape(n, -1),
         ctrl_pos=np.array([[cadr(f"s{j}_servo{i}") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
         ctrl_vel=np.array([[cadr(f"s{j}_servo{i}") + 1 for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
         ctrl_push=np.array([[cadr(f"s{j}_push{k}") for k in range(nj + 1)] for j in range(n)] if push

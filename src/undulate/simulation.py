@@ -51,6 +51,7 @@ from mujoco import rollout as _rollout
 
 from .errors import DivergenceError, ParameterError
 from .params import Scene, SimOptions
+from .control import Controller, make_controller
 from .scene import CompiledScene, auto_timestep, build, root_link, root_offset_m, servo_damping_rate_per_s, snap_timestep
 
 __all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE"]
@@ -75,13 +76,17 @@ def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
                              e.got) from None
 
 
-def compile_scene(scene: Scene, options: SimOptions, *, push: bool | None = None) -> CompiledScene:
+def compile_scene(scene: Scene, options: SimOptions, *, push: bool | None = None,
+                  loads: bool | None = None) -> CompiledScene:
     """Build the model for ``scene`` with the solver settings the runner needs
     (``options.timestep_s`` must be resolved: :func:`resolve_options`).
     ``push``: include the perturbation-force actuators (default: only if
-    ``scene.forces_N`` is set; see :func:`undulate.scene.swimmer_spec`)."""
+    ``scene.forces_N`` is set; see :func:`undulate.scene.swimmer_spec`);
+    ``loads``: servo-torque sensors for a closed-loop controller (default: if
+    the scene's controller is closed-loop)."""
     options = resolve_options(scene, options)
-    cs = build(scene, options.timestep_s, pair_sensors="contact_force_pair" in options.recorded, push=push)
+    cs = build(scene, options.timestep_s, pair_sensors="contact_force_pair" in options.recorded, push=push,
+               loads=loads)
     cs.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
     m = cs.model
     solver = options.solver
@@ -157,7 +162,7 @@ def _per_sample_bytes(cs: CompiledScene, record: Sequence[str]) -> int:
     n, nj, nn = sc.n_swimmers, sc.geometry.n_links - 1, sc.geometry.n_links + 1
     size = {"x": n, "y": n, "heading": n, "node_x": n * nn, "node_y": n * nn, "joint_angle": n * nj,
             "joint_command": n * nj, "joint_error": n * nj, "contact_force_pair": max(0, n - 1),
-            "contact_force_wall": len(cs.index.wall_names), "penetration": 1}
+            "contact_force_wall": len(cs.index.wall_names), "penetration": 1, "gait_phase": n}
     return 8 * (1 + sum(size[v] for v in record))
 
 
@@ -289,6 +294,7 @@ def simulate_batch(
     *,
     nthread: int = 0,
     out: str | os.PathLike | Sequence[str | os.PathLike] | None = None,
+    controller: Controller | None = None,
 ) -> list[xr.Dataset]:
     """Simulate several scenes of one structure together in one rollout.
 
@@ -301,6 +307,14 @@ def simulate_batch(
     duration; the Datasets returned are then opened lazily from those files
     (close them when done).  Without ``out`` the recording is kept in memory,
     and a run whose recording would not fit is refused before it starts.
+
+    ``controller``: a gait controller object (:mod:`undulate.control`) to
+    drive the servos instead of the scenes' own (``Scene.controller``), reset
+    to the scenes' phases (leading batch axis).  With a closed-loop
+    controller (the scenes' or this one) MuJoCo steps one control period at a
+    time in C and the controller senses joint angles, speeds and servo
+    torques between periods, vectorised over swimmers and the batch; the
+    scenes must then share their gait and controller parameters.
     """
     options = options or SimOptions()
     if len(scenes) == 0:
@@ -314,7 +328,11 @@ def simulate_batch(
     record = options.recorded
     outs = _outs(out, len(scenes))
     push = any(s.forces_N is not None for s in scenes)  # one structure: all or none carry them
-    compiled = [compile_scene(s, options, push=push) for s in scenes]
+    closed = controller is not None or scenes[0].controller.closed_loop
+    if closed and any((s.gait, s.controller, s.geometry.n_links) != (scenes[0].gait, scenes[0].controller,
+                                                                   scenes[0].geometry.n_links) for s in scenes):
+        raise ParameterError("scenes", "of one gait, controller and link count in a closed-loop batch", None)
+    compiled = [compile_scene(s, options, push=push, loads=closed) for s in scenes]
     _check_same_structure(compiled)
     m0 = compiled[0].model
     nb = len(compiled)
@@ -324,7 +342,16 @@ def simulate_batch(
     if n_samples < 1:
         raise ParameterError("duration_s", f">= one sample interval ({sps * dt:g} s)", options.duration_s)
     _check_fits(compiled, record, n_samples, outs)
-    chunk = sps * max(1, options.chunk_steps // sps)
+    ctl = None
+    if closed:
+        ctl = controller if controller is not None else make_controller(scenes[0])
+        ctl.reset(np.stack([np.asarray(sc.phases_rad) for sc in scenes]))
+        tick = max(1, int(round(1.0 / (ctl.rate_hz * dt))))  # integrator steps per control period
+        unit = sps * tick // math.gcd(sps, tick)
+        chunk = unit * max(1, options.chunk_steps // unit)
+    else:
+        tick = 0
+        chunk = sps * max(1, options.chunk_steps // sps)
     q0, nstate = _state_layout(m0)
     ix = compiled[0].index
     pair_adr, wall_adr, md = ix.sens_pair, ix.sens_wall, ix.sens_mindist
@@ -344,11 +371,13 @@ def simulate_batch(
 
     recorders = [_MemoryRecorder() for _ in range(nb)] if outs is None else [_NetCDFRecorder(p_) for p_ in outs]
     builders = [functools.partial(_to_dataset, cs, options, record=record,
-                                  timestep_auto=requested.timestep_s is None) for cs in compiled]
+                                  timestep_auto=requested.timestep_s is None,
+                                  control_rate_hz=None if ctl is None else 1.0 / (tick * dt),
+                                  controller_kind=None if ctl is None else ctl.kind) for cs in compiled]
 
-    def emit(b: int, i0: int, qpos, sens, fp, fw, pn) -> None:
+    def emit(b: int, i0: int, qpos, sens, fp, fw, pn, cmd=None, phase=None) -> None:
         t = np.round((i0 + np.arange(len(qpos))) * (sps * dt), 12)  # s; equal rates, equal clocks
-        block = _sample_vars(compiled[b], t, qpos, sens, fp, fw, pn, record)
+        block = _sample_vars(compiled[b], t, qpos, sens, fp, fw, pn, record, cmd=cmd, phase=phase)
         if outs is None:
             recorders[b].add(block)
         else:
@@ -370,25 +399,37 @@ def simulate_batch(
     done = 0
     ok = False
     try:
+        if ctl is not None:
+            cmd0, _ = ctl.commands(np.zeros(1))
+            phase0 = ctl.gait_phase(np.zeros(1))
         for b in range(nb):  # the initial sample (t = 0)
             emit(b, 0, state0[b:b + 1, q0:q0 + m0.nq], sens0[b:b + 1],
                  force_mag(sens0[b:b + 1], pair_adr) if npair else np.zeros((1, 0)),
-                 force_mag(sens0[b:b + 1], wall_adr), depth_of(sens0[b:b + 1]))
+                 force_mag(sens0[b:b + 1], wall_adr), depth_of(sens0[b:b + 1]),
+                 None if ctl is None else cmd0[:, b], None if ctl is None else phase0[:, b])
+        last_sens = sens0.copy()
         while done < total:
             k = min(chunk, total - done)
             t = (done + np.arange(k)) * dt
             if ctrl_buf.shape[1] != k:
                 ctrl_buf = np.empty((nb, k, m0.nu))
-            for b, cs in enumerate(compiled):
-                ctrl_buf[b] = controls(cs, t)
             if state_buf.shape[1] != k:  # last, shorter chunk: contiguous buffers of its size
                 state_buf = np.empty((nb, k, nstate))
                 sens_buf = np.empty((nb, k, m0.nsensordata))
-                ctrl_buf = np.ascontiguousarray(ctrl_buf[:, :k])
-            st, sd = runner.rollout(models if nb > 1 else models[0], datas, cur, ctrl_buf,
-                                    state=state_buf, sensordata=sens_buf)
             ns = k // sps
             rows = np.arange(sps - 1, k, sps)
+            if ctl is None:
+                for b, cs in enumerate(compiled):
+                    ctrl_buf[b] = controls(cs, t)
+                st, sd = runner.rollout(models if nb > 1 else models[0], datas, cur, ctrl_buf,
+                                        state=state_buf, sensordata=sens_buf)
+                cmd_rows = phase_rows = None
+            else:
+                t_rows = np.round((done // sps + 1 + np.arange(ns)) * (sps * dt), 12)  # as emit() stamps them
+                st, sd, cmd_rows, phase_rows = _closed_loop_chunk(
+                    ctl, compiled, runner, models, datas, cur, last_sens, t, tick, rows, t_rows,
+                    state_buf, sens_buf, ctrl_buf, q0)
+                last_sens = sd[:, k - 1].copy()
             depth = depth_of(sd)
             cur = st[:, k - 1].copy()
             # divergence: huge or non-finite state, a MuJoCo reset (it restarts the data after
@@ -416,7 +457,8 @@ def simulate_batch(
             fw = fw.reshape(nb, ns, sps, *fw.shape[2:]).mean(axis=2)
             pn = depth.reshape(nb, ns, sps).max(axis=2)
             for b in range(nb):
-                emit(b, done // sps + 1, st[b, rows, q0:q0 + m0.nq], sd[b, rows], fp[b], fw[b], pn[b])
+                emit(b, done // sps + 1, st[b, rows, q0:q0 + m0.nq], sd[b, rows], fp[b], fw[b], pn[b],
+                     None if cmd_rows is None else cmd_rows[:, b], None if phase_rows is None else phase_rows[:, b])
             done += k
         results = [r.finish(builders[b]) if outs is None else r.finish() for b, r in enumerate(recorders)]
         ok = True
@@ -429,18 +471,81 @@ def simulate_batch(
                 r.abort()
 
 
+def _closed_loop_chunk(ctl: Controller, compiled, runner, models, datas, cur, last_sens, t, tick, rows, t_rows,
+                       state_buf, sens_buf, ctrl_buf, q0):
+    """Step one chunk a control period at a time: sense, command, roll out in C.
+
+    ``cur`` (the state at the chunk's start) is updated in place.  Returns the
+    chunk's states, sensor data, and the commanded joint angles and gait phases
+    at the recorded ``rows`` (each ``(len(rows), nb, n, nj)`` / ``(len(rows), nb, n)``).
+    """
+    nb, k = state_buf.shape[:2]
+    cs0 = compiled[0]
+    ix, m0 = cs0.index, cs0.model
+    sc = cs0.scene
+    qv0 = q0 + m0.nq
+    lead = sc.servo.back_emf_Nms_per_rad / sc.servo.kp_Nm_per_rad
+    qpos_j, qvel_j, load_j = ix.qpos_joint, ix.qvel_joint, ix.sens_load
+    pos_cols, vel_cols = ix.ctrl_pos, ix.ctrl_vel
+    n_rows = len(rows)
+    cmd_rows = np.empty((n_rows, nb) + qpos_j.shape)
+    phase_rows = np.empty((n_rows, nb, qpos_j.shape[0]))
+    ctrl_buf[:] = 0.0  # push inputs: perturbation forces come from each scene's own controls
+    if compiled[0].index.ctrl_push.size:
+        for b, cs in enumerate(compiled):
+            ctrl_buf[b] = controls(cs, t)
+    model = list(models)  # skip_checks: a list of models, one per scene
+    pos_flat, vel_flat = pos_cols.ravel(), vel_cols.ravel()
+    # the sensed joints: views of the current state and of the last step's sensors
+    sens = last_sens
+    one = nb == 1  # one scene: the chunk buffers' slices are contiguous, roll out straight into them
+    if not one:
+        u_t = np.empty((nb, tick, m0.nu))
+        st_t = np.empty((nb, tick, state_buf.shape[2]))
+        sd_t = np.empty((nb, tick, sens_buf.shape[2]))
+    a = 0
+    while a < k:
+        e = min(k, a + tick)
+        n_t = e - a
+        ang, vel = ctl.commands(t[a:e], cur[:, q0 + qpos_j], cur[:, qv0 + qvel_j], sens[:, load_j])
+        # set-points for these steps: angle (+ the back-EMF lead b omega / kp) and velocity
+        if one:
+            u, st, sd = ctrl_buf[:, a:e], state_buf[:, a:e], sens_buf[:, a:e]
+        else:
+            u = ctrl_buf[:, a:e].copy() if n_t != tick else u_t
+            if n_t == tick:
+                u[:] = ctrl_buf[:, a:e]
+            st = st_t if n_t == tick else np.empty((nb, n_t, state_buf.shape[2]))
+            sd = sd_t if n_t == tick else np.empty((nb, n_t, sens_buf.shape[2]))
+        u[:, :, pos_flat] = (ang + lead * vel).reshape(n_t, nb, -1).transpose(1, 0, 2)
+        u[:, :, vel_flat] = vel.reshape(n_t, nb, -1).transpose(1, 0, 2)
+        # what is recorded at the samples inside this period (states after step r, at time t[r] + dt)
+        sel = (rows >= a) & (rows < e)
+        if sel.any():
+            tr = t_rows[sel]
+            cmd_rows[sel] = ctl.commands(tr)[0]
+            phase_rows[sel] = ctl.gait_phase(tr)
+        runner.rollout(model, datas, cur, u, state=st, sensordata=sd, skip_checks=True, nstep=n_t)
+        if not one:
+            ctrl_buf[:, a:e], state_buf[:, a:e], sens_buf[:, a:e] = u, st, sd
+        cur[:] = st[:, -1]
+        sens = sd[:, -1]
+        a = e
+    return state_buf, sens_buf, cmd_rows, phase_rows
+
+
 def simulate(scene: Scene, options: SimOptions | None = None, *,
-             out: str | os.PathLike | None = None) -> xr.Dataset:
+             out: str | os.PathLike | None = None, controller: Controller | None = None) -> xr.Dataset:
     """Simulate one scene; see the module docstring for the recorded variables.
 
     ``out``: a ``.nc`` path to stream the samples to (memory stays flat for
     any duration); the Dataset returned is then opened lazily from it (close
-    it when done).
+    it when done).  ``controller``: see :func:`simulate_batch`.
 
     >>> from undulate import Scene, SimOptions, simulate
     >>> ds = simulate(Scene(phases_rad=(0.0, 1.57)), SimOptions(duration_s=4))
     """
-    return simulate_batch([scene], options, out=out)[0]
+    return simulate_batch([scene], options, out=out, controller=controller)[0]
 
 
 def _link_angles(yaw: np.ndarray, joints: np.ndarray, root: int) -> np.ndarray:
@@ -453,14 +558,20 @@ def _link_angles(yaw: np.ndarray, joints: np.ndarray, root: int) -> np.ndarray:
     return yaw[..., None] + c - c[..., root:root + 1]
 
 
-def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record) -> dict:
-    """The recorded variables of a block of samples (leading axis: time) as arrays."""
+def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record, cmd=None, phase=None) -> dict:
+    """The recorded variables of a block of samples (leading axis: time) as arrays.
+
+    ``cmd``, ``phase``: the commanded joint angles and gait phases at the samples
+    (closed-loop controllers); None: the open-loop gait's."""
     sc, ix = cs.scene, cs.index
     g = sc.geometry
     out = {"time": t}
     rl = root_link(g.n_links)
     xs0, ys0 = sc.initial_x_m() - g.length_m / 2 + root_offset_m(sc), sc.initial_y_m()
     root = qpos[:, ix.qpos_root]  # (T, n, 3): the body's midpoint and root-link orientation, plus the offset
+    if sc.hold_x:  # no x joint (Scene.hold_x): the midpoint stays at its initial x
+        root = root.copy()
+        root[..., 0] = 0.0
     alpha = qpos[:, ix.qpos_joint]  # (T, n, nj)
     theta = _link_angles(root[..., 2], alpha, rl)  # (T, n, N)
     l = g.link_length_m
@@ -481,8 +592,12 @@ def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record) ->
         out["node_x"] = np.concatenate([rx[..., None], rx[..., None] + l * np.cumsum(cx, axis=-1)], axis=-1)
     if "node_y" in record:
         out["node_y"] = np.concatenate([ry[..., None], ry[..., None] + l * np.cumsum(cy, axis=-1)], axis=-1)
-    cmd = sc.gait.joint_angles(t, sc.phases_rad, g.n_links)
+    if cmd is None:
+        cmd = sc.gait.joint_angles(t, sc.phases_rad, g.n_links)
+    if phase is None:  # the open-loop gait: psi = 2 pi f t - phi (undulate.control)
+        phase = (2 * np.pi * sc.gait.frequency_hz) * np.asarray(t, dtype=float)[:, None] - np.asarray(sc.phases_rad)[None]
     out["joint_angle"], out["joint_command"], out["joint_error"] = alpha, cmd, np.abs(alpha - cmd)
+    out["gait_phase"] = phase
     out["contact_force_pair"], out["contact_force_wall"], out["penetration"] = fpair, fwall, pen
     return {k: v for k, v in out.items() if k == "time" or k in record}
 
@@ -500,11 +615,14 @@ _VAR_META = {
                            "net contact force between swimmers pair and pair+1, interval mean"),
     "contact_force_wall": (("time", "wall"), "N", "net contact force of all swimmers on each wall, interval mean"),
     "penetration": (("time",), "m", "deepest interpenetration over the interval"),
+    "gait_phase": (("time", "swimmer"), "rad",
+                   "gait phase psi, unwrapped: joint set-points beta sin(2 pi xi i / N - psi); open loop psi = 2 pi f t - phi"),
 }
 
 
 def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=RECORDABLE,
-                timestep_auto: bool = False) -> xr.Dataset:
+                timestep_auto: bool = False, control_rate_hz: float | None = None,
+                controller_kind: str | None = None) -> xr.Dataset:
     from .provenance import provenance
 
     sc, ix = cs.scene, cs.index
@@ -542,6 +660,9 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=R
             "timestep_units": "s",
             "timestep_source": "auto (undulate.scene.auto_timestep)" if timestep_auto else "explicit",
             "sample_interval": sps * options.timestep_s,
+            "controller": controller_kind or cs.scene.controller.kind,
+            "control_rate": control_rate_hz if control_rate_hz is not None else 0.0,
+            "control_rate_units": "Hz (0: open loop, set-points at every step)",
             "conventions": "heads toward -x; body wave travels +x; dx = x_upper - x_lower, "
                            "dphi = phi_upper - phi_lower; compatibility dx = lambda dphi / 2pi",
             "config": json.dumps(config),
