@@ -63,6 +63,10 @@ BAD = [
     (["--timestep", "0"], "--timestep"),
     (["--dx0", "nan"], "--dx0"),
     (["--separating-force", "inf"], "--separating-force"),
+    (["--controller", "cpg"], "--controller"),
+    (["--controller", "phase-oscillator", "--coupling", "-1"], "--coupling"),
+    (["--coupling", "2"], "--coupling"),  # coupling needs the phase oscillator
+    (["--controller", "self-oscillating", "--control-rate", "0"], "--control-rate"),
 ]
 
 
@@ -95,3 +99,18 @@ def test_cli_simulates_a_lone_swimmer(tmp_path):
     res = CliRunner().invoke(app, ["simulate", "--phases", "0", "--duration", "2", "--out", str(tmp_path / "one.nc")])
     assert res.exit_code == 0, res.output
     assert "one swimmer" in res.output
+
+
+def test_closed_loop_controller_from_the_command_line(tmp_path):
+    out = tmp_path / "cl.nc"
+    r = run("simulate", "--phases", "0,60", "--controller", "phase-oscillator", "--coupling", "1.0",
+            "--control-rate", "100", "--hold-x", "--duration", "4", "--out", str(out))
+    assert r.returncode == 0, r.stderr
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        assert ds["gait_phase"].dims == ("time", "swimmer") and ds["gait_phase"].attrs["units"] == "rad"
+        assert ds.attrs["controller"] == "phase-oscillator" and ds.attrs["control_rate"] == pytest.approx(100.0)
+        mid = 0.5 * (ds["node_x"].isel(node=1) + ds["node_x"].isel(node=2))
+        assert float(abs(mid - mid.isel(time=0)).max()) < 1e-9  # --hold-x
+        # load feedback changed the phases' rates away from the open-loop 2 pi f
+        rate = (ds["gait_phase"].isel(time=-1) - ds["gait_phase"].isel(time=0)) / float(ds["time"][-1])
+        assert float(abs(rate - 3.14159265).max()) > 1e-3

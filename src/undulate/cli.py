@@ -83,6 +83,10 @@ def simulate(
     sample_rate: float = typer.Option(20.0, help="Recording rate, Hz."),
     body_length: float = typer.Option(0.54, help="Total body length L, m."),
     width: float = typer.Option(0.015, help="Link width w, m."),
+    controller: str = typer.Option("open-loop", help="Gait controller: open-loop (the paper's travelling wave), self-oscillating (joints gated by their sensed turning points) or phase-oscillator (load feedback); see undulate.control."),
+    coupling: float = typer.Option(0.0, help="phase-oscillator load-feedback strength sigma, rad/s per N m (>= 0)."),
+    control_rate: float = typer.Option(100.0, help="Closed-loop control (servo-bus) rate, Hz."),
+    hold_x: bool = typer.Option(False, "--hold-x", help="Lock each swimmer's longitudinal position (lateral motion and rotation stay free)."),
     out: Path = typer.Option(Path("run.nc"), "--out", "-o", help="Output netCDF file."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
 ) -> None:
@@ -114,9 +118,18 @@ def simulate(
             if n < 2:
                 raise ParameterError("--separating-force", "0 unless there are at least 2 swimmers", separating_force)
             forces = (-separating_force, separating_force) + (0.0,) * (n - 2)
+        from .params import ControllerParams
+
+        try:
+            ctl = ControllerParams(kind=controller, coupling=coupling, control_rate_hz=control_rate)
+        except ParameterError as e:
+            raise _cli_name(e, {"controller": "--controller", "coupling": "--coupling (rad/s per N m)",
+                                "control_rate_hz": "--control-rate (Hz)"}) from None
+        if coupling != 0.0 and controller != "phase-oscillator":
+            raise ParameterError("--coupling", "0 unless --controller phase-oscillator", coupling)
         try:
             scene = Scene(phases_rad=tuple(math.radians(p) for p in phases_deg), gait=gait, geometry=geometry,
-                          channel=channel, dx0_m=dx0, forces_N=forces)
+                          channel=channel, dx0_m=dx0, forces_N=forces, controller=ctl, hold_x=hold_x)
         except ParameterError as e:
             raise _cli_name(e, {"channel width": "--channel-width (m)", "dx0_m": "--dx0 (m)",
                                 "phases_rad": "--phases (degrees)"}) from None
@@ -172,6 +185,10 @@ def _summary(ds, out: Path) -> str:
     for p in range(off.sizes["pair"]):
         dx = float(off["dx"].values[last, p].mean())
         dphi = float(off["dphi"].values[-1, p])
+        if ds.attrs.get("controller", "open-loop") != "open-loop":  # phases move: the final difference
+            from .phases import neighbour_phase_differences
+
+            dphi = float(neighbour_phase_differences(ds).values[-1, p])
         lo, hi = int(off["lower"].values[-1, p]), int(off["upper"].values[-1, p])
         if math.isfinite(lam):
             res = float(theory.compatibility_residual(dx, dphi, lam))
