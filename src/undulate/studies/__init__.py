@@ -31,6 +31,7 @@ STUDY_MODULES: tuple[str, ...] = (
     "confinement",
     "potential",
     "swimming",
+    "synchronization",
 )
 
 __all__ = [
