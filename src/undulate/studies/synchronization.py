@@ -116,7 +116,7 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
     import xarray as xr
 
     from ..observables import neighbour_offsets
-    from ..phases import gait_phase, neighbour_phase_differences, order_parameter
+    from ..phases import gait_frequency, gait_phase, neighbour_phase_differences, order_parameter
     from ..simulation import simulate
 
     n = int(point["n_swimmers"])
@@ -125,7 +125,8 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
                controller=CONTROLLERS[str(point["controller"])])
     ds = simulate(sc, SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD))
     t = ds["time"].values
-    r = order_parameter(gait_phase(ds)).values
+    psi = gait_phase(ds)
+    r = order_parameter(psi).values
     above = r >= R_LOCKED
     lock = np.nan
     if above[-1]:
@@ -147,7 +148,20 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
         "phase_locked": ((), int(locked), {"units": "1", "long_name": "1 if every neighbour dphi drifts < DRIFT_TOL_RAD_S"}),
         "compat_rms": ((), compat_rms, {"units": "1", "long_name": "RMS compatibility residual / lambda, last TAIL_S"}),
         "max_drift": ((), float(drift.max()), {"units": "rad/s", "long_name": "fastest neighbour dphi drift, last TAIL_S"}),
+        "frequency": ((), float(gait_frequency(psi, t_from=t[-1] - TAIL_S).mean()),
+                      {"units": "Hz", "long_name": "collective gait frequency (mean over swimmers), last TAIL_S"}),
     }, coords={"time": ("time", t, {"units": "s"})})
+
+
+def free_frequency_hz(controller: str, duration_s: float = 30.0) -> float:
+    """The gait frequency of a lone swimmer under ``controller`` (wide channel, no contact), Hz,
+    over its last :data:`TAIL_S`."""
+    from ..phases import gait_frequency, gait_phase
+    from ..simulation import simulate
+
+    sc = Scene(phases_rad=(0.0,), channel=Channel(width_m=2.0), controller=CONTROLLERS[controller])
+    ds = simulate(sc, SimOptions(duration_s=duration_s, record=("gait_phase",)))
+    return float(gait_frequency(gait_phase(ds), t_from=duration_s - TAIL_S)[0])
 
 
 def pair_plan(quick: bool) -> dict[str, Any]:
@@ -204,8 +218,9 @@ def group_claims(s: dict[str, Any]) -> list[dict[str, Any]]:
         rows.append({"claim": f"{c}: groups with phase and position free end phase-locked and position-compatible",
                      "paper": "open (paper's conclusion): phase dynamics together with position dynamics",
                      "measured": (f"{both}/{n} runs both, {locked}/{n} phase-locked, {compat}/{n} compatible "
-                                  f"(RMS < {COMPAT_TOL} lambda); median final R {v['median_R_final']:.2f} "
-                                  "(holds if most runs end both)") if n else "no result",
+                                  f"(RMS < {COMPAT_TOL} lambda); median final R {v['median_R_final']:.2f}; "
+                                  f"collective {v['median_collective_frequency_hz']:.3f} Hz vs free "
+                                  f"{v['free_frequency_hz']:.3f} Hz (holds if most runs end both)") if n else "no result",
                      "holds": None if n == 0 else both > n / 2})
     return rows
 
@@ -283,6 +298,8 @@ def run_groups(config: StudyConfig) -> StudyResult:
         locked = v["phase_locked"].values.astype(bool) & ok
         compat = (v["compat_rms"].values < COMPAT_TOL) & ok
         per[str(c)] = {"n_runs": int(ok.sum()), "phase_locked": int(locked.sum()), "compatible": int(compat.sum()),
+                       "free_frequency_hz": free_frequency_hz(str(c)),
+                       "median_collective_frequency_hz": float(np.nanmedian(v["frequency"].values)),
                        "both": int((locked & compat).sum()),
                        "median_R_final": float(np.nanmedian(v["R_final"].values)),
                        "median_lock_time_s": float(np.nanmedian(v["lock_time"].values))
