@@ -1,6 +1,6 @@
 """Interpenetration and divergence over the full packing grid (measured, never asserted).
 
-    python benchmarks/packing_grid_penetration.py [--draws 1] [--workers 2] [--out grid.csv]
+    python benchmarks/packing_grid_penetration.py [--draws 1] [--first-draw 0] [--workers 2] [--out grid.csv]
 
 Every (phi_max, rho~) point of the full packing study (13 phase spreads x 19
 densities, :func:`undulate.studies.packing.plan`), ``--draws`` phase draws each
@@ -56,6 +56,7 @@ def one(args) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--draws", type=int, default=1)
+    ap.add_argument("--first-draw", type=int, default=0, help="draws first-draw .. first-draw + draws - 1")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--out", default="packing_grid_penetration.csv")
@@ -64,7 +65,7 @@ def main() -> None:
 
     amp = round_amplitude(float(lone_swimmer_point({}, 0)["amplitude_m"]))
     p = plan(quick=False)
-    jobs = [(phi, rho, d, amp, args.duration) for d in range(args.draws) for rho in p.rho_tilde for phi in p.phi_max_rad]
+    jobs = [(phi, rho, d, amp, args.duration) for d in range(args.first_draw, args.first_draw + args.draws) for rho in p.rho_tilde for phi in p.phi_max_rad]
     fields = ["phi_max_rad", "rho_tilde", "draw", "diverged", "pen_startup_mm", "pen_steady_mm",
               "mean_joint_error_rad", "timestep_s", "compute_s", "message"]
     rows = []
