@@ -293,6 +293,11 @@ def reproduce(
         _fail(f"{len(failed)} stud{'y' if len(failed) == 1 else 'ies'} failed: {', '.join(failed)} (see {path})", 1)
 
 
+from .robot.cli import robot_app  # noqa: E402 - `undulate robot run|ping` (the SDK loads only when a port opens)
+
+app.add_typer(robot_app, name="robot")
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, turning click's usage errors into one line + exit 2."""
     try:
