@@ -30,8 +30,11 @@ This is an independent implementation of the protocol (it shares no code
 with ``undulate.robot``); ``tests/test_robot_emulator.py`` cross-checks its
 encoding against ``dynamixel-sdk``'s own packet handlers.
 
-Faults for tests: :meth:`ServoBus.silence` (a servo stops answering),
-:meth:`ServoBus.close` (the bus disappears: the pty is closed).
+Faults for tests: :meth:`ServoBus.drop` (a servo misses a few packets),
+:meth:`ServoBus.silence` (a servo stops answering), :meth:`ServoBus.close`
+(the bus disappears: the pty is closed) and :meth:`ServoBus.glitch` (the
+adapter re-enumerates: a new pty behind the same ``link``, as udev's
+``/dev/serial/by-id`` links do; the servos keep their state).
 """
 
 from __future__ import annotations
@@ -161,6 +164,8 @@ class Servo:
     vel: float = 0.0  # ticks/s
     t: float = 0.0
     silent: bool = False
+    drops: int = 0  # packets addressed to this servo that it misses
+    reported: list = field(default_factory=list)  # (wall time, present position ticks) in each reply to a read
     goals: list = field(default_factory=list)  # (wall time, goal ticks, speed register)
     torque_log: list = field(default_factory=list)  # (wall time, value)
 
@@ -240,7 +245,7 @@ class ServoBus:
     """
 
     def __init__(self, protocol: int, servos: dict[int, str], baudrate: int = 1_000_000,
-                 return_delay_us: float | None = None):
+                 return_delay_us: float | None = None, link: str | None = None):
         self.protocol = protocol
         self.baudrate = baudrate
         self.servos = {}
@@ -256,10 +261,21 @@ class ServoBus:
         self.bad_packets = 0
         self.bytes_in = 0
         self.lock = threading.Lock()
+        self.link = link
+        self._start()
+
+    def _start(self) -> None:
         self.master, self._slave = os.openpty()
         tty.setraw(self._slave)
-        self._set_speed(baudrate)
-        self.port = os.ttyname(self._slave)
+        self._set_speed(self.baudrate)
+        self.device = os.ttyname(self._slave)
+        if self.link is not None:
+            tmp = self.link + ".new"
+            if os.path.lexists(tmp):
+                os.unlink(tmp)
+            os.symlink(self.device, tmp)
+            os.replace(tmp, self.link)
+        self.port = self.link or self.device
         self._buf = bytearray()
         self._closed = threading.Event()
         self._thread = threading.Thread(target=self._serve, name="dxl-emulator", daemon=True)
@@ -270,6 +286,19 @@ class ServoBus:
         """Servo ``ident`` stops (or resumes) answering and obeying: a cut cable."""
         with self.lock:
             self.servos[ident].silent = silent
+
+    def drop(self, ident: int, n: int) -> None:
+        """Servo ``ident`` misses its next ``n`` requests for a reply (an isolated time-out each)."""
+        with self.lock:
+            self.servos[ident].drops += n
+
+    def glitch(self, down_s: float = 0.3) -> None:
+        """The adapter drops off the bus for ``down_s`` and comes back as a new device behind ``link``."""
+        self.close()
+        if self.link is not None and os.path.lexists(self.link):
+            os.unlink(self.link)
+        time.sleep(down_s)
+        self._start()
 
     def close(self) -> None:
         """The bus disappears: close the pty (the host sees an I/O error)."""
@@ -423,6 +452,13 @@ class ServoBus:
         s = self.servos.get(ident)
         return None if s is None or s.silent else s
 
+    def _answers(self, s: Servo) -> bool:
+        """Whether ``s`` answers this request (:meth:`drop` makes it miss some)."""
+        if s.drops:
+            s.drops -= 1
+            return False
+        return True
+
     def _execute(self, ident: int, inst: int, params: bytes, ok: bool, t: float):
         p1 = self.protocol == 1
         if ident == BROADCAST:
@@ -443,7 +479,7 @@ class ServoBus:
                 out = []
                 for i in params[4:]:
                     s = self._live(i)
-                    if s is not None:
+                    if s is not None and self._answers(s):
                         err, data = self._read(s, addr, n)
                         out.append(self._status(s, err, data))
                 return out
@@ -452,7 +488,7 @@ class ServoBus:
                         if not s.silent]
             return []
         s = self._live(ident)
-        if s is None:
+        if s is None or not self._answers(s):
             return []
         if not ok:
             return [self._status(s, 16 if p1 else 3)]
@@ -473,6 +509,9 @@ class ServoBus:
     def _read(self, s: Servo, addr: int, n: int) -> tuple[int, bytes]:
         if addr + n > s.model.size or n == 0:
             return (8 if self.protocol == 1 else 7), b""
+        m = s.model
+        if addr <= m.present_position and addr + n >= m.present_position + m.position_size:
+            s.reported.append((s.t, s.get(m.present_position, m.position_size, signed=m.protocol == 2)))
         return 0, bytes(s.table[addr:addr + n])
 
     def _write(self, s: Servo, addr: int, data: bytes, t: float) -> int:

@@ -10,8 +10,15 @@ Reads: Protocol 1.0 has no sync read (and ``dynamixel-sdk`` 4.1.0's
 ``GroupBulkRead`` fails on it; the AX has no bulk read), so each servo is read
 with one READ of its whole present-state block.  Protocol 2.0 sends one
 SYNC_READ and takes each servo's status packet with the packet handler's
-``readRx`` -- the calls ``GroupSyncRead`` makes, kept per servo so that one
-servo's time-out costs only its own reading.
+``readRx`` -- the calls ``GroupSyncRead`` makes, kept per servo; a servo whose
+packet did not come is then read on its own (a missing packet makes
+``readRx`` skip the ones after it), so one servo's time-out costs only its
+own reading.
+
+Protocol 2.0 byte stuffing: ``dynamixel-sdk`` 4.1.0 does not stuff
+instruction packets (its ``addStuffing`` result is dropped when it had to
+stuff); the values this driver sends can never contain ``FF FF FD``, and the
+run refuses a write that would (tests/test_robot.py pins both).
 """
 
 from __future__ import annotations
@@ -66,12 +73,16 @@ class DynamixelBus:
         self.is_open = False
 
     # --- port ----------------------------------------------------------------------------------
-    def _io(self, fn, *args):
+    def _io(self, fn, *args, opening: bool = False):
+        import termios
+
         import serial
 
+        if not (self.is_open or opening):
+            raise BusLost(f"serial port {self.port_name} is not open")
         try:
             return fn(*args)
-        except (serial.SerialException, OSError) as e:
+        except (serial.SerialException, OSError, termios.error) as e:
             self.port.is_using = False
             raise BusLost(f"serial port {self.port_name} failed: {e}") from None
         except BaseException:
@@ -79,7 +90,7 @@ class DynamixelBus:
             raise
 
     def open(self) -> None:
-        ok = self._io(self.port.openPort) and self._io(self.port.setBaudRate, self.baudrate)
+        ok = self._io(self.port.openPort, opening=True) and self._io(self.port.setBaudRate, self.baudrate, opening=True)
         if not ok:
             raise BusLost(f"could not open {self.port_name} at {self.baudrate} bit/s")
         self.is_open = True
@@ -160,6 +171,15 @@ class DynamixelBus:
             ok = result == self.sdk.COMM_SUCCESS and len(data) == n
             out.append((bytes(data) if ok else None, int(error) if ok else -1, (t + time.monotonic()) / 2))
         self.port.is_using = False
+        # a missing status packet also costs the ones after it (readRx skips them while it waits):
+        # ask each servo that did not answer on its own, so only a servo that is really silent reads NaN
+        for k, i in enumerate(ids):
+            if out[k][0] is None:
+                t = time.monotonic()
+                data, result, error = self._io(self.ph.readTxRx, self.port, int(i), addr, n)
+                ok = result == self.sdk.COMM_SUCCESS and len(data) == n
+                if ok:
+                    out[k] = (bytes(data), int(error), (t + time.monotonic()) / 2)
         return out
 
     def torque(self, ids, model: ServoModel, on: bool, tries: int = 3) -> list[int]:

@@ -261,7 +261,8 @@ class _Recorder:
             "goal_speed": xr.Variable(dims3, self.goal_speed[:n], {
                 "units": "rad/s", "long_name": "moving speed / profile velocity sent with the goal"}),
             "wall_clock": xr.Variable(("time",), self.wall[:n], {
-                "units": "s since 1970-01-01T00:00:00Z", "long_name": "UTC time when the tick's sync write went out"}),
+                "units": "s", "long_name": "UNIX time (UTC seconds after 1970-01-01T00:00:00Z) when the tick's "
+                "sync write went out"}),
             "tick_lateness": xr.Variable(("time",), self.lateness[:n], {
                 "units": "s", "long_name": "start of the tick minus its scheduled time"}),
         }
@@ -421,6 +422,11 @@ class _Servos:
 
     def write(self, goal_ticks: np.ndarray, speed_units: np.ndarray) -> None:
         data = {i: self.m.encode_write(g, s) for i, g, s in zip(self.ids, goal_ticks.ravel(), speed_units.ravel())}
+        if self.m.protocol == 2:  # dynamixel-sdk 4.1.0 does not byte-stuff instruction packets: never need it
+            flat = bytes(b for i, d in data.items() for b in [i, *d])
+            if b"\xff\xff\xfd" in flat:
+                raise BusError("a sync write would need Protocol 2.0 byte stuffing, which dynamixel-sdk 4.1.0 "
+                               "does not do; refusing to send it")
         self.bus.sync_write(self.m.addr_goal, self.m.write_size, data)
 
     def read(self):
