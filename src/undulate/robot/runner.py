@@ -625,7 +625,12 @@ def run_robot(cfg: RobotConfig, out: str | Path | None = None, *, controller: Co
         except BaseException as e:  # noqa: BLE001 - every exit path switches torque off, then re-raises
             failure = e
         finally:
-            sig.defer()
+            while True:  # a second signal can land before defer() takes effect: then simply start again
+                try:
+                    sig.defer()
+                    break
+                except Interrupted as e:
+                    failure = failure or e
             if io is not None and io.torque_on_sent:
                 torque_report = _torque_off(cfg, bus, log)
             bus.close()
