@@ -31,8 +31,8 @@ with ``undulate.robot``); ``tests/test_robot_emulator.py`` cross-checks its
 encoding against ``dynamixel-sdk``'s own packet handlers.
 
 Faults for tests: :meth:`ServoBus.drop` (a servo misses a few packets),
-:meth:`ServoBus.silence` (a servo stops answering), :meth:`ServoBus.close`
-(the bus disappears: the pty is closed) and :meth:`ServoBus.glitch` (the
+:meth:`ServoBus.silence` (a servo stops answering), :meth:`ServoBus.unplug`
+(the adapter is pulled out: the pty closes and ``link`` disappears) and :meth:`ServoBus.glitch` (the
 adapter re-enumerates: a new pty behind the same ``link``, as udev's
 ``/dev/serial/by-id`` links do; the servos keep their state).
 """
@@ -291,6 +291,12 @@ class ServoBus:
         """Servo ``ident`` misses its next ``n`` requests for a reply (an isolated time-out each)."""
         with self.lock:
             self.servos[ident].drops += n
+
+    def unplug(self) -> None:
+        """The adapter is pulled out for good: the pty closes and ``link`` disappears."""
+        self.close()
+        if self.link is not None and os.path.lexists(self.link):
+            os.unlink(self.link)
 
     def glitch(self, down_s: float = 0.3) -> None:
         """The adapter drops off the bus for ``down_s`` and comes back as a new device behind ``link``."""

@@ -312,9 +312,11 @@ def test_isolated_read_timeouts_give_nan_readings_never_nan_commands(tmp_path):
 
 
 def test_lost_bus_permanently_ends_the_run_and_says_torque_is_not_confirmed(tmp_path):
-    bus = ServoBus(1, {i: "AX-12A" for i in (1, 2, 3, 4)})
+    # through a link, as udev's /dev/serial/by-id: a bare /dev/pts/N can be taken by another pty at once
+    # (another test session on this machine) and the driver's reopen-by-name would reach that one
+    bus = ServoBus(1, {i: "AX-12A" for i in (1, 2, 3, 4)}, link=str(tmp_path / "ttyDXL"))
     cfg = _cfg(bus, ids=(1, 2, 3, 4), duration=20.0, scene=_scene(phases=(0, 1)))
-    threading.Timer(1.5, bus.close).start()
+    threading.Timer(1.5, bus.unplug).start()
     t0 = time.monotonic()
     with pytest.raises(BusLost) as info:
         run_robot(cfg, tmp_path / "run.nc", log=lambda m: None)
@@ -406,6 +408,16 @@ def test_setup_checks_refuse_a_servo_in_the_wrong_mode_without_torque():
         bus.servos[2].put(11, 1, 1)  # velocity control mode
         cfg = _cfg(bus, ids=(1, 2), duration=1.0, scene=_scene(phases=(0.0,)))
         with pytest.raises(ServoSetupError, match="operating mode 1"):
+            run_robot(cfg, log=lambda m: None)
+        assert all(not s.torque_log for s in bus.servos.values())
+
+
+def test_setup_checks_refuse_servo_angle_limits_that_would_reject_the_gait():
+    bus = ServoBus(1, {1: "AX-12A", 2: "AX-12A"})
+    with bus:
+        bus.servos[2].put(8, 2, 600)  # CCW angle limit 600 ticks: +26 deg
+        cfg = _cfg(bus, ids=(1, 2), duration=1.0, scene=_scene(phases=(0.0,)))
+        with pytest.raises(ServoSetupError, match=r"id 2's angle limits \[0, 600\]"):
             run_robot(cfg, log=lambda m: None)
         assert all(not s.torque_log for s in bus.servos.values())
 

@@ -399,7 +399,12 @@ class _Servos:
                                   f"(protocol {self.cfg.protocol}, {self.cfg.baudrate} bit/s)")
         if wrong:
             raise ServoSetupError(f"expected {m.name} (model {m.model_number}): " + "; ".join(wrong))
-        for i in self.ids:
+        # the ticks the gait will command, per servo (limits and calibration applied)
+        beta = self.cfg.scene.gait.amplitude_rad
+        ends = [m.angle_to_ticks(np.maximum(-beta, self.cfg.lower_rad), self.off, self.sign),
+                m.angle_to_ticks(np.minimum(beta, self.cfg.upper_rad), self.off, self.sign)]
+        lo_t, hi_t = np.minimum(*ends).ravel(), np.maximum(*ends).ravel()
+        for n, i in enumerate(self.ids):
             if self.cfg.protocol == 1:
                 d = self.bus.read(i, 6, 4)
                 if d is None:
@@ -407,14 +412,25 @@ class _Servos:
                 cw, ccw = d[0] | d[1] << 8, d[2] | d[3] << 8
                 if cw == 0 and ccw == 0:
                     raise ServoSetupError(f"servo id {i} is in wheel mode (CW and CCW angle limits 0): set joint mode")
-                self.angle_limits = getattr(self, "angle_limits", {})
-                self.angle_limits[i] = (cw, ccw)
+                if lo_t[n] < cw or hi_t[n] > ccw:
+                    raise ServoSetupError(f"servo id {i}'s angle limits [{cw}, {ccw}] ticks would refuse the gait's "
+                                          f"goals [{lo_t[n]}, {hi_t[n]}]: widen them or narrow limit_deg")
             else:
-                d = self.bus.read(i, 11, 1)
+                d = self.bus.read(i, 10, 2)  # drive mode, operating mode
                 if d is None:
                     raise ServoSilent(f"servo id {i} did not answer a read of its operating mode")
-                if d[0] != 3:
-                    raise ServoSetupError(f"servo id {i} is in operating mode {d[0]}: set position control mode (3)")
+                if d[1] != 3:
+                    raise ServoSetupError(f"servo id {i} is in operating mode {d[1]}: set position control mode (3)")
+                if d[0] & 0x04:
+                    raise ServoSetupError(f"servo id {i} uses a time-based profile (drive mode bit 2): set the "
+                                          "velocity-based profile (profile velocity is a speed here)")
+                lim = self.bus.read(i, 48, 8)
+                if lim is None:
+                    raise ServoSilent(f"servo id {i} did not answer a read of its position limits")
+                hi_lim, lo_lim = int.from_bytes(lim[:4], "little"), int.from_bytes(lim[4:], "little")
+                if lo_t[n] < lo_lim or hi_t[n] > hi_lim:
+                    raise ServoSetupError(f"servo id {i}'s position limits [{lo_lim}, {hi_lim}] ticks would refuse "
+                                          f"the gait's goals [{lo_t[n]}, {hi_t[n]}]: widen them or narrow limit_deg")
 
     def ticks(self, angle_rad) -> np.ndarray:
         t = self.m.angle_to_ticks(angle_rad, self.off, self.sign)
@@ -613,7 +629,7 @@ def run_robot(cfg: RobotConfig, out: str | Path | None = None, *, controller: Co
     rec = _Recorder(cfg)
     bus = DynamixelBus(cfg.port, cfg.protocol, cfg.baudrate)
     failure: BaseException | None = None
-    torque_report = "torque never enabled"
+    torque_report = "never enabled"
     with _Signals() as sig:
         io = None
         try:
