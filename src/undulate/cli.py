@@ -16,6 +16,7 @@ from typing import Optional
 
 import typer
 
+from ._cliutil import _parse_floats, check_writable  # noqa: F401 - shared with robot.cli
 from .errors import DivergenceError, ParameterError, UndulateError
 
 app = typer.Typer(
@@ -31,41 +32,11 @@ def _fail(msg: str, code: int) -> None:
     raise typer.Exit(code)
 
 
-def _parse_floats(name: str, text: str) -> tuple[float, ...]:
-    parts = [p.strip() for p in text.split(",")]
-    if not parts or any(p == "" for p in parts):
-        raise ParameterError(name, "a comma-separated list of numbers", text)
-    out = []
-    for p in parts:
-        try:
-            v = float(p)
-        except ValueError:
-            raise ParameterError(name, "a comma-separated list of numbers", text) from None
-        if not math.isfinite(v):
-            raise ParameterError(name, "finite numbers", text)
-        out.append(v)
-    return tuple(out)
-
-
-def check_writable(name: str, path: Path) -> Path:
-    """Validate that ``path`` can be created (its folder exists and is writable)."""
-    path = Path(path)
-    parent = path.resolve().parent
-    if path.exists() and path.is_dir():
-        raise ParameterError(name, "a file path, not a directory", str(path))
-    if not parent.is_dir():
-        raise ParameterError(name, "a path in an existing directory", str(path))
-    if not os.access(parent, os.W_OK):
-        raise ParameterError(name, "a path in a writable directory", str(path))
-    return path
-
-
 def write_netcdf_atomic(ds, path: Path) -> None:
-    """Write ``ds`` to ``path`` via a temporary file in the same folder and a rename."""
-    from ._io import atomic_output
+    """Write ``ds`` to ``path`` atomically (:func:`undulate._io.write_netcdf`, uncompressed)."""
+    from ._io import write_netcdf
 
-    with atomic_output(path) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
+    write_netcdf(ds, path, compress=False)
 
 
 @app.command()

@@ -64,7 +64,7 @@ def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: floa
     from .animate import animate
     from .params import Channel, Scene, SimOptions
     from .simulation import simulate
-    from .cli import write_netcdf_atomic
+    from ._io import write_netcdf
 
     anim_dir = out / "animations"
     anim_dir.mkdir(exist_ok=True)
@@ -74,7 +74,7 @@ def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: floa
                    channel=Channel(width_m=kw["channel_width_m"]))
         sc = Scene(phases_rad=sc.phases_rad, channel=sc.channel, dx0_m=kw["dx0_over_lambda"] * sc.wavelength_m)
         ds = simulate(sc, SimOptions(duration_s=duration, sample_rate_hz=10))
-        write_netcdf_atomic(ds, nc)
+        write_netcdf(ds, nc)
         animate(ds, gif, stride=1, fps=20, dpi=70, title=caption)  # twice real time
     return {"file": f"animations/{gif.name}", "data": f"animations/{nc.name}", "caption": caption}
 

@@ -63,6 +63,9 @@ __all__ = [
     "packing_density",
     "DensityEstimate",
     "packing_density_mc",
+    "lateral_clearance_m",
+    "neutral_offset_m",
+    "walled_packing_density",
 ]
 
 TWO_PI = 2.0 * np.pi
@@ -415,3 +418,40 @@ def packing_density_mc(phi_max_rad, w_over_2A, n_swimmers: int = 50, n_samples: 
     with np.errstate(divide="ignore"):
         r = 1.0 / y_over_2an
     return DensityEstimate(r.mean(axis=0), r.std(axis=0, ddof=1) / np.sqrt(n_samples))
+
+
+# ------------------------------------------------ walls: clearance and neutral offset
+def lateral_clearance_m(d_m, amplitude_m, width_m=0.0):
+    """Lateral clearance ``max(0, d - 2A - 2w)`` (m) that two swimmers' centre-line
+    curves can keep in a channel of width ``d`` (m).
+
+    Each body edge keeps ``A + w/2`` from its wall and the two bodies need
+    ``w`` between centre lines; ``width_m = 0`` gives zero-thickness
+    sinusoids (``d - 2A``, the paper's ``dy/2A = d/2A - 1``).
+    """
+    return np.maximum(0.0, np.asarray(d_m, float) - 2 * np.asarray(amplitude_m, float)
+                      - 2 * np.asarray(width_m, float))
+
+
+def neutral_offset_m(d_m, amplitude_m, wavelength_m, width_m=0.0):
+    """Half-width (m) of the band of neutral offsets of a ``dphi = 0`` pair between walls:
+    ``(lambda / pi) arcsin(min(dy / 2A, 1))`` with ``dy = lateral_clearance_m(d, A, w)``.
+
+    From the full compatibility region at ``dphi = 0``: two sinusoids at
+    lateral offset ``dy`` never touch for ``|2 pi dx / lambda| <= 2
+    arcsin(dy / 2A)``; forces slide a settled pair freely to the band's edge.
+    """
+    dy = lateral_clearance_m(d_m, amplitude_m, width_m)
+    return np.asarray(wavelength_m, float) / np.pi * np.arcsin(
+        np.minimum(dy / (2 * np.asarray(amplitude_m, float)), 1.0))
+
+
+def walled_packing_density(phi_max_rad, w_over_2A, n_swimmers: int = 50):
+    """Closed-form density with the side walls' room, dimensionless.
+
+    A swimmer next to a wall needs ``A + w/2`` to it, so ``N`` swimmers need
+    ``Y = (N - 1) y~ + N w + 2A`` and ``rho~_walls = 1 / ((N - 1)/N y~/2A +
+    w/2A + 1/N)`` (``y~`` of :func:`packing_spacing`).
+    """
+    n = float(n_swimmers)
+    return 1.0 / ((n - 1) / n * packing_spacing(phi_max_rad) + np.asarray(w_over_2A) + 1.0 / n)

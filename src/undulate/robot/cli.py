@@ -89,11 +89,11 @@ def run(
     dry_run: bool = typer.Option(False, "--dry-run", help="Print the schedule and write the commanded trajectory; open no port."),
 ) -> None:
     """Drive the robots' servos with the gait and log the run."""
-    from ..cli import check_writable
+    from .._cliutil import check_writable
 
     try:
         from ..params import Channel, ControllerParams, Gait, Scene, SwimmerGeometry
-        from ..cli import _parse_floats
+        from .._cliutil import _parse_floats
         from . import load_calibration
         from .runner import RobotConfig
 

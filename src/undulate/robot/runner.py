@@ -703,10 +703,9 @@ def _sleep_until(t_target: float) -> None:
 
 
 def _write(ds, out: Path) -> None:
-    from .._io import atomic_output
+    from .._io import write_netcdf
 
-    with atomic_output(out) as tmp:
-        ds.to_netcdf(tmp, engine="h5netcdf")
+    write_netcdf(ds, out, compress=False)
 
 
 def dry_run(cfg: RobotConfig, out: str | Path | None = None, *, controller: Controller | None = None):

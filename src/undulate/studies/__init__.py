@@ -11,6 +11,7 @@ with :func:`register`, and append its module name to :data:`STUDY_MODULES`.
 """
 
 from ._registry import (
+    STUDY_MODULES,
     StudyConfig,
     StudyInfo,
     StudyResult,
@@ -18,20 +19,6 @@ from ._registry import (
     names,
     register,
     run_study,
-)
-
-#: Study modules imported (in this order) when the registry is first used.
-STUDY_MODULES: tuple[str, ...] = (
-    "pairs",
-    "compatibility",
-    "links",
-    "groups",
-    "packing",
-    "basins",
-    "confinement",
-    "potential",
-    "swimming",
-    "synchronization",
 )
 
 __all__ = [

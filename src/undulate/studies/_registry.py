@@ -24,7 +24,6 @@ import importlib
 import json
 import math
 import os
-import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Callable
@@ -100,6 +99,20 @@ class StudyInfo:
         return f"{self.description} [{'; '.join(tags)}]"
 
 
+#: Study modules imported (in this order) when the registry is first used.
+STUDY_MODULES: tuple[str, ...] = (
+    "pairs",
+    "compatibility",
+    "links",
+    "groups",
+    "packing",
+    "basins",
+    "confinement",
+    "potential",
+    "swimming",
+    "synchronization",
+)
+
 _REGISTRY: dict[str, StudyInfo] = {}
 _loaded = False
 
@@ -121,8 +134,6 @@ def _load() -> None:
     global _loaded
     if _loaded:
         return
-    from . import STUDY_MODULES
-
     for mod in STUDY_MODULES:
         importlib.import_module(f"{__package__}.{mod}")
     _loaded = True
@@ -170,42 +181,36 @@ def _check_units(name: str, ds: xr.Dataset) -> None:
         raise UndulateError(f"study {name!r}: variables without a 'units' attribute: {missing}")
 
 
-def _tmp(out_dir: Path, final: str) -> Path:
-    """A fresh hidden name beside ``final`` (same filesystem, so os.replace is atomic)."""
-    return out_dir / f".{final}.{uuid.uuid4().hex}.tmp"
-
-
 def _write_all(name: str, result: StudyResult, config: StudyConfig) -> Path:
-    """Write every file to a temporary name, then move them all into place."""
+    """Write every file through :func:`undulate._io.atomic_output`; they are moved into
+    place only when all of them were written, the JSON last (its presence marks completion)."""
+    import contextlib
+
+    from .._io import atomic_output
+
     out_dir = Path(config.out_dir)
     prov = provenance()
     config_json = json.dumps(config.to_dict(), sort_keys=True)
     ds = result.dataset.copy()
     ds.attrs.update({"study": name, "study_config": config_json, **prov})
-
-    staged: dict[str, Path] = {}
-    try:
-        staged[f"{name}.nc"] = p = _tmp(out_dir, f"{name}.nc")
-        ds.to_netcdf(p, engine="h5netcdf", encoding={
-            k: {"zlib": True, "complevel": 4} for k, v in ds.data_vars.items()
-            if v.dtype.kind in "biufc" and v.ndim > 0})
+    doc = {
+        "study": name,
+        "summary": result.summary,
+        "config": config.to_dict(),
+        "provenance": prov,
+        "files": [f"{name}.{ext}" for ext in ("nc", "png", "pdf")],
+    }
+    text = json.dumps(_jsonable(doc), indent=2, allow_nan=False) + "\n"
+    encoding = {k: {"zlib": True, "complevel": 4} for k, v in ds.data_vars.items()
+                if v.dtype.kind in "biufc" and v.ndim > 0}
+    with contextlib.ExitStack() as stack:  # exits (renames) in reverse order: the json last
+        tmp_json = stack.enter_context(atomic_output(out_dir / f"{name}.json"))
+        tmp_nc = stack.enter_context(atomic_output(out_dir / f"{name}.nc"))
+        ds.to_netcdf(tmp_nc, engine="h5netcdf", encoding=encoding)
         for ext in ("png", "pdf"):
-            staged[f"{name}.{ext}"] = p = _tmp(out_dir, f"{name}.{ext}")
-            result.figure.savefig(p, format=ext, dpi=150 if ext == "png" else None)
-        doc = {
-            "study": name,
-            "summary": result.summary,
-            "config": config.to_dict(),
-            "provenance": prov,
-            "files": [f"{name}.{ext}" for ext in ("nc", "png", "pdf")],
-        }
-        staged[f"{name}.json"] = p = _tmp(out_dir, f"{name}.json")
-        p.write_text(json.dumps(_jsonable(doc), indent=2, allow_nan=False) + "\n")
-        for final, tmp in staged.items():  # the json last: its presence marks completion
-            os.replace(tmp, out_dir / final)
-    finally:
-        for tmp in staged.values():
-            tmp.unlink(missing_ok=True)
+            tmp = stack.enter_context(atomic_output(out_dir / f"{name}.{ext}"))
+            result.figure.savefig(tmp, format=ext, dpi=150 if ext == "png" else None)
+        tmp_json.write_text(text)
     return out_dir / f"{name}.nc"
 
 

@@ -242,7 +242,6 @@ def compute(config: StudyConfig, p: BasinsPlan) -> StudyResult:
 
     from ..plotting.basins import plot_basins
     from ..sweep import Grid
-    from .potential import lateral_clearance_m
 
     geo = SwimmerGeometry()
     lam = Gait().wavelength_m(geo.length_m)
@@ -273,7 +272,7 @@ def compute(config: StudyConfig, p: BasinsPlan) -> StudyResult:
     failures += gres.failures
     g = gres.dataset.isel(replicate=0)
     X0, P = np.meshgrid(g["dx0_over_lambda"].values, g["dphi_rad"].values, indexing="ij")
-    clearance = lateral_clearance_m(PAIR_WIDTH_M, amp, geo.width_m)
+    clearance = theory.lateral_clearance_m(PAIR_WIDTH_M, amp, geo.width_m)
     th = theory.sinusoid_basin_displacement(X0 * lam, P, amp, lam, dy_m=clearance) / lam
     sim = g["dx_final_over_lambda"].values - X0
 

@@ -78,7 +78,7 @@ def compute(config: StudyConfig, p: ConfinementPlan) -> StudyResult:
 
     from ..plotting.confinement import plot_confinement
     from ..sweep import Grid
-    from .potential import model_dx0_m
+    from ..theory import neutral_offset_m as model_dx0_m
 
     geo = SwimmerGeometry()
     lam = Gait().wavelength_m(geo.length_m)

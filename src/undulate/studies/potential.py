@@ -51,6 +51,7 @@ from typing import Any
 
 import numpy as np
 
+from .. import theory
 from ..params import Gait, SwimmerGeometry
 from ._registry import StudyConfig, StudyResult, register
 from .basins import PAIR_WIDTH_M, pair_point
@@ -81,18 +82,8 @@ IMPULSE_DURATION_S = 6.0
 """Length of the impulse runs, s (the impulse is taken over the first 2 periods)."""
 
 
-def lateral_clearance_m(d_m, amplitude_m, width_m=0.0):
-    """Lateral clearance ``max(0, d - 2A - 2w)`` two swimmers' centre-line
-    curves can keep in a channel of width ``d`` (m; module docstring).
-    ``width_m = 0``: zero-thickness sinusoids (``d - 2A``)."""
-    return np.maximum(0.0, np.asarray(d_m, float) - 2 * np.asarray(amplitude_m, float) - 2 * np.asarray(width_m, float))
-
-
-def model_dx0_m(d_m, amplitude_m, wavelength_m, width_m=0.0):
-    """Compatibility model's neutral offset, m: ``(lambda / pi) arcsin(min(dy / 2A, 1))``
-    with ``dy = lateral_clearance_m(d, A, w)`` (module docstring)."""
-    dy = lateral_clearance_m(d_m, amplitude_m, width_m)
-    return wavelength_m / np.pi * np.arcsin(np.minimum(dy / (2 * np.asarray(amplitude_m, float)), 1.0))
+lateral_clearance_m = theory.lateral_clearance_m
+model_dx0_m = theory.neutral_offset_m
 
 
 def fit_stiffness(dF, dx, valid=None, min_points: int = 3) -> tuple[float, float, float]:

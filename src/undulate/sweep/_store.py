@@ -22,7 +22,6 @@ import io
 import json
 import os
 import traceback
-import uuid
 from collections.abc import Callable, Iterator, Sequence
 from pathlib import Path
 from typing import Any
@@ -30,6 +29,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from .._io import atomic_write, atomic_write_bytes, atomic_write_text, remove_temporaries
 from ..errors import ParameterError
 from ._grid import RESERVED, Grid, Run
 
@@ -40,36 +40,7 @@ RUN_ATTR = "sweep_run"
 MERGED = "sweep.nc"
 
 
-# ---- atomic files --------------------------------------------------------
-def _tmp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
-
-
-def _fsync(path: Path) -> None:
-    fd = os.open(path, os.O_RDONLY)
-    try:
-        os.fsync(fd)
-    finally:
-        os.close(fd)
-
-
-def atomic_write(path: Path, write: Callable[[Path], None]) -> None:
-    """Call ``write(tmp)``, flush it to disk, then rename it to ``path``."""
-    tmp = _tmp_name(path)
-    try:
-        write(tmp)
-        _fsync(tmp)
-        os.replace(tmp, path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
-        raise
-
-
-def atomic_write_text(path: Path, text: str) -> None:
-    atomic_write(path, lambda p: p.write_text(text, encoding="utf-8"))
-
-
+# ---- atomic files (one helper for the whole package: undulate._io) -------
 def atomic_write_netcdf(path: Path, ds: xr.Dataset) -> None:
     atomic_write(path, lambda p: ds.to_netcdf(p, engine=ENGINE))
 
@@ -216,9 +187,7 @@ class Store:
 
     def _remove_temporaries(self) -> None:
         for d in (self.root, self.runs_dir):
-            for p in d.glob(".*.tmp"):
-                with contextlib.suppress(OSError):
-                    p.unlink()
+            remove_temporaries(d)
 
     def done_keys(self) -> set[str]:
         """Keys of the runs whose result file exists."""
@@ -264,7 +233,7 @@ def write_result(runs_dir: Path, run: Run, ds: xr.Dataset) -> None:
     ds = ds.copy(deep=False)
     ds.attrs = {**ds.attrs, RUN_ATTR: json.dumps(meta)}
     data = _run_file_bytes(ds)
-    atomic_write(result_path(runs_dir, run), lambda p: p.write_bytes(data))
+    atomic_write_bytes(result_path(runs_dir, run), data)
     with contextlib.suppress(FileNotFoundError):
         failure_path(runs_dir, run).unlink()
 
