@@ -6,6 +6,7 @@ function, real process pools, a real Dask LocalCluster, a real SIGKILL.
 
 from __future__ import annotations
 
+import functools
 import io
 import json
 import os
@@ -94,7 +95,7 @@ def test_serial_result_matches_direct_calls(serial):
     # provenance and the grid are stored with the data
     saved = load_sweep(serial.out_dir)
     assert json.loads(saved.attrs["sweep_grid"]) == GRID.to_dict()
-    assert saved.attrs["sweep_function"] == "sweep_funcs.pendulum"
+    assert saved.attrs["sweep_function"] == "sweep_funcs.pendulum()"  # the fully bound call
     assert "provenance_mujoco_version" in saved.attrs and "provenance_undulate_version" in saved.attrs
     xr.testing.assert_identical(_data(saved), _data(ds))
 
@@ -248,3 +249,84 @@ def test_swimmer_pair_sweep(tmp_path):
     assert np.isfinite(ds["x"]).all()
     # the per-run phase coordinate differs between points, so it is stacked over the grid
     np.testing.assert_allclose(ds["phase"].isel(swimmer=1).squeeze().values, [0.0, np.pi / 2])
+
+
+# ---- results always current: a sweep's identity is the fully bound call and the code ----
+_SCALED = '''
+import xarray as xr
+
+
+def scaled(point, seed, *, scale={scale}):
+    return xr.Dataset({{"v": ((), point["x"] * scale, {{"units": "m"}})}})
+'''
+
+
+def _scaled_module(tmp_path, scale, name="stale_fn_mod"):
+    import importlib
+    import sys
+
+    (tmp_path / f"{name}.py").write_text(_SCALED.format(scale=scale))
+    sys.path.insert(0, str(tmp_path))
+    try:
+        sys.modules.pop(name, None)
+        importlib.invalidate_caches()
+        return importlib.import_module(name)
+    finally:
+        sys.path.remove(str(tmp_path))
+
+
+def test_editing_a_default_recomputes_instead_of_reusing(tmp_path):
+    """The issue's scenario: sweep f(point, seed, *, scale=1.0) into a folder, change the
+    default to 2.0, sweep again into the same folder: the values are recomputed."""
+    grid = Grid(axes={"x": [1.0, 2.0, 3.0]})
+    out = tmp_path / "sweep"
+    mod = _scaled_module(tmp_path, 1.0)
+    first = run_sweep(mod.scaled, grid, out, workers=1, progress=False)
+    assert list(first.dataset["v"].values.ravel()) == [1.0, 2.0, 3.0] and first.n_computed == 3
+    again = run_sweep(mod.scaled, grid, out, workers=1, progress=False)
+    assert again.n_reused == 3 and again.n_computed == 0 and not again.stale
+
+    mod = _scaled_module(tmp_path, 2.0)
+    second = run_sweep(mod.scaled, grid, out, workers=1, progress=False)
+    assert list(second.dataset["v"].values.ravel()) == [2.0, 4.0, 6.0]
+    assert second.n_computed == 3 and second.n_reused == 0
+    assert any("scale=1.0" in s and "scale=2.0" in s for s in second.stale), second.stale
+    merged = load_sweep(out)
+    assert list(merged["v"].values.ravel()) == [2.0, 4.0, 6.0]
+    assert "scale=2.0" in merged.attrs["sweep_function"]
+    # each run file records the code and call that computed it
+    from undulate.sweep._store import read_run_file
+
+    _, meta = read_run_file(next((out / "runs").glob("*.nc")))
+    assert meta["provenance"]["code"] == second.identity["code"] and "scale=2.0" in meta["provenance"]["function"]
+
+
+def test_editing_code_but_not_arguments_recomputes(tmp_path):
+    grid = Grid(axes={"x": [1.0]})
+    mod = _scaled_module(tmp_path, 1.0, "stale_fn_mod2")
+    run_sweep(functools.partial(mod.scaled, scale=3.0), grid, tmp_path / "s", workers=1, progress=False)
+    src = (tmp_path / "stale_fn_mod2.py").read_text().replace('"units": "m"', '"units": "m", "note": "edited"')
+    (tmp_path / "stale_fn_mod2.py").write_text(src)
+    import importlib
+    import sys
+
+    sys.path.insert(0, str(tmp_path))
+    try:
+        sys.modules.pop("stale_fn_mod2", None)
+        importlib.invalidate_caches()
+        mod = importlib.import_module("stale_fn_mod2")
+    finally:
+        sys.path.remove(str(tmp_path))
+    res = run_sweep(functools.partial(mod.scaled, scale=3.0), grid, tmp_path / "s", workers=1, progress=False)
+    assert res.n_computed == 1 and res.stale and res.stale[0].startswith("code")
+
+
+def test_bound_arguments_include_every_default():
+    from undulate.sweep._store import bound_arguments, function_id
+
+    def f(point, seed, *, scale=1.0, n=3):
+        return None
+
+    assert bound_arguments(f) == {"scale": "1.0", "n": "3"}
+    assert bound_arguments(functools.partial(f, scale=2.0)) == {"scale": "2.0", "n": "3"}
+    assert function_id(functools.partial(functools.partial(f, n=4), scale=0.5)).endswith("f(scale=0.5, n=4)")

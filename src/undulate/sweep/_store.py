@@ -73,34 +73,100 @@ def read_run_file(path: Path) -> tuple[xr.Dataset, dict[str, Any]]:
 
 
 # ---- identity of a sweep -------------------------------------------------
-def function_id(fn: Callable) -> str:
-    """A stable name for the sweep function, including bound partial arguments.
-
-    ``functools.partial(study_fn, options=SimOptions(duration_s=10))`` gives
-    ``"pkg.mod.study_fn(options=SimOptions(duration_s=10, ...))"``: a resume
-    with other bound options is refused.  Bound arguments therefore need a
-    stable ``repr`` (dataclasses, numbers and strings have one).
-    """
-    if isinstance(fn, functools.partial):
-        parts = [repr(a) for a in fn.args] + [f"{k}={v!r}" for k, v in sorted(fn.keywords.items())]
-        return f"{function_id(fn.func)}({', '.join(parts)})"
+def function_name(fn: Callable) -> str:
+    """``module.qualname`` of the function under any ``functools.partial`` layers."""
+    while isinstance(fn, functools.partial):
+        fn = fn.func
     module = getattr(fn, "__module__", None) or type(fn).__module__
     name = getattr(fn, "__qualname__", None) or type(fn).__qualname__
     return f"{module}.{name}"
 
 
+def bound_arguments(fn: Callable) -> dict[str, str]:
+    """Every argument a run gets besides ``(point, seed)``, defaults included, as ``repr``.
+
+    ``functools.partial(f, scale=2.0)`` of ``f(point, seed, *, scale=1.0,
+    n=3)`` gives ``{"scale": "2.0", "n": "3"}``; editing a default changes
+    it.  Bound values need a stable ``repr`` (numbers, strings, tuples,
+    dataclasses have one).
+    """
+    import inspect
+
+    args: tuple = ()
+    kw: dict[str, Any] = {}
+    inner = fn
+    while isinstance(inner, functools.partial):  # the outer partial's arguments win
+        args = inner.args + args
+        kw = {**inner.keywords, **kw}
+        inner = inner.func
+    try:
+        params = list(inspect.signature(inner).parameters.values())
+    except (TypeError, ValueError):  # no signature: what was bound is all we know
+        return {**{f"arg{i}": repr(a) for i, a in enumerate(args)}, **{k: repr(v) for k, v in sorted(kw.items())}}
+    out: dict[str, str] = {}
+    positional = [p for p in params if p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD)]
+    for p, a in zip(positional, args):  # partial(f, x): x binds f's first parameter
+        out[p.name] = repr(a)
+    rest = [p for p in params if p.name not in out]
+    skip = 2 - len(out) if len(out) < 2 else 0  # the two run arguments (point, seed)
+    for p in rest:
+        if p.kind in (p.VAR_POSITIONAL, p.VAR_KEYWORD):
+            continue
+        if skip and p.kind in (p.POSITIONAL_ONLY, p.POSITIONAL_OR_KEYWORD) and p.name not in kw:
+            skip -= 1
+            continue
+        if p.name in kw:
+            out[p.name] = repr(kw[p.name])
+        elif p.default is not p.empty:
+            out[p.name] = repr(p.default)
+    for k in sorted(set(kw) - set(out)):  # into **kwargs
+        out[k] = repr(kw[k])
+    return out
+
+
+def function_id(fn: Callable) -> str:
+    """The fully bound call: ``"pkg.mod.fn(a=1, scale=2.0)"`` (:func:`bound_arguments`)."""
+    args = bound_arguments(fn)
+    return f"{function_name(fn)}({', '.join(f'{k}={v}' for k, v in args.items())})"
+
+
 def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:
+    """What a sweep is: the function (fully bound call), the hash of the code that
+    computes a run (:func:`undulate._source.code_hash`), the package version, the grid."""
+    from .._source import code_hash
+    from ..provenance import package_version
+
     return {
         "format": FORMAT,
         "function": function_id(fn),
+        "function_name": function_name(fn),
+        "code": code_hash(fn),
+        "undulate_version": package_version("undulate"),
         "batched": bool(batched),
         "grid": grid.to_dict(),
     }
 
 
-def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
+#: Manifest keys whose change makes the stored runs stale (recomputed, not refused).
+RESULT_KEYS = ("function", "code", "undulate_version")
+
+
+def _stale(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
+    """What makes the runs in a store with manifest ``old`` stale for sweep ``new``."""
     out = []
-    for key in ("format", "function", "batched"):
+    for key in RESULT_KEYS:
+        if old.get(key) != new.get(key):
+            out.append(f"{key} {old.get(key)!r} -> {new.get(key)!r}")
+    return out
+
+
+def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
+    """What makes ``old`` a different sweep (refused): anything but :data:`RESULT_KEYS`."""
+    out = []
+    old_name = old.get("function_name") or str(old.get("function", "")).split("(")[0]
+    if old_name != new.get("function_name"):
+        out.append(f"function {old_name!r} != {new.get('function_name')!r}")
+    for key in ("format", "batched"):
         if old.get(key) != new.get(key):
             out.append(f"{key} {old.get(key)!r} != {new.get(key)!r}")
     og, ng = old.get("grid", {}), new.get("grid", {})
@@ -126,6 +192,9 @@ class Store:
         self.runs_dir = root / "runs"
         self.merged_path = root / MERGED
         self._lock_fd: int | None = None
+        self.stale: list[str] = []
+        """Why the runs found on open were discarded (empty: nothing was)."""
+        self.manifest: dict[str, Any] = {}
 
     @classmethod
     @contextlib.contextmanager
@@ -153,13 +222,18 @@ class Store:
                     "a new directory or one holding this same sweep; it holds a different one: " + "; ".join(diff),
                     str(root),
                 )
+            store.stale = _stale(old, manifest)
         elif root.exists() and any(p.name != ".lock" for p in root.iterdir()):
             raise ParameterError("out_dir", "a new or empty directory, or one made by run_sweep (no manifest.json found)", str(root))
         store.runs_dir.mkdir(parents=True, exist_ok=True)
         store._lock()
         try:
+            if store.stale:  # computed by other code or arguments: never reused
+                store._discard_runs()
+                atomic_write_text(mpath, json.dumps(manifest, indent=1) + "\n")
             if not mpath.exists():
                 atomic_write_text(mpath, json.dumps(manifest, indent=1) + "\n")
+            store.manifest = manifest
             store._remove_temporaries()
             yield store
         finally:
@@ -189,6 +263,13 @@ class Store:
         for d in (self.root, self.runs_dir):
             remove_temporaries(d)
 
+    def _discard_runs(self) -> None:
+        """Remove every run result, failure record and the merged file (the manifest is
+        rewritten after this, so a kill in between discards them again on the next open)."""
+        for p in [*self.runs_dir.glob("p*_r*.nc"), *self.runs_dir.glob("p*_r*.failed.json"), self.merged_path]:
+            with contextlib.suppress(FileNotFoundError):
+                p.unlink()
+
     def done_keys(self) -> set[str]:
         """Keys of the runs whose result file exists."""
         return {p.name[: -len(".nc")] for p in self.runs_dir.glob("p*_r*.nc")}
@@ -214,6 +295,12 @@ def _run_meta(run: Run) -> dict[str, Any]:
     return {"key": run.key, "index": run.index, "replicate": run.replicate, "point": run.point, "seed": run.seed}
 
 
+def run_provenance(manifest: dict[str, Any]) -> dict[str, Any]:
+    """What each run file records about the code that computed it (with host and time added
+    when it is written)."""
+    return {k: manifest.get(k) for k in ("function", "code", "undulate_version")}
+
+
 def check_output(ds: Any, grid_names: Sequence[str]) -> xr.Dataset:
     """The contract of a sweep function's return value; raises TypeError/ValueError."""
     if not isinstance(ds, xr.Dataset):
@@ -226,9 +313,18 @@ def check_output(ds: Any, grid_names: Sequence[str]) -> xr.Dataset:
     return ds
 
 
-def write_result(runs_dir: Path, run: Run, ds: xr.Dataset) -> None:
-    """Persist a finished run atomically, then drop any failure record of an earlier try."""
+def write_result(runs_dir: Path, run: Run, ds: xr.Dataset, provenance: dict[str, Any] | None = None) -> None:
+    """Persist a finished run atomically, then drop any failure record of an earlier try.
+
+    ``provenance``: the sweep's :func:`run_provenance`; the file records it with
+    the host and the UTC time of writing (attribute ``sweep_run``).
+    """
+    import socket
+    from datetime import datetime, timezone
+
     meta = _run_meta(run)
+    meta["provenance"] = {**(provenance or {}), "hostname": socket.gethostname(),
+                          "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds")}
     meta["dtypes"] = {str(k): v.dtype.str for k, v in ds.variables.items()}
     ds = ds.copy(deep=False)
     ds.attrs = {**ds.attrs, RUN_ATTR: json.dumps(meta)}
@@ -270,7 +366,7 @@ def _same_attr(a: Any, b: Any) -> bool:
         return False
 
 
-def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path) -> xr.Dataset:
+def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path, code: str | None = None) -> xr.Dataset:
     """Stack every finished run file into one Dataset over the grid.
 
     Dimensions: ``grid.dims + ("replicate",)`` then the function's own.
@@ -299,7 +395,13 @@ def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path) -> xr.Dataset:
             path.unlink(missing_ok=True)
             write_failure(runs_dir, run, None, f"CorruptResult: {path.name} could not be read ({exc}); "
                           "it was removed, run the sweep again to recompute it")
-            return merge(grid, runs, runs_dir)  # start over without it
+            return merge(grid, runs, runs_dir, code)  # start over without it
+        if code is not None and (meta.get("provenance") or {}).get("code") != code:
+            path.unlink(missing_ok=True)  # computed by other code: never presented
+            write_failure(runs_dir, run, None, f"StaleResult: {path.name} was computed by other code "
+                          f"({(meta.get('provenance') or {}).get('code')!r}, not {code!r}); it was removed, "
+                          "run the sweep again to recompute it")
+            return merge(grid, runs, runs_dir, code)
         if meta.get("seed") != run.seed or meta.get("point") != json.loads(json.dumps(run.point)):
             raise ParameterError(
                 "out_dir", f"a store whose run files match its manifest ({path.name} is for another run)",

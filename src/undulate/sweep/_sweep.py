@@ -20,7 +20,8 @@ from ..errors import ParameterError, UndulateError
 from . import _executors
 from ._grid import Grid
 from ._progress import Progress
-from ._store import ENGINE, MERGED, Store, atomic_write_netcdf, function_id, make_manifest, merge, write_failure
+from ._store import (ENGINE, MERGED, Store, atomic_write_netcdf, function_id, make_manifest, merge, run_provenance,
+                     write_failure)
 from ._worker import EXISTS, FAILED, OK, Chunk, Outcome
 
 log = logging.getLogger("undulate.sweep")
@@ -78,6 +79,10 @@ class SweepResult:
     out_dir: Path
     elapsed_s: float = 0.0
     grid: Grid | None = field(default=None, repr=False)
+    identity: dict[str, Any] = field(default_factory=dict)
+    """The fully bound function call, code hash and package version every run was computed with."""
+    stale: list[str] = field(default_factory=list)
+    """Why runs found in ``out_dir`` were discarded as stale (empty: none were)."""
 
     @property
     def n_runs(self) -> int:
@@ -189,6 +194,13 @@ def run_sweep(
         _check_importable(fn)
 
     with Store.open(out_dir, make_manifest(fn, grid, batched)) as store:
+        if store.stale:
+            msg = (f"sweep {store.root}: the stored runs were computed by other code or arguments "
+                   f"({'; '.join(store.stale)}); they were discarded and are recomputed")
+            log.warning(msg)
+            if progress:
+                print(msg, file=stream or sys.stderr, flush=True)
+        run_prov = tuple(run_provenance(store.manifest).items())
         runs = grid.runs()
         done = store.done_keys()
         todo = [r for r in runs if r.key not in done]
@@ -208,7 +220,7 @@ def run_sweep(
                 where = "this process" if n_workers == 1 else f"{n_workers} local processes"
             size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
             chunks = [
-                Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched)
+                Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov)
                 for i in range(0, len(todo), size)
             ]
 
@@ -260,7 +272,7 @@ def run_sweep(
             if own_client:
                 client.close()
 
-        ds = merge(grid, runs, store.runs_dir)
+        ds = merge(grid, runs, store.runs_dir, store.manifest.get("code"))
         failures = []
         for r in runs:
             if (store.runs_dir / f"{r.key}.nc").exists():
@@ -269,7 +281,7 @@ def run_sweep(
             failures.append(
                 RunFailure(r.key, dict(r.point), r.replicate, r.seed, rec.get("error", ""), rec.get("traceback", ""))
             )
-        ds.attrs.update(_sweep_attrs(fn, grid, failures))
+        ds.attrs.update(_sweep_attrs(fn, grid, failures, store.manifest))
         atomic_write_netcdf(store.merged_path, ds)
 
     result = SweepResult(
@@ -280,6 +292,8 @@ def run_sweep(
         out_dir=store.root,
         elapsed_s=time.monotonic() - t_start,
         grid=grid,
+        identity=run_provenance(store.manifest),
+        stale=list(store.stale),
     )
     if progress:
         _summary(result, stream or sys.stderr)
@@ -304,9 +318,12 @@ def _check_importable(fn: Callable) -> None:
         )
 
 
-def _sweep_attrs(fn: Callable, grid: Grid, failures: list[RunFailure]) -> dict[str, Any]:
+def _sweep_attrs(fn: Callable, grid: Grid, failures: list[RunFailure], manifest: dict[str, Any]) -> dict[str, Any]:
     attrs: dict[str, Any] = {
         "sweep_function": function_id(fn),
+        "sweep_code_hash": str(manifest.get("code")),
+        "sweep_code_rule": "sha256 of the source of the function's module and every undulate module it imports "
+                           "(undulate._source.code_hash); every run file records the hash it was computed with",
         "sweep_grid": json.dumps(grid.to_dict()),
         "sweep_replicates": grid.replicates,
         "sweep_seed": grid.seed,

@@ -41,6 +41,8 @@ class Chunk:
     runs: tuple[Run, ...]
     grid_names: tuple[str, ...]
     batched: bool = False
+    provenance: tuple[tuple[str, str], ...] = ()
+    """The sweep's run provenance (function call, code hash, version), stored in each run file."""
 
 
 def init_local_worker() -> None:
@@ -73,7 +75,7 @@ def _run_one(chunk: Chunk, runs_dir: Path, run: Run, compute: Callable[[Run], ob
     t0 = time.perf_counter()
     try:
         ds = check_output(compute(run), chunk.grid_names)
-        write_result(runs_dir, run, ds)
+        write_result(runs_dir, run, ds, dict(chunk.provenance))
     except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
         rec = write_failure(runs_dir, run, exc)
         return Outcome(run.key, FAILED, rec["error"], time.perf_counter() - t0)
@@ -96,7 +98,7 @@ def _run_batched(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outc
     out = []
     for run, ds in zip(runs, results):
         try:
-            write_result(runs_dir, run, ds)
+            write_result(runs_dir, run, ds, dict(chunk.provenance))
             out.append(Outcome(run.key, OK, "", each))
         except Exception as exc:  # noqa: BLE001
             rec = write_failure(runs_dir, run, exc)
