@@ -268,6 +268,11 @@ from .robot.cli import robot_app  # noqa: E402 - `undulate robot run|ping` (the 
 
 app.add_typer(robot_app, name="robot")
 
+from .track import cli as _track_cli  # noqa: E402 - `undulate track` and `undulate compare` (OpenCV loads when used)
+
+app.command("track")(_track_cli.track)
+app.command("compare")(_track_cli.compare)
+
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, turning click's usage errors into one line + exit 2."""

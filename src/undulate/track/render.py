@@ -243,7 +243,17 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
     dist = np.asarray(camera.distortion, float)
     px_per_m = float(K[0, 0] / np.linalg.norm(np.linalg.inv(K) @ Hcam @ np.array([0, 0, 1.0])))
     ppm = 1.5 * px_per_m  # supersampled top view
-    (x0, y0), (x1, y1) = region - [[0.05, 0.05], [-0.05, -0.05]]
+    # the top view covers everything the camera sees (its frame's border traced back onto the table)
+    W, H = camera.width_px, camera.height_px
+    b = np.linspace(0.0, 1.0, 65)
+    border = np.concatenate([np.column_stack([b * (W - 1), 0 * b]), np.column_stack([b * (W - 1), 0 * b + H - 1]),
+                             np.column_stack([0 * b, b * (H - 1)]), np.column_stack([0 * b + W - 1, b * (H - 1)])])
+    if np.any(dist != 0):
+        border = cv2.undistortPoints(border.reshape(-1, 1, 2), K, dist, R=None, P=K).reshape(-1, 2)
+    seen = np.column_stack([border, np.ones(len(border))]) @ np.linalg.inv(Hcam).T
+    seen = seen[:, :2] / seen[:, 2:]
+    (x0, y0), (x1, y1) = (np.clip(seen.min(axis=0) - 0.01, region[0] - 0.5, None),
+                          np.clip(seen.max(axis=0) + 0.01, None, region[1] + 0.5))
     tw, th = int(math.ceil((x1 - x0) * ppm)), int(math.ceil((y1 - y0) * ppm))
     # table m -> table-image pixel (column, row), pixel centres at integers
     T = np.array([[ppm, 0.0, -x0 * ppm - 0.5], [0.0, -ppm, y1 * ppm - 0.5], [0.0, 0.0, 1.0]])
@@ -259,7 +269,6 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
         _put_tag(cv2, background, _marker_image(aruco, dictionary, i, 16), T, cal.markers_m[i], 0.0, plate)
 
     # camera pixel (distorted) -> ideal pixel -> table m -> table-image pixel: one remap per frame
-    W, H = camera.width_px, camera.height_px
     uu, vv = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
     pix = np.stack([uu.ravel(), vv.ravel()], axis=-1)
     if np.any(dist != 0):
@@ -298,7 +307,7 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
 
     cmd = [_ffmpeg(), "-hide_banner", "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24",
            "-s", f"{W}x{H}", "-r", f"{fps.numerator}/{fps.denominator}", "-i", "-"]
-    if drop:
+    if drop:  # ffmpeg drops them, keeping every other frame's timestamp: gaps in the file's timeline
         sel = "+".join(f"eq(n\\,{k})" for k in sorted(drop))
         cmd += ["-vf", f"select='not({sel})'", "-fps_mode", "vfr"]
     cmd += ["-c:v", "libx264", "-preset", "veryfast", "-crf", str(int(deg.crf)), "-pix_fmt", "yuv420p",
@@ -321,6 +330,7 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
                         d = (p1 - p0) / np.linalg.norm(p1 - p0)
                         nrm = np.array([-d[1], d[0]]) * w / 2
                         _fill(cv2, table, T, np.array([p0 - nrm, p1 - nrm, p1 + nrm, p0 + nrm]), (85, 60, 45))
+                for j in range(n_sw):  # tags on top of every body
                     _put_tag(cv2, table, tags[j], T, (tx[k, j], ty[k, j]), th_[k, j], plate)
                 for oc in occluders:
                     if oc.t_start_s - 1e-9 <= t_k <= oc.t_end_s + 1e-9:
@@ -329,10 +339,6 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
                                    (120, 150, 205), -1, cv2.LINE_AA, 4)
                         dd = np.hypot(tx[k] - oc.x_m, ty[k] - oc.y_m)
                         occluded[k] |= dd < oc.radius_m + half_diag
-                if k in drop:
-                    if bar is not None:
-                        bar.update()
-                    continue
                 frame = cv2.remap(table, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
                 if deg.blur_px > 0:
                     frame = cv2.GaussianBlur(frame, (0, 0), deg.blur_px)
