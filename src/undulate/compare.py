@@ -131,25 +131,32 @@ def matching_simulation(exp, *, out: str | os.PathLike | None = None):
 def steady_offset(series, period_s: float, periods: int = STEADY_PERIODS, confidence: float = CONFIDENCE) -> dict:
     """Steady value of one pair's offset series (a DataArray over time, NaN = missing).
 
-    The mean of the last ``periods`` whole-period averages (fewer if the run
-    is shorter, at least 2; periods with no data are skipped) and its
-    Student-t interval; ``steady``: the same averages all lie within 0.01 of
-    their mean (the rule of :func:`undulate.observables.steady_state`).
+    The mean of the last ``periods`` whole-period averages and its Student-t
+    interval; ``steady``: the same averages all lie within 0.01 of their mean
+    (the rule of :func:`undulate.observables.steady_state`).  Only periods
+    with every sample present count: the offset swings through the gait
+    cycle (by ~0.25 lambda at the middle link), so a period missing a few
+    samples (occlusion, dropped frames) would be biased toward the phases it
+    kept.  ``n_skipped``: complete periods were lacking, so that many
+    incomplete ones were skipped.
     """
     from scipy import stats
 
     from .observables import period_average
 
     pa = period_average(series, period_s).values
-    pa = pa[np.isfinite(pa)][-periods:]
+    cover = period_average(series.notnull().astype(float), period_s).values
+    complete = pa[np.isfinite(pa) & (cover >= 1.0 - 1e-9)]
+    skipped = int(np.sum(np.isfinite(pa[-periods:]) & (cover[-periods:] < 1.0 - 1e-9)))
+    pa = complete[-periods:]
     n = int(pa.size)
     if n < 2:
         return {"value": float(pa[0]) if n else float("nan"), "ci": [float("nan")] * 2, "sem": float("nan"),
-                "n_periods": n, "steady": False}
+                "n_periods": n, "n_skipped": skipped, "steady": False}
     mean = float(pa.mean())
     sem = float(pa.std(ddof=1) / math.sqrt(n))
     lo, hi = stats.t.interval(confidence, n - 1, loc=mean, scale=sem) if sem > 0 else (mean, mean)
-    return {"value": mean, "ci": [float(lo), float(hi)], "sem": sem, "n_periods": n,
+    return {"value": mean, "ci": [float(lo), float(hi)], "sem": sem, "n_periods": n, "n_skipped": skipped,
             "steady": bool(np.all(np.abs(pa - mean) <= 0.01))}
 
 

@@ -112,6 +112,9 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
         raise ParameterError("--start-time", "a finite time, s", start_time_s)
     if not video.is_file():
         raise ParameterError("VIDEO", "an existing video file", str(video))
+    # FFmpeg's own messages ("moov atom not found") would add lines to our one-line errors; the user's
+    # setting of this variable wins
+    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
     cap = cv2.VideoCapture(str(video))
     ok, img = cap.read() if cap.isOpened() else (False, None)
     if not ok or img is None:
