@@ -29,7 +29,7 @@ def _need_cv2() -> None:
 def _scene_from_options(n: int, phases, links, waves_per_body, amplitude, frequency, channel_width, body_length,
                         width):
     """The experiment's Scene from the command line (None when no --phases)."""
-    from ..cli import _cli_name, _parse_floats
+    from .._cliutil import _cli_name, _parse_floats
     from ..params import Channel, Gait, Scene, SwimmerGeometry
 
     if phases is None:
@@ -111,7 +111,7 @@ def track(
 
     `undulate track markers --out markers.pdf` writes the printable marker sheet instead.
     """
-    from ..cli import _fail, check_writable
+    from .._cliutil import _fail, check_writable
 
     try:
         _need_cv2()
@@ -145,7 +145,7 @@ def track(
             ds = merge_log(ds, log, gait_from.name)
     except ParameterError as e:
         _fail(str(e), 2)
-    from ..cli import write_netcdf_atomic
+    from .._cliutil import write_netcdf_atomic
 
     write_netcdf_atomic(ds, out)
     if quiet:
@@ -172,13 +172,17 @@ def compare(
     periods: int = typer.Option(5, help="Whole gait periods at the end that make the steady value."),
 ) -> None:
     """Simulate each experiment's gait, phases and channel and compare: steady dx/lambda vs dphi, dx(t), residuals."""
-    from ..cli import _fail
+    from .._cliutil import _fail
     from ..compare import compare as run
+
+    from ..errors import UndulateError
 
     try:
         summary = run(experiments, out, periods=periods, log=lambda m: typer.echo(m, err=True))
     except ParameterError as e:
         _fail(str(e), 2)
+    except UndulateError as e:  # a matching simulation that diverged: its diagnosis
+        _fail(str(e), 1)
     lines = [f"wrote {out}/compare.png, compare.pdf, compare.json"]
     for r in summary["experiments"]:
         for e in r["pairs"]:
