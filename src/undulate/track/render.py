@@ -144,7 +144,7 @@ def _marker_image(aruco, dictionary, tag_id: int, cell_px: int) -> np.ndarray:
     return np.pad(core, cell_px, constant_values=255)
 
 
-def _texture(rng: np.ndarray, shape: tuple[int, int], ppm: float) -> np.ndarray:
+def _texture(rng: np.random.Generator, shape: tuple[int, int], ppm: float) -> np.ndarray:
     """A table top: wood-grain-like low-frequency mottling plus fine grain, BGR uint8."""
     import cv2
 
