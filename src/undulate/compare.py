@@ -122,7 +122,7 @@ def matching_simulation(exp, *, out: str | os.PathLike | None = None):
                       "matched_experiment": exp.attrs.get("video", ""),
                       "note": "contact_force_pair is indexed by the simulation's stacking order, not robot id"})
     if out is not None:
-        from .cli import write_netcdf_atomic
+        from ._cliutil import write_netcdf_atomic
 
         write_netcdf_atomic(sim, Path(out))
     return sim
@@ -240,7 +240,7 @@ def _fig_steady(results: list[dict]):
     finish_offset_panel(ax, 1.0 if unit == "lambda" else None, span=0.3)
     ax.set_ylabel(r"steady $\Delta x/\lambda$" if unit == "lambda" else r"steady $\Delta x$ (m)")
     ax.plot([], [], "k--", lw=0.9, label=r"compatibility $\Delta x = \lambda\Delta\phi/2\pi + n\lambda$")
-    ax.legend(fontsize=7, loc="upper left")
+    ax.legend(fontsize=7, loc="lower right")
     ax.set_title(f"experiment vs simulation (middle-link centre; {int(100 * CONFIDENCE)} % intervals)", fontsize=9)
     return fig
 
@@ -339,7 +339,7 @@ def compare(experiments, out_dir: str | os.PathLike, *, periods: int = STEADY_PE
         for name in names:
             with atomic_output(out_dir / name) as tmp:
                 fig.savefig(tmp, dpi=150, format=Path(name).suffix[1:])
-    from .cli import write_netcdf_atomic
+    from ._cliutil import write_netcdf_atomic
 
     for p, sim in zip(paths, sims):
         write_netcdf_atomic(sim, out_dir / f"{p.stem}_sim.nc")
