@@ -1,55 +1,66 @@
-"""Claim judgements are pure functions of summaries: checked on hand-made summaries."""
+"""Claims live beside their studies: pure functions of the study's summary, judged on intervals.
 
-from undulate.claims import evaluate
+(Every registered study's claims are also judged on real quick runs: test_registry_suite.py.)
+"""
 
+import math
 
-def pairs_summary(slope1=1.0, rms1=0.03, std0=0.3):
-    per = {
-        "1": {"slope": slope1, "rms_residual_over_lambda": rms1, "rms_residual_m": rms1 * 0.54, "n_runs": 9, "n_steady": 9},
-        "0.75": {"slope": 0.95, "rms_residual_over_lambda": 0.06, "n_runs": 9, "n_steady": 9},
-        "1.5": {"slope": 0.04, "rms_residual_over_lambda": 0.3, "n_runs": 9, "n_steady": 9},
-        "0": {"dx_std_m": std0},
-    }
-    return {"per_xi": per}
+import pytest
 
-
-def test_pairs_claims_follow_their_stated_criteria():
-    rows = evaluate("pairs", {"pairs": pairs_summary()})
-    assert [r["holds"] for r in rows] == [True, True, False, True]
-    rows = evaluate("pairs", {"pairs": pairs_summary(slope1=0.5, std0=0.01)})
-    assert rows[0]["holds"] is False and rows[-1]["holds"] is False
+from undulate import stats
+from undulate.studies import Verdict, describe
+from undulate.studies._registry import judge
 
 
-def test_links_claim_needs_a_monotone_fall_and_missing_data_is_not_a_verdict():
-    per_n = {str(n): {"rms_residual_over_lambda": r} for n, r in zip((3, 5, 7, 9), (0.04, 0.03, 0.02, 0.01))}
-    rows = evaluate("links", {"links": {"per_rule": {"fixed": {"per_n": per_n}}}})
-    assert rows[0]["holds"] is True and rows[1]["holds"] is None
-    per_n["7"]["rms_residual_over_lambda"] = 0.05
-    assert evaluate("links", {"links": {"per_rule": {"fixed": {"per_n": per_n}}}})[0]["holds"] is False
+def est(value, low, high):
+    return stats.Estimate(value, math.nan, low, high, 9, "test").to_dict()
 
 
-def test_groups_claim_compares_with_pairs():
-    g = {"per_group_size": {s: {"slope": 0.97, "rms_residual_over_lambda": 0.1} for s in ("3", "4")}}
-    assert [r["holds"] for r in evaluate("groups", {"groups": g, "pairs": pairs_summary(rms1=0.03)})] == [True, True]
-    assert [r["holds"] for r in evaluate("groups", {"groups": g, "pairs": pairs_summary(rms1=0.2)})] == [False, False]
-    assert evaluate("unknown-study", {}) == []
+def pairs_summary(slope=(1.0, 0.95, 1.05), rms=(0.03, 0.02, 0.04), std0=(0.3, 0.2, 0.4)):
+    row = {"slope": est(*slope), "rms_residual_over_lambda": est(*rms), "rms_residual_m": est(*(0.54 * v for v in rms)),
+           "n_runs": 9, "n_steady": 9, "n_failed": 0}
+    return {"per_xi": {"1": row, "0.75": dict(row), "1.5": dict(row), "0": {"dx_std": est(*std0)}}}
 
 
-def test_every_claim_gives_no_verdict_without_data():
-    from undulate.claims import CLAIMS
-
-    for name in CLAIMS:
-        rows = evaluate(name, {})
-        assert rows and all(r["holds"] is None and r["measured"] == "no result" for r in rows), name
+def verdicts(name, summary):
+    return [r["verdict"] for r in judge(name, describe(name).claims, summary)]
 
 
-def test_confinement_and_potential_claims():
-    c = {"d_over_2A": [0.6, 1.2], "central_width_over_lambda": [0.0, 0.05], "max_width_in_paper_range": 0.05,
-         "width_never_shrinks_with_d": True}
-    assert evaluate("confinement", {"confinement": c})[0]["holds"] is True
-    c["max_width_in_paper_range"] = 0.0
-    assert evaluate("confinement", {"confinement": c})[0]["holds"] is False
-    p = {"impulse_fit": {"r2": 0.95, "slope_Ns_per_rad": 4.0}, "median_fit_r2": 0.97,
-         "per_beta": {"45": {"spearman_k_vs_d": -1.0}, "60": {"spearman_k_vs_d": 0.5}},
-         "collapse_rms_log10k_vs_d_over_2A": 0.1, "collapse_rms_log10k_vs_d_m": 0.5}
-    assert [r["holds"] for r in evaluate("potential", {"potential": p})] == [True, True, False, True]
+def test_pairs_claims_are_judged_on_the_intervals():
+    assert verdicts("pairs", pairs_summary()) == ["holds"] * 4
+    # the value is within tolerance but the interval is not: not demonstrated
+    assert verdicts("pairs", pairs_summary(slope=(1.0, 0.7, 1.3)))[:3] == ["fails"] * 3
+    assert verdicts("pairs", pairs_summary(rms=(0.08, 0.05, 0.12)))[0] == "fails"
+    assert verdicts("pairs", pairs_summary(std0=(0.3, 0.01, 0.5)))[-1] == "fails"
+
+
+def test_missing_interval_is_no_result_with_a_reason():
+    s = pairs_summary()
+    s["per_xi"]["1"]["slope"] = stats.Estimate(math.nan).to_dict()
+    row = judge("pairs", describe("pairs").claims, s)[0]
+    assert row["verdict"] == "no result" and "interval" in row["reason"]
+
+
+def test_a_renamed_key_raises_instead_of_becoming_no_result():
+    s = pairs_summary()
+    s["per_xi"]["1"]["slope_renamed"] = s["per_xi"]["1"].pop("slope")
+    with pytest.raises(KeyError):
+        judge("pairs", describe("pairs").claims, s)
+
+
+def test_links_claim_needs_a_fall_beyond_the_intervals():
+    def summary(rms):
+        per_n = {str(n): {"rms_residual_over_lambda": est(*r)} for n, r in zip((3, 5, 7, 9), rms)}
+        return {"per_rule": {"fixed": {"per_n": per_n}, "curvature": {"per_n": per_n}}}
+
+    falls = [(0.08, 0.07, 0.09), (0.06, 0.05, 0.07), (0.04, 0.03, 0.05), (0.02, 0.01, 0.03)]
+    assert verdicts("links", summary(falls)) == ["holds", "holds"]
+    falls[2] = (0.05, 0.01, 0.09)
+    falls[3] = (0.045, 0.01, 0.085)  # falls at every step, but the last interval overlaps the first
+    assert verdicts("links", summary(falls)) == ["fails", "fails"]
+
+
+def test_verdicts_are_one_of_three():
+    with pytest.raises(Exception):
+        Verdict("maybe", "x")
+    assert Verdict.none("why").verdict == "no result"

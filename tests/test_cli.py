@@ -114,3 +114,19 @@ def test_closed_loop_controller_from_the_command_line(tmp_path):
         # load feedback changed the phases' rates away from the open-loop 2 pi f
         rate = (ds["gait_phase"].isel(time=-1) - ds["gait_phase"].isel(time=0)) / float(ds["time"][-1])
         assert float(abs(rate - 3.14159265).max()) > 1e-3
+
+
+def test_option_defaults_come_from_the_parameter_types():
+    import inspect
+    import math
+
+    from undulate import cli
+    from undulate.params import Channel, ControllerParams, Gait, SimOptions, SwimmerGeometry
+
+    d = {k: v.default.default for k, v in inspect.signature(cli.simulate).parameters.items()}
+    assert d["links"] == SwimmerGeometry().n_links and d["body_length"] == SwimmerGeometry().length_m
+    assert d["width"] == SwimmerGeometry().width_m and d["channel_width"] == Channel().width_m
+    assert math.radians(d["amplitude"]) == pytest.approx(Gait().amplitude_rad)
+    assert d["waves_per_body"] == Gait().waves_per_body and d["frequency"] == Gait().frequency_hz
+    assert d["duration"] == SimOptions().duration_s and d["sample_rate"] == SimOptions().sample_rate_hz
+    assert d["controller"] == ControllerParams().kind and d["control_rate"] == ControllerParams().control_rate_hz

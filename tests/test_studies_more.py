@@ -16,7 +16,7 @@ import pytest
 import xarray as xr
 
 from undulate import studies
-from undulate.studies import basins, confinement, packing, potential
+from undulate.studies import _runners, basins, confinement, packing, potential
 
 MINE = ("packing", "basins", "confinement", "potential", "swimming")
 
@@ -104,14 +104,14 @@ def test_central_state_width():
 
 
 def test_pair_scene_maps_the_point():
-    s = basins.pair_scene({"dx0_over_lambda": 0.25, "dphi_rad": 1.0, "d_over_2A": 1.1, "force_N": 0.2},
+    s = _runners.pair_scene({"dx0_over_lambda": 0.25, "dphi_rad": 1.0, "d_over_2A": 1.1, "force_N": 0.2},
                           amplitude_m=0.05, force_onset_s=6.0)
     assert s.phases_rad == (0.0, 1.0)
     assert s.channel.width_m == pytest.approx(0.11)
     assert s.dx0_m == pytest.approx((0.25 * 0.54,))
     assert s.forces_N == (-0.2, 0.2) and s.force_onset_s == 6.0
     with pytest.raises(ValueError):
-        basins.pair_scene({"bogus": 1})
+        _runners.pair_scene({"bogus": 1})
 
 
 # ------------------------------------------------------------- the studies, real
@@ -151,7 +151,7 @@ def test_swimming_quick(quick_runs):
     assert 0.004 < summary["lone_swimmer_speed_m_s"] < 0.02
     assert abs(summary["lone_viscous_speed_m_s"]) < 1e-3
     vis = summary["modes"]["viscous"]
-    assert 0.8 < vis["slope"] < 1.2 and vis["rms_residual_over_lambda"] < 0.08
+    assert 0.8 < vis["slope"]["value"] < 1.2 and vis["rms_residual_over_lambda"]["value"] < 0.08
     sw = ds["dx_final_over_lambda"].sel(mode="swimming")
     # small detuning: swimming pairs settle where non-swimming ones do
     small = np.abs(ds["dphi"]) <= np.pi / 4 + 1e-9
@@ -179,7 +179,13 @@ def test_potential_quick(quick_runs):
     for sign in (1, -1):
         at = [float(imp.sel(dphi=sign * q * np.pi, method="nearest")) for q in (0, 0.25, 0.5, 1.0)]
         assert at[0] < at[1] < at[2] < at[3]
-    assert 0 <= summary["impulse_fit"]["r2"] <= 1 and summary["impulse_fit"]["slope_Ns_per_rad"] > 0
+    fit = summary["impulse_fit"]
+    assert 0 <= fit["r2"]["value"] <= 1 and fit["slope_Ns_per_rad"]["value"] > 0
+    assert fit["slope_Ns_per_rad"]["stderr"] > 0
+    # every stiffness carries its interval
+    ci = ds["stiffness_ci95"].values
+    ok = np.isfinite(ds["stiffness"].values)
+    assert np.all(ci[ok][:, 0] <= ds["stiffness"].values[ok]) and np.all(ds["stiffness"].values[ok] <= ci[ok][:, 1])
     # (b-d) a linear, positive stiffness that falls as the walls move apart
     k = ds["stiffness"]
     assert int(np.isfinite(k).sum()) >= 6
@@ -208,7 +214,8 @@ def _check_basins(ds, summary):
     thr = summary["return_threshold"]
     for side in ("positive", "negative"):
         t = thr[side]["threshold_dx0_over_lambda"]
-        assert t is not None and 0.05 < abs(t) < 0.8
+        assert t["value"] is not None and 0.05 < abs(t["value"]) < 0.8
+        assert min(t["ci95"]) <= t["value"] <= max(t["ci95"])  # the bracket
     assert ds["theory_displacement_over_lambda"].shape == ds["grid_displacement_over_lambda"].shape
 
 
@@ -232,12 +239,13 @@ def _check_packing(ds, summary):
 def test_packing_reduced(tmp_path):
     """A reduced real packing run (the quick run, 40 runs of 50 swimmers, is marked slow)."""
     cfg = studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0)
-    res = packing.compute(cfg, packing.PackingPlan([0.0, 2 * np.pi], [1.0, 3.0], draws=1, duration_s=4.0))
-    ds, summary = res.dataset, res.summary
+    ctx = studies.StudyContext(cfg, "packing", progress=False)
+    ds = packing.dataset(ctx, packing.PackingPlan([0.0, 2 * np.pi], [1.0, 3.0], draws=1, duration_s=4.0))
+    summary = packing.summary(ds)
     _check_packing(ds, summary)
     # the in-phase group fits at rho~ = 3 without contact; a full phase spread does not
     # (its joint error crosses the threshold or the jammed run diverges)
     assert float(ds["mean_joint_error"].sel(phi_max=0.0, rho_tilde=3.0).item()) < packing.THRESHOLD_RAD
     spread = ds.sel(phi_max=2 * np.pi, rho_tilde=3.0)
     assert bool(spread["run_failed"].item()) or float(spread["mean_joint_error"].item()) > 0.01
-    res.figure.savefig(tmp_path / "packing.png")
+    packing.figure(ds).savefig(tmp_path / "packing.png")

@@ -11,7 +11,7 @@ import xarray as xr
 
 from undulate.observables import neighbour_offsets
 from undulate.studies import names, run_study
-from undulate.studies import _common as C
+from undulate.studies import _analysis as C
 from undulate.studies.groups import group_records
 
 
@@ -60,6 +60,8 @@ def test_pairs_quick(pairs_run):
     assert ds.sizes["dphi"] == 9 and list(ds["xi"].values) == [0.0, 0.75, 1.0, 1.5]
     assert ds["dx_steady"].attrs["units"] == "m" and ds["dx"].dims == ("xi", "dphi", "time")
     assert summary["n_runs"] == 36 and summary["n_failed"] == 0
+    doc = json.loads((out / "pairs.json").read_text())
+    assert doc["n_failed"] == 0 and {c["verdict"] for c in doc["claims"]} <= {"holds", "fails"}
     assert 0 <= summary["n_steady"] <= 36 and "steady_rule" in summary and "slope_method" in summary
     per = summary["per_xi"]
     assert set(per) == {"0", "0.75", "1", "1.5"}
@@ -67,9 +69,11 @@ def test_pairs_quick(pairs_run):
         for field in ("slope", "intercept", "rms_residual_over_lambda", "rms_residual_m", "n_steady"):
             assert per[key][field] is not None, (key, field)
     assert per["0"]["slope"] is None and per["0"]["dx_std_m"] >= 0
-    # Under the project's conventions the compatibility slope is +1: the xi = 1 pair follows it.
-    assert 0.75 < per["1"]["slope"] < 1.25
-    assert per["1"]["rms_residual_over_lambda"] < 0.1
+    # Under the project's conventions the compatibility slope is +1: the xi = 1 pair follows it,
+    # and its 95 % interval says so too
+    slope = per["1"]["slope"]
+    assert 0.75 < slope["value"] < 1.25 and slope["stderr"] > 0 and 0.75 < slope["ci95"][0] < slope["ci95"][1] < 1.25
+    assert per["1"]["rms_residual_over_lambda"]["ci95"][1] < 0.1
     # the standing wave has no wavelength: dx/lambda is undefined there
     assert np.isnan(ds["dx_steady_over_lambda"].sel(xi=0.0)).all()
 
@@ -78,13 +82,14 @@ def test_pairs_resume(pairs_run):
     """A second call reuses every stored run and gives the same numbers."""
     out, _ = pairs_run
     before = json.loads((out / "pairs.json").read_text())["summary"]
-    store = out / ".sweeps" / "pairs" / "quick" / "sim"
+    store = out / ".sweeps" / "pairs" / "sim-quick-seed0"
     n_files = len(list((store / "runs").glob("*.nc")))
     assert n_files == 36
     run_study("pairs", out, quick=True)
     after = json.loads((out / "pairs.json").read_text())["summary"]
     assert after["per_xi"]["1"] == before["per_xi"]["1"]
     assert len(list((store / "runs").glob("*.nc"))) == n_files
+    assert json.loads((out / "pairs.json").read_text())["n_computed"] == 0
 
 
 def test_links_quick(links_run):
@@ -96,7 +101,7 @@ def test_links_quick(links_run):
         assert set(per_n) == {"3", "5", "7", "9"}
         for row in per_n.values():
             assert row["n_failed"] == 0
-            assert row["rms_residual_over_lambda"] is not None and row["rms_residual_over_lambda"] >= 0
+            assert row["rms_residual_over_lambda"]["value"] >= 0
         assert isinstance(summary["per_rule"][rule]["rms_falls_with_n"], bool)
     # both rules share the 3-link gait, so they agree there exactly
     a = ds["dx_steady"].sel(n_links=3)
@@ -109,6 +114,7 @@ def test_groups_quick(groups_run):
     per = summary["per_group_size"]
     assert per["3"]["n_runs"] == 9 and per["3"]["n_neighbour_pairs"] == 18
     assert per["4"]["n_runs"] == 8 and per["4"]["n_neighbour_pairs"] == 24
+    assert per["2"]["n_runs"] == 9 and per["2"]["n_neighbour_pairs"] == 9  # the reference pairs
     for row in per.values():
         assert row["n_failed"] == 0 and row["rms_residual_over_lambda"] is not None
     # neighbours are adjacent in the final lateral order and dphi is wrapped
@@ -166,7 +172,7 @@ def test_slope_fit_unwraps_the_pi_ends():
     dphi = C.paper_phases()
     y = dphi / (2 * np.pi)
     y[0] = 0.5  # dphi = -pi landed on the other branch: the same physical state
-    fit = C.slope_fit(y, dphi)
-    assert fit.slope == pytest.approx(1.0) and fit.intercept == pytest.approx(0.0, abs=1e-12)
+    fit = C.compatibility_fit(y, dphi)
+    assert fit.slope.value == pytest.approx(1.0) and fit.intercept.value == pytest.approx(0.0, abs=1e-12)
     raw = np.polyfit(dphi / (2 * np.pi), y, 1)[0]
     assert raw < 0.9  # what a naive fit would give

@@ -44,6 +44,7 @@ def test_compatibility_study_writes_its_files(tmp_path):
         assert ds.attrs["study"] == "compatibility"
         assert json.loads(ds.attrs["study_config"]) == {
             "out_dir": str(out), "quick": True, "scheduler": None, "seed": 3}
+        assert json.loads(ds.attrs["study_identity"])["seed"] == 3
         for key in ("undulate_version", "mujoco_version", "created_utc", "hostname"):
             assert ds.attrs[key]
         # the physics survives the round trip: the region is the closed form
@@ -74,8 +75,10 @@ def temporary_study():
     """Register throwaway studies; remove them afterwards."""
     added = []
 
-    def add(name, run):
-        studies.register(name, description="test", needs_simulation=False)(run)
+    def add(name, make_dataset, figure):
+        studies.register(studies.Study(
+            name=name, description="test", needs_simulation=False, plan=lambda quick: None,
+            dataset=lambda ctx, plan: make_dataset(), summary=lambda ds: {}, figure=lambda ds: figure))
         added.append(name)
 
     yield add
@@ -96,7 +99,7 @@ class _BrokenFigure:
 
 
 def test_failed_write_leaves_nothing(tmp_path, temporary_study):
-    temporary_study("_broken", lambda cfg: studies.StudyResult(_tiny_dataset(), _BrokenFigure(), {}))
+    temporary_study("_broken", _tiny_dataset, _BrokenFigure())
     (tmp_path / "_broken.nc").write_bytes(b"old result")  # an earlier run's file survives intact
     with pytest.raises(OSError, match="disk full"):
         studies.run_study("_broken", tmp_path)
@@ -105,15 +108,27 @@ def test_failed_write_leaves_nothing(tmp_path, temporary_study):
 
 
 def test_variables_without_units_are_refused(tmp_path, temporary_study):
-    def run(cfg):
+    def make():
         ds = _tiny_dataset()
         ds["w"] = ("x", np.ones(3))
-        return studies.StudyResult(ds, _BrokenFigure(), {})
+        return ds
 
-    temporary_study("_unitless", run)
+    temporary_study("_unitless", make, _BrokenFigure())
     with pytest.raises(UndulateError, match="'w'"):
         studies.run_study("_unitless", tmp_path)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_study_in_another_mode_or_seed_is_not_current(tmp_path):
+    studies.run_study("compatibility", tmp_path, quick=True, seed=0)
+    cfg = studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0)
+    assert studies.is_current("compatibility", cfg)
+    assert not studies.is_current("compatibility", studies.StudyConfig(out_dir=tmp_path, quick=True, seed=1))
+    assert not studies.is_current("compatibility", studies.StudyConfig(out_dir=tmp_path, quick=False, seed=0))
+    doc = json.loads((tmp_path / "compatibility.json").read_text())
+    doc["identity"]["code"] = "0" * 16  # as if written by other code
+    (tmp_path / "compatibility.json").write_text(json.dumps(doc))
+    assert not studies.is_current("compatibility", cfg)
 
 
 def test_summary_numbers_become_plain_json():

@@ -232,7 +232,7 @@ def test_sigkill_then_resume(tmp_path):
     assert res.ok
     assert res.n_reused == len(saved) and res.n_computed == grid.n_runs - len(saved)
     assert {p.name: p.stat().st_mtime_ns for p in runs.glob("*.nc") if p.name in saved} == saved  # not redone
-    assert not list(out.rglob("*.tmp"))  # no half-written file survives
+    assert not list(out.rglob("*.tmp*"))  # no half-written file survives
     reference = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "whole", workers=1, progress=False)
     xr.testing.assert_identical(_data(res.dataset), _data(reference.dataset))
 

@@ -8,7 +8,27 @@ from pathlib import Path
 
 from .errors import ParameterError
 
-__all__ = ["check_writable", "_parse_floats"]
+__all__ = ["check_writable", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name"]
+
+
+def _fail(msg: str, code: int) -> None:
+    """Print ``error: msg`` on stderr and exit with ``code`` (2: bad input)."""
+    import typer
+
+    typer.echo(f"error: {msg}", err=True)
+    raise typer.Exit(code)
+
+
+def _cli_name(e: ParameterError, names: dict[str, str]) -> ParameterError:
+    """Re-label a parameter error with the CLI option the user typed."""
+    return ParameterError(names.get(e.name, e.name), e.allowed, e.got)
+
+
+def write_netcdf_atomic(ds, path: Path) -> None:
+    """Write ``ds`` to ``path`` atomically (:func:`undulate._io.write_netcdf`, uncompressed)."""
+    from ._io import write_netcdf
+
+    write_netcdf(ds, path, compress=False)
 
 
 def _parse_floats(name: str, text: str) -> tuple[float, ...]:

@@ -4,7 +4,8 @@ One helper, :func:`atomic_output`, used by every writer (studies, sweeps,
 report, reproduction state, animations, CLI outputs):
 
 1. the content goes to a unique temporary name beside the target
-   (``.NAME.<random>.tmp``: same folder, so the rename is atomic);
+   (``.NAME.<random>.tmp.SUFFIX``: same folder, so the rename is atomic;
+   the suffix kept for writers that choose a format by extension);
 2. the temporary file is flushed to disk (``fsync``) and given the
    permissions a plainly created file would have (``0o666`` less the umask;
    ``mkstemp`` would leave ``0o600``);
@@ -33,7 +34,7 @@ if TYPE_CHECKING:
 __all__ = ["atomic_output", "atomic_write", "atomic_write_bytes", "atomic_write_text", "write_netcdf",
            "remove_temporaries", "TMP_GLOB"]
 
-TMP_GLOB = ".*.tmp"
+TMP_GLOB = ".*.tmp*"
 """Glob of the temporary names :func:`atomic_output` uses."""
 
 
@@ -52,7 +53,8 @@ def _fsync(path: Path) -> None:
 
 
 def _tmp_name(path: Path) -> Path:
-    return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp")
+    # ends with the target's suffix: writers that pick a format by extension (matplotlib) see it
+    return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
 
 
 @contextlib.contextmanager

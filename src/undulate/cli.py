@@ -16,8 +16,17 @@ from typing import Optional
 
 import typer
 
-from ._cliutil import _parse_floats, check_writable  # noqa: F401 - shared with robot.cli
+from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
 from .errors import DivergenceError, ParameterError, UndulateError
+from .params import Channel as _Channel
+from .params import ControllerParams as _ControllerParams
+from .params import Gait as _Gait
+from .params import SimOptions as _SimOptions
+from .params import SwimmerGeometry as _SwimmerGeometry
+
+# Option defaults come from the parameter types themselves (one source of truth; SI -> the
+# CLI's units where an option says DEGREES).
+_GAIT, _GEO, _CHAN, _SIM, _CTRL = _Gait(), _SwimmerGeometry(), _Channel(), _SimOptions(), _ControllerParams()
 
 app = typer.Typer(
     add_completion=False,
@@ -27,36 +36,24 @@ app = typer.Typer(
 )
 
 
-def _fail(msg: str, code: int) -> None:
-    typer.echo(f"error: {msg}", err=True)
-    raise typer.Exit(code)
-
-
-def write_netcdf_atomic(ds, path: Path) -> None:
-    """Write ``ds`` to ``path`` atomically (:func:`undulate._io.write_netcdf`, uncompressed)."""
-    from ._io import write_netcdf
-
-    write_netcdf(ds, path, compress=False)
-
-
 @app.command()
 def simulate(
     phases: str = typer.Option("0,90", help="Gait phase of each swimmer, DEGREES, comma-separated; their count is the number of swimmers (side by side, laterally in contact)."),
-    links: int = typer.Option(3, help="Links per swimmer (>= 2)."),
-    waves_per_body: float = typer.Option(1.0, help="xi = L/lambda, body waves per body length (0 = standing wave)."),
-    amplitude: float = typer.Option(45.0, help="Joint amplitude beta, DEGREES (0, 90]."),
-    frequency: float = typer.Option(0.5, help="Gait frequency f, Hz."),
-    channel_width: float = typer.Option(0.13, help="Wall-to-wall channel width d, m."),
+    links: int = typer.Option(_GEO.n_links, help="Links per swimmer (>= 2)."),
+    waves_per_body: float = typer.Option(_GAIT.waves_per_body, help="xi = L/lambda, body waves per body length (0 = standing wave)."),
+    amplitude: float = typer.Option(round(math.degrees(_GAIT.amplitude_rad), 9), help="Joint amplitude beta, DEGREES (0, 90]."),
+    frequency: float = typer.Option(_GAIT.frequency_hz, help="Gait frequency f, Hz."),
+    channel_width: float = typer.Option(_CHAN.width_m, help="Wall-to-wall channel width d, m."),
     dx0: float = typer.Option(0.0, help="Initial longitudinal offset of each swimmer from the previous one, m."),
     separating_force: float = typer.Option(0.0, help="Longitudinal force, N: +F on the second swimmer and -F on the first."),
-    duration: float = typer.Option(30.0, help="Simulated time, s."),
+    duration: float = typer.Option(_SIM.duration_s, help="Simulated time, s."),
     timestep: Optional[float] = typer.Option(None, help="Integrator time step, s (<= 0.004); default: the step the model needs (2 ms for 3 links, shorter for more links; see README)."),
-    sample_rate: float = typer.Option(20.0, help="Recording rate, Hz."),
-    body_length: float = typer.Option(0.54, help="Total body length L, m."),
-    width: float = typer.Option(0.015, help="Link width w, m."),
-    controller: str = typer.Option("open-loop", help="Gait controller: open-loop (the paper's travelling wave), self-oscillating (joints gated by their sensed turning points) or phase-oscillator (load feedback); see undulate.control."),
-    coupling: float = typer.Option(0.0, help="phase-oscillator load-feedback strength sigma, rad/s per N m (>= 0)."),
-    control_rate: float = typer.Option(100.0, help="Closed-loop control (servo-bus) rate, Hz."),
+    sample_rate: float = typer.Option(_SIM.sample_rate_hz, help="Recording rate, Hz."),
+    body_length: float = typer.Option(_GEO.length_m, help="Total body length L, m."),
+    width: float = typer.Option(_GEO.width_m, help="Link width w, m."),
+    controller: str = typer.Option(_CTRL.kind, help="Gait controller: open-loop (the paper's travelling wave), self-oscillating (joints gated by their sensed turning points) or phase-oscillator (load feedback); see undulate.control."),
+    coupling: float = typer.Option(_CTRL.coupling, help="phase-oscillator load-feedback strength sigma, rad/s per N m (>= 0)."),
+    control_rate: float = typer.Option(_CTRL.control_rate_hz, help="Closed-loop control (servo-bus) rate, Hz."),
     hold_x: bool = typer.Option(False, "--hold-x", help="Lock each swimmer's longitudinal position (lateral motion and rotation stay free)."),
     out: Path = typer.Option(Path("run.nc"), "--out", "-o", help="Output netCDF file."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
@@ -130,11 +127,6 @@ def simulate(
     with ds:
         if not quiet:
             typer.echo(_summary(ds, out))
-
-
-def _cli_name(e: ParameterError, names: dict[str, str]) -> ParameterError:
-    """Re-label a parameter error with the CLI option the user typed."""
-    return ParameterError(names.get(e.name, e.name), e.allowed, e.got)
 
 
 def _summary(ds, out: Path) -> str:

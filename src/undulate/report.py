@@ -18,8 +18,8 @@ from pathlib import Path
 from typing import Any
 
 from ._io import atomic_output
-from .claims import evaluate
 from .provenance import provenance
+from .stats import Estimate
 
 __all__ = ["write_report"]
 
@@ -44,7 +44,9 @@ def _summary_rows(summary: dict[str, Any], prefix: str = "") -> list[tuple[str, 
     for k, v in summary.items():
         if k == "claims":
             continue
-        if isinstance(v, dict) and len(v) <= 12:
+        if isinstance(v, dict) and "value" in v and "ci95" in v:  # an undulate.stats.Estimate
+            rows.append((f"{prefix}{k}", format(Estimate.from_dict(v), ".4g")))
+        elif isinstance(v, dict) and len(v) <= 12:
             rows.extend(_summary_rows(v, f"{prefix}{k}."))
         else:
             rows.append((f"{prefix}{k}", _fmt(v)))
@@ -92,20 +94,23 @@ def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: s
 
     # claims
     add("<h2 id='claims'>The paper's claims</h2>")
-    add("<table><tr><th>study</th><th>claim</th><th>paper</th><th>measured</th><th>holds</th></tr>")
-    summaries = {n: d.get("summary", {}) for n, d in docs.items()}
+    add("<p>Measured values carry 95 % intervals in brackets; every criterion is stated on them. "
+        "Also in <a href='claims.json'>claims.json</a>.</p>")
+    add("<table><tr><th>study</th><th>claim</th><th>paper</th><th>measured</th><th>criterion</th>"
+        "<th>verdict</th></tr>")
     for st in statuses:
         name = st["name"]
-        claims = evaluate(name, summaries) if st.get("ok") else []
         if not st.get("ok"):
-            add(f"<tr><td>{_esc(name)}</td><td colspan='3' class='no'>study failed: {_esc(st.get('error'))}</td>"
+            add(f"<tr><td>{_esc(name)}</td><td colspan='4' class='no'>study failed: {_esc(st.get('error'))}</td>"
                 "<td class='no'>—</td></tr>")
             continue
-        for c in claims:
-            holds = c.get("holds")
-            cls, word = ("ok", "yes") if holds is True else ("no", "no") if holds is False else ("na", "n/a")
+        for c in docs.get(name, {}).get("claims", []):
+            verdict = c.get("verdict")
+            cls = {"holds": "ok", "fails": "no"}.get(verdict, "na")
+            reason = f" ({c['reason']})" if c.get("reason") else ""
             add(f"<tr><td>{_esc(name)}</td><td>{_esc(c.get('claim', ''))}</td><td>{_esc(c.get('paper', ''))}</td>"
-                f"<td>{_esc(c.get('measured', ''))}</td><td class='{cls}'>{word}</td></tr>")
+                f"<td>{_esc(c.get('measured', ''))}</td><td>{_esc(c.get('criterion', ''))}</td>"
+                f"<td class='{cls}'>{_esc(verdict)}{_esc(reason)}</td></tr>")
     add("</table>")
 
     # animations
@@ -131,6 +136,17 @@ def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: s
         add(f"<img class='fig' src='{_esc(name)}.png' alt='{_esc(name)} figure'>")
         links = [f"<a href='{_esc(f)}'>{_esc(f)}</a>" for f in doc.get("files", []) + [f"{name}.json"]]
         add("<p>Files: " + " · ".join(links) + (f" — wall time {wall:.1f} s" if wall is not None else "") + "</p>")
+        add("<details><summary>provenance of this study's files</summary><table>")
+        for k, v in {**doc.get("provenance", {}), **{f"identity.{k}": v for k, v in doc.get("identity", {}).items()}}.items():
+            add(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>")
+        for sw in doc.get("sweeps", []):
+            add(f"<tr><th>sweep {_esc(sw.get('part'))}</th><td><code>{_esc(sw.get('function'))}</code> code "
+                f"{_esc(sw.get('code'))}, undulate {_esc(sw.get('undulate_version'))}: {_esc(sw.get('n_runs'))} runs "
+                f"({_esc(sw.get('n_computed'))} computed, {_esc(sw.get('n_reused'))} reused, "
+                f"{_esc(sw.get('n_failed'))} failed)</td></tr>")
+        add("</table></details>")
+        if doc.get("failures"):
+            add("<div class='failed'>Failed runs:<br>" + "<br>".join(_esc(f) for f in doc["failures"][:20]) + "</div>")
         rows = _summary_rows(doc.get("summary", {}))
         if rows:
             add("<details><summary>summary numbers</summary><table>")
@@ -139,7 +155,8 @@ def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: s
             add("</table></details>")
 
     # provenance
-    add("<h2 id='provenance'>Provenance</h2><table>")
+    add("<h2 id='provenance'>Provenance</h2><p>Of this page (each study's own, recorded when its files "
+        "were written, is under the study).</p><table>")
     info = {**prov, "report_written_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
             "machine": f"{platform.machine()} {platform.system()} {platform.release()}", "mode": mode}
     for k, v in info.items():

@@ -1,8 +1,10 @@
-"""Reproduce the paper: every registered study, three animations, one HTML page.
+"""Reproduce the paper: every registered study, three animations, one HTML page, ``claims.json``.
 
 :func:`reproduce` is resumable at two levels: a study whose ``NAME.json``
-exists from a run in the same mode is not run again, and inside a study the
-sweep engine keeps every finished simulation (``DIR/.sweeps``).  Progress
+was written by this code with the same mode and seed
+(:func:`undulate.studies.is_current`) is not run again, and inside a study
+the sweep engine keeps every finished simulation (``DIR/.sweeps``) and
+recomputes any computed by other code or arguments.  Progress
 and wall times are kept in ``DIR/reproduce.json`` (written atomically after
 every study), so an interrupted reproduction re-run continues where it
 stopped.  A study that raises is recorded as failed; the others go on.
@@ -36,13 +38,13 @@ def _state_path(out: Path) -> Path:
     return out / "reproduce.json"
 
 
-def _load_state(out: Path, mode: str) -> dict:
+def _load_state(out: Path, mode: str, seed: int = 0) -> dict:
     p = _state_path(out)
     if p.is_file():
         st = json.loads(p.read_text())
-        if st.get("mode") == mode:
+        if st.get("mode") == mode and st.get("seed", 0) == seed:
             return st
-    return {"mode": mode, "studies": {}}
+    return {"mode": mode, "seed": seed, "studies": {}}
 
 
 def _save_state(out: Path, state: dict) -> None:
@@ -50,14 +52,11 @@ def _save_state(out: Path, state: dict) -> None:
         tmp.write_text(json.dumps(state, indent=2))
 
 
-def _study_done(out: Path, name: str, quick: bool) -> bool:
-    p = out / f"{name}.json"
-    if not p.is_file():
-        return False
-    try:
-        return bool(json.loads(p.read_text())["config"]["quick"]) == quick
-    except (KeyError, ValueError):
-        return False
+def _study_done(out: Path, name: str, quick: bool, seed: int = 0) -> bool:
+    """``NAME.json`` in ``out`` was written by this code, in this mode, with this seed."""
+    from .studies import StudyConfig, is_current
+
+    return is_current(name, StudyConfig(out_dir=out, quick=quick, seed=seed))
 
 
 def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: float) -> dict:
@@ -98,12 +97,12 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     names = list(studies) if studies is not None else registry.names()
     for n in names:
         registry.describe(n)  # unknown names fail before any work
-    state = _load_state(out, mode)
+    state = _load_state(out, mode, seed)
     t_all = time.perf_counter()
     statuses = []
     for i, name in enumerate(names, 1):
         prev = state["studies"].get(name, {})
-        if _study_done(out, name, quick):
+        if _study_done(out, name, quick, seed):
             log(f"[{i}/{len(names)}] {name}: done earlier ({prev.get('wall_s', float('nan')):.1f} s), kept")
             statuses.append({"name": name, "ok": True, "wall_s": prev.get("wall_s"), "error": None, "reused": True})
             continue
@@ -131,6 +130,9 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
         except Exception as e:  # pragma: no cover - reported in the log and on the page
             log(f"animation {stem}: FAILED: {type(e).__name__}: {e}")
     total = time.perf_counter() - t_all
+    from .claims import collect, write_claims_json
+
+    write_claims_json(out, collect(out, [s["name"] for s in statuses if s.get("ok")]))
     path = write_report(out, statuses, mode=mode, animations=anims,
                         total_wall_s=sum(s["wall_s"] or 0 for s in statuses))
     log(f"wrote {path} ({total:.0f} s this run)")

@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Estimate", "LineFit", "line_fit", "rank_correlation", "rms", "mean", "bootstrap",
+__all__ = ["Estimate", "LineFit", "line_fit", "rank_correlation", "rms", "std", "mean", "bootstrap",
            "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE"]
 
 CONFIDENCE = 0.95
@@ -238,6 +238,15 @@ def rms(values, *, seed: int | None = None) -> Estimate:
 
     se, lo, hi = bootstrap(f, v, seed=seed)
     return Estimate(f(v), se, lo, hi, int(v.size), "bootstrap percentile")
+
+
+def std(values, *, seed: int | None = None) -> Estimate:
+    """Standard deviation (ddof = 0) of the finite ``values``, with a bootstrap 95 % interval."""
+    (v,) = _clean(values)
+    if v.size == 0:
+        return Estimate(math.nan, method="bootstrap percentile")
+    se, lo, hi = bootstrap(lambda a: float(np.std(a)), v, seed=seed)
+    return Estimate(float(np.std(v)), se, lo, hi, int(v.size), "bootstrap percentile")
 
 
 def mean(values) -> Estimate:

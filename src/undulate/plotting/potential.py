@@ -97,6 +97,13 @@ def plot_potential(ds):
         ax_k.plot(R[pos], k[pos], "o-", color=col, label=rf"$\beta$ = {beta[i]:g}$^\circ$")
         ax_d.plot(ds["channel_width"].values[i][pos], k[pos], "o-", color=col)
         ax_0.plot(R, ds["dx0"].values[i], "o-", color=col, label=rf"$\beta$ = {beta[i]:g}$^\circ$")
+        if "stiffness_ci95" in ds:  # 95 % intervals (k: t interval; dx0: bootstrap)
+            ci = ds["stiffness_ci95"].values[i]
+            lo, hi = np.clip(k - ci[:, 0], 0, None), np.clip(ci[:, 1] - k, 0, None)
+            ax_k.errorbar(R[pos], k[pos], yerr=[lo[pos], hi[pos]], fmt="none", color=col, capsize=2)
+            c0, d0 = ds["dx0_ci95"].values[i], ds["dx0"].values[i]
+            ax_0.errorbar(R, d0, yerr=[np.clip(d0 - c0[:, 0], 0, None), np.clip(c0[:, 1] - d0, 0, None)],
+                          fmt="none", color=col, capsize=2)
         ax_0.plot(R, ds["model_dx0_bodies"].values[i], ":", color=col)
     ax_0.plot(R, ds["model_dx0_thin"].values[0], "--", color="k", label=r"model, $\Delta y = d - 2A$")
     ax_0.plot([], [], ":", color="k", label=r"model, $\Delta y = d - 2A - 2w$")

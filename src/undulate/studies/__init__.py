@@ -2,20 +2,26 @@
 
 >>> from undulate import studies
 >>> studies.names()                                   # doctest: +SKIP
-['compatibility', ...]
->>> studies.run_study("compatibility", "results/")    # doctest: +SKIP
-PosixPath('results/compatibility.nc')
+['pairs', 'compatibility', ...]
+>>> studies.run_study("pairs", "results/", quick=True)   # doctest: +SKIP
+PosixPath('results/pairs.nc')
 
-A new study: add a module here that decorates ``run(config) -> StudyResult``
-with :func:`register`, and append its module name to :data:`STUDY_MODULES`.
+A new study: copy the shape of ``pairs.py`` (``plan``, ``dataset``,
+``summary``, ``CLAIMS``, ``figure``, then ``register(Study(...))``) and
+append the module's name to :data:`STUDY_MODULES` (README: "Add a study").
 """
 
 from ._registry import (
     STUDY_MODULES,
+    Claim,
+    Study,
     StudyConfig,
+    StudyContext,
     StudyInfo,
-    StudyResult,
+    Verdict,
     describe,
+    identity,
+    is_current,
     names,
     register,
     run_study,
@@ -23,10 +29,15 @@ from ._registry import (
 
 __all__ = [
     "STUDY_MODULES",
+    "Claim",
+    "Study",
     "StudyConfig",
+    "StudyContext",
     "StudyInfo",
-    "StudyResult",
+    "Verdict",
     "describe",
+    "identity",
+    "is_current",
     "names",
     "register",
     "run_study",

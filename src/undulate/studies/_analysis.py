@@ -1,14 +1,12 @@
-"""Shared pieces of the simulation studies (pairs, links, groups).
+"""Analysis shared by the simulation studies: neighbours, steady state, compatibility fits.
 
-* :func:`simulate_point` is the sweep function they all run through
-  :func:`undulate.sweep.run_sweep`: one scene from a grid point, reduced to a
-  small Dataset (centres, phases, contact force, joint error).
-* :func:`run_points` runs a grid in ``config.out_dir/.sweeps/NAME/MODE`` so
-  that calling the study again resumes (finished runs are reused).
 * :func:`trajectory`, :func:`final_neighbours`, :func:`neighbour_series`
-  and :func:`steady_offsets` turn one run into nearest-neighbour offsets by
-  **lateral order** and their steady values.
-* :func:`slope_fit` and :func:`rms` are the summary statistics.
+  and :func:`steady_offsets` turn one run of :func:`._runners.group_point`
+  into nearest-neighbour offsets by **lateral order** and their steady values;
+  :func:`collect_pairs` does it for an array of pair runs.
+* :func:`compatibility_fit` (slope of ``dx/lambda`` against ``dphi/2pi``,
+  with standard errors) and :func:`rms` (with a bootstrap interval) are the
+  summary statistics, on :mod:`undulate.stats`.
 
 Conventions are those of :mod:`undulate.params`: for lateral neighbours
 (lower, upper in y) ``dx = x_upper - x_lower`` and ``dphi = phi_upper -
@@ -17,59 +15,36 @@ phi_lower``; compatibility is ``dx = lambda (dphi / 2 pi + n)``.
 
 from __future__ import annotations
 
-import functools
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 import xarray as xr
 
-from .. import theory
+from .. import stats, theory
 from ..observables import period_average, steady_state, wrap_angle
-from ..params import Channel, Gait, Scene, SimOptions, SwimmerGeometry
-from ._registry import StudyConfig
+from ._runners import BODY_LENGTH_M, PERIOD_S
 
 __all__ = [
-    "BODY_LENGTH_M",
-    "PERIOD_S",
-    "DURATION_S",
-    "SAMPLE_RATE_HZ",
-    "TIMESTEP_S",
     "STEADY_TOL",
     "STEADY_WINDOW",
     "STEADY_RULE",
     "paper_phases",
     "phase_grid",
-    "simulate_point",
-    "free_amplitude",
-    "sweep_function",
-    "run_points",
     "trajectory",
     "final_neighbours",
     "neighbour_series",
     "steady_offsets",
     "Steady",
-    "SlopeFit",
+    "pair_record",
+    "collect_pairs",
     "SLOPE_METHOD",
     "unwrap_to_line",
-    "slope_fit",
+    "compatibility_fit",
     "band_excess",
     "rms",
 ]
-
-BODY_LENGTH_M = 0.54
-"""L, m (the paper's robots; the SwimmerGeometry default)."""
-PERIOD_S = 2.0
-"""Gait period 1/f at the default f = 0.5 Hz, s."""
-DURATION_S = 30.0
-"""15 gait periods, as the paper's runs, s."""
-SAMPLE_RATE_HZ = 10.0
-"""Recording rate of the studies, Hz (20 samples per period)."""
-TIMESTEP_S = 0.002
-"""Integrator step of the 3-link studies, s (converged: README)."""
 
 STEADY_TOL = 0.01
 """Steady-state tolerance on dx/lambda (dx/L for the standing wave), dimensionless."""
@@ -93,106 +68,6 @@ def phase_grid(n: int) -> np.ndarray:
     With ``n = 8 k + 1`` the grid contains the paper's nine values.
     """
     return np.linspace(-np.pi, np.pi, int(n))
-
-
-# ------------------------------------------------------------ the sweep function
-def simulate_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channel_width_m: float = 0.13,
-                   random_phases: bool = False, duration_s: float = DURATION_S,
-                   sample_rate_hz: float = SAMPLE_RATE_HZ) -> xr.Dataset:
-    """Simulate one scene of a study grid; a small Dataset for the sweep store.
-
-    ``point`` keys (all optional): ``dphi_rad`` (phase step between
-    neighbours in the initial stack, rad: swimmer ``j`` gets ``j dphi``;
-    default 0), ``waves_per_body`` (xi, default 1), ``n_links`` (default 3),
-    ``amplitude_rad`` (beta, default 45 degrees), ``timestep_s`` (default
-    :data:`TIMESTEP_S`).  With ``random_phases`` every swimmer's phase is
-    drawn uniformly from ``[0, 2 pi)`` with ``numpy.random.default_rng(seed)``
-    (the sweep's per-run seed) and ``dphi_rad`` is ignored.  Swimmers start
-    straight, laterally in contact, at dx0 = 0 (paper Methods).
-
-    Returns (dims; units): ``x``, ``y`` (time, swimmer; m) centres of mass,
-    ``phase`` (swimmer; rad), ``joint_error`` (time, swimmer; rad, mean over
-    the joints), ``contact_force_pair`` (time, pair; N, swimmers p and p+1
-    of the initial stack), ``penetration_max`` (m), and the wavelength
-    ``wavelength`` (m, inf for xi = 0).
-    """
-    from ..simulation import simulate
-
-    xi = float(point.get("waves_per_body", 1.0))
-    n_links = int(point.get("n_links", 3))
-    beta = float(point.get("amplitude_rad", math.radians(45.0)))
-    dt = float(point.get("timestep_s", TIMESTEP_S))
-    if random_phases:
-        phases = tuple(np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, n_swimmers))
-    else:
-        phases = tuple(j * float(point.get("dphi_rad", 0.0)) for j in range(n_swimmers))
-    scene = Scene(
-        phases_rad=phases,
-        gait=Gait(amplitude_rad=beta, waves_per_body=xi),
-        geometry=SwimmerGeometry(n_links=n_links, length_m=BODY_LENGTH_M),
-        channel=Channel(width_m=channel_width_m),
-    )
-    ds = simulate(scene, SimOptions(duration_s=duration_s, timestep_s=dt, sample_rate_hz=sample_rate_hz))
-    time = ds["time"].values
-    return xr.Dataset(
-        {
-            "x": (("time", "swimmer"), ds["x"].values, {"units": "m", "long_name": "centre of mass x"}),
-            "y": (("time", "swimmer"), ds["y"].values, {"units": "m", "long_name": "centre of mass y"}),
-            "phase": ("swimmer", np.asarray(phases, float), {"units": "rad", "long_name": "gait phase phi"}),
-            "joint_error": (("time", "swimmer"), ds["joint_error"].values.mean(axis=-1),
-                            {"units": "rad", "long_name": "joint error |alpha - alpha_cmd|, mean over joints"}),
-            "contact_force_pair": (("time", "pair"), ds["contact_force_pair"].values,
-                                   {"units": "N", "long_name": "net contact force between swimmers pair "
-                                                               "and pair+1 of the initial stack"}),
-            "penetration_max": ((), float(ds["penetration"].max()), {"units": "m"}),
-            "wavelength": ((), float(ds.attrs["wavelength"]), {"units": "m"}),
-        },
-        coords={"time": ("time", time, {"units": "s"})},
-    )
-
-
-def free_amplitude(point: dict[str, Any], seed: int, *, periods: int = 3) -> xr.Dataset:
-    """Gait amplitude A (m) of one free swimmer with the gait of ``point``.
-
-    Same point keys as :func:`simulate_point` (``dphi_rad`` is irrelevant).
-    The swimmer runs alone in a wide channel (1 m) for ``periods`` + 1
-    periods; A is :func:`undulate.observables.gait_amplitude` over the last
-    ``periods``.  Returns the scalar ``amplitude`` (m).
-    """
-    from ..observables import gait_amplitude
-    from ..simulation import simulate
-
-    gait = Gait(amplitude_rad=float(point.get("amplitude_rad", math.radians(45.0))),
-                waves_per_body=float(point.get("waves_per_body", 1.0)))
-    scene = Scene(phases_rad=(0.0,), gait=gait,
-                  geometry=SwimmerGeometry(n_links=int(point.get("n_links", 3)), length_m=BODY_LENGTH_M),
-                  channel=Channel(width_m=1.0))
-    dt = float(point.get("timestep_s", TIMESTEP_S))
-    ds = simulate(scene, SimOptions(duration_s=(periods + 1) * gait.period_s, timestep_s=dt,
-                                    sample_rate_hz=min(50.0, 1.0 / dt)))
-    a = gait_amplitude(ds, periods=periods)
-    return xr.Dataset({"amplitude": ((), a, {"units": "m", "long_name": "gait amplitude A of a free swimmer"})})
-
-
-def run_points(config: StudyConfig, name: str, sub: str, fn, grid):
-    """Run ``fn`` over ``grid`` with the sweep engine; resumable.
-
-    The store is ``config.out_dir/.sweeps/NAME/{quick,full}/SUB`` (quick
-    and full grids differ, so they keep separate stores); the Dask
-    scheduler is ``config.scheduler`` (None: every local core).  Failed runs
-    are not raised here: they come back as NaN with ``run_failed`` set, and
-    the studies count them.
-    """
-    from ..sweep import run_sweep
-
-    out = Path(config.out_dir) / ".sweeps" / name / ("quick" if config.quick else "full") / sub
-    out.mkdir(parents=True, exist_ok=True)
-    return run_sweep(fn, grid, out, scheduler=config.scheduler)
-
-
-def sweep_function(**kwargs):
-    """:func:`simulate_point` with fixed keyword arguments (picklable, stable id)."""
-    return functools.partial(simulate_point, **kwargs)
 
 
 # ------------------------------------------------------------------ analysis
@@ -387,15 +262,6 @@ def collect_pairs(runs, failed, dphi_rad, wavelength_m, amplitude_m, dims):
 
 
 # ------------------------------------------------------------------ statistics
-@dataclass(frozen=True)
-class SlopeFit:
-    """Least-squares line ``dx/lambda = slope * dphi/2pi + intercept``."""
-
-    slope: float
-    intercept: float
-    n: int
-
-
 def unwrap_to_line(dx_over_lambda, dphi_rad) -> np.ndarray:
     """Move each ``dx/lambda`` by a whole wavelength onto the branch nearest the line through 0.
 
@@ -410,15 +276,16 @@ def unwrap_to_line(dx_over_lambda, dphi_rad) -> np.ndarray:
 
 
 SLOPE_METHOD = (
-    "ordinary least squares (slope and intercept) of dx/lambda against dphi/2pi over every run "
-    "with a result, after moving each dx/lambda by whole wavelengths onto the branch nearest the "
-    "n = 0 line dx/lambda = dphi/2pi (i.e. dphi/2pi + nearest-branch residual; this undoes the "
-    "wrap at dphi = +-pi, which is one physical state); 'slope_open_interval' is the same fit "
-    "without unwrapping over |dphi| < pi only"
+    "ordinary least squares (scipy.stats.linregress: slope and intercept with standard errors, "
+    "Student-t 95 % intervals; R^2 with a seeded bootstrap interval) of dx/lambda against dphi/2pi "
+    "over every run with a result, after moving each dx/lambda by whole wavelengths onto the branch "
+    "nearest the n = 0 line dx/lambda = dphi/2pi (i.e. dphi/2pi + nearest-branch residual; this "
+    "undoes the wrap at dphi = +-pi, which is one physical state); 'slope_open_interval' is the "
+    "same fit without unwrapping over |dphi| < pi only"
 )
 
 
-def slope_fit(dx_over_lambda, dphi_rad, unwrap: bool = True) -> SlopeFit:
+def compatibility_fit(dx_over_lambda, dphi_rad, unwrap: bool = True) -> stats.LineFit:
     """Fit ``dx/lambda`` against ``dphi/2pi`` (see :data:`SLOPE_METHOD`); NaNs are skipped."""
     y = np.asarray(dx_over_lambda, float).ravel()
     x = np.asarray(dphi_rad, float).ravel()
@@ -426,10 +293,7 @@ def slope_fit(dx_over_lambda, dphi_rad, unwrap: bool = True) -> SlopeFit:
     x, y = x[ok], y[ok]
     if unwrap:
         y = unwrap_to_line(y, x)
-    if x.size < 2 or np.ptp(x) == 0:
-        return SlopeFit(math.nan, math.nan, int(x.size))
-    slope, intercept = np.polyfit(x / (2 * np.pi), y, 1)
-    return SlopeFit(float(slope), float(intercept), int(x.size))
+    return stats.line_fit(x / (2 * np.pi), y)
 
 
 def band_excess(dx_m, dphi_rad, dy_m, amplitude_m, wavelength_m):
@@ -448,8 +312,7 @@ def band_excess(dx_m, dphi_rad, dy_m, amplitude_m, wavelength_m):
     return lam / (2 * np.pi) * np.maximum(0.0, np.abs(psi) - half)
 
 
-def rms(values: Sequence[float] | np.ndarray) -> float:
-    """Root mean square over the finite values (NaN when there are none)."""
-    v = np.asarray(values, float).ravel()
-    v = v[np.isfinite(v)]
-    return float(np.sqrt(np.mean(v * v))) if v.size else math.nan
+def rms(values: Sequence[float] | np.ndarray) -> stats.Estimate:
+    """Root mean square over the finite values, with a seeded bootstrap 95 % interval
+    (:func:`undulate.stats.rms`; NaN when there are none)."""
+    return stats.rms(values)

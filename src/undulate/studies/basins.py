@@ -15,158 +15,39 @@ contact at an offset ``dx0`` (``Scene.dx0_m``), run for 15 periods (30 s).
   sinusoidal theory :func:`undulate.theory.sinusoid_basin_displacement`
   (target ``"line"``, the paper's) with the lateral clearance the channel
   leaves two bodies of width ``w`` and stroke ``A`` (``max(0, d - 2A -
-  2w)``, see :mod:`undulate.studies.potential`; 0 at ``d = 0.13 m``).
+  2w)``, :func:`undulate.theory.lateral_clearance_m`; 0 at ``d = 0.13 m``).
 
-This module also holds the pair runner the other pair studies share:
-:func:`pair_scene` and :func:`pair_point`.
+Runs: :func:`._runners.pair_point`.  The threshold's uncertainty is its
+bracket (the last start that returned, the first that was pushed away).
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from typing import Any
 
 import numpy as np
 
-from .. import theory
-from ..params import Channel, Gait, Ground, Scene, SimOptions, SwimmerGeometry
-from ._registry import StudyConfig, StudyResult, register
-from .packing import measure_lone_swimmers, round_amplitude, study_sweep
+from .. import stats, theory
+from ..params import Gait, SwimmerGeometry
+from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._runners import PAIR_DURATION_S, PAIR_WIDTH_M, pair_point
 
 __all__ = [
-    "PAIR_WIDTH_M",
     "RETURN_TOL",
-    "pair_scene",
-    "pair_point",
     "BasinsPlan",
     "plan",
     "returns_to_zero",
     "bracket_threshold",
-    "compute",
+    "dataset",
+    "summary",
+    "CLAIMS",
 ]
 
-PAIR_WIDTH_M = 0.13
-"""Channel width of the pair studies, m (paper: 13 cm)."""
-DURATION_S = 30.0
-"""Pair runs last 15 gait periods, s (the paper's experiments)."""
-RECORD_HZ = 5.0
-"""Rate at which dx(t) is kept in the study data, Hz."""
-STEADY_TOL = 0.01
-"""Steady-state rule for dx/lambda (observables.steady_state): last 3 period means within this."""
+DURATION_S = PAIR_DURATION_S
 RETURN_TOL = 0.05
 """A dphi = 0 start 'returns to the compatible state' when its final |dx/lambda| < RETURN_TOL."""
-
-_PAIR_KEYS = ("dx0_over_lambda", "dphi_rad", "phi0_rad", "channel_width_m", "d_over_2A", "amplitude_m",
-              "amplitude_rad", "force_N", "ground", "waves_per_body")
-
-
-def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: float = 0.0) -> Scene:
-    """The pair scene of a sweep point.
-
-    Keys (all optional): ``dx0_over_lambda`` (initial x_b - x_a over lambda;
-    0), ``dphi_rad`` (phi_b - phi_a, rad; 0), ``phi0_rad`` (phase of swimmer
-    a, rad; 0), ``channel_width_m`` (d, m; 0.13) or ``d_over_2A`` (d over
-    twice the gait amplitude, given by the key ``amplitude_m`` (m) or else the
-    keyword ``amplitude_m``),
-    ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body`` (xi; 1),
-    ``force_N`` (dF, N: swimmer a is pushed toward -x and b toward +x, from
-    ``force_onset_s``; 0), ``ground`` (``"viscous"`` or ``"swimming"``).
-    """
-    unknown = set(point) - set(_PAIR_KEYS)
-    if unknown:
-        from ..errors import ParameterError
-
-        raise ParameterError("point", f"keys among {_PAIR_KEYS}", sorted(unknown))
-    gait = Gait(amplitude_rad=float(point.get("amplitude_rad", Gait().amplitude_rad)),
-                waves_per_body=float(point.get("waves_per_body", 1.0)))
-    geo = SwimmerGeometry()
-    lam = gait.wavelength_m(geo.length_m)
-    if "d_over_2A" in point:
-        amp = point.get("amplitude_m", amplitude_m)
-        if amp is None:
-            raise ValueError("d_over_2A needs amplitude_m")
-        width = float(point["d_over_2A"]) * 2.0 * float(amp)
-    else:
-        width = float(point.get("channel_width_m", PAIR_WIDTH_M))
-    ground = Ground.swimming() if point.get("ground", "viscous") == "swimming" else Ground()
-    f = float(point.get("force_N", 0.0))
-    return Scene(
-        phases_rad=(float(point.get("phi0_rad", 0.0)),
-                    float(point.get("phi0_rad", 0.0)) + float(point.get("dphi_rad", 0.0))),
-        gait=gait,
-        geometry=geo,
-        ground=ground,
-        channel=Channel(width_m=width),
-        dx0_m=float(point.get("dx0_over_lambda", 0.0)) * lam,
-        forces_N=(-f, f) if f else None,
-        force_onset_s=float(force_onset_s) if f else 0.0,
-    )
-
-
-def pair_point(point: dict, seed: int, *, duration_s: float = DURATION_S,
-               amplitude_m: float | None = None, force_onset_s: float = 0.0,
-               record_hz: float = RECORD_HZ):
-    """One pair run (sweep function): the offsets over time and their summary.
-
-    ``point``: see :func:`pair_scene`.  Returns (``dx = x_1 - x_0``, swimmer
-    1 the one that starts above, with phase ``dphi``; ``swapped_sides`` flags
-    a run in which the two changed lateral order at some time, which in the
-    lateral-order convention flips the signs of dx and dphi together):
-    ``dx_over_lambda(time)`` at ``record_hz``;
-    ``dx_period_over_lambda(period_time)`` (whole-period means);
-    ``dx_final_over_lambda`` (mean of the last 3 periods), ``steady``
-    (``observables.steady_state``, tolerance :data:`STEADY_TOL`),
-    ``settle_time_s``; ``dy_final_m``; ``impulse_2T_Ns`` (swimmer-swimmer
-    contact impulse over the first two periods); ``mean_joint_error_rad``
-    (t >= one period); ``speed_m_s`` (the pair's mean speed toward -x over
-    the last 3 periods); ``max_penetration_m``.  ``seed`` is unused.
-    """
-    import xarray as xr
-
-    from ..observables import contact_impulse, neighbour_offsets, period_average, steady_state
-    from ..simulation import simulate
-
-    scene = pair_scene(point, amplitude_m=amplitude_m, force_onset_s=force_onset_s)
-    ds = simulate(scene, SimOptions(duration_s=duration_s))
-    lam = scene.wavelength_m
-    T = scene.gait.period_s
-    # dx = x_1 - x_0 and dy = y_1 - y_0 in the initial labels (swimmer 1 starts above
-    # swimmer 0 and has phase dphi): the lateral-order convention as long as the two
-    # do not swap sides, and the same physics (dx, dphi -> -dx, -dphi) if they do.
-    off = neighbour_offsets(ds).isel(pair=0)
-    sign = xr.where(off["lower"] == 0, 1.0, -1.0)
-    swapped = bool((sign < 0).any())
-    off = off.assign(dx=off["dx"] * sign, dy=off["dy"] * sign)
-    dxl = off["dx"] / lam
-    pa = period_average(dxl, T)
-    st = steady_state(dxl, T, tol=STEADY_TOL)
-    dy = period_average(off["dy"], T)
-    xc = period_average(ds["x"].mean("swimmer"), T).values
-    every = max(1, int(round(1.0 / (record_hz * float(ds.attrs["sample_interval"])))))
-    rec = dxl.isel(time=slice(0, None, every))
-    imp = float(contact_impulse(ds, 0.0, 2 * T)["pair"].isel(pair=0))
-    je = float(ds["joint_error"].where(ds["time"] >= T).mean())
-    one = {"units": "1"}
-    return xr.Dataset(
-        {
-            "dx_over_lambda": (("time",), rec.values, {**one, "long_name": "dx / lambda"}),
-            "dx_period_over_lambda": (("period_time",), pa.values, {**one, "long_name": "period mean of dx / lambda"}),
-            "dx_final_over_lambda": ((), float(st["value"]), {**one, "long_name": "final dx / lambda (last 3 periods)"}),
-            "steady": ((), bool(st["steady"])),
-            "settle_time_s": ((), float(st["settle_time"]), {"units": "s"}),
-            "dy_final_m": ((), float(dy.values[-3:].mean()), {"units": "m", "long_name": "final dy"}),
-            "impulse_2T_Ns": ((), imp, {"units": "N s", "long_name": "pair contact impulse over the first 2 periods"}),
-            "mean_joint_error_rad": ((), je, {"units": "rad"}),
-            "speed_m_s": ((), float((xc[-4] - xc[-1]) / (3 * T)) if xc.size >= 4 else float("nan"),
-                          {"units": "m/s", "long_name": "pair speed toward -x, last 3 periods"}),
-            "max_penetration_m": ((), float(ds["penetration"].max()), {"units": "m"}),
-            "swapped_sides": ((), swapped),
-        },
-        coords={
-            "time": ("time", rec["time"].values, {"units": "s"}),
-            "period_time": ("period_time", pa["time"].values, {"units": "s"}),
-        },
-    )
 
 
 # ----------------------------------------------------------------- thresholds
@@ -216,12 +97,12 @@ def plan(quick: bool) -> BasinsPlan:
     return BasinsPlan(np.linspace(-1, 1, 41), 19, np.linspace(-1, 1, 41), np.linspace(-np.pi, np.pi, 41))
 
 
-def _scan(config, name, part, starts, duration_s, progress=True):
+def _scan(ctx: StudyContext, part, starts, duration_s):
     from ..sweep import Grid
 
     fn = functools.partial(pair_point, duration_s=duration_s)
-    grid = Grid(axes={"dx0_over_lambda": sorted(set(round(v, 12) for v in starts))}, seed=config.seed)
-    return study_sweep(config, name, part, fn, grid, progress=progress)
+    grid = Grid(axes={"dx0_over_lambda": sorted(set(round(v, 12) for v in starts))}, seed=ctx.config.seed)
+    return ctx.sweep(part, fn, grid)
 
 
 def _refinement(scan_dx0, final, n: int) -> list[float]:
@@ -236,27 +117,22 @@ def _refinement(scan_dx0, final, n: int) -> list[float]:
     return out
 
 
-def compute(config: StudyConfig, p: BasinsPlan) -> StudyResult:
-    """Run the basins study on plan ``p`` (used by :func:`run` and the tests)."""
+def dataset(ctx: StudyContext, p: BasinsPlan):
+    """Run the basins study on plan ``p``: the dphi = 0 scan and its refinement, then the grid."""
     import xarray as xr
 
-    from ..plotting.basins import plot_basins
     from ..sweep import Grid
 
     geo = SwimmerGeometry()
     lam = Gait().wavelength_m(geo.length_m)
-    lone = measure_lone_swimmers(config, "basins", [Gait().amplitude_rad])
-    amp = round_amplitude(float(lone["amplitude_m"].item()))
+    amp = float(ctx.lone_swimmer()["amplitude_m"])
 
     # 8a: coarse scan at dphi = 0, then refine each side's bracket
-    scan = _scan(config, "basins", "scan", p.scan_dx0, p.duration_s)
-    s0 = scan.dataset.isel(replicate=0)
+    s0 = _scan(ctx, "scan", p.scan_dx0, p.duration_s).isel(replicate=0)
     extra = _refinement(s0["dx0_over_lambda"].values, s0["dx_final_over_lambda"].values, p.refine)
-    failures = list(scan.failures)
     if extra:
-        ref = _scan(config, "basins", "refine", extra, p.duration_s)
-        failures += ref.failures
-        s0 = xr.concat([s0, ref.dataset.isel(replicate=0)], dim="dx0_over_lambda").sortby("dx0_over_lambda")
+        ref = _scan(ctx, "refine", extra, p.duration_s)
+        s0 = xr.concat([s0, ref.isel(replicate=0)], dim="dx0_over_lambda").sortby("dx0_over_lambda")
     x0 = s0["dx0_over_lambda"].values
     xf = s0["dx_final_over_lambda"].values
     ret = returns_to_zero(xf) & np.isfinite(xf)
@@ -267,10 +143,8 @@ def compute(config: StudyConfig, p: BasinsPlan) -> StudyResult:
 
     # 8b: the (dx0, dphi) grid
     fn = functools.partial(pair_point, duration_s=p.duration_s)
-    grid = Grid(axes={"dx0_over_lambda": p.grid_dx0, "dphi_rad": p.grid_dphi}, seed=config.seed)
-    gres = study_sweep(config, "basins", "grid", fn, grid)
-    failures += gres.failures
-    g = gres.dataset.isel(replicate=0)
+    grid = Grid(axes={"dx0_over_lambda": p.grid_dx0, "dphi_rad": p.grid_dphi}, seed=ctx.config.seed)
+    g = ctx.sweep("grid", fn, grid).isel(replicate=0)
     X0, P = np.meshgrid(g["dx0_over_lambda"].values, g["dphi_rad"].values, indexing="ij")
     clearance = theory.lateral_clearance_m(PAIR_WIDTH_M, amp, geo.width_m)
     th = theory.sinusoid_basin_displacement(X0 * lam, P, amp, lam, dy_m=clearance) / lam
@@ -310,22 +184,35 @@ def compute(config: StudyConfig, p: BasinsPlan) -> StudyResult:
             "threshold_negative": list(sides["negative"]),
         },
     )
-    summary = _summary(ds, sides, failures, [scan, gres])
-    return StudyResult(dataset=ds, figure=plot_basins(ds), summary=summary)
+    return ds
 
 
-def _summary(ds, sides, failures, results) -> dict[str, Any]:
+def _pearson(a, b) -> float:
+    if np.ptp(a) == 0 or np.ptp(b) == 0:
+        return math.nan
+    return float(np.corrcoef(a, b)[0, 1])
+
+
+def summary(ds) -> dict[str, Any]:
+    """Pure: return thresholds (bracket as interval), counts of outcomes, agreement of the grid
+    with the sinusoid model (Pearson r with a bootstrap interval)."""
     sim = ds["grid_displacement_over_lambda"].values
     th = ds["theory_displacement_over_lambda"].values
     ok = np.isfinite(sim)
     big = ok & (np.abs(th) > 0.02)
     agree = float(np.mean(np.sign(sim[big]) == np.sign(th[big]))) if big.any() else float("nan")
-    corr = float(np.corrcoef(sim[ok].ravel(), th[ok].ravel())[0, 1]) if ok.sum() > 2 else float("nan")
+    corr = _pearson(sim[ok].ravel(), th[ok].ravel()) if ok.sum() > 2 else float("nan")
+    se, lo, hi = stats.bootstrap(_pearson, sim[ok].ravel(), th[ok].ravel())
+    sides = {"positive": ds.attrs["threshold_positive"], "negative": ds.attrs["threshold_negative"]}
     thr = {}
     for label, (inner, outer) in sides.items():
+        inner, outer = float(inner), float(outer)
         mid = 0.5 * (inner + outer) if np.isfinite(inner) and np.isfinite(outer) else float("nan")
+        est = stats.Estimate(mid, math.nan, min(inner, outer), max(inner, outer), 0,
+                             "bracket: last start that returned .. first pushed away") if np.isfinite(mid) \
+            else stats.Estimate(math.nan, method="not bracketed")
         thr[label] = {"last_returning_dx0_over_lambda": inner, "first_pushed_dx0_over_lambda": outer,
-                      "threshold_dx0_over_lambda": mid,
+                      "threshold_dx0_over_lambda": est.to_dict(),
                       "resolution": abs(outer - inner) / 2 if np.isfinite(mid) else None}
     ret = ds["scan_returned"].values
     far = ~ret & np.isfinite(ds["scan_dx_final_over_lambda"].values)
@@ -341,18 +228,43 @@ def _summary(ds, sides, failures, results) -> dict[str, Any]:
         "n_neither": int((far & ~pushed_away).sum()),
         "grid_shape": list(sim.shape),
         "grid_sign_agreement_with_theory": agree,
-        "grid_correlation_with_theory": corr,
+        "grid_correlation_with_theory": stats.Estimate(corr, se, lo, hi, int(ok.sum()),
+                                                       "Pearson r, bootstrap percentile").to_dict(),
         "grid_not_steady": int((~ds["grid_steady"].values).sum()),
-        "n_failed": len(failures),
-        "failures": [str(f) for f in failures[:20]],
-        "sweep_elapsed_s": float(sum(r.elapsed_s for r in results)),
+        "n_grid_failed": int(ds["grid_run_failed"].values.sum()),
         "rule": f"returned: final |dx/lambda| < {RETURN_TOL} (mean of the last 3 of 15 periods)",
     }
 
 
-@register("basins", paper_figure="8",
-          description="Pairs at d = 0.13 m from a range of initial offsets: dx(t) at dphi = 0 and "
-                      "its return threshold; the map of dx_f - dx0 over (dx0/lambda, dphi) beside "
-                      "the sinusoidal basin model.")
-def run(config: StudyConfig) -> StudyResult:
-    return compute(config, plan(config.quick))
+E = stats.Estimate.from_dict
+
+
+def _return_and_push(s: dict) -> Verdict:
+    ret, away = s["n_returned"], s["n_pushed_away_from_zero"]
+    tp = E(s["return_threshold"]["positive"]["threshold_dx0_over_lambda"])
+    tn = E(s["return_threshold"]["negative"]["threshold_dx0_over_lambda"])
+    measured = (f"{ret} of {s['n_starts_dphi0']} starts returned, {away} were pushed away; return threshold "
+                f"dx0/lambda = {tn:+.3f} / {tp:+.3f} (bracket)")
+    value = {"n_returned": ret, "n_pushed_away": away,
+             "threshold_negative": tn.to_dict(), "threshold_positive": tp.to_dict()}
+    return Verdict.judged(ret > 0 and away > 0 and tp.has_interval and tn.has_interval, measured, value)
+
+
+CLAIMS = (
+    Claim("dphi = 0 pairs return to dx = 0 from nearby starts and are pushed away from far ones",
+          "starts close enough to zero evolve to dx_f = 0; beyond a threshold (withheld) they are pushed away",
+          "both behaviours occur and the return threshold is bracketed on both sides", _return_and_push),
+)
+
+
+def figure(ds):
+    from ..plotting.basins import plot_basins
+
+    return plot_basins(ds)
+
+
+register(Study(
+    name="basins", paper_figure="8", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    description="Pairs at d = 0.13 m from a range of initial offsets: dx(t) at dphi = 0 and "
+                "its return threshold; the map of dx_f - dx0 over (dx0/lambda, dphi) beside "
+                "the sinusoidal basin model."))

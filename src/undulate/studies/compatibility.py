@@ -8,10 +8,15 @@ wavelength lambda (it is evaluated with A = 1/2, lambda = 1).
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from .. import theory
-from ._registry import StudyConfig, StudyResult, register
+from ._registry import Study, StudyContext, register
+
+if TYPE_CHECKING:
+    import xarray as xr
 
 SECTIONS_DY_OVER_2A = (0.2, 0.5, 0.9)
 
@@ -80,13 +85,17 @@ def compatibility_dataset(dphi_rad, dx_over_lambda, dy_over_2A):
     )
 
 
-@register("compatibility", needs_simulation=False, paper_figure="4",
-          description="Gait-compatibility region of two sinusoids in (dphi, dx/lambda, dy/2A) "
-                      "and its sections at dy/2A = 0.2, 0.5, 0.9.")
-def run(config: StudyConfig) -> StudyResult:
-    from ..plotting.compatibility import plot_compatibility
+def plan(quick: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The (dphi, dx/lambda, dy/2A) axes: quick 121 x 121 x 16, full 361 x 401 x 49+."""
+    return _grid(quick)
 
-    ds = compatibility_dataset(*_grid(config.quick))
+
+def dataset(ctx: StudyContext, p) -> "xr.Dataset":
+    return compatibility_dataset(*p)
+
+
+def summary(ds) -> dict:
+    """Pure: the section fractions against their closed form (a quadrature, no fit: no uncertainty)."""
     err = np.abs(ds["compatible_fraction"] - ds["compatible_fraction_theory"])
     sections = {
         f"{s:g}": {
@@ -97,10 +106,22 @@ def run(config: StudyConfig) -> StudyResult:
         for s in SECTIONS_DY_OVER_2A
     }
     fully = ds["dy_over_2A"].where(ds["compatible"].all(("dphi", "dx_over_lambda")), drop=True)
-    summary = {
+    return {
         "sections": sections,
         "max_abs_fraction_error": float(err.max()),
         "smallest_dy_over_2A_all_compatible": float(fully.min()) if fully.size else None,
         "grid_shape": [int(n) for n in ds["compatible"].shape],
     }
-    return StudyResult(dataset=ds, figure=plot_compatibility(ds), summary=summary)
+
+
+def figure(ds):
+    from ..plotting.compatibility import plot_compatibility
+
+    return plot_compatibility(ds)
+
+
+register(Study(
+    name="compatibility", needs_simulation=False, paper_figure="4", plan=plan, dataset=dataset,
+    summary=summary, figure=figure,
+    description="Gait-compatibility region of two sinusoids in (dphi, dx/lambda, dy/2A) "
+                "and its sections at dy/2A = 0.2, 0.5, 0.9."))

@@ -14,7 +14,10 @@ those final offsets (:func:`central_state`); a pair that always returns to
 exactly 0 has width 0.  The compatibility model predicts a band of
 half-width ``(1 / pi) arcsin(dy / 2A)`` (in lambda) for a lateral clearance
 ``dy`` (see :mod:`undulate.studies.potential` for the clearance the walls
-leave): the model widths are stored beside the measured ones.
+leave, :func:`undulate.theory.neutral_offset_m`): the model widths are
+stored beside the measured ones.  The width is a range of final offsets,
+not a fitted number: its resolution is set by the time the runs settle,
+not by sampling, so it carries no interval.
 """
 
 from __future__ import annotations
@@ -25,11 +28,11 @@ from typing import Any
 import numpy as np
 
 from ..params import Gait, SwimmerGeometry
-from ._registry import StudyConfig, StudyResult, register
-from .basins import pair_point
-from .packing import measure_lone_swimmers, round_amplitude, study_sweep
+from ..theory import neutral_offset_m
+from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._runners import pair_point
 
-__all__ = ["ConfinementPlan", "plan", "central_state", "compute", "PAPER_RANGE"]
+__all__ = ["ConfinementPlan", "plan", "central_state", "dataset", "summary", "CLAIMS", "PAPER_RANGE"]
 
 DURATION_S = 40.0
 """20 gait periods, s: long enough for the widest channels' central state to settle."""
@@ -72,22 +75,19 @@ def central_state(dx0, dx_final) -> dict[str, float]:
             "basin_lo": float(x0[c].min()), "basin_hi": float(x0[c].max()), "n": int(c.sum())}
 
 
-def compute(config: StudyConfig, p: ConfinementPlan) -> StudyResult:
-    """Run the confinement study on plan ``p`` (used by :func:`run` and the tests)."""
+def dataset(ctx: StudyContext, p: ConfinementPlan):
+    """Run the confinement study on plan ``p``: the free swimmer's A sets every d, then the grid."""
     import xarray as xr
 
-    from ..plotting.confinement import plot_confinement
     from ..sweep import Grid
-    from ..theory import neutral_offset_m as model_dx0_m
 
+    model_dx0_m = neutral_offset_m
     geo = SwimmerGeometry()
     lam = Gait().wavelength_m(geo.length_m)
-    lone = measure_lone_swimmers(config, "confinement", [Gait().amplitude_rad])
-    amp = round_amplitude(float(lone["amplitude_m"].item()))
+    amp = float(ctx.lone_swimmer()["amplitude_m"])
     fn = functools.partial(pair_point, duration_s=p.duration_s, amplitude_m=amp)
-    grid = Grid(axes={"d_over_2A": p.d_over_2A, "dx0_over_lambda": p.dx0_over_lambda}, seed=config.seed)
-    res = study_sweep(config, "confinement", "grid", fn, grid)
-    g = res.dataset.isel(replicate=0)
+    grid = Grid(axes={"d_over_2A": p.d_over_2A, "dx0_over_lambda": p.dx0_over_lambda}, seed=ctx.config.seed)
+    g = ctx.sweep("grid", fn, grid).isel(replicate=0)
     xf = g["dx_final_over_lambda"].values
     x0 = g["dx0_over_lambda"].values
     stats = [central_state(x0, xf[i]) for i in range(xf.shape[0])]
@@ -126,11 +126,11 @@ def compute(config: StudyConfig, p: ConfinementPlan) -> StudyResult:
         attrs={"title": "final offset against start per confinement, dphi = 0 (paper Fig. 9)",
                "duration_s": p.duration_s, "paper_range_d_over_2A": list(PAPER_RANGE)},
     )
-    summary = _summary(ds, res)
-    return StudyResult(dataset=ds, figure=plot_confinement(ds), summary=summary)
+    return ds
 
 
-def _summary(ds, res) -> dict[str, Any]:
+def summary(ds) -> dict[str, Any]:
+    """Pure: the central state's width per confinement, the model's, and whether it grows."""
     r = ds["d_over_2A"].values
     w = ds["central_width"].values
     in_paper = (r >= PAPER_RANGE[0] - 1e-9) & (r <= PAPER_RANGE[1] + 1e-9)
@@ -150,16 +150,44 @@ def _summary(ds, res) -> dict[str, Any]:
         "smallest_d_over_2A_with_width_above_0.01": float(broad.min()) if broad.size else None,
         "max_width_in_paper_range": float(np.nanmax(w[in_paper])) if np.any(in_paper & ok) else None,
         "n_runs": int(ds["run_failed"].size),
-        "n_failed": len(res.failures),
-        "failures": [str(f) for f in res.failures[:20]],
+        "n_failed": int(ds["run_failed"].values.sum()),
         "n_not_steady": int((~ds["steady"].values & ~ds["run_failed"].values).sum()),
-        "sweep_elapsed_s": float(res.elapsed_s),
         "rule": f"central state: final |dx/lambda| < {CENTRAL}; final = mean of the last 3 periods",
     }
 
 
-@register("confinement", paper_figure="9",
-          description="dphi = 0 pairs from dx0/lambda in [-1, 1] in channels of d/2A = 0.6 to 1.2 "
-                      "(and wider): final dx/lambda against the start; width of the central state.")
-def run(config: StudyConfig) -> StudyResult:
-    return compute(config, plan(config.quick))
+WIDTH_TOL = 0.01
+"""Width (lambda) below which the central state counts as a point; and the allowed shrink per step."""
+
+
+def _broadens(s: dict) -> Verdict:
+    d, w = s["d_over_2A"], s["central_width_over_lambda"]
+    inside = s["max_width_in_paper_range"]
+    measured = ("width of the central state / lambda at d/2A = "
+                + ", ".join(f"{a:.2f}: {'n/a' if x is None or not np.isfinite(x) else format(x, '.3f')}"
+                            for a, x in zip(d, w)))
+    value = {"d_over_2A": list(d), "central_width_over_lambda": list(w)}
+    if inside is None or s["width_never_shrinks_with_d"] is None:
+        return Verdict.none("no start ended in the central state within the paper's range", measured, value)
+    return Verdict.judged(inside > WIDTH_TOL and s["width_never_shrinks_with_d"] is True, measured, value)
+
+
+CLAIMS = (
+    Claim("the central (dx = 0) state broadens as the confinement d/2A grows (over 0.6-1.2)",
+          "increasing the wall distance increased the range of final spacings; the central state broadened",
+          f"the width never shrinks by more than {WIDTH_TOL} lambda from one d/2A to the next and exceeds "
+          f"{WIDTH_TOL} lambda within d/2A <= 1.2", _broadens),
+)
+
+
+def figure(ds):
+    from ..plotting.confinement import plot_confinement
+
+    return plot_confinement(ds)
+
+
+register(Study(
+    name="confinement", paper_figure="9", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS,
+    figure=figure,
+    description="dphi = 0 pairs from dx0/lambda in [-1, 1] in channels of d/2A = 0.6 to 1.2 "
+                "(and wider): final dx/lambda against the start; width of the central state."))

@@ -9,7 +9,7 @@ full: 40).  xi = 1, 30 s, start straight, laterally in contact, dx0 = 0.
 
 Neighbours are identified by **lateral order** at the end of the run (the
 order of the swimmers' mean y over the steady-state window,
-``_common.final_neighbours``): for each neighbouring pair ``dx = x_upper -
+``_analysis.final_neighbours``): for each neighbouring pair ``dx = x_upper -
 x_lower`` and ``dphi = wrap(phi_upper - phi_lower)`` into (-pi, pi].  The
 steady dx is compared with the compatibility branches ``lambda (dphi/2pi +
 n)``.
@@ -17,13 +17,18 @@ n)``.
 
 from __future__ import annotations
 
+import functools
+from collections.abc import Callable
+from dataclasses import dataclass
+
 import numpy as np
 import xarray as xr
 
-from .. import theory
+from .. import stats, theory
 from ..sweep import Grid
-from . import _common as C
-from ._registry import StudyConfig, StudyResult, register
+from . import _analysis as C
+from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._runners import BODY_LENGTH_M, DURATION_S, group_point
 
 XI = 1.0
 CHANNEL_WIDTH_M = {3: 0.19, 4: 0.22}
@@ -53,16 +58,44 @@ NEIGHBOUR_FLAGS = {
 }
 
 
-def phases(quick: bool) -> np.ndarray:
-    return C.paper_phases() if quick else C.phase_grid(FULL_PHASES)
+PAIR_CHANNEL_WIDTH_M = 0.13
+"""The reference pairs (same xi, same dphi as the groups of three) run in the pair channel, m."""
+
+
+@dataclass(frozen=True)
+class Plan:
+    """``dphi_rad`` (rad) of the groups of three (and of the reference pairs); ``draws`` of four."""
+
+    dphi_rad: tuple[float, ...]
+    draws: int
+
+
+def plan(quick: bool) -> Plan:
+    """Quick: nine dphi, 8 draws of four; full: 33 dphi, 40 draws."""
+    return Plan(tuple(float(p) for p in (C.paper_phases() if quick else C.phase_grid(FULL_PHASES))),
+                N_DRAWS[bool(quick)])
+
+
+def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
+    """Groups of three and four, and pairs at the same dphi (the scatter they are compared with)."""
+    seed = ctx.config.seed
+    three = ctx.sweep("three", functools.partial(group_point, n_swimmers=3, channel_width_m=CHANNEL_WIDTH_M[3]),
+                      Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
+    four = ctx.sweep("four", functools.partial(group_point, n_swimmers=4, channel_width_m=CHANNEL_WIDTH_M[4],
+                                                random_phases=True),
+                     Grid(axes={"waves_per_body": [XI]}, replicates=p.draws, seed=seed))
+    two = ctx.sweep("pairs", functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_WIDTH_M),
+                    Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
+    A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
+    return groups_dataset({2: two, 3: three, 4: four}, A)
 
 
 def group_records(traj: xr.Dataset, amplitude_m: float) -> list[dict]:
     """Nearest-neighbour steady offsets of one group run, bottom to top.
 
-    ``traj``: a trajectory (:func:`_common.trajectory`: ``x``, ``y``,
+    ``traj``: a trajectory (:func:`_analysis.trajectory`: ``x``, ``y``,
     ``phase``, attrs ``wavelength`` and ``period``).  Neighbours are taken in
-    the lateral order at the end of the run (:func:`_common.final_neighbours`)
+    the lateral order at the end of the run (:func:`_analysis.final_neighbours`)
     and followed by id over the whole run, so a swap on the way does not
     break the series.  One dict per neighbouring pair with the keys of
     :data:`NEIGHBOUR_FIELDS` (but ``group_size`` and ``run_index``) and
@@ -98,7 +131,7 @@ def _runs(sweep: xr.Dataset):
 
 def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Dataset:
     """Study dataset: one row per nearest-neighbour pair, and the trajectories per run."""
-    lam = C.BODY_LENGTH_M / XI
+    lam = BODY_LENGTH_M / XI
     rows: list[dict] = []
     run_size, run_failed, xs, ys, phs = [], [], [], [], []
     time = next(iter(sweeps.values()))["time"].values
@@ -158,36 +191,38 @@ def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Data
             "channel_width_4_m": CHANNEL_WIDTH_M[4],
             "phases_3": "(0, dphi, 2 dphi) bottom to top",
             "phases_4": "each uniform in [0, 2 pi), numpy default_rng(run seed)",
-            "duration_s": C.DURATION_S,
+            "duration_s": DURATION_S,
             "steady_rule": C.STEADY_RULE,
             "slope_method": C.SLOPE_METHOD,
         },
     )
 
 
-def groups_summary(ds: xr.Dataset) -> dict:
+def summary(ds: xr.Dataset) -> dict:
+    """Pure: per group size (2 = the reference pairs) slope (standard error) and RMS residual
+    (bootstrap interval) over nearest-neighbour pairs."""
     per = {}
-    for n in (3, 4):
+    for n in (2, 3, 4):
         sel = ds["group_size"].values == n
         runs = ds["run_group_size"].values == n
         res = ds["residual_over_lambda"].values[sel]
-        fit = C.slope_fit(ds["dx_steady_over_lambda"].values[sel], ds["dphi"].values[sel])
+        fit = C.compatibility_fit(ds["dx_steady_over_lambda"].values[sel], ds["dphi"].values[sel])
         run_of = ds["run_index"].values[sel]
         changed = [bool(ds["order_changed"].values[sel][run_of == r][0]) for r in np.unique(run_of)]
         per[str(n)] = {
             "group_size": n,
-            "channel_width_m": CHANNEL_WIDTH_M[n],
+            "channel_width_m": CHANNEL_WIDTH_M.get(n, PAIR_CHANNEL_WIDTH_M),
             "n_runs": int(runs.sum()),
             "n_failed": int(ds["run_failed"].values[runs].sum()),
             "n_neighbour_pairs": int(sel.sum()),
             "n_steady": int(ds["steady"].values[sel].sum()),
             "n_runs_lateral_order_changed": int(np.sum(changed)),
-            "slope": fit.slope,
-            "intercept": fit.intercept,
-            "rms_residual_over_lambda": C.rms(res),
-            "rms_residual_m": C.rms(ds["residual"].values[sel]),
+            "slope": fit.slope.to_dict(),
+            "intercept": fit.intercept.to_dict(),
+            "rms_residual_over_lambda": C.rms(res).to_dict(),
+            "rms_residual_m": C.rms(ds["residual"].values[sel]).to_dict(),
             "max_abs_residual_over_lambda": float(np.max(np.abs(res))) if res.size else None,
-            "rms_band_excess_over_lambda": C.rms(ds["band_excess"].values[sel] / ds.attrs["wavelength_m"]),
+            "rms_band_excess_over_lambda": C.rms(ds["band_excess"].values[sel] / ds.attrs["wavelength_m"]).to_dict(),
             "mean_dy_steady_over_2A": float(np.mean(ds["dy_steady"].values[sel]) / (2 * ds.attrs["amplitude_m"]))
             if sel.any() else None,
         }
@@ -202,21 +237,50 @@ def groups_summary(ds: xr.Dataset) -> dict:
     }
 
 
-@register("groups", paper_figure="6",
-          description="Groups of 3 (d = 0.19 m, nine dphi) and 4 swimmers (d = 0.22 m, random phases), "
-                      "xi = 1: nearest-neighbour steady dx vs dphi with the compatibility line.")
-def run(config: StudyConfig) -> StudyResult:
+SLOPE_TOL = 0.2
+RMS_TOL = 0.2
+"""RMS residual allowed for groups, in wavelengths (twice the pairs' tolerance: more scatter)."""
+E = stats.Estimate.from_dict
+
+
+def _group_follows(size: str) -> Callable[[dict], Verdict]:
+    def judge(s: dict) -> Verdict:
+        g, pair = s["per_group_size"][size], s["per_group_size"]["2"]
+        slope, rms, rms2 = E(g["slope"]), E(g["rms_residual_over_lambda"]), E(pair["rms_residual_over_lambda"])
+        measured = (f"slope {slope:.3f}, RMS residual {rms:.3f} lambda vs {rms2:.3f} lambda for pairs at the "
+                    f"same dphi ({g['n_neighbour_pairs']} neighbour pairs)")
+        value = {"slope": g["slope"], "rms_residual_over_lambda": g["rms_residual_over_lambda"],
+                 "pairs_rms_residual_over_lambda": pair["rms_residual_over_lambda"]}
+        if not (slope.has_interval and rms.has_interval and rms2.has_interval):
+            return Verdict.none("a slope or RMS without an interval (too few neighbour pairs)", measured, value)
+        ok = slope.inside(1 - SLOPE_TOL, 1 + SLOPE_TOL) is True and rms.high < RMS_TOL and rms.low > rms2.high
+        return Verdict.judged(ok, measured, value)
+    return judge
+
+
+CLAIMS = tuple(
+    Claim(f"groups of {size} follow the compatibility line with more scatter than pairs",
+          "nearest-neighbour dx agrees with compatibility; the variation is larger than in pair experiments",
+          f"the 95 % interval of the slope lies within 1 +- {SLOPE_TOL}, that of the RMS residual below "
+          f"{RMS_TOL} lambda and wholly above the pairs' (same xi and dphi, d = {PAIR_CHANNEL_WIDTH_M} m)",
+          _group_follows(size))
+    for size in ("3", "4"))
+
+
+def figure(ds: xr.Dataset):
     from ..plotting.groups import plot_groups
 
-    three = C.run_points(config, "groups", "three",
-                         C.sweep_function(n_swimmers=3, channel_width_m=CHANNEL_WIDTH_M[3]),
-                         Grid(axes={"dphi_rad": [float(p) for p in phases(config.quick)]}, seed=config.seed))
-    four = C.run_points(config, "groups", "four",
-                        C.sweep_function(n_swimmers=4, channel_width_m=CHANNEL_WIDTH_M[4], random_phases=True),
-                        Grid(axes={"waves_per_body": [XI]}, replicates=N_DRAWS[bool(config.quick)],
-                             seed=config.seed))
-    amp = C.run_points(config, "groups", "amplitude", C.free_amplitude,
-                       Grid(axes={"waves_per_body": [XI]}, seed=config.seed))
-    A = float(amp.dataset["amplitude"].values.ravel()[0])
-    ds = groups_dataset({3: three.dataset, 4: four.dataset}, A)
-    return StudyResult(dataset=ds, figure=plot_groups(ds), summary=groups_summary(ds))
+    return plot_groups(_groups_only(ds))
+
+
+def _groups_only(ds: xr.Dataset) -> xr.Dataset:
+    """The dataset without the reference pairs (the figure shows groups of three and four)."""
+    keep_nb = np.flatnonzero(ds["group_size"].values > 2)
+    keep_run = np.flatnonzero(ds["run_group_size"].values > 2)
+    return ds.isel(neighbour=keep_nb, run=keep_run)
+
+
+register(Study(
+    name="groups", paper_figure="6", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    description="Groups of 3 (d = 0.19 m, nine dphi) and 4 swimmers (d = 0.22 m, random phases), "
+                "xi = 1: nearest-neighbour steady dx vs dphi with the compatibility line, against pairs."))

@@ -24,14 +24,19 @@ how many runs were steady.
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
 
+from .. import stats
 from ..sweep import Grid
-from . import _common as C
-from ._registry import StudyConfig, StudyResult, register
+from . import _analysis as C
+from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._runners import BODY_LENGTH_M, DURATION_S, group_point
 
 N_LINKS = (3, 5, 7, 9)
 RULES = ("fixed", "curvature")
@@ -59,18 +64,37 @@ def _gait_point(rule: str, n: int) -> dict:
             "timestep_s": timestep(n), "waves_per_body": XI}
 
 
-def phases(quick: bool) -> np.ndarray:
-    return C.paper_phases() if quick else C.phase_grid(FULL_PHASES)
+@dataclass(frozen=True)
+class Plan:
+    """Every ``dphi_rad`` (rad) for every rule and N."""
+
+    dphi_rad: tuple[float, ...]
 
 
-def links_dataset(sim: xr.Dataset, amp: xr.Dataset, dphis: np.ndarray) -> xr.Dataset:
+def plan(quick: bool) -> Plan:
+    """Quick: the paper's nine dphi; full: 33 over [-pi, pi] (step pi/16)."""
+    return Plan(tuple(float(p) for p in (C.paper_phases() if quick else C.phase_grid(FULL_PHASES))))
+
+
+def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
+    dphis = np.asarray(p.dphi_rad, float)
+    gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]
+    sim_points = [{**g, "dphi_rad": float(d)} for g in gaits for d in dphis]
+    fn = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M)
+    sim = ctx.sweep("sim", fn, Grid(points=sim_points, seed=ctx.config.seed))
+    amp = np.array([float(ctx.lone_swimmer(amplitude_rad=g["amplitude_rad"], n_links=g["n_links"],
+                                           waves_per_body=XI)["amplitude_m"]) for g in gaits])
+    return links_dataset(sim, amp, dphis)
+
+
+def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray) -> xr.Dataset:
     """Study dataset (dims rule, n_links, dphi, time) from the merged explicit-point sweeps.
 
     The sweep points are ordered rule, N, dphi (see :func:`run`).
     """
     nr, nn, nd = len(RULES), len(N_LINKS), len(dphis)
-    lam = C.BODY_LENGTH_M / XI
-    A = amp["amplitude"].isel(replicate=0).values.reshape(nr, nn)
+    lam = BODY_LENGTH_M / XI
+    A = np.asarray(amplitude_m, float).reshape(nr, nn)
     failed = sim["run_failed"].isel(replicate=0).values.astype(bool).reshape(nr, nn, nd)
     dims = ("rule", "n_links", "dphi")
 
@@ -109,15 +133,16 @@ def links_dataset(sim: xr.Dataset, amp: xr.Dataset, dphis: np.ndarray) -> xr.Dat
             "waves_per_body": XI,
             "wavelength_m": lam,
             "channel_width_m": CHANNEL_WIDTH_M,
-            "body_length_m": C.BODY_LENGTH_M,
-            "duration_s": C.DURATION_S,
+            "body_length_m": BODY_LENGTH_M,
+            "duration_s": DURATION_S,
             "steady_rule": C.STEADY_RULE,
             "slope_method": C.SLOPE_METHOD,
         },
     )
 
 
-def links_summary(ds: xr.Dataset) -> dict:
+def summary(ds: xr.Dataset) -> dict:
+    """Pure: per rule and N, the RMS residual (bootstrap interval) and the slope (standard error)."""
     lam = float(ds.attrs["wavelength_m"])
     dphi = ds["dphi"].values
     open_ = np.abs(dphi) < np.pi - 1e-9
@@ -128,24 +153,25 @@ def links_summary(ds: xr.Dataset) -> dict:
             d = ds.sel(rule=rule, n_links=n)
             ok = ~d["run_failed"].values
             res = d["residual_over_lambda"].values
-            fit = C.slope_fit(d["dx_steady_over_lambda"].values, dphi)
+            fit = C.compatibility_fit(d["dx_steady_over_lambda"].values, dphi)
             rows[str(int(n))] = {
                 "n_links": int(n),
                 "joint_amplitude_deg": math.degrees(float(d["joint_amplitude"])),
                 "amplitude_m": float(d["amplitude"]),
                 "timestep_s": float(d["timestep"]),
-                "rms_residual_over_lambda": C.rms(res),
-                "rms_residual_over_lambda_open_interval": C.rms(res[open_]),
+                "rms_residual_over_lambda": C.rms(res).to_dict(),
+                "rms_residual_over_lambda_open_interval": C.rms(res[open_]).to_dict(),
                 "max_abs_residual_over_lambda": float(np.nanmax(np.abs(res))) if ok.any() else None,
-                "slope": fit.slope,
-                "intercept": fit.intercept,
-                "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam),
+                "slope": fit.slope.to_dict(),
+                "intercept": fit.intercept.to_dict(),
+                "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam).to_dict(),
                 "n_runs": int(ok.size),
                 "n_failed": int((~ok).sum()),
                 "n_steady": int(d["steady"].values[ok].sum()),
                 "max_penetration_m": float(np.nanmax(d["penetration_max"].values)) if ok.any() else None,
             }
-        rms_seq = [rows[k]["rms_residual_over_lambda"] for k in rows]
+        rms_seq = [rows[k]["rms_residual_over_lambda"]["value"] for k in rows]
+        rms_seq = [math.nan if v is None else v for v in rms_seq]
         per_rule[str(rule)] = {
             "per_n": rows,
             "rms_falls_with_n": bool(np.all(np.diff(rms_seq) < 0)),
@@ -167,17 +193,40 @@ def links_summary(ds: xr.Dataset) -> dict:
     }
 
 
-@register("links", paper_figure="5",
-          description="Pairs of N = 3, 5, 7, 9-link swimmers at xi = 1 (d = 0.13 m): steady dx/lambda vs "
-                      "dphi with the compatibility line, and the RMS error per N (two joint-amplitude rules).")
-def run(config: StudyConfig) -> StudyResult:
+E = stats.Estimate.from_dict
+
+
+def _falls(rule: str) -> Callable[[dict], Verdict]:
+    def judge(s: dict) -> Verdict:
+        per_n = s["per_rule"][rule]["per_n"]
+        ns = sorted(per_n, key=int)
+        rms = [E(per_n[n]["rms_residual_over_lambda"]) for n in ns]
+        measured = "RMS residual / lambda for N = " + ", ".join(f"{n}: {r:.3f}" for n, r in zip(ns, rms))
+        value = {n: per_n[n]["rms_residual_over_lambda"] for n in ns}
+        if not all(r.has_interval for r in rms):
+            return Verdict.none("an RMS residual without an interval (too few runs with a result)", measured, value)
+        steps = all(b.value < a.value for a, b in zip(rms, rms[1:]))
+        return Verdict.judged(steps and rms[-1].high < rms[0].low, measured, value)
+    return judge
+
+
+CLAIMS = tuple(
+    Claim(f"error from compatibility falls as links are added ({text})",
+          "the RMS error between simulation and Eq. (2) decreased with increasing link number (values withheld)",
+          "the RMS residual falls at every step in N and its 95 % interval at the largest N lies wholly below "
+          "that at N = 3", _falls(rule))
+    for rule, text in (("fixed", "joint amplitude 45 deg at every N"),
+                       ("curvature", "joint amplitude 45 deg x 3/N"))
+)
+
+
+def figure(ds: xr.Dataset):
     from ..plotting.links import plot_links
 
-    dphis = phases(config.quick)
-    gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]
-    sim_points = [{**g, "dphi_rad": float(p)} for g in gaits for p in dphis]
-    fn = C.sweep_function(n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M)
-    sim = C.run_points(config, "links", "sim", fn, Grid(points=sim_points, seed=config.seed))
-    amp = C.run_points(config, "links", "amplitude", C.free_amplitude, Grid(points=gaits, seed=config.seed))
-    ds = links_dataset(sim.dataset, amp.dataset, np.asarray(dphis, float))
-    return StudyResult(dataset=ds, figure=plot_links(ds), summary=links_summary(ds))
+    return plot_links(ds)
+
+
+register(Study(
+    name="links", paper_figure="5", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    description="Pairs of N = 3, 5, 7, 9-link swimmers at xi = 1 (d = 0.13 m): steady dx/lambda vs "
+                "dphi with the compatibility line, and the RMS error per N (two joint-amplitude rules)."))

@@ -5,7 +5,7 @@ Setup (paper section "Gait compatibility influences spatial packing"):
 ``1.1 L`` apart), all heads toward -x, phases drawn uniformly from
 ``[0, phi_max]`` in random lateral order.  The channel width ``Y`` is set
 from the normalised density ``rho~ = 2 A N / Y`` (``A`` the gait amplitude
-of a free swimmer, measured here by :func:`lone_swimmer_point`), and the
+of a free swimmer, ``StudyContext.lone_swimmer``: the one definition), and the
 swimmers start straight, evenly spread across it: centre lines ``Y / N``
 apart (``Scene.lateral_gap_m = Y / N - w``), so each outer swimmer has half
 a pitch to its wall.
@@ -20,8 +20,10 @@ last grid density below and the first above.  No run is expected to
 diverge (the simulator keeps jammed packs below 1 mm of interpenetration:
 docs/contact.md); a run that does is stored flagged ``diverged``, left out
 of the threshold search, and a threshold whose bracket contains one is
-NaN rather than guessed.  Error bars: the
-standard deviation over the phase draws (replicates).
+NaN rather than guessed.  Uncertainty: the mean threshold over the
+phase draws (replicates) with its standard error and Student-t 95 %
+interval; the rank correlation of the per-draw thresholds with
+``phi_max`` (Spearman, ties averaged) with a seeded bootstrap interval.
 
 Common random numbers: replicate ``r`` draws its unit-uniform numbers
 ``u`` once from ``numpy.random.default_rng([seed, r])`` (``seed`` the study
@@ -37,36 +39,30 @@ and ``rho~_walls = 1 / ((N - 1) / N * y~/2A + w/2A + 1/N)``.  At
 ``phi_max = 0`` this is the jamming density of an in-phase stack between
 walls (~6.1 at the defaults instead of ``2A / w`` ~ 7).
 
-This module also holds the helpers the other studies of this group share:
-:func:`lone_swimmer_point` (gait amplitude, baseline joint error, free
-swimming speed) and :func:`sweep_dir` / :func:`study_sweep`.
 """
 
 from __future__ import annotations
 
 import functools
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .. import theory
-from ..params import Channel, Gait, Ground, Scene, SimOptions, SwimmerGeometry
-from ._registry import StudyConfig, StudyResult, register
+from .. import stats, theory
+from ..params import Channel, Scene, SimOptions, SwimmerGeometry
+from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = [
     "N_SWIMMERS",
     "THRESHOLD_RAD",
     "PackingPlan",
     "plan",
-    "lone_swimmer_point",
-    "measure_lone_swimmers",
     "packing_point",
     "density_threshold",
     "walled_packing_density",
-    "sweep_dir",
-    "study_sweep",
-    "compute",
+    "dataset",
+    "summary",
+    "CLAIMS",
 ]
 
 N_SWIMMERS = 50
@@ -77,96 +73,6 @@ DURATION_S = 10.0
 SKIP_S = 2.0
 """Joint error is averaged over t >= SKIP_S (one gait period), s."""
 SAMPLE_RATE_HZ = 10.0
-LONE_CHANNEL_WIDTH_M = 1.0
-"""Channel width for the free (lone) swimmer, m: far wider than its stroke."""
-AMPLITUDE_ROUND_M = 1e-5
-"""Measured amplitudes are rounded to this (m) before they set channel widths, so a
-resumed sweep finds the same parameters after a bitwise-different re-measurement."""
-
-
-# ------------------------------------------------------------------ shared helpers
-def sweep_dir(config: StudyConfig, name: str, part: str) -> Path:
-    """Resumable store of one sweep of study ``name``:
-    ``out_dir/.sweeps/NAME/PART-{quick|full}-seedS``."""
-    mode = "quick" if config.quick else "full"
-    return Path(config.out_dir) / ".sweeps" / name / f"{part}-{mode}-seed{config.seed}"
-
-
-SERIAL_BELOW = 4
-"""Sweeps of fewer runs than this run in this process (starting worker processes costs more)."""
-
-
-def study_sweep(config: StudyConfig, name: str, part: str, fn, grid, progress: bool = True):
-    """Run ``fn`` over ``grid`` through :func:`undulate.sweep.run_sweep` into
-    :func:`sweep_dir` (local cores, or ``config.scheduler``).  Failed runs do not
-    raise: they are NaN in the result and listed in ``.failures``."""
-    from ..sweep import run_sweep
-
-    workers = 1 if config.scheduler is None and grid.n_runs < SERIAL_BELOW else None
-    return run_sweep(fn, grid, sweep_dir(config, name, part), scheduler=config.scheduler,
-                     workers=workers, progress=progress)
-
-
-def round_amplitude(a_m: float) -> float:
-    """A measured amplitude (m) rounded to :data:`AMPLITUDE_ROUND_M`."""
-    return float(round(a_m / AMPLITUDE_ROUND_M) * AMPLITUDE_ROUND_M)
-
-
-def lone_swimmer_point(point: dict, seed: int, *, duration_s: float = DURATION_S,
-                       ground: str = "viscous", skip_s: float = SKIP_S):
-    """A free swimmer (sweep function): its gait amplitude, joint error and speed.
-
-    ``point``: ``amplitude_rad`` (beta, rad; default 45 degrees).  One swimmer
-    in a :data:`LONE_CHANNEL_WIDTH_M` wide channel for ``duration_s``, on the
-    default viscous ground or (``ground="swimming"``) in
-    :meth:`Ground.swimming`.  Returns ``amplitude_m`` (A, from
-    :func:`~undulate.observables.gait_amplitude` over the last period),
-    ``mean_joint_error_rad`` (mean over joints and t >= ``skip_s``),
-    ``speed_m_s`` (forward speed toward -x, from a straight-line fit of the
-    period-averaged centre x over the second half of the run) and
-    ``x_period_m`` (period-averaged centre x).  ``seed`` is unused (deterministic).
-    """
-    import xarray as xr
-
-    from ..observables import gait_amplitude, period_average
-    from ..simulation import simulate
-
-    beta = float(point.get("amplitude_rad", Gait().amplitude_rad))
-    g = Ground.swimming() if ground == "swimming" else Ground()
-    scene = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=beta), ground=g,
-                  channel=Channel(width_m=LONE_CHANNEL_WIDTH_M))
-    ds = simulate(scene, SimOptions(duration_s=duration_s))
-    period = scene.gait.period_s
-    amp = gait_amplitude(ds, periods=1)
-    je = float(ds["joint_error"].where(ds["time"] >= skip_s).mean())
-    xp = period_average(ds["x"].isel(swimmer=0), period)
-    half = xp.sizes["time"] // 2
-    tt, xx = xp["time"].values[half:], xp.values[half:]
-    speed = -float(np.polyfit(tt, xx, 1)[0]) if len(tt) >= 2 else float("nan")
-    return xr.Dataset(
-        {
-            "amplitude_m": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
-            "mean_joint_error_rad": ((), je, {"units": "rad", "long_name": "mean joint error, free swimmer"}),
-            "speed_m_s": ((), speed, {"units": "m/s", "long_name": "forward speed toward -x"}),
-            "x_period_m": (("period_time",), xp.values, {"units": "m", "long_name": "period-averaged centre x"}),
-        },
-        coords={"period_time": ("period_time", xp["time"].values, {"units": "s"})},
-    )
-
-
-def measure_lone_swimmers(config: StudyConfig, name: str, amplitudes_rad, *,
-                          duration_s: float = DURATION_S, ground: str = "viscous",
-                          skip_s: float = SKIP_S):
-    """Free swimmers at each beta in ``amplitudes_rad`` (one sweep, cached under
-    :func:`sweep_dir` as part ``lone``): the merged sweep Dataset over ``amplitude_rad``."""
-    from ..sweep import Grid
-
-    fn = functools.partial(lone_swimmer_point, duration_s=float(duration_s), ground=ground,
-                           skip_s=float(skip_s))
-    grid = Grid(axes={"amplitude_rad": [float(a) for a in amplitudes_rad]}, seed=config.seed)
-    res = study_sweep(config, name, f"lone-{ground}", fn, grid)
-    res.raise_if_failed()
-    return res.dataset.isel(replicate=0)
 
 
 # --------------------------------------------------------------------- the study
@@ -288,29 +194,27 @@ def density_threshold(rho_tilde, excess, failed=None) -> tuple[float, float, flo
 
 
 def walled_packing_density(phi_max_rad, w_over_2A, n_swimmers: int = N_SWIMMERS):
-    """Closed-form density with the side walls' room (module docstring), dimensionless."""
-    n = float(n_swimmers)
-    return 1.0 / ((n - 1) / n * theory.packing_spacing(phi_max_rad) + np.asarray(w_over_2A) + 1.0 / n)
+    """Closed-form density with the side walls' room (:func:`undulate.theory.walled_packing_density`)."""
+    return theory.walled_packing_density(phi_max_rad, w_over_2A, n_swimmers)
 
 
-def compute(config: StudyConfig, p: PackingPlan) -> StudyResult:
-    """Run the packing study on plan ``p`` (used by :func:`run` and the tests)."""
+def dataset(ctx: StudyContext, p: PackingPlan):
+    """Run the packing study on plan ``p``: the free swimmer, then every (phi_max, rho~, draw)."""
     import xarray as xr
 
-    from ..plotting.packing import plot_packing
     from ..sweep import Grid
 
     geo = SwimmerGeometry()
-    lone = measure_lone_swimmers(config, "packing", [Gait().amplitude_rad], duration_s=p.duration_s)
-    amp = round_amplitude(float(lone["amplitude_m"].item()))
-    base_err = float(lone["mean_joint_error_rad"].item())
+    config = ctx.config
+    lone = ctx.lone_swimmer()
+    amp = float(lone["amplitude_m"])
+    base_err = float(lone["mean_joint_error_rad"])
 
     fn = functools.partial(packing_point, amplitude_m=amp, base_seed=int(config.seed),
                            n_swimmers=p.n_swimmers, duration_s=p.duration_s)
     grid = Grid(axes={"phi_max_rad": p.phi_max_rad, "rho_tilde": p.rho_tilde,
                       "draw": list(range(p.draws))}, seed=config.seed)
-    res = study_sweep(config, "packing", "groups", fn, grid)
-    sw = res.dataset.isel(replicate=0)
+    sw = ctx.sweep("groups", fn, grid).isel(replicate=0)
     diverged = sw["diverged"].values == 1  # (phi, rho, draw)
     failed = sw["run_failed"].values.astype(bool) | diverged
     err = sw["mean_joint_error_rad"].values
@@ -370,17 +274,22 @@ def compute(config: StudyConfig, p: PackingPlan) -> StudyResult:
             "short_channel_m": SHORT_CHANNEL_OVER_L * geo.length_m,
         },
     )
-    summary = _summary(ds, res, p)
-    return StudyResult(dataset=ds, figure=plot_packing(ds), summary=summary)
+    return ds
 
 
-def _summary(ds, res, p: PackingPlan) -> dict[str, Any]:
+def summary(ds) -> dict[str, Any]:
+    """Pure: thresholds per phi_max (mean over draws, t interval), their rank correlation with
+    phi_max (bootstrap interval), theory on the same phi_max, failures by phi_max."""
     thr = ds["threshold_rho_tilde"]
     mean, std = thr.mean("draw", skipna=True), thr.std("draw", skipna=True)
     phi = ds["phi_max"].values
+    n_sw = int(ds.attrs["n_swimmers"])
     cf = theory.packing_density(phi, float(ds.attrs["w_over_2A"]))
     mc_on = np.interp(phi, ds["phi_fine"].values, ds["rho_monte_carlo"].values)
-    walls = walled_packing_density(phi, float(ds.attrs["w_over_2A"]), p.n_swimmers)
+    walls = walled_packing_density(phi, float(ds.attrs["w_over_2A"]), n_sw)
+    per_draw_phi = np.broadcast_to(phi[:, None], thr.shape)
+    rel_all = (np.abs(ds["rho_closed_form"] - ds["rho_monte_carlo"]) / ds["rho_closed_form"]).values
+    worst = int(np.nanargmax(rel_all))
     m = mean.values
     rel_mc = np.abs(ds["rho_closed_form"] - ds["rho_monte_carlo"]) / ds["rho_closed_form"]
     failed = ds["run_failed"]
@@ -397,6 +306,7 @@ def _summary(ds, res, p: PackingPlan) -> dict[str, Any]:
         "phi_max_rad": phi,
         "threshold_rho_tilde_mean": m,
         "threshold_rho_tilde_std": std.values,
+        "threshold_rho_tilde": [stats.mean(thr.values[i]).to_dict() for i in range(phi.size)],
         "threshold_n_draws": thr.notnull().sum("draw").values,
         "closed_form_rho_tilde": cf,
         "monte_carlo_rho_tilde": mc_on,
@@ -404,16 +314,15 @@ def _summary(ds, res, p: PackingPlan) -> dict[str, Any]:
         "threshold_bracket_lo_mean": ds["threshold_lo"].mean("draw", skipna=True).values,
         "threshold_bracket_hi_mean": ds["threshold_hi"].mean("draw", skipna=True).values,
         "threshold_above_grid": [bool(np.all(np.isnan(ds["threshold_hi"].values[i]))) for i in range(phi.size)],
-        "spearman_threshold_vs_phi_max": _spearman(phi[np.isfinite(m)], m[np.isfinite(m)]),
+        "spearman_threshold_vs_phi_max": stats.rank_correlation(per_draw_phi, thr.values).to_dict(),
         "largest_rise_of_threshold_between_neighbouring_phi_max": _largest_rise(m, ds),
         "max_rel_diff_closed_form_vs_monte_carlo": float(rel_mc.max()),
+        "monte_carlo_rel_stderr_at_max_diff": float(ds["rho_monte_carlo_stderr"].values[worst]
+                                                    / ds["rho_monte_carlo"].values[worst]),
         "n_runs": int(failed.size),
         "n_failed": int(failed.sum()),
         "n_diverged": int(ds["diverged"].sum()),
-        "n_failed_otherwise": len(res.failures),
-        "failures_otherwise": [str(f) for f in res.failures[:20]],
         "diverged_or_failed_by_phi_max": where,
-        "sweep_elapsed_s": float(res.elapsed_s),
         "threshold_rule": f"mean joint error > lone swimmer + {THRESHOLD_RAD} rad; "
                           "linear interpolation in rho~; runs that diverged or failed are left out (none expected)",
     }
@@ -430,18 +339,53 @@ def _largest_rise(mean, ds) -> float:
     return float(np.max(np.diff(t))) if t.size > 1 else float("nan")
 
 
-def _spearman(x, y) -> float:
-    x, y = np.asarray(x, float), np.asarray(y, float)
-    if x.size < 3:
-        return float("nan")
-    rx = np.argsort(np.argsort(x)).astype(float)
-    ry = np.argsort(np.argsort(y)).astype(float)
-    return float(np.corrcoef(rx, ry)[0, 1])
+E = stats.Estimate.from_dict
+MC_TOL = 0.01
+"""Largest relative difference allowed between the closed form and its Monte-Carlo estimate."""
 
 
-@register("packing", paper_figure="7",
-          description="50 swimmers in the short channel: mean joint error over phase spread and "
-                      "normalised density, the simulated compatibility threshold, and the "
-                      "closed-form and Monte-Carlo packing densities.")
-def run(config: StudyConfig) -> StudyResult:
-    return compute(config, plan(config.quick))
+def _threshold_falls(s: dict) -> Verdict:
+    rho, rise = E(s["spearman_threshold_vs_phi_max"]), s["largest_rise_of_threshold_between_neighbouring_phi_max"]
+    thr = [E(t) for t in s["threshold_rho_tilde"]]
+    measured = ("simulated threshold rho~ at phi_max = "
+                + ", ".join(f"{f:.2f}: {t:.3g}" for f, t in zip(s["phi_max_rad"], thr) if t.finite)
+                + ("; above the densest grid point at phi_max = 0" if s["threshold_above_grid"][0] else "")
+                + (f"; {s['n_diverged']} of {s['n_runs']} runs diverged" if s["n_diverged"] else "")
+                + f"; Spearman rho {rho:+.2f}")
+    value = {"spearman": s["spearman_threshold_vs_phi_max"], "largest_rise": rise}
+    if not rho.has_interval or rise is None or not np.isfinite(rise):
+        return Verdict.none("fewer than 3 thresholds within the density grid (no rank correlation interval)",
+                            measured, value)
+    return Verdict.judged(rho.high < 0 and rise <= 0, measured, value)
+
+
+def _closed_form_matches(s: dict) -> Verdict:
+    rel, se = s["max_rel_diff_closed_form_vs_monte_carlo"], s["monte_carlo_rel_stderr_at_max_diff"]
+    return Verdict.judged(rel < MC_TOL, f"largest relative difference {rel:.2%} (Monte-Carlo standard error "
+                          f"there {se:.2%})", {"max_rel_diff": rel, "mc_rel_stderr": se})
+
+
+CLAIMS = (
+    Claim("the density at which swimmers start to collide falls as the phase spread grows "
+          "(more phase spread needs more lateral room)",
+          "as the phase variation increases the lateral spacing must increase or swimmers collide",
+          "the 95 % interval of Spearman's rho between per-draw threshold and phi_max lies below 0 and the "
+          "mean threshold never rises from one phi_max to the next (a threshold above the grid counts as "
+          "larger than any)", _threshold_falls),
+    Claim("the closed form for the compatible density matches the Monte-Carlo estimate",
+          "the expected value calculation agrees extremely well with the Monte-Carlo simulation",
+          f"largest relative difference below {MC_TOL:.0%}", _closed_form_matches),
+)
+
+
+def figure(ds):
+    from ..plotting.packing import plot_packing
+
+    return plot_packing(ds)
+
+
+register(Study(
+    name="packing", paper_figure="7", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    description="50 swimmers in the short channel: mean joint error over phase spread and "
+                "normalised density, the simulated compatibility threshold, and the "
+                "closed-form and Monte-Carlo packing densities."))

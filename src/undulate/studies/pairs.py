@@ -8,51 +8,65 @@ the nine) and every xi in {0, 3/4, 1, 3/2}.  The steady offset
 ``dx = x_upper - x_lower`` is compared with the compatibility branches
 ``dx = lambda (dphi / 2 pi + n)`` (paper Eq. (compatibility)).
 
-Summary per xi: the slope of dx/lambda against dphi/2pi (see
-``_common.SLOPE_METHOD``), the RMS distance from the nearest branch, how
-many runs were steady; for the standing wave xi = 0 (lambda = inf) the
-spread of dx in metres.
+Summary per xi: the slope of dx/lambda against dphi/2pi with its standard
+error and 95 % interval (``_analysis.SLOPE_METHOD``), the RMS distance from
+the nearest branch with a bootstrap interval, how many runs were steady;
+for the standing wave xi = 0 (lambda = inf) the spread of dx in metres.
+
+This module is the template of the study protocol (``_registry``):
+``plan`` -> ``dataset`` (sweeps through the context) -> ``summary`` (pure)
+-> ``CLAIMS`` (pure functions of the summary) -> ``figure``; ``register``.
 """
 
 from __future__ import annotations
 
+import functools
 import math
+from collections.abc import Callable
+from dataclasses import dataclass
 
 import numpy as np
 import xarray as xr
 
+from .. import stats
 from ..sweep import Grid
-from . import _common as C
-from ._registry import StudyConfig, StudyResult, register
+from . import _analysis as C
+from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._runners import BODY_LENGTH_M, DURATION_S, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
 CHANNEL_WIDTH_M = 0.13
 FULL_PHASES = 49  # step pi/24; contains the paper's nine values
 
 
-def phases(quick: bool) -> np.ndarray:
-    """The dphi values of a run, rad."""
-    return C.paper_phases() if quick else C.phase_grid(FULL_PHASES)
+@dataclass(frozen=True)
+class Plan:
+    """The grid: every ``dphi_rad`` (rad) at every ``xi`` (waves per body)."""
+
+    dphi_rad: tuple[float, ...]
+    xi: tuple[float, ...] = XI_VALUES
 
 
-def simulate_pairs(config: StudyConfig):
-    """Run (or resume) the pair sweeps; returns (sim sweep, amplitude sweep) results."""
-    dphis = phases(config.quick)
-    grid = Grid(axes={"waves_per_body": list(XI_VALUES), "dphi_rad": [float(p) for p in dphis]},
-                seed=config.seed)
-    sim = C.run_points(config, "pairs", "sim",
-                       C.sweep_function(n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M), grid)
-    amp = C.run_points(config, "pairs", "amplitude", C.free_amplitude,
-                       Grid(axes={"waves_per_body": list(XI_VALUES)}, seed=config.seed))
-    return sim, amp
+def plan(quick: bool) -> Plan:
+    """Quick: the paper's nine dphi; full: 49 over [-pi, pi] (step pi/24, containing the nine)."""
+    dphis = C.paper_phases() if quick else C.phase_grid(FULL_PHASES)
+    return Plan(tuple(float(p) for p in dphis))
 
 
-def pairs_dataset(sim: xr.Dataset, amp: xr.Dataset) -> xr.Dataset:
-    """The study dataset from the merged sweep datasets (dims xi, dphi, time)."""
+def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
+    """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset."""
+    grid = Grid(axes={"waves_per_body": list(p.xi), "dphi_rad": list(p.dphi_rad)}, seed=ctx.config.seed)
+    sim = ctx.sweep("sim", functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M), grid)
+    amp = [float(ctx.lone_swimmer(waves_per_body=x)["amplitude_m"]) for x in p.xi]
+    return pairs_dataset(sim, np.array(amp))
+
+
+def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray) -> xr.Dataset:
+    """The study dataset from the merged sweep and the free swimmers' A per xi (dims xi, dphi, time)."""
     xi = sim["waves_per_body"].values.astype(float)
     dphi = sim["dphi_rad"].values.astype(float)
-    lam = np.array([C.BODY_LENGTH_M / x if x > 0 else math.inf for x in xi])
-    A = amp["amplitude"].isel(replicate=0).values.astype(float)
+    lam = np.array([BODY_LENGTH_M / x if x > 0 else math.inf for x in xi])
+    A = np.asarray(amplitude_m, float)
     failed = sim["run_failed"].isel(replicate=0).values.astype(bool)
     dims = ("xi", "dphi")
     variables, dx_t = C.collect_pairs(
@@ -86,11 +100,11 @@ def pairs_dataset(sim: xr.Dataset, amp: xr.Dataset) -> xr.Dataset:
             "conventions": "heads toward -x; body wave travels +x; dx = x_upper - x_lower, dphi = phi_upper - "
                            "phi_lower; compatibility dx = lambda (dphi/2pi + n)",
             "channel_width_m": CHANNEL_WIDTH_M,
-            "body_length_m": C.BODY_LENGTH_M,
+            "body_length_m": BODY_LENGTH_M,
             "n_links": 3,
-            "duration_s": C.DURATION_S,
-            "timestep_s": C.TIMESTEP_S,
-            "sample_rate_hz": C.SAMPLE_RATE_HZ,
+            "duration_s": DURATION_S,
+            "timestep_s": TIMESTEP_S,
+            "sample_rate_hz": SAMPLE_RATE_HZ,
             "steady_rule": C.STEADY_RULE,
             "slope_method": C.SLOPE_METHOD,
         },
@@ -123,28 +137,31 @@ def xi_summary(ds: xr.Dataset, xi: float) -> dict:
     }
     if math.isfinite(lam):
         y = d["dx_steady_over_lambda"].values
-        fit = C.slope_fit(y, dphi, unwrap=True)
+        fit = C.compatibility_fit(y, dphi, unwrap=True)
         open_ = np.abs(dphi) < np.pi - 1e-9
-        fit_open = C.slope_fit(y[open_], dphi[open_], unwrap=False)
+        fit_open = C.compatibility_fit(y[open_], dphi[open_], unwrap=False)
         res = d["residual_over_lambda"].values
         out.update({
-            "slope": fit.slope,
-            "intercept": fit.intercept,
-            "slope_open_interval": fit_open.slope,
-            "rms_residual_over_lambda": C.rms(res),
-            "rms_residual_m": C.rms(d["residual"].values),
+            "slope": fit.slope.to_dict(),
+            "intercept": fit.intercept.to_dict(),
+            "r2": fit.r2.to_dict(),
+            "slope_open_interval": fit_open.slope.to_dict(),
+            "rms_residual_over_lambda": C.rms(res).to_dict(),
+            "rms_residual_m": C.rms(d["residual"].values).to_dict(),
             "max_abs_residual_over_lambda": float(np.nanmax(np.abs(res))) if ok.any() else None,
-            "rms_residual_over_lambda_paper_phases": C.rms(res[_on_paper_phases(dphi)]),
-            "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam),
+            "rms_residual_over_lambda_paper_phases": C.rms(res[_on_paper_phases(dphi)]).to_dict(),
+            "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam).to_dict(),
         })
     else:
         out.update({"slope": None, "intercept": None, "slope_open_interval": None,
                     "rms_residual_over_lambda": None, "rms_residual_m": None,
+                    "dx_std": stats.std(d["dx_steady"].values).to_dict(),
                     "note": "standing wave: lambda = inf, no compatible dx; dx in metres only"})
     return out
 
 
-def pairs_summary(ds: xr.Dataset) -> dict:
+def summary(ds: xr.Dataset) -> dict:
+    """Pure: the numbers of the study, per xi, with uncertainties (module docstring)."""
     ok = ~ds["run_failed"].values
     return {
         "per_xi": {f"{x:g}": xi_summary(ds, float(x)) for x in ds["xi"].values},
@@ -161,13 +178,61 @@ def pairs_summary(ds: xr.Dataset) -> dict:
     }
 
 
-@register("pairs", paper_figure="3",
-          description="Pairs of 3-link swimmers (d = 0.13 m, 30 s) at nine (full: 49) phase differences "
-                      "and xi in {0, 3/4, 1, 3/2}: dx(t), steady dx vs dphi with the compatibility lines, "
-                      "slope and RMS error per xi.")
-def run(config: StudyConfig) -> StudyResult:
+# ------------------------------------------------------------------ claims
+SLOPE_TOL = 0.2
+"""|slope - 1| allowed for "follows the compatibility line"."""
+RMS_TOL = 0.1
+"""RMS distance from the nearest branch allowed, in wavelengths."""
+E = stats.Estimate.from_dict
+
+
+def _follows_line(key: str) -> Callable[[dict], Verdict]:
+    def judge(s: dict) -> Verdict:
+        v = s["per_xi"][key]
+        slope, rms = E(v["slope"]), E(v["rms_residual_over_lambda"])
+        measured = (f"slope {slope:.3f}, RMS residual {rms:.3f} lambda, {v['n_steady']}/{v['n_runs']} runs "
+                    "steady (95 % intervals)")
+        value = {"slope": v["slope"], "rms_residual_over_lambda": v["rms_residual_over_lambda"]}
+        if not (slope.has_interval and rms.has_interval):
+            return Verdict.none(f"no interval for the slope or the RMS at xi = {key} "
+                                f"({v['n_runs'] - v['n_failed']} runs with a result)", value=value)
+        ok = slope.inside(1 - SLOPE_TOL, 1 + SLOPE_TOL) is True and rms.high < RMS_TOL
+        return Verdict.judged(ok, measured, value)
+    return judge
+
+
+def _standing_wave_scatter(s: dict) -> Verdict:
+    std0, rms1 = E(s["per_xi"]["0"]["dx_std"]), E(s["per_xi"]["1"]["rms_residual_m"])
+    value = {"dx_std_xi0_m": std0.to_dict(), "rms_residual_xi1_m": rms1.to_dict()}
+    if not (std0.has_interval and rms1.has_interval):
+        return Verdict.none("no interval for the spread at xi = 0 or the RMS residual at xi = 1", value=value)
+    return Verdict.judged(std0.low > 3 * rms1.high,
+                          f"std of steady dx at xi = 0: {std0:.3f} m; RMS residual at xi = 1: {rms1:.3f} m", value)
+
+
+_CRITERION = (f"the 95 % interval of the slope lies within 1 +- {SLOPE_TOL} and that of the RMS residual "
+              f"below {RMS_TOL} lambda")
+CLAIMS = tuple(
+    Claim(f"xi = {label}: contact drives pairs to a steady dx that follows the compatibility line",
+          "steady dx is approximately linear in dphi and agrees with dx = lambda dphi / 2 pi",
+          _CRITERION, _follows_line(key))
+    for key, label in (("1", "1"), ("0.75", "3/4"), ("1.5", "3/2"))
+) + (
+    Claim("the standing wave (xi = 0) gives large scatter in dx",
+          "with a stationary body wave the robots and simulation displayed large variance in dx",
+          "the lower 95 % bound of the std of steady dx at xi = 0 exceeds 3 times the upper bound of the "
+          "RMS residual at xi = 1", _standing_wave_scatter),
+)
+
+
+def figure(ds: xr.Dataset):
     from ..plotting.pairs import plot_pairs
 
-    sim, amp = simulate_pairs(config)
-    ds = pairs_dataset(sim.dataset, amp.dataset)
-    return StudyResult(dataset=ds, figure=plot_pairs(ds), summary=pairs_summary(ds))
+    return plot_pairs(ds)
+
+
+register(Study(
+    name="pairs", paper_figure="3", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    description="Pairs of 3-link swimmers (d = 0.13 m, 30 s) at nine (full: 49) phase differences "
+                "and xi in {0, 3/4, 1, 3/2}: dx(t), steady dx vs dphi with the compatibility lines, "
+                "slope and RMS error per xi."))

@@ -51,20 +51,22 @@ from typing import Any
 
 import numpy as np
 
-from .. import theory
+from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
-from ._registry import StudyConfig, StudyResult, register
-from .basins import PAIR_WIDTH_M, pair_point
-from .packing import _spearman, measure_lone_swimmers, round_amplitude, study_sweep
+from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._runners import PAIR_WIDTH_M, pair_point
 
 __all__ = [
     "lateral_clearance_m",
     "model_dx0_m",
     "fit_stiffness",
     "fit_abs_linear",
+    "stiffness_fit",
     "PotentialPlan",
     "plan",
-    "compute",
+    "dataset",
+    "summary",
+    "CLAIMS",
 ]
 
 SETTLE_S = 6.0
@@ -86,15 +88,16 @@ lateral_clearance_m = theory.lateral_clearance_m
 model_dx0_m = theory.neutral_offset_m
 
 
-def fit_stiffness(dF, dx, valid=None, min_points: int = 3) -> tuple[float, float, float]:
-    """Least-squares fit ``dF = k (dx - dx0)``; returns ``(k, dx0, r2)``.
+def stiffness_fit(dF, dx, valid=None, min_points: int = 3) -> dict[str, stats.Estimate]:
+    """Least squares ``dF = k (dx - dx0)`` with uncertainties: ``{"k", "dx0", "r2"}`` Estimates.
 
     ``dF``: applied forces (N); ``dx``: steady extra separations (m, or any
     unit: ``k`` is then N per that unit and ``dx0`` in it); ``valid``: points
-    to use (e.g. not broken apart); non-finite points are ignored too.
-    Fits ``dF = k dx + c`` (dF regressed on dx), ``dx0 = -c / k``; ``r2`` is
-    the coefficient of determination of that regression.  NaNs when fewer
-    than ``min_points`` usable points or no spread in ``dx``.
+    to use (e.g. not broken apart); non-finite points are ignored too.  Fits
+    ``dF = k dx + c`` (``scipy.stats.linregress``: ``k`` with its standard
+    error and t interval), ``dx0 = -c / k`` and R^2 with seeded paired
+    bootstrap intervals.  NaNs when fewer than ``min_points`` usable points
+    or no spread in ``dx``.
     """
     f = np.asarray(dF, float).ravel()
     x = np.asarray(dx, float).ravel()
@@ -102,20 +105,34 @@ def fit_stiffness(dF, dx, valid=None, min_points: int = 3) -> tuple[float, float
     if valid is not None:
         use &= np.asarray(valid, bool).ravel()
     f, x = f[use], x[use]
-    nan = (float("nan"),) * 3
+    nan = {k: stats.Estimate(float("nan"), n=int(f.size)) for k in ("k", "dx0", "r2")}
     if f.size < max(2, min_points) or np.ptp(x) == 0:
         return nan
-    k, c = np.polyfit(x, f, 1)
+    fit = stats.line_fit(x, f)
+    k, c = fit.slope.value, fit.intercept.value
     if k == 0:
         return nan
-    resid = f - (k * x + c)
-    ss = np.sum((f - f.mean()) ** 2)
-    r2 = 1.0 - np.sum(resid**2) / ss if ss > 0 else float("nan")
-    return float(k), float(-c / k), float(r2)
+
+    def dx0_of(a, b):
+        if np.ptp(a) == 0:
+            return float("nan")
+        kk, cc = np.polyfit(a, b, 1)
+        return float(-cc / kk) if kk != 0 else float("nan")
+
+    se, lo, hi = stats.bootstrap(dx0_of, x, f)
+    return {"k": fit.slope, "dx0": stats.Estimate(float(-c / k), se, lo, hi, int(f.size), "bootstrap percentile"),
+            "r2": fit.r2}
+
+
+def fit_stiffness(dF, dx, valid=None, min_points: int = 3) -> tuple[float, float, float]:
+    """``(k, dx0, r2)`` of :func:`stiffness_fit` (values only)."""
+    e = stiffness_fit(dF, dx, valid, min_points)
+    return e["k"].value, e["dx0"].value, e["r2"].value
 
 
 def fit_abs_linear(dphi, y) -> tuple[float, float, float]:
-    """Least squares ``y = a |dphi| + b``; returns ``(a, b, r2)`` (NaNs if < 3 points)."""
+    """Least squares ``y = a |dphi| + b``; returns ``(a, b, r2)`` (NaNs if < 3 points);
+    :func:`undulate.stats.line_fit` of ``y`` on ``|dphi|`` gives their uncertainties."""
     p = np.abs(np.asarray(dphi, float).ravel())
     v = np.asarray(y, float).ravel()
     ok = np.isfinite(p) & np.isfinite(v)
@@ -152,13 +169,13 @@ def plan(quick: bool) -> PotentialPlan:
                          impulse_phi0=np.linspace(0, 2 * np.pi, 8, endpoint=False))
 
 
-def compute(config: StudyConfig, p: PotentialPlan) -> StudyResult:
-    """Run the potential study on plan ``p`` (used by :func:`run` and the tests)."""
+def dataset(ctx: StudyContext, p: PotentialPlan):
+    """Run the potential study on plan ``p``: the impulse sweep, free swimmers per beta, the force sweep."""
     import xarray as xr
 
-    from ..plotting.potential import plot_potential
     from ..sweep import Grid
 
+    config = ctx.config
     geo = SwimmerGeometry()
     gait = Gait()
     lam = gait.wavelength_m(geo.length_m)
@@ -167,23 +184,18 @@ def compute(config: StudyConfig, p: PotentialPlan) -> StudyResult:
     # (a) contact impulse over the first two periods against dphi, for several common phases
     fa = functools.partial(pair_point, duration_s=IMPULSE_DURATION_S)
     ga = Grid(axes={"dphi_rad": p.impulse_dphi, "phi0_rad": p.impulse_phi0}, seed=config.seed)
-    ra = study_sweep(config, "potential", "impulse", fa, ga)
-    imp_all = ra.dataset.isel(replicate=0)["impulse_2T_Ns"].values  # (dphi, phi0)
+    imp_all = ctx.sweep("impulse", fa, ga).isel(replicate=0)["impulse_2T_Ns"].values  # (dphi, phi0)
     impulse = np.nanmean(imp_all, axis=1)
     dphi = np.asarray(p.impulse_dphi)
     fit_a = fit_abs_linear(dphi, impulse)
-    fit_pos = fit_abs_linear(dphi[dphi >= 0], impulse[dphi >= 0])
-    fit_neg = fit_abs_linear(dphi[dphi <= 0], impulse[dphi <= 0])
 
     # amplitudes per beta, then every (beta, d/2A, dF) in one sweep
-    lone = measure_lone_swimmers(config, "potential", betas)
-    amps = np.array([round_amplitude(float(v)) for v in lone["amplitude_m"].values])
+    amps = np.array([float(ctx.lone_swimmer(amplitude_rad=b)["amplitude_m"]) for b in betas])
     n_b, n_r, n_f = len(betas), len(p.d_over_2A), len(p.forces_N)
     points = [{"amplitude_rad": beta, "amplitude_m": float(amp), "d_over_2A": r, "force_N": f}
               for beta, amp in zip(betas, amps) for r in p.d_over_2A for f in p.forces_N]
     fn = functools.partial(pair_point, duration_s=p.duration_s, force_onset_s=SETTLE_S)
-    rf = study_sweep(config, "potential", "force", fn, Grid(points=points, seed=config.seed))
-    g = rf.dataset.isel(replicate=0)
+    g = ctx.sweep("force", fn, Grid(points=points, seed=config.seed)).isel(replicate=0)
     shape = (n_b, n_r, n_f)
     pm = g["dx_period_over_lambda"].values.reshape(*shape, -1)
     pt = g["period_time"].values
@@ -195,13 +207,15 @@ def compute(config: StudyConfig, p: PotentialPlan) -> StudyResult:
     failed = g["run_failed"].values.astype(bool).reshape(shape)
     with np.errstate(invalid="ignore"):
         broken = failed | ~np.isfinite(dxl) | (dxl > BREAK) | (drift > DRIFT)
-    k = np.full((n_b, n_r), np.nan)
-    dx0 = np.full_like(k, np.nan)
-    r2 = np.full_like(k, np.nan)
+    est = {q: np.full((n_b, n_r, 4), np.nan) for q in ("k", "dx0", "r2")}  # value, stderr, low, high
     n_used = (~broken).sum(axis=-1)
     for i in range(n_b):
         for j in range(n_r):
-            k[i, j], dx0[i, j], r2[i, j] = fit_stiffness(p.forces_N, dxl[i, j] * lam, ~broken[i, j])
+            fit = stiffness_fit(p.forces_N, dxl[i, j] * lam, ~broken[i, j])
+            for q, e in fit.items():
+                est[q][i, j] = (e.value, e.stderr, e.low, e.high)
+    k, dx0, r2 = est["k"][..., 0], est["dx0"][..., 0], est["r2"][..., 0]
+    bound = ("beta", "d_over_2A", "bound")
 
     R = np.asarray(p.d_over_2A)
     one = {"units": "1"}
@@ -223,6 +237,12 @@ def compute(config: StudyConfig, p: PotentialPlan) -> StudyResult:
             "stiffness": (("beta", "d_over_2A"), k, {"units": "N/m", "long_name": "k in dF = k (dx - dx0)"}),
             "dx0": (("beta", "d_over_2A"), dx0 / lam, {**one, "long_name": "offset dx0 / lambda of the fit"}),
             "fit_r2": (("beta", "d_over_2A"), r2, {**one, "long_name": "R^2 of the fit"}),
+            "stiffness_stderr": (("beta", "d_over_2A"), est["k"][..., 1], {
+                "units": "N/m", "long_name": "standard error of k (linregress)"}),
+            "stiffness_ci95": (bound, est["k"][..., 2:], {"units": "N/m", "long_name": "95 % interval of k (t)"}),
+            "dx0_ci95": (bound, est["dx0"][..., 2:] / lam, {
+                **one, "long_name": "95 % interval of dx0 / lambda (bootstrap)"}),
+            "fit_r2_ci95": (bound, est["r2"][..., 2:], {**one, "long_name": "95 % interval of R^2 (bootstrap)"}),
             "fit_n": (("beta", "d_over_2A"), n_used, {**one, "long_name": "points in the fit"}),
             "model_dx0_thin": (("beta", "d_over_2A"), model_thin, {
                 **one, "long_name": "compatibility model dx0 / lambda, sinusoids (dy = d - 2A)"}),
@@ -238,6 +258,7 @@ def compute(config: StudyConfig, p: PotentialPlan) -> StudyResult:
             "force": ("force", np.asarray(p.forces_N), {"units": "N", "long_name": "applied force dF"}),
             "period_time": ("period_time", pt, {"units": "s", "long_name": "middle of the gait period"}),
             "channel_width": (("beta", "d_over_2A"), np.outer(2 * amps, R), {"units": "m", "long_name": "d"}),
+            "bound": ("bound", ["low", "high"], {"long_name": "bounds of a 95 % interval"}),
         },
         attrs={
             "title": "contact force against detuning; cohesion stiffness of the compatible state (paper Fig. 10)",
@@ -248,12 +269,10 @@ def compute(config: StudyConfig, p: PotentialPlan) -> StudyResult:
             "wavelength_m": lam,
         },
     )
-    summary = _summary(ds, fit_a, fit_pos, fit_neg, [ra, rf])
-    return StudyResult(dataset=ds, figure=plot_potential(ds), summary=summary)
+    return ds
 
 
-def _collapse_rms(x, logk) -> float:
-    """RMS of log10 k about one quadratic in ``x`` pooled over every beta."""
+def _collapse_rms_value(x, logk) -> float:
     x, logk = np.asarray(x, float).ravel(), np.asarray(logk, float).ravel()
     ok = np.isfinite(x) & np.isfinite(logk)
     if ok.sum() < 4 or np.unique(x[ok]).size < 3:
@@ -263,7 +282,23 @@ def _collapse_rms(x, logk) -> float:
     return float(np.sqrt(np.mean((logk[ok] - np.polyval(c, u)) ** 2)))
 
 
-def _summary(ds, fit_a, fit_pos, fit_neg, results) -> dict[str, Any]:
+def _collapse_rms(x, logk) -> stats.Estimate:
+    """RMS of log10 k about one quadratic in ``x`` pooled over every beta, with a bootstrap interval."""
+    x, logk = np.asarray(x, float).ravel(), np.asarray(logk, float).ravel()
+    ok = np.isfinite(x) & np.isfinite(logk)
+    v = _collapse_rms_value(x, logk)
+    se, lo, hi = stats.bootstrap(_collapse_rms_value, x[ok], logk[ok])
+    return stats.Estimate(v, se, lo, hi, int(ok.sum()), "bootstrap percentile")
+
+
+def summary(ds) -> dict[str, Any]:
+    """Pure: the impulse fit (line on |dphi|, standard errors), per beta k, dx0, R^2 with intervals and
+    the rank correlation of k with d; the collapse of log10 k against d/2A and against d."""
+    dphi = ds["dphi"].values
+    impulse = ds["impulse"].values
+    fit_a = stats.line_fit(np.abs(dphi), impulse)
+    fit_pos = stats.line_fit(np.abs(dphi[dphi >= 0]), impulse[dphi >= 0])
+    fit_neg = stats.line_fit(np.abs(dphi[dphi <= 0]), impulse[dphi <= 0])
     k = ds["stiffness"].values
     R = ds["d_over_2A"].values
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -274,44 +309,120 @@ def _summary(ds, fit_a, fit_pos, fit_neg, results) -> dict[str, Any]:
     per_beta = {}
     for i, b in enumerate(ds["beta"].values):
         ok = np.isfinite(k[i])
+        def est(v, se, ci, unit=1.0):
+            return [stats.Estimate(a * unit, s_ * unit, lo * unit, hi * unit, int(n), m).to_dict()
+                    for a, s_, (lo, hi), n, m in zip(v, se, ci, ds["fit_n"].values[i],
+                                                      [method] * len(v))]
+
+        method = "k: linregress stderr, t interval; dx0, R^2: bootstrap percentile"
+        nan = np.full(R.size, np.nan)
         per_beta[f"{b:g}"] = {
             "amplitude_m": float(ds["amplitude"].values[i]),
-            "stiffness_N_per_m": k[i],
-            "dx0_over_lambda": ds["dx0"].values[i],
-            "fit_r2": ds["fit_r2"].values[i],
+            "stiffness_N_per_m": est(k[i], ds["stiffness_stderr"].values[i], ds["stiffness_ci95"].values[i]),
+            "dx0_over_lambda": est(ds["dx0"].values[i], nan, ds["dx0_ci95"].values[i]),
+            "fit_r2": est(ds["fit_r2"].values[i], nan, ds["fit_r2_ci95"].values[i]),
             "fit_points": ds["fit_n"].values[i],
-            "spearman_k_vs_d": _spearman(R[ok], k[i][ok]),
+            "spearman_k_vs_d": stats.rank_correlation(R[ok], k[i][ok]).to_dict(),
             "model_dx0_thin_over_lambda": ds["model_dx0_thin"].values[i],
             "model_dx0_bodies_over_lambda": ds["model_dx0_bodies"].values[i],
         }
-    failed = [f for r in results for f in r.failures]
+    r2_all = ds["fit_r2"].values
     return {
-        "impulse_fit": {"slope_Ns_per_rad": fit_a[0], "intercept_Ns": fit_a[1], "r2": fit_a[2],
-                        "positive_dphi": list(fit_pos), "negative_dphi": list(fit_neg),
-                        "form": "impulse = slope |dphi| + intercept"},
+        "impulse_fit": {"slope_Ns_per_rad": fit_a.slope.to_dict(), "intercept_Ns": fit_a.intercept.to_dict(),
+                        "r2": fit_a.r2.to_dict(), "positive_dphi": fit_pos.to_dict(),
+                        "negative_dphi": fit_neg.to_dict(), "form": "impulse = slope |dphi| + intercept"},
         "impulse_Ns": ds["impulse"].values,
         "dphi_rad": ds["dphi"].values,
         "d_over_2A": R,
         "per_beta": per_beta,
-        "median_fit_r2": float(np.nanmedian(ds["fit_r2"].values)),
-        "collapse_rms_log10k_vs_d_over_2A": _collapse_rms(x_scaled.ravel(), logk.ravel()),
-        "collapse_rms_log10k_vs_d_m": _collapse_rms(x_metres.ravel(), logk.ravel()),
-        "collapse_rms_log10k_vs_d_over_2A_sliding": _collapse_rms(x_scaled[sliding], logk[sliding]),
-        "collapse_rms_log10k_vs_d_m_sliding": _collapse_rms(x_metres[sliding], logk[sliding]),
+        "median_fit_r2": float(np.nanmedian(r2_all)),
+        "fit_r2_ci95_low_median": float(np.nanmedian(ds["fit_r2_ci95"].values[..., 0])),
+        "n_fits": int(np.isfinite(r2_all).sum()),
+        "collapse_rms_log10k_vs_d_over_2A": _collapse_rms(x_scaled.ravel(), logk.ravel()).to_dict(),
+        "collapse_rms_log10k_vs_d_m": _collapse_rms(x_metres.ravel(), logk.ravel()).to_dict(),
+        "collapse_rms_log10k_vs_d_over_2A_sliding": _collapse_rms(x_scaled[sliding], logk[sliding]).to_dict(),
+        "collapse_rms_log10k_vs_d_m_sliding": _collapse_rms(x_metres[sliding], logk[sliding]).to_dict(),
         "sliding_regime": f"d/2A >= {SLIDING_FROM} (below it the pair is wedged between the walls)",
         "n_points_broken": int(ds["broken"].values.sum()),
         "n_points": int(ds["broken"].size),
-        "n_failed": len(failed),
-        "failures": [str(f) for f in failed[:20]],
-        "sweep_elapsed_s": float(sum(r.elapsed_s for r in results)),
+        "n_failed": int(ds["run_failed"].values.sum()),
         "rules": f"dx: mean of last 3 periods minus the period before onset ({SETTLE_S} s); broken: "
                  f"dx/lambda > {BREAK} or last-3-period range > {DRIFT} lambda; fit by least squares of dF on dx",
     }
 
 
-@register("potential", paper_figure="10",
-          description="Contact impulse over the first two periods against dphi; equal and opposite "
-                      "forces on a settled dphi = 0 pair: dF = k (dx - dx0) per d/2A and beta, with "
-                      "the compatibility model's dx0.")
-def run(config: StudyConfig) -> StudyResult:
-    return compute(config, plan(config.quick))
+E = stats.Estimate.from_dict
+R2_MIN = 0.9
+
+
+def _impulse_linear(s: dict) -> Verdict:
+    f = s["impulse_fit"]
+    a, r2 = E(f["slope_Ns_per_rad"]), E(f["r2"])
+    measured = f"fit impulse = a|dphi| + b: a = {a:.3g} N s/rad, R^2 = {r2:.2f}"
+    if not r2.has_interval:
+        return Verdict.none("no interval for R^2 (fewer than 3 dphi)", measured, f)
+    return Verdict.judged(r2.low >= R2_MIN and a.low > 0, measured,
+                          {"slope_Ns_per_rad": f["slope_Ns_per_rad"], "r2": f["r2"]})
+
+
+def _harmonic(s: dict) -> Verdict:
+    med, low = s["median_fit_r2"], s["fit_r2_ci95_low_median"]
+    measured = (f"median R^2 of the {s['n_fits']} dF = k (dx - dx0) fits {med:.3f} "
+                f"(median lower 95 % bound {low:.3f})")
+    if s["n_fits"] == 0 or not np.isfinite(low):
+        return Verdict.none("no fit with an R^2 interval", measured)
+    return Verdict.judged(low >= R2_MIN, measured, {"median_r2": med, "median_r2_low": low})
+
+
+def _k_falls(s: dict) -> Verdict:
+    rho = {b: E(v["spearman_k_vs_d"]) for b, v in s["per_beta"].items()}
+    measured = "Spearman rank correlation of k with d per beta: " + ", ".join(
+        f"{b} deg: {r:+.2f}" for b, r in rho.items())
+    value = {b: r.to_dict() for b, r in rho.items()}
+    if not rho or any(not r.finite for r in rho.values()):
+        return Verdict.none("fewer than 3 stiffnesses for some beta", measured, value)
+    # with 3 to 9 widths a bootstrap interval of a rank correlation is degenerate: judge the value
+    return Verdict.judged(all(r.value < 0 for r in rho.values()), measured, value)
+
+
+def _collapse(s: dict) -> Verdict:
+    a, m = E(s["collapse_rms_log10k_vs_d_over_2A"]), E(s["collapse_rms_log10k_vs_d_m"])
+    measured = f"scatter of log10 k about one curve: {a:.2f} decades against d/2A, {m:.2f} against d"
+    value = {"against_d_over_2A": a.to_dict(), "against_d": m.to_dict()}
+    if not (a.finite and m.finite):
+        return Verdict.none("too few stiffnesses for the collapse fit", measured, value)
+    return Verdict.judged(a.value < m.value, measured, value)
+
+
+CLAIMS = (
+    Claim("the contact force over the first two periods grows linearly with |dphi|",
+          "cumulative contact forces over the first two periods are linearly dependent on dphi",
+          f"the lower 95 % bound of R^2 of impulse = a|dphi| + b is >= {R2_MIN} and that of a is > 0",
+          _impulse_linear),
+    Claim("dF against dx is linear (a harmonic well around compatibility)",
+          "a linear relationship between the applied force and the steady separation",
+          f"the median over (beta, d/2A) of the lower 95 % bound of R^2 of dF = k (dx - dx0) is >= {R2_MIN}",
+          _harmonic),
+    Claim("the cohesion stiffness k falls as the channel widens",
+          "stiffness decreases with increasing wall width",
+          "Spearman's rho of k with d is negative for every beta (its bootstrap interval is reported; with "
+          "3-9 widths it cannot exclude 0)", _k_falls),
+    Claim("stiffness curves for different amplitudes collapse when d is scaled by 2A",
+          "when we normalise the wall width by gait amplitude the stiffness curves follow a similar trend",
+          "the scatter of log10 k about one quadratic is smaller against d/2A than against d (bootstrap "
+          "intervals reported)", _collapse),
+)
+
+
+def figure(ds):
+    from ..plotting.potential import plot_potential
+
+    return plot_potential(ds)
+
+
+register(Study(
+    name="potential", paper_figure="10", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS,
+    figure=figure,
+    description="Contact impulse over the first two periods against dphi; equal and opposite "
+                "forces on a settled dphi = 0 pair: dF = k (dx - dx0) per d/2A and beta, with "
+                "the compatibility model's dx0."))

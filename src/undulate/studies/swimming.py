@@ -6,15 +6,16 @@ dynamics.  Here the swimming variant is :meth:`Ground.swimming` (MuJoCo's
 ellipsoid fluid model in water plus a weak linear drag; a lone swimmer
 advances head first, toward -x).  The study
 
-1. measures the lone swimmer's steady speed (:func:`~undulate.studies.packing.lone_swimmer_point`);
+1. measures the lone swimmer's steady speed (``StudyContext.lone_swimmer``);
 2. repeats the pair study (``d = 0.13 m``, ``xi = 1``, ``dphi`` in
    ``{-1, -3/4, ..., 1} pi``, and a finer set in full mode; 15 periods)
    in swimming mode and in the default (viscous, non-locomoting) mode;
 3. compares the steady ``dx / lambda`` against ``dphi / 2 pi`` with the
-   compatibility line: per mode, the slope of the pair study
-   (``_common.slope_fit``: least squares after moving each point onto the
-   branch nearest the n = 0 line) and the RMS distance to the nearest
-   compatible branch (``theory.compatibility_residual``).
+   compatibility line: per mode, the slope of the pair study with its
+   standard error (``_analysis.compatibility_fit``: least squares after
+   moving each point onto the branch nearest the n = 0 line) and the RMS
+   distance to the nearest compatible branch (``theory.compatibility_residual``)
+   with a bootstrap interval.
 """
 
 from __future__ import annotations
@@ -25,18 +26,16 @@ from typing import Any
 
 import numpy as np
 
-from .. import theory
+from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
-from ._common import SLOPE_METHOD, rms, slope_fit
-from ._registry import StudyConfig, StudyResult, register
-from .basins import pair_point
-from .packing import measure_lone_swimmers, study_sweep
+from ._analysis import SLOPE_METHOD, compatibility_fit, rms
+from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._runners import pair_point
 
-__all__ = ["SwimmingPlan", "plan", "slope_and_rms", "compute", "MODES"]
+__all__ = ["SwimmingPlan", "plan", "slope_and_rms", "dataset", "summary", "CLAIMS", "MODES"]
 
 MODES = ("viscous", "swimming")
 DURATION_S = 30.0
-LONE_DURATION_S = 30.0
 
 
 class SwimmingPlan:
@@ -51,33 +50,31 @@ def plan(quick: bool) -> SwimmingPlan:
     return SwimmingPlan(np.linspace(-np.pi, np.pi, n))
 
 
-def slope_and_rms(dphi_rad, dx_over_lambda) -> tuple[float, float, float]:
+def slope_and_rms(dphi_rad, dx_over_lambda) -> tuple[stats.Estimate, stats.Estimate, stats.Estimate]:
     """``(slope, intercept, rms)`` of ``dx/lambda`` against ``dphi/2pi``, as the pair
-    study computes them (``_common.slope_fit``: least squares after moving each point
-    by whole wavelengths onto the branch nearest the n = 0 line), and the RMS distance
-    (in lambda) of each point from its nearest compatible branch."""
-    fit = slope_fit(dx_over_lambda, dphi_rad)
+    study computes them (``_analysis.compatibility_fit``: least squares after moving each
+    point by whole wavelengths onto the branch nearest the n = 0 line), and the RMS
+    distance (in lambda) of each point from its nearest compatible branch; with
+    uncertainties."""
+    fit = compatibility_fit(dx_over_lambda, dphi_rad)
     r = theory.compatibility_residual(np.asarray(dx_over_lambda, float), np.asarray(dphi_rad, float), 1.0)
     return fit.slope, fit.intercept, rms(r)
 
 
-def compute(config: StudyConfig, p: SwimmingPlan) -> StudyResult:
-    """Run the swimming study on plan ``p`` (used by :func:`run` and the tests)."""
+def dataset(ctx: StudyContext, p: SwimmingPlan):
+    """The free swimmer on both grounds, then the pair sweep in both modes."""
     import xarray as xr
 
-    from ..plotting.swimming import plot_swimming
     from ..sweep import Grid
 
-    lone = measure_lone_swimmers(config, "swimming", [Gait().amplitude_rad], duration_s=LONE_DURATION_S,
-                                 ground="swimming")
-    speed = float(lone["speed_m_s"].item())
-    lone_v = measure_lone_swimmers(config, "swimming", [Gait().amplitude_rad], duration_s=LONE_DURATION_S)
-    speed_v = float(lone_v["speed_m_s"].item())
+    lone = ctx.lone_swimmer(ground="swimming")
+    speed = float(lone["speed_m_s"])
+    lone_v = ctx.lone_swimmer(ground="viscous")
+    speed_v = float(lone_v["speed_m_s"])
 
     fn = functools.partial(pair_point, duration_s=p.duration_s)
-    grid = Grid(axes={"ground": list(MODES), "dphi_rad": p.dphi}, seed=config.seed)
-    res = study_sweep(config, "swimming", "pairs", fn, grid)
-    g = res.dataset.isel(replicate=0)
+    grid = Grid(axes={"ground": list(MODES), "dphi_rad": p.dphi}, seed=ctx.config.seed)
+    g = ctx.sweep("pairs", fn, grid).isel(replicate=0)
     failed = g["run_failed"].values.astype(bool)
     one = {"units": "1"}
     lam = Gait().wavelength_m(SwimmerGeometry().length_m)
@@ -106,35 +103,72 @@ def compute(config: StudyConfig, p: SwimmingPlan) -> StudyResult:
         attrs={"title": "pairs swimming vs not (paper Methods remark)", "channel_width_m": 0.13,
                "duration_s": p.duration_s, "wavelength_m": lam},
     )
+    fits = {m: [e.value for e in slope_and_rms(ds["dphi"].values, ds["dx_final_over_lambda"].sel(mode=m).values)]
+            for m in MODES}
+    ds.attrs["fits_json"] = json.dumps(fits)
+    return ds
+
+
+def summary(ds) -> dict[str, Any]:
+    """Pure: per mode slope (standard error) and RMS residual (bootstrap interval); lone speeds."""
+    lam = float(ds.attrs["wavelength_m"])
+    speed_v, speed = (float(v) for v in ds["lone_speed"].values)
     fits = {}
     for m in MODES:
         s, c, rms_l = slope_and_rms(ds["dphi"].values, ds["dx_final_over_lambda"].sel(mode=m).values)
-        fits[m] = {"slope": s, "intercept": c, "rms_residual_over_lambda": rms_l,
+        fits[m] = {"slope": s.to_dict(), "intercept": c.to_dict(), "rms_residual_over_lambda": rms_l.to_dict(),
                    "dx_final_over_lambda": ds["dx_final_over_lambda"].sel(mode=m).values,
                    "n_steady": int(ds["steady"].sel(mode=m).sum()),
                    "n_swapped_sides": int(ds["swapped_sides"].sel(mode=m).sum()),
                    "n_no_longer_overlapping": int((np.abs(ds["dx_final_over_lambda"].sel(mode=m).values) * lam
                                                    >= SwimmerGeometry().length_m).sum()),
                    "median_pair_speed_m_s": float(np.nanmedian(ds["pair_speed"].sel(mode=m).values))}
-    ds.attrs["fits_json"] = json.dumps({m: [fits[m]["slope"], fits[m]["intercept"],
-                                            fits[m]["rms_residual_over_lambda"]] for m in MODES})
-    summary: dict[str, Any] = {
+    return {
         "lone_swimmer_speed_m_s": speed,
         "lone_swimmer_speed_body_lengths_per_period": speed * Gait().period_s / SwimmerGeometry().length_m,
         "lone_viscous_speed_m_s": speed_v,
         "dphi_rad": ds["dphi"].values,
         "modes": fits,
-        "n_failed": len(res.failures),
-        "failures": [str(f) for f in res.failures[:20]],
-        "sweep_elapsed_s": float(res.elapsed_s),
+        "n_failed": int(ds["run_failed"].values.sum()),
         "slope_method": SLOPE_METHOD,
-        "rms_method": "RMS over runs of the distance of dx/lambda to the nearest compatible branch",
+        "rms_method": "RMS over runs of the distance of dx/lambda to the nearest compatible branch "
+                      "(seeded bootstrap 95 % interval)",
     }
-    return StudyResult(dataset=ds, figure=plot_swimming(ds), summary=summary)
 
 
-@register("swimming", paper_figure="Methods",
-          description="The pair study (d = 0.13 m, xi = 1) with swimming drag and without: steady "
-                      "dx/lambda vs dphi with the compatibility line; the lone swimmer's speed.")
-def run(config: StudyConfig) -> StudyResult:
-    return compute(config, plan(config.quick))
+SLOPE_TOL = 0.2
+RMS_TOL = 0.1
+E = stats.Estimate.from_dict
+
+
+def _like_viscous(s: dict) -> Verdict:
+    v, w = s["modes"]["viscous"], s["modes"]["swimming"]
+    sv, rv, sw, rw = E(v["slope"]), E(v["rms_residual_over_lambda"]), E(w["slope"]), E(w["rms_residual_over_lambda"])
+    measured = (f"lone swimmer {s['lone_swimmer_speed_m_s'] * 1e3:.1f} mm/s head first; slope / RMS residual: "
+                f"swimming {sw:.2f} / {rw:.3f} lambda, not swimming {sv:.2f} / {rv:.3f} lambda")
+    value = {"swimming": {"slope": w["slope"], "rms": w["rms_residual_over_lambda"]},
+             "viscous": {"slope": v["slope"], "rms": v["rms_residual_over_lambda"]}}
+    if not (sw.has_interval and rw.has_interval):
+        return Verdict.none("no interval for the swimming pairs' slope or RMS", measured, value)
+    return Verdict.judged(sw.inside(1 - SLOPE_TOL, 1 + SLOPE_TOL) is True and rw.high < RMS_TOL, measured, value)
+
+
+CLAIMS = (
+    Claim("swimming (anisotropic drag) pairs behave like non-swimming ones",
+          "we found no qualitative difference in spatial dynamics between locomoting and non-locomoting simulations",
+          f"swimming pairs also follow the line: the 95 % interval of their slope lies within 1 +- {SLOPE_TOL} "
+          f"and that of their RMS residual below {RMS_TOL} lambda", _like_viscous),
+)
+
+
+def figure(ds):
+    from ..plotting.swimming import plot_swimming
+
+    return plot_swimming(ds)
+
+
+register(Study(
+    name="swimming", paper_figure="Methods", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS,
+    figure=figure,
+    description="The pair study (d = 0.13 m, xi = 1) with swimming drag and without: steady "
+                "dx/lambda vs dphi with the compatibility line; the lone swimmer's speed."))

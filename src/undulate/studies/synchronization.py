@@ -35,16 +35,15 @@ from __future__ import annotations
 
 import functools
 import math
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from .. import theory
+from .. import stats, theory
 from ..params import Channel, ControllerParams, Scene, SimOptions
-from ._registry import StudyConfig, StudyResult, register
+from ._registry import Claim, Study, StudyContext, Verdict, register
 
-__all__ = ["pair_run", "group_run", "pair_plan", "group_plan", "pair_claims", "group_claims",
+__all__ = ["pair_run", "group_run", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
            "CONTROLLERS", "PAIR_COUPLING"]
 
 PAIR_CHANNEL_M = 0.13
@@ -63,11 +62,6 @@ R_LOCKED = 0.9
 DRIFT_TOL_RAD_S = 0.02
 COMPAT_TOL = 0.1
 RECORD = ("x", "y", "joint_angle", "joint_command", "joint_error", "contact_force_pair", "gait_phase")
-
-
-def _sweep_dir(config: StudyConfig, name: str) -> Path:
-    mode = "quick" if config.quick else "full"
-    return Path(config.out_dir) / ".sweeps" / name / f"runs-{mode}-seed{config.seed}"
 
 
 def _label(ds):
@@ -153,15 +147,18 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
     }, coords={"time": ("time", t, {"units": "s"})})
 
 
-def free_frequency_hz(controller: str, duration_s: float = 30.0) -> float:
-    """The gait frequency of a lone swimmer under ``controller`` (wide channel, no contact), Hz,
-    over its last :data:`TAIL_S`."""
+def free_frequency(point: dict, seed: int, *, duration_s: float = 30.0):
+    """The gait frequency of a lone swimmer under ``point["controller"]`` (wide channel, no
+    contact) over its last :data:`TAIL_S` (sweep function): ``frequency`` (Hz)."""
+    import xarray as xr
+
     from ..phases import gait_frequency, gait_phase
     from ..simulation import simulate
 
-    sc = Scene(phases_rad=(0.0,), channel=Channel(width_m=2.0), controller=CONTROLLERS[controller])
+    sc = Scene(phases_rad=(0.0,), channel=Channel(width_m=2.0), controller=CONTROLLERS[str(point["controller"])])
     ds = simulate(sc, SimOptions(duration_s=duration_s, record=("gait_phase",)))
-    return float(gait_frequency(gait_phase(ds), t_from=duration_s - TAIL_S)[0])
+    f = float(gait_frequency(gait_phase(ds), t_from=duration_s - TAIL_S)[0])
+    return xr.Dataset({"frequency": ((), f, {"units": "Hz", "long_name": "free gait frequency"})})
 
 
 def pair_plan(quick: bool) -> dict[str, Any]:
@@ -179,54 +176,84 @@ def _fraction(mask: np.ndarray, of: np.ndarray) -> tuple[int, int]:
     return int((mask & of).sum()), int(of.sum())
 
 
-def pair_claims(s: dict[str, Any]) -> list[dict[str, Any]]:
-    """The PRX 2021 pair claims, one row per controller family, from the summary."""
-    rows = []
-    for c, v in s["per_controller"].items():
+E = stats.Estimate.from_dict
+
+
+def _held_lock(c: str):
+    def judge(s: dict) -> Verdict:
+        v = s["per_controller"][c]
         ni, nc = v["held_synchronized"], v["held_colliding"]
-        holds = None if nc == 0 else ni == nc
-        rows.append({"claim": f"{c}: held pairs that collide lock in phase or anti-phase",
-                     "paper": "PRX 2021: robot joints synchronize to in-phase and anti-phase oscillations "
-                              "through collisions",
-                     "measured": (f"{ni}/{nc} colliding held runs end within {math.degrees(SYNC_TOL_RAD):.0f} deg "
-                                  f"of 0 or pi (in phase {v['held_in_phase']}, anti-phase {v['held_anti_phase']}; "
-                                  "holds if all do)") if nc else "no result: no held run collided",
-                     "holds": holds})
+        if nc == 0:
+            return Verdict.none("no held run collided", value=v)
+        return Verdict.judged(ni == nc, f"{ni}/{nc} colliding held runs end within {math.degrees(SYNC_TOL_RAD):.0f} "
+                              f"deg of 0 or pi (in phase {v['held_in_phase']}, anti-phase {v['held_anti_phase']})",
+                              {"synchronized": ni, "colliding": nc})
+    return judge
+
+
+def _anti_phase_disappears(c: str):
+    def judge(s: dict) -> Verdict:
+        v = s["per_controller"][c]
         ha, fa = v["held_anti_phase"], v["free_anti_phase"]
-        holds = fa < ha  # no held anti-phase lock at all: the model shows nothing that could disappear
-        rows.append({"claim": f"{c}: anti-phase locking disappears when positions are free",
-                     "paper": "PRX 2021: when the robots can adjust their position anti-phase synchronization "
-                              "is no longer observed",
-                     "measured": (f"anti-phase finals: held {ha}, free {fa} "
-                                  "(holds if fewer free than held)") if ha else
-                     f"no held run locked anti-phase (free: {fa}): the premise fails in this model",
-                     "holds": holds})
-        ratio = v["median_force_ratio"]
-        holds = None if not math.isfinite(ratio) else ratio < 0.5
-        rows.append({"claim": f"{c}: synchronization sharply reduces the interaction force",
-                     "paper": "PRX 2021: synchronization dramatically reduces interaction forces",
-                     "measured": (f"median last/first-{TAIL_S:g}-s contact force over colliding runs {ratio:.2f} "
-                                  "(holds if < 0.5)") if math.isfinite(ratio) else "no result: no run collided",
-                     "holds": holds})
-    return rows
+        measured = (f"anti-phase finals: held {ha}, free {fa}" if ha else
+                    f"no held run locked anti-phase (free: {fa}): the premise fails in this model")
+        return Verdict.judged(fa < ha, measured, {"held_anti_phase": ha, "free_anti_phase": fa})
+    return judge
 
 
-def group_claims(s: dict[str, Any]) -> list[dict[str, Any]]:
-    rows = []
-    for c, v in s["per_controller"].items():
+def _force_drops(c: str):
+    def judge(s: dict) -> Verdict:
+        r = E(s["per_controller"][c]["force_ratio"])
+        if not r.finite:
+            return Verdict.none("no run collided", value=r.to_dict())
+        measured = f"median last/first-{TAIL_S:g}-s contact force over colliding runs {r:.2f}"
+        if not r.has_interval:
+            return Verdict.none("fewer than 3 colliding runs (no interval for the median)", measured, r.to_dict())
+        return Verdict.judged(r.high < 0.5, measured, r.to_dict())
+    return judge
+
+
+PAIR_CLAIMS = tuple(claim for c in CONTROLLERS for claim in (
+    Claim(f"{c}: held pairs that collide lock in phase or anti-phase",
+          "PRX 2021: robot joints synchronize to in-phase and anti-phase oscillations through collisions",
+          "every colliding held run ends within 30 deg of 0 or pi", _held_lock(c)),
+    Claim(f"{c}: anti-phase locking disappears when positions are free",
+          "PRX 2021: when the robots can adjust their position anti-phase synchronization is no longer observed",
+          "fewer free runs than held runs end anti-phase", _anti_phase_disappears(c)),
+    Claim(f"{c}: synchronization sharply reduces the interaction force",
+          "PRX 2021: synchronization dramatically reduces interaction forces",
+          "the 95 % interval (bootstrap) of the median last/first contact-force ratio over colliding runs "
+          "lies below 0.5", _force_drops(c)),
+))
+
+
+def _groups_end_both(c: str):
+    def judge(s: dict) -> Verdict:
+        v = s["per_controller"][c]
         n, both, locked, compat = v["n_runs"], v["both"], v["phase_locked"], v["compatible"]
-        rows.append({"claim": f"{c}: groups with phase and position free end phase-locked and position-compatible",
-                     "paper": "open (paper's conclusion): phase dynamics together with position dynamics",
-                     "measured": (f"{both}/{n} runs both, {locked}/{n} phase-locked, {compat}/{n} compatible "
-                                  f"(RMS < {COMPAT_TOL} lambda); median final R {v['median_R_final']:.2f}; "
-                                  f"collective {v['median_collective_frequency_hz']:.3f} Hz vs free "
-                                  f"{v['free_frequency_hz']:.3f} Hz (holds if most runs end both)") if n else "no result",
-                     "holds": None if n == 0 else both > n / 2})
-    return rows
+        if n == 0:
+            return Verdict.none("no group run has a result")
+        return Verdict.judged(both > n / 2, (
+            f"{both}/{n} runs both, {locked}/{n} phase-locked, {compat}/{n} compatible (RMS < {COMPAT_TOL} lambda); "
+            f"median final R {v['median_R_final']:.2f}; collective {v['median_collective_frequency_hz']:.3f} Hz vs "
+            f"free {v['free_frequency_hz']:.3f} Hz"), {"both": both, "n_runs": n})
+    return judge
 
 
-def _pair_summary(ds) -> dict[str, Any]:
-    out: dict[str, Any] = {"per_controller": {}}
+GROUP_CLAIMS = tuple(
+    Claim(f"{c}: groups with phase and position free end phase-locked and position-compatible",
+          "open (paper's conclusion): phase dynamics together with position dynamics",
+          "most runs end both phase-locked and position-compatible", _groups_end_both(c))
+    for c in CONTROLLERS)
+
+
+def _median(a):
+    return float(np.median(a)) if np.size(a) else float("nan")
+
+
+def pair_summary(ds) -> dict[str, Any]:
+    """Pure: per controller, counts of locked / colliding runs and the force ratio (bootstrap interval)."""
+    out: dict[str, Any] = {"per_controller": {}, "n_failed": int(ds["run_failed"].values.sum())}
     for c in ds["controller"].values:
         v = ds.sel(controller=c).isel(replicate=0)
         final = v["dphi_final"].values  # (hold_x, dphi0)
@@ -237,7 +264,10 @@ def _pair_summary(ds) -> dict[str, Any]:
         anti = np.abs(final) > np.pi - SYNC_TOL_RAD
         hsel = np.broadcast_to(held[:, None], final.shape)
         ratio = fe[collide] / fs[collide]
+        se, lo, hi = stats.bootstrap(_median, ratio)
         out["per_controller"][str(c)] = {
+            "force_ratio": stats.Estimate(_median(ratio), se, lo, hi, int(ratio.size),
+                                          "median, bootstrap percentile").to_dict(),
             "held_colliding": int((collide & hsel).sum()),
             "held_synchronized": int(((in_phase | anti) & collide & hsel).sum()),
             "held_in_phase": int((in_phase & hsel).sum()),
@@ -250,47 +280,36 @@ def _pair_summary(ds) -> dict[str, Any]:
     return out
 
 
-@register("synchronization-pairs", paper_figure=None,
-          description="Closed-loop pairs (self-oscillating; phase oscillator with load feedback) in the "
-                      "d = 0.13 m channel, positions held vs free: final phase difference, time to lock, "
-                      "contact force before and after (PRX 2021's three claims).")
-def run_pairs(config: StudyConfig) -> StudyResult:
-    from ..plotting.synchronization import plot_sync_pairs
-    from ..sweep import Grid, run_sweep
+def pair_dataset(ctx: StudyContext, p: dict[str, Any]):
+    from ..sweep import Grid
 
-    p = pair_plan(config.quick)
     grid = Grid(axes={"controller": list(CONTROLLERS), "hold_x": [True, False], "dphi0_rad": p["dphi0_rad"]},
-                seed=config.seed)
-    fn = functools.partial(pair_run, duration_s=p["duration_s"])
-    res = run_sweep(fn, grid, _sweep_dir(config, "synchronization-pairs"), scheduler=config.scheduler)
-    ds = _label(res.dataset)
+                seed=ctx.config.seed)
+    ds = _label(ctx.sweep("runs", functools.partial(pair_run, duration_s=p["duration_s"]), grid))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     ds.attrs.update(title="closed-loop pairs: phase locking", channel_width_m=PAIR_CHANNEL_M,
                     duration_s=p["duration_s"], phase_oscillator_coupling=PAIR_COUPLING)
-    summary = _pair_summary(ds)
-    summary.update(n_failed=len(res.failures), failures=[str(f) for f in res.failures[:20]],
-                   sweep_elapsed_s=float(res.elapsed_s))
-    summary["claims"] = pair_claims(summary)
-    return StudyResult(dataset=ds, figure=plot_sync_pairs(ds), summary=summary)
+    return ds
 
 
-@register("synchronization-groups", paper_figure=None,
-          description="3-10 closed-loop swimmers, phases and positions free: order parameter R(t), time to "
-                      "lock, and whether the final state is phase-locked, position-compatible, or both.")
-def run_groups(config: StudyConfig) -> StudyResult:
-    from ..plotting.synchronization import plot_sync_groups
-    from ..sweep import Grid, run_sweep
+def group_dataset(ctx: StudyContext, p: dict[str, Any]):
+    from ..sweep import Grid
 
-    p = group_plan(config.quick)
     grid = Grid(axes={"controller": list(CONTROLLERS), "n_swimmers": p["n_swimmers"], "spacing_m": p["spacing_m"]},
-                replicates=p["replicates"], seed=config.seed)
-    fn = functools.partial(group_run, duration_s=p["duration_s"])
-    res = run_sweep(fn, grid, _sweep_dir(config, "synchronization-groups"), scheduler=config.scheduler)
-    ds = _label(res.dataset)
+                replicates=p["replicates"], seed=ctx.config.seed)
+    ds = _label(ctx.sweep("runs", functools.partial(group_run, duration_s=p["duration_s"]), grid))
+    free = ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed))
+    ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
+                            {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})
     ds["spacing_m"].attrs.update(units="m", long_name="channel width per swimmer")
     ds["n_swimmers"].attrs.update(units="1")
     ds.attrs.update(title="closed-loop groups: phase and position free", duration_s=p["duration_s"],
                     phase_oscillator_coupling=PAIR_COUPLING)
+    return ds
+
+
+def group_summary(ds) -> dict[str, Any]:
+    """Pure: per controller, how many runs end phase-locked, compatible, both; R and frequencies."""
     per = {}
     for c in ds["controller"].values:
         v = ds.sel(controller=c)
@@ -298,14 +317,35 @@ def run_groups(config: StudyConfig) -> StudyResult:
         locked = v["phase_locked"].values.astype(bool) & ok
         compat = (v["compat_rms"].values < COMPAT_TOL) & ok
         per[str(c)] = {"n_runs": int(ok.sum()), "phase_locked": int(locked.sum()), "compatible": int(compat.sum()),
-                       "free_frequency_hz": free_frequency_hz(str(c)),
+                       "free_frequency_hz": float(v["free_frequency"]),
                        "median_collective_frequency_hz": float(np.nanmedian(v["frequency"].values)),
                        "both": int((locked & compat).sum()),
                        "median_R_final": float(np.nanmedian(v["R_final"].values)),
                        "median_lock_time_s": float(np.nanmedian(v["lock_time"].values))
                        if np.isfinite(v["lock_time"].values).any() else float("nan")}
-    summary: dict[str, Any] = {"per_controller": per, "n_failed": len(res.failures),
-                               "failures": [str(f) for f in res.failures[:20]],
-                               "sweep_elapsed_s": float(res.elapsed_s)}
-    summary["claims"] = group_claims(summary)
-    return StudyResult(dataset=ds, figure=plot_sync_groups(ds), summary=summary)
+    return {"per_controller": per, "n_failed": int(ds["run_failed"].values.sum())}
+
+
+def _plot_pairs(ds):
+    from ..plotting.synchronization import plot_sync_pairs
+
+    return plot_sync_pairs(ds)
+
+
+def _plot_groups(ds):
+    from ..plotting.synchronization import plot_sync_groups
+
+    return plot_sync_groups(ds)
+
+
+register(Study(
+    name="synchronization-pairs", plan=pair_plan, dataset=pair_dataset, summary=pair_summary, claims=PAIR_CLAIMS,
+    figure=_plot_pairs,
+    description="Closed-loop pairs (self-oscillating; phase oscillator with load feedback) in the "
+                "d = 0.13 m channel, positions held vs free: final phase difference, time to lock, "
+                "contact force before and after (PRX 2021's three claims)."))
+register(Study(
+    name="synchronization-groups", plan=group_plan, dataset=group_dataset, summary=group_summary,
+    claims=GROUP_CLAIMS, figure=_plot_groups,
+    description="3-10 closed-loop swimmers, phases and positions free: order parameter R(t), time to "
+                "lock, and whether the final state is phase-locked, position-compatible, or both."))

@@ -1,0 +1,279 @@
+"""The three runners every simulation study uses (sweep functions ``fn(point, seed) -> Dataset``).
+
+* :func:`group_point` -- ``n`` swimmers side by side from straight, laterally
+  in contact, at ``dx0 = 0`` (the pair, link-number and group studies; a
+  pair is a group of two): their centres, phases, contact force and joint
+  error over time.
+* :func:`pair_point` -- two swimmers from a given offset ``dx0``, in a channel
+  set in metres or in ``d/2A``, with equal and opposite forces or the
+  swimming ground (basins, confinement, potential, swimming): ``dx(t)`` and
+  its steady value, contact impulse, speed.
+* :func:`lone_swimmer` -- one free swimmer: the gait amplitude ``A`` (the one
+  definition every study uses, through ``StudyContext.lone_swimmer``), its
+  joint error and speed.
+
+Every constant a runner reads is a module constant here or a default
+argument: both are part of a sweep's identity (the code hash covers this
+file, the bound call every default), so changing one recomputes the runs.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from ..params import Channel, Gait, Ground, Scene, SimOptions, SwimmerGeometry
+
+__all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", "PAIR_WIDTH_M",
+           "PAIR_DURATION_S", "RECORD_HZ", "PAIR_STEADY_TOL", "LONE_DURATION_S", "LONE_CHANNEL_WIDTH_M",
+           "AMPLITUDE_ROUND_M", "round_amplitude", "group_point", "pair_scene", "pair_point", "lone_swimmer"]
+
+BODY_LENGTH_M = 0.54
+"""L, m (the paper's robots; the SwimmerGeometry default)."""
+PERIOD_S = 2.0
+"""Gait period 1/f at the default f = 0.5 Hz, s."""
+DURATION_S = 30.0
+"""15 gait periods, as the paper's runs, s."""
+SAMPLE_RATE_HZ = 10.0
+"""Recording rate of the group runs, Hz (20 samples per period)."""
+TIMESTEP_S = 0.002
+"""Integrator step of the 3-link group runs, s (other link numbers give ``timestep_s`` in the point)."""
+
+PAIR_WIDTH_M = 0.13
+"""Channel width of the pair studies, m (paper: 13 cm)."""
+PAIR_DURATION_S = 30.0
+"""Pair runs last 15 gait periods, s (the paper's experiments)."""
+RECORD_HZ = 5.0
+"""Rate at which a pair run keeps dx(t), Hz."""
+PAIR_STEADY_TOL = 0.01
+"""Steady-state rule of a pair run for dx/lambda (observables.steady_state): last 3 period means within this."""
+
+LONE_DURATION_S = 30.0
+"""Length of a free swimmer's run, s (15 periods: its speed is fitted over the second half)."""
+LONE_CHANNEL_WIDTH_M = 1.0
+"""Channel width for the free swimmer, m: far wider than its stroke."""
+LONE_PERIODS = 3
+"""A is measured over the last LONE_PERIODS whole periods."""
+LONE_SKIP_S = 2.0
+"""The free swimmer's joint error is averaged over t >= LONE_SKIP_S (one period), s."""
+AMPLITUDE_ROUND_M = 1e-5
+"""Measured amplitudes are rounded to this (m) before they set channel widths, so a
+resumed sweep finds the same parameters after a bitwise-different re-measurement."""
+
+
+_PAIR_KEYS = ("dx0_over_lambda", "dphi_rad", "phi0_rad", "channel_width_m", "d_over_2A", "amplitude_m",
+              "amplitude_rad", "force_N", "ground", "waves_per_body")
+
+
+def round_amplitude(a_m: float) -> float:
+    """A measured amplitude (m) rounded to :data:`AMPLITUDE_ROUND_M`."""
+    return float(round(a_m / AMPLITUDE_ROUND_M) * AMPLITUDE_ROUND_M)
+
+
+def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channel_width_m: float = 0.13,
+                   random_phases: bool = False, duration_s: float = DURATION_S,
+                   sample_rate_hz: float = SAMPLE_RATE_HZ) -> xr.Dataset:
+    """Simulate one scene of a study grid; a small Dataset for the sweep store.
+
+    ``point`` keys (all optional): ``dphi_rad`` (phase step between
+    neighbours in the initial stack, rad: swimmer ``j`` gets ``j dphi``;
+    default 0), ``waves_per_body`` (xi, default 1), ``n_links`` (default 3),
+    ``amplitude_rad`` (beta, default 45 degrees), ``timestep_s`` (default
+    :data:`TIMESTEP_S`).  With ``random_phases`` every swimmer's phase is
+    drawn uniformly from ``[0, 2 pi)`` with ``numpy.random.default_rng(seed)``
+    (the sweep's per-run seed) and ``dphi_rad`` is ignored.  Swimmers start
+    straight, laterally in contact, at dx0 = 0 (paper Methods).
+
+    Returns (dims; units): ``x``, ``y`` (time, swimmer; m) centres of mass,
+    ``phase`` (swimmer; rad), ``joint_error`` (time, swimmer; rad, mean over
+    the joints), ``contact_force_pair`` (time, pair; N, swimmers p and p+1
+    of the initial stack), ``penetration_max`` (m), and the wavelength
+    ``wavelength`` (m, inf for xi = 0).
+    """
+    from ..simulation import simulate
+
+    xi = float(point.get("waves_per_body", 1.0))
+    n_links = int(point.get("n_links", 3))
+    beta = float(point.get("amplitude_rad", math.radians(45.0)))
+    dt = float(point.get("timestep_s", TIMESTEP_S))
+    if random_phases:
+        phases = tuple(np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, n_swimmers))
+    else:
+        phases = tuple(j * float(point.get("dphi_rad", 0.0)) for j in range(n_swimmers))
+    scene = Scene(
+        phases_rad=phases,
+        gait=Gait(amplitude_rad=beta, waves_per_body=xi),
+        geometry=SwimmerGeometry(n_links=n_links, length_m=BODY_LENGTH_M),
+        channel=Channel(width_m=channel_width_m),
+    )
+    ds = simulate(scene, SimOptions(duration_s=duration_s, timestep_s=dt, sample_rate_hz=sample_rate_hz))
+    time = ds["time"].values
+    return xr.Dataset(
+        {
+            "x": (("time", "swimmer"), ds["x"].values, {"units": "m", "long_name": "centre of mass x"}),
+            "y": (("time", "swimmer"), ds["y"].values, {"units": "m", "long_name": "centre of mass y"}),
+            "phase": ("swimmer", np.asarray(phases, float), {"units": "rad", "long_name": "gait phase phi"}),
+            "joint_error": (("time", "swimmer"), ds["joint_error"].values.mean(axis=-1),
+                            {"units": "rad", "long_name": "joint error |alpha - alpha_cmd|, mean over joints"}),
+            "contact_force_pair": (("time", "pair"), ds["contact_force_pair"].values,
+                                   {"units": "N", "long_name": "net contact force between swimmers pair "
+                                                               "and pair+1 of the initial stack"}),
+            "penetration_max": ((), float(ds["penetration"].max()), {"units": "m"}),
+            "wavelength": ((), float(ds.attrs["wavelength"]), {"units": "m"}),
+        },
+        coords={"time": ("time", time, {"units": "s"})},
+    )
+
+
+def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: float = 0.0) -> Scene:
+    """The pair scene of a sweep point.
+
+    Keys (all optional): ``dx0_over_lambda`` (initial x_b - x_a over lambda;
+    0), ``dphi_rad`` (phi_b - phi_a, rad; 0), ``phi0_rad`` (phase of swimmer
+    a, rad; 0), ``channel_width_m`` (d, m; 0.13) or ``d_over_2A`` (d over
+    twice the gait amplitude, given by the key ``amplitude_m`` (m) or else the
+    keyword ``amplitude_m``),
+    ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body`` (xi; 1),
+    ``force_N`` (dF, N: swimmer a is pushed toward -x and b toward +x, from
+    ``force_onset_s``; 0), ``ground`` (``"viscous"`` or ``"swimming"``).
+    """
+    unknown = set(point) - set(_PAIR_KEYS)
+    if unknown:
+        from ..errors import ParameterError
+
+        raise ParameterError("point", f"keys among {_PAIR_KEYS}", sorted(unknown))
+    gait = Gait(amplitude_rad=float(point.get("amplitude_rad", Gait().amplitude_rad)),
+                waves_per_body=float(point.get("waves_per_body", 1.0)))
+    geo = SwimmerGeometry()
+    lam = gait.wavelength_m(geo.length_m)
+    if "d_over_2A" in point:
+        amp = point.get("amplitude_m", amplitude_m)
+        if amp is None:
+            raise ValueError("d_over_2A needs amplitude_m")
+        width = float(point["d_over_2A"]) * 2.0 * float(amp)
+    else:
+        width = float(point.get("channel_width_m", PAIR_WIDTH_M))
+    ground = Ground.swimming() if point.get("ground", "viscous") == "swimming" else Ground()
+    f = float(point.get("force_N", 0.0))
+    return Scene(
+        phases_rad=(float(point.get("phi0_rad", 0.0)),
+                    float(point.get("phi0_rad", 0.0)) + float(point.get("dphi_rad", 0.0))),
+        gait=gait,
+        geometry=geo,
+        ground=ground,
+        channel=Channel(width_m=width),
+        dx0_m=float(point.get("dx0_over_lambda", 0.0)) * lam,
+        forces_N=(-f, f) if f else None,
+        force_onset_s=float(force_onset_s) if f else 0.0,
+    )
+
+
+def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
+               amplitude_m: float | None = None, force_onset_s: float = 0.0,
+               record_hz: float = RECORD_HZ):
+    """One pair run (sweep function): the offsets over time and their summary.
+
+    ``point``: see :func:`pair_scene`.  Returns (``dx = x_1 - x_0``, swimmer
+    1 the one that starts above, with phase ``dphi``; ``swapped_sides`` flags
+    a run in which the two changed lateral order at some time, which in the
+    lateral-order convention flips the signs of dx and dphi together):
+    ``dx_over_lambda(time)`` at ``record_hz``;
+    ``dx_period_over_lambda(period_time)`` (whole-period means);
+    ``dx_final_over_lambda`` (mean of the last 3 periods), ``steady``
+    (``observables.steady_state``, tolerance :data:`PAIR_STEADY_TOL`),
+    ``settle_time_s``; ``dy_final_m``; ``impulse_2T_Ns`` (swimmer-swimmer
+    contact impulse over the first two periods); ``mean_joint_error_rad``
+    (t >= one period); ``speed_m_s`` (the pair's mean speed toward -x over
+    the last 3 periods); ``max_penetration_m``.  ``seed`` is unused.
+    """
+    import xarray as xr
+
+    from ..observables import contact_impulse, neighbour_offsets, period_average, steady_state
+    from ..simulation import simulate
+
+    scene = pair_scene(point, amplitude_m=amplitude_m, force_onset_s=force_onset_s)
+    ds = simulate(scene, SimOptions(duration_s=duration_s))
+    lam = scene.wavelength_m
+    T = scene.gait.period_s
+    # dx = x_1 - x_0 and dy = y_1 - y_0 in the initial labels (swimmer 1 starts above
+    # swimmer 0 and has phase dphi): the lateral-order convention as long as the two
+    # do not swap sides, and the same physics (dx, dphi -> -dx, -dphi) if they do.
+    off = neighbour_offsets(ds).isel(pair=0)
+    sign = xr.where(off["lower"] == 0, 1.0, -1.0)
+    swapped = bool((sign < 0).any())
+    off = off.assign(dx=off["dx"] * sign, dy=off["dy"] * sign)
+    dxl = off["dx"] / lam
+    pa = period_average(dxl, T)
+    st = steady_state(dxl, T, tol=PAIR_STEADY_TOL)
+    dy = period_average(off["dy"], T)
+    xc = period_average(ds["x"].mean("swimmer"), T).values
+    every = max(1, int(round(1.0 / (record_hz * float(ds.attrs["sample_interval"])))))
+    rec = dxl.isel(time=slice(0, None, every))
+    imp = float(contact_impulse(ds, 0.0, 2 * T)["pair"].isel(pair=0))
+    je = float(ds["joint_error"].where(ds["time"] >= T).mean())
+    one = {"units": "1"}
+    return xr.Dataset(
+        {
+            "dx_over_lambda": (("time",), rec.values, {**one, "long_name": "dx / lambda"}),
+            "dx_period_over_lambda": (("period_time",), pa.values, {**one, "long_name": "period mean of dx / lambda"}),
+            "dx_final_over_lambda": ((), float(st["value"]), {**one, "long_name": "final dx / lambda (last 3 periods)"}),
+            "steady": ((), bool(st["steady"])),
+            "settle_time_s": ((), float(st["settle_time"]), {"units": "s"}),
+            "dy_final_m": ((), float(dy.values[-3:].mean()), {"units": "m", "long_name": "final dy"}),
+            "impulse_2T_Ns": ((), imp, {"units": "N s", "long_name": "pair contact impulse over the first 2 periods"}),
+            "mean_joint_error_rad": ((), je, {"units": "rad"}),
+            "speed_m_s": ((), float((xc[-4] - xc[-1]) / (3 * T)) if xc.size >= 4 else float("nan"),
+                          {"units": "m/s", "long_name": "pair speed toward -x, last 3 periods"}),
+            "max_penetration_m": ((), float(ds["penetration"].max()), {"units": "m"}),
+            "swapped_sides": ((), swapped),
+        },
+        coords={
+            "time": ("time", rec["time"].values, {"units": "s"}),
+            "period_time": ("period_time", pa["time"].values, {"units": "s"}),
+        },
+    )
+
+
+def lone_swimmer(point: dict, seed: int, *, duration_s: float = LONE_DURATION_S) -> xr.Dataset:
+    """One free swimmer (sweep function): the gait amplitude A, joint error and speed.
+
+    ``point``: ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body``
+    (xi; 1), ``n_links`` (3), ``ground`` (``"viscous"`` or ``"swimming"``,
+    :meth:`Ground.swimming`).  One swimmer in a :data:`LONE_CHANNEL_WIDTH_M`
+    wide channel for ``duration_s`` at the simulator's time step.  Returns
+    ``amplitude_m`` (A: :func:`~undulate.observables.gait_amplitude` over the
+    last :data:`LONE_PERIODS` periods, rounded to :data:`AMPLITUDE_ROUND_M`),
+    ``mean_joint_error_rad`` (mean over joints and t >= :data:`LONE_SKIP_S`),
+    ``speed_m_s`` (toward -x: straight-line fit of the period-averaged centre
+    x over the second half of the run) and ``x_period_m`` (period-averaged
+    centre x).  Deterministic (``seed`` unused).
+    """
+    from ..observables import gait_amplitude, period_average
+    from ..simulation import simulate
+
+    gait = Gait(amplitude_rad=float(point.get("amplitude_rad", Gait().amplitude_rad)),
+                waves_per_body=float(point.get("waves_per_body", 1.0)))
+    g = Ground.swimming() if point.get("ground", "viscous") == "swimming" else Ground()
+    scene = Scene(phases_rad=(0.0,), gait=gait, ground=g,
+                  geometry=SwimmerGeometry(n_links=int(point.get("n_links", 3)), length_m=BODY_LENGTH_M),
+                  channel=Channel(width_m=LONE_CHANNEL_WIDTH_M))
+    ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=50.0))
+    period = scene.gait.period_s
+    amp = round_amplitude(gait_amplitude(ds, periods=LONE_PERIODS))
+    je = float(ds["joint_error"].where(ds["time"] >= LONE_SKIP_S).mean())
+    xp = period_average(ds["x"].isel(swimmer=0), period)
+    half = xp.sizes["time"] // 2
+    tt, xx = xp["time"].values[half:], xp.values[half:]
+    speed = -float(np.polyfit(tt, xx, 1)[0]) if len(tt) >= 2 else float("nan")
+    return xr.Dataset(
+        {
+            "amplitude_m": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
+            "mean_joint_error_rad": ((), je, {"units": "rad", "long_name": "mean joint error, free swimmer"}),
+            "speed_m_s": ((), speed, {"units": "m/s", "long_name": "forward speed toward -x"}),
+            "x_period_m": (("period_time",), xp.values, {"units": "m", "long_name": "period-averaged centre x"}),
+        },
+        coords={"period_time": ("period_time", xp["time"].values, {"units": "s"})},
+    )
