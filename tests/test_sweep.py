@@ -330,3 +330,10 @@ def test_bound_arguments_include_every_default():
     assert bound_arguments(f) == {"scale": "1.0", "n": "3"}
     assert bound_arguments(functools.partial(f, scale=2.0)) == {"scale": "2.0", "n": "3"}
     assert function_id(functools.partial(functools.partial(f, n=4), scale=0.5)).endswith("f(scale=0.5, n=4)")
+
+
+def test_grid_from_dict_round_trips_and_rejects_unknown_keys():
+    g = Grid(axes={"x": [1.0, 2.0]}, replicates=2, seed=5)
+    assert Grid.from_dict(g.to_dict()) == g
+    with pytest.raises(ParameterError, match="seeed"):
+        Grid.from_dict({**g.to_dict(), "seeed": 1})

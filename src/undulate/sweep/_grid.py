@@ -235,7 +235,11 @@ class Grid:
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> Grid:
-        return cls(d.get("axes"), points=d.get("points"), replicates=d["replicates"], seed=d["seed"])
+        """Inverse of :meth:`to_dict`; unknown keys are rejected, not ignored."""
+        unknown = sorted(set(d) - {"axes", "points", "replicates", "seed"})
+        if unknown:
+            raise ParameterError("grid", "a dict with keys among axes, points, replicates, seed", unknown)
+        return cls(d.get("axes"), points=d.get("points"), replicates=d.get("replicates", 1), seed=d.get("seed", 0))
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, Grid) and self.to_dict() == other.to_dict()
