@@ -72,6 +72,29 @@ def finish_offset_panel(ax, scale: float | None = 1.0, span: float = 0.6) -> Non
         ax.axhline(0.0, color="k", lw=0.6, zorder=1)
 
 
+def fit_line(ax, dphi, dx_over_lambda, colour="k") -> None:
+    """The study's compatibility fit (each point moved onto the branch nearest the n = 0 line,
+    then least squares; :mod:`undulate.stats`) drawn with its 95 % band of lines: every slope and
+    intercept within their intervals.  The label gives the slope and its interval."""
+    from .. import stats, theory
+
+    x = np.asarray(dphi, float)
+    y = np.asarray(dx_over_lambda, float)
+    ok = np.isfinite(x) & np.isfinite(y)
+    if ok.sum() < 3:
+        return
+    y_line = x[ok] / (2 * np.pi) + theory.compatibility_residual(y[ok], x[ok], 1.0)
+    fit = stats.line_fit(x[ok] / (2 * np.pi), y_line)
+    if not fit.slope.has_interval:
+        return
+    xx = np.linspace(-np.pi, np.pi, 50) / (2 * np.pi)
+    corners = [a * xx + b for a in (fit.slope.low, fit.slope.high) for b in (fit.intercept.low, fit.intercept.high)]
+    ax.fill_between(xx * 2 * np.pi, np.min(corners, axis=0), np.max(corners, axis=0), color=colour, alpha=0.15,
+                    lw=0, zorder=0)
+    ax.plot(xx * 2 * np.pi, fit.slope.value * xx + fit.intercept.value, "-", color=colour, lw=1, zorder=2,
+            label=f"fit: slope {fit.slope:.2f} (95 %)")
+
+
 def plot_pairs(ds):
     """Figure of the ``pairs`` study dataset, laid out like paper Fig. 3b,c.
 
@@ -122,7 +145,9 @@ def plot_pairs(ds):
         d = ds.sel(xi=xi)
         offset_panel(ax, dphi, d["dx_steady_over_lambda"].values, d["steady"].values,
                      colour=XI_COLOURS.get(xi, "k"))
+        fit_line(ax, dphi, d["dx_steady_over_lambda"].values, colour=XI_COLOURS.get(xi, "k"))
         finish_offset_panel(ax, 1.0)
+        ax.legend(fontsize=7, loc="upper left")
         ax.set_ylabel(r"steady $\Delta x/\lambda$")
         ax.set_title(rf"(c) $\xi = L/\lambda = {_xi_label(xi)}$", loc="left")
     for col, xi in zip((1, 2, 3), (0.0, 0.75, 1.5)):
