@@ -71,8 +71,9 @@ def test_atomic_output_fsyncs_sets_umask_permissions_and_cleans_up(tmp_path):
             raise RuntimeError("killed")
     assert (tmp_path / "b.txt").read_text() == "old"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["a.txt", "b.txt"]
-    (tmp_path / ".c.nc.0123.tmp.nc").write_text("left by a kill -9")
-    assert remove_temporaries(tmp_path) == 1
+    (tmp_path / ".c.nc.0123.tmp").write_text("left by a kill -9")
+    (tmp_path / ".d.gif.0123.tmp.gif").write_text("left by a kill -9")
+    assert remove_temporaries(tmp_path) == 2
 
 
 def test_write_netcdf_round_trip(tmp_path):

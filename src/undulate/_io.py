@@ -4,8 +4,8 @@ One helper, :func:`atomic_output`, used by every writer (studies, sweeps,
 report, reproduction state, animations, CLI outputs):
 
 1. the content goes to a unique temporary name beside the target
-   (``.NAME.<random>.tmp.SUFFIX``: same folder, so the rename is atomic;
-   the suffix kept for writers that choose a format by extension);
+   (``.NAME.<random>.tmp``, or ``.tmp.SUFFIX`` for writers that choose a
+   format by extension; same folder, so the rename is atomic);
 2. the temporary file is flushed to disk (``fsync``) and given the
    permissions a plainly created file would have (``0o666`` less the umask;
    ``mkstemp`` would leave ``0o600``);
@@ -52,21 +52,25 @@ def _fsync(path: Path) -> None:
         os.close(fd)
 
 
-def _tmp_name(path: Path) -> Path:
-    # ends with the target's suffix: writers that pick a format by extension (matplotlib) see it
-    return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}.tmp{path.suffix}")
+def _tmp_name(path: Path, keep_suffix: bool = False) -> Path:
+    tail = f".tmp{path.suffix}" if keep_suffix else ".tmp"
+    return path.with_name(f".{path.name}.{uuid.uuid4().hex[:12]}{tail}")
 
 
 @contextlib.contextmanager
-def atomic_output(path: str | os.PathLike) -> Iterator[Path]:
+def atomic_output(path: str | os.PathLike, *, keep_suffix: bool = False) -> Iterator[Path]:
     """Yield a temporary path beside ``path``; when the block succeeds, move it into place.
 
-    Write the content to the yielded path (any writer that takes a path).
+    Write the content to the yielded path (any writer that takes a path);
+    ``keep_suffix``: the temporary name ends with ``path``'s suffix too, for
+    writers that choose a format by extension (matplotlib's animation
+    writers); otherwise it ends with ``.tmp``, so a glob for finished files
+    (``*.nc``) never sees a half-written one.
     On success it is fsync-ed, given umask permissions and renamed to
     ``path``; on any exception it is removed and ``path`` is untouched.
     """
     path = Path(path)
-    tmp = _tmp_name(path)
+    tmp = _tmp_name(path, keep_suffix)
     try:
         yield tmp
         if not tmp.exists():  # the writer wrote nothing: an empty file, as open(path, "w") would

@@ -134,7 +134,7 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
 
         mpl.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
         writer = animation.FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"])
-    with atomic_output(out) as tmp:
+    with atomic_output(out, keep_suffix=True) as tmp:  # the writer picks its format by extension
         with writer.saving(fig, str(tmp), dpi):
             for i in range(len(times)):
                 draw(i)

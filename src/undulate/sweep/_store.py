@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from .._io import atomic_write, atomic_write_bytes, atomic_write_text, remove_temporaries
+from .._io import atomic_write_bytes, atomic_write_text, remove_temporaries, write_netcdf
 from ..errors import ParameterError
 from ._grid import RESERVED, Grid, Run
 
@@ -42,7 +42,8 @@ MERGED = "sweep.nc"
 
 # ---- atomic files (one helper for the whole package: undulate._io) -------
 def atomic_write_netcdf(path: Path, ds: xr.Dataset) -> None:
-    atomic_write(path, lambda p: ds.to_netcdf(p, engine=ENGINE))
+    """The merged file: :func:`undulate._io.write_netcdf` (uncompressed: merges are rewritten often)."""
+    write_netcdf(ds, path, compress=False)
 
 
 def _run_file_bytes(ds: xr.Dataset) -> bytes:
