@@ -23,3 +23,11 @@ def test_lazy_imports_are_edges():
     assert "undulate.simulation" in closure(["undulate.studies.pairs"], graph)
     assert "undulate.plotting.pairs" in graph["undulate.studies.pairs"]
 
+
+
+def test_no_study_imports_another_study():
+    graph = import_graph()
+    studies = {m for m in graph if m.startswith("undulate.studies.") and not m.split(".")[-1].startswith("_")}
+    assert {"undulate.studies.pairs", "undulate.studies.packing"} <= studies
+    for m in sorted(studies):
+        assert not (graph[m] & studies), f"{m} imports {sorted(graph[m] & studies)}"
