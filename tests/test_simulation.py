@@ -259,3 +259,15 @@ def test_top_level_simulate_is_the_function_even_after_importing_the_module():
     import undulate
 
     assert callable(undulate.simulate) and undulate.simulate.__name__ == "simulate"
+
+
+def test_scene_round_trips_through_a_dict_and_rejects_unknown_keys():
+    from undulate.errors import ParameterError
+    from undulate.params import ControllerParams, Scene
+
+    sc = Scene(phases_rad=(0.0, 1.0, 2.0), controller=ControllerParams(kind="phase-oscillator"))
+    assert Scene.from_dict(sc.to_dict()) == sc
+    d = sc.to_dict()
+    d["gait"]["wavelength_m"] = 0.3  # a misspelt or foreign field must not be dropped silently
+    with pytest.raises(ParameterError, match="Gait.wavelength_m"):
+        Scene.from_dict(d)

@@ -31,7 +31,7 @@ from typing import TYPE_CHECKING
 if TYPE_CHECKING:
     import xarray as xr
 
-__all__ = ["atomic_output", "atomic_write", "atomic_write_bytes", "atomic_write_text", "write_netcdf",
+__all__ = ["atomic_output", "temporary_path", "commit", "discard", "atomic_write", "atomic_write_bytes", "atomic_write_text", "write_netcdf",
            "remove_temporaries", "TMP_GLOB"]
 
 TMP_GLOB = ".*.tmp*"
@@ -70,18 +70,36 @@ def atomic_output(path: str | os.PathLike, *, keep_suffix: bool = False) -> Iter
     ``path``; on any exception it is removed and ``path`` is untouched.
     """
     path = Path(path)
-    tmp = _tmp_name(path, keep_suffix)
+    tmp = temporary_path(path, keep_suffix=keep_suffix)
     try:
         yield tmp
         if not tmp.exists():  # the writer wrote nothing: an empty file, as open(path, "w") would
             tmp.touch()
-        _fsync(tmp)
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
+        commit(tmp, path)
     except BaseException:
-        with contextlib.suppress(OSError):
-            tmp.unlink()
+        discard(tmp)
         raise
+
+
+def temporary_path(path: str | os.PathLike, *, keep_suffix: bool = False) -> Path:
+    """A fresh temporary name beside ``path`` (step 1), for writers that must hold the
+    file open across calls (the streaming recorder) and so cannot use :func:`atomic_output`'s
+    ``with`` block; finish with :func:`commit` or :func:`discard`."""
+    return _tmp_name(Path(path), keep_suffix)
+
+
+def commit(tmp: str | os.PathLike, path: str | os.PathLike) -> None:
+    """Steps 2-3: fsync ``tmp``, give it umask permissions and rename it onto ``path``."""
+    tmp = Path(tmp)
+    _fsync(tmp)
+    os.chmod(tmp, 0o666 & ~_umask())
+    os.replace(tmp, path)
+
+
+def discard(tmp: str | os.PathLike) -> None:
+    """Step 4: remove a temporary file (no error if it is already gone)."""
+    with contextlib.suppress(OSError):
+        Path(tmp).unlink()
 
 
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> None:

@@ -86,6 +86,11 @@ class _Params:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]):
+        names = [f.name for f in dataclasses.fields(cls)]  # type: ignore[arg-type]
+        unknown = sorted(set(d) - set(names))
+        if unknown:
+            raise ParameterError(f"{cls.__name__}.{unknown[0]}", "one of the fields " + ", ".join(names),
+                                 d[unknown[0]])
         kwargs = {}
         for f in dataclasses.fields(cls):  # type: ignore[arg-type]
             if f.name not in d:

@@ -222,19 +222,17 @@ class _NetCDFRecorder:
     then appended in one write (each h5netcdf append costs ~1 ms per variable:
     appending every rollout chunk took a third of a long pair run), so memory
     stays bounded by that much plus one chunk.  The file is written to a
-    temporary path beside ``path`` and renamed into place by :meth:`finish`;
-    :meth:`abort` removes it.
+    temporary path beside ``path`` (:func:`undulate._io.temporary_path`) and
+    fsync-ed and renamed into place by :meth:`finish`; :meth:`abort` removes it.
     """
 
     FLUSH_BYTES = 1 << 20
 
     def __init__(self, path: Path):
-        import tempfile
+        from . import _io
 
         self.path = Path(path)
-        fd, tmp = tempfile.mkstemp(prefix=f".{self.path.name}.", suffix=".tmp", dir=self.path.resolve().parent)
-        os.close(fd)
-        self.tmp = Path(tmp)
+        self.tmp = _io.temporary_path(self.path)
         self.file = None
         self.pending: list[dict] = []
         self.pending_bytes = 0
@@ -278,20 +276,17 @@ class _NetCDFRecorder:
         if self.file is not None:
             self._flush()
         self._close()
-        os.chmod(self.tmp, 0o666 & ~_umask())
-        os.replace(self.tmp, self.path)
+        from . import _io
+
+        _io.commit(self.tmp, self.path)
         return xr.open_dataset(self.path, engine="h5netcdf")
 
     def abort(self) -> None:
         self.pending = []
         self._close()
-        self.tmp.unlink(missing_ok=True)
+        from . import _io
 
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
+        _io.discard(self.tmp)
 
 
 def _outs(out, nb: int) -> list[Path] | None:
