@@ -8,7 +8,7 @@ from pathlib import Path
 
 from .errors import ParameterError
 
-__all__ = ["check_writable", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name"]
+__all__ = ["check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name"]
 
 
 def _fail(msg: str, code: int) -> None:
@@ -22,6 +22,21 @@ def _fail(msg: str, code: int) -> None:
 def _cli_name(e: ParameterError, names: dict[str, str]) -> ParameterError:
     """Re-label a parameter error with the CLI option the user typed."""
     return ParameterError(names.get(e.name, e.name), e.allowed, e.got)
+
+
+def load_netcdf(path: Path, name: str, what: str = "an existing netCDF file"):
+    """Load a user-given netCDF file into memory, or raise a one-line :class:`ParameterError`
+    naming the option or argument ``name``: ``what`` when the file does not exist, "a readable
+    netCDF file" (with the error's type) when it cannot be read."""
+    import xarray as xr
+
+    path = Path(path)
+    if not path.is_file():
+        raise ParameterError(name, what, str(path))
+    try:
+        return xr.load_dataset(path, engine="h5netcdf")
+    except Exception as e:  # unreadable file: say so in one line
+        raise ParameterError(name, "a readable netCDF file", f"{path} ({type(e).__name__})") from None
 
 
 def write_netcdf_atomic(ds, path: Path) -> None:

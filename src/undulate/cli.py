@@ -16,7 +16,7 @@ from typing import Optional
 
 import typer
 
-from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
+from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, load_netcdf, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
 from .errors import DivergenceError, ParameterError, UndulateError
 from .params import Channel as _Channel
 from .params import ControllerParams as _ControllerParams
@@ -180,12 +180,7 @@ def animate(
         check_writable("--out", out)
         if out.suffix.lower() not in (".gif", ".mp4"):
             raise ParameterError("--out", "a path ending in .gif or .mp4", str(out))
-        import xarray as xr
-
-        try:
-            ds = xr.load_dataset(run, engine="h5netcdf")
-        except Exception as e:  # unreadable file: say so in one line
-            raise ParameterError("RUN", "a readable netCDF file", f"{run} ({type(e).__name__})") from None
+        ds = load_netcdf(run, "RUN")
         from .animate import animate as draw
 
         n = draw(ds, out, stride=stride, fps=fps)

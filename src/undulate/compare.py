@@ -281,7 +281,6 @@ def compare(experiments, out_dir: str | os.PathLike, *, periods: int = STEADY_PE
     intervals).  Every input is read and checked before anything is written.
     Returns the JSON content.
     """
-    import xarray as xr
 
     from ._io import atomic_output
     from .provenance import provenance
@@ -300,13 +299,10 @@ def compare(experiments, out_dir: str | os.PathLike, *, periods: int = STEADY_PE
     if out_dir.exists() and not out_dir.is_dir():
         raise ParameterError("--out", "a directory", str(out_dir))
     exps = []
+    from ._cliutil import load_netcdf
+
     for p in paths:
-        if not p.is_file():
-            raise ParameterError("EXP", "an existing netCDF file from undulate track", str(p))
-        try:
-            ds = xr.load_dataset(p, engine="h5netcdf")
-        except Exception as e:
-            raise ParameterError("EXP", "a readable netCDF file", f"{p} ({type(e).__name__})") from None
+        ds = load_netcdf(p, "EXP", "an existing netCDF file from undulate track")
         for v in ("x", "y", "tracked"):
             if v not in ds:
                 raise ParameterError("EXP", f"a tracked experiment (variable {v!r} missing)", str(p))

@@ -617,6 +617,25 @@ def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record, cm
     return {k: v for k, v in out.items() if k == "time" or k in record}
 
 
+def scene_attrs(scene: Scene) -> dict:
+    """The scene's lengths and period as dataset attributes (SI, ``*_units`` beside them):
+    ``wavelength`` (``inf`` for a standing wave), ``body_length``, ``link_width``,
+    ``channel_width``, ``period``; one block for simulated, robot and tracked datasets."""
+    g = scene.geometry
+    return {
+        "wavelength": scene.wavelength_m if math.isfinite(scene.wavelength_m) else np.inf,
+        "wavelength_units": "m",
+        "body_length": g.length_m,
+        "body_length_units": "m",
+        "link_width": g.width_m,
+        "link_width_units": "m",
+        "channel_width": scene.channel.width_m,
+        "channel_width_units": "m",
+        "period": scene.gait.period_s,
+        "period_units": "s",
+    }
+
+
 _VAR_META = {
     "x": (("time", "swimmer"), "m", "centre of mass x"),
     "y": (("time", "swimmer"), "m", "centre of mass y"),
@@ -663,14 +682,7 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=R
         },
         attrs={
             "title": "undulate simulation",
-            "wavelength": sc.wavelength_m if math.isfinite(sc.wavelength_m) else np.inf,
-            "wavelength_units": "m",
-            "body_length": g.length_m,
-            "body_length_units": "m",
-            "link_width": g.width_m,
-            "channel_width": sc.channel.width_m,
-            "period": sc.gait.period_s,
-            "period_units": "s",
+            **scene_attrs(sc),
             "timestep": options.timestep_s,
             "timestep_units": "s",
             "timestep_source": "auto (undulate.scene.auto_timestep)" if timestep_auto else "explicit",

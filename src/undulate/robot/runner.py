@@ -240,7 +240,7 @@ class _Recorder:
         import xarray as xr
 
         from ..provenance import package_version, provenance
-        from ..simulation import _VAR_META  # the simulation's schema: same names, dims, units
+        from ..simulation import _VAR_META, scene_attrs  # the simulation's schema: same names, dims, units
 
         cfg, n = self.cfg, self.rows
         sc, g = cfg.scene, cfg.scene.geometry
@@ -289,14 +289,7 @@ class _Recorder:
         attrs = {
             "title": "undulate robot dry run (commanded trajectory)" if dry else "undulate robot run",
             "source": "robot",
-            "wavelength": sc.wavelength_m if math.isfinite(sc.wavelength_m) else np.inf,
-            "wavelength_units": "m",
-            "body_length": g.length_m,
-            "body_length_units": "m",
-            "link_width": g.width_m,
-            "channel_width": sc.channel.width_m,
-            "period": sc.gait.period_s,
-            "period_units": "s",
+            **scene_attrs(sc),
             "sample_interval": dt,
             "controller": sc.controller.kind,
             "control_rate": cfg.rate_hz,

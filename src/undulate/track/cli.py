@@ -50,16 +50,10 @@ def _scene_from_options(n: int, phases, links, waves_per_body, amplitude, freque
 
 
 def _load_log(path: Path, n: int):
-    import xarray as xr
-
+    from .._cliutil import load_netcdf
     from ..params import Scene
 
-    if not path.is_file():
-        raise ParameterError("--gait-from", "an existing robot log (.nc from undulate robot run)", str(path))
-    try:
-        log = xr.load_dataset(path, engine="h5netcdf")
-    except Exception as e:
-        raise ParameterError("--gait-from", "a readable netCDF file", f"{path} ({type(e).__name__})") from None
+    log = load_netcdf(path, "--gait-from", "an existing robot log (.nc from undulate robot run)")
     try:
         scene = Scene.from_dict(json.loads(log.attrs["config"])["scene"])
     except (KeyError, TypeError, ValueError, ParameterError):

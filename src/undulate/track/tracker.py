@@ -276,12 +276,11 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
     if scene is not None:
         if scene.n_swimmers != n:
             raise ParameterError("--phases", f"{n} values, one per robot (--robots {n})", len(scene.phases_rad))
+        from ..simulation import scene_attrs
+
         g = scene.geometry
-        lam = scene.wavelength_m
         attrs.update({
-            "wavelength": lam if math.isfinite(lam) else np.inf, "wavelength_units": "m",
-            "body_length": g.length_m, "body_length_units": "m", "link_width": g.width_m,
-            "channel_width": scene.channel.width_m, "period": scene.gait.period_s, "period_units": "s",
+            **scene_attrs(scene),
             "controller": scene.controller.kind, "tag_link": robot_tag_link(g.n_links),
             "config": json.dumps(config),
         })
