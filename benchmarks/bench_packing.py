@@ -38,7 +38,7 @@ from mujoco import rollout
 from undulate import Channel, Scene, SimOptions, SwimmerGeometry
 from undulate.scene import build
 from undulate.simulation import compile_scene, resolve_options
-from undulate.studies.packing import lone_swimmer_point
+from undulate.studies._runners import lone_swimmer
 
 SCENES = {"rho3_pi": (3.0, math.pi), "rho5.5_2pi": (5.5, 2 * math.pi)}
 N = 50
@@ -107,7 +107,7 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run")
     ap.add_argument("--repeat", type=int, default=1, help="alternating repeats (best time kept)")
     args = ap.parse_args()
-    amp = float(lone_swimmer_point({}, 0)["amplitude_m"])
+    amp = float(lone_swimmer({}, 0)["amplitude_m"])
     print(f"free-swimmer amplitude A = {amp * 1e3:.2f} mm; {args.duration:g} s per run, {N} swimmers")
     for name, (rho, phi) in SCENES.items():
         results: dict[str, dict] = {}

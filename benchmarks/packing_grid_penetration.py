@@ -61,9 +61,10 @@ def main() -> None:
     ap.add_argument("--duration", type=float, default=10.0)
     ap.add_argument("--out", default="packing_grid_penetration.csv")
     args = ap.parse_args()
-    from undulate.studies.packing import lone_swimmer_point, plan, round_amplitude
+    from undulate.studies._runners import lone_swimmer
+    from undulate.studies.packing import plan
 
-    amp = round_amplitude(float(lone_swimmer_point({}, 0)["amplitude_m"]))
+    amp = float(lone_swimmer({}, 0)["amplitude_m"])  # already rounded (studies._runners.round_amplitude)
     p = plan(quick=False)
     jobs = [(phi, rho, d, amp, args.duration) for d in range(args.first_draw, args.first_draw + args.draws) for rho in p.rho_tilde for phi in p.phi_max_rad]
     fields = ["phi_max_rad", "rho_tilde", "draw", "diverged", "pen_startup_mm", "pen_steady_mm",
