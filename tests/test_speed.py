@@ -1,0 +1,171 @@
+"""What the speed work must not change, and what it must record (no timing is asserted).
+
+* physics time is measured where it happens: every run file records its own
+  rollout seconds and steps, and the sweep adds them up;
+* one warm pool of worker processes serves the sweeps of a study or a
+  reproduction (the same processes), gives the serial results, and is
+  replaced when one of its processes dies;
+* xarray no longer imports Dask for NumPy-only data, and Dask arrays still work;
+* ``--workers`` is validated.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import xarray as xr
+
+HERE = Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+
+import sweep_funcs  # noqa: E402
+
+from undulate.sweep import Grid, run_sweep, warm_workers  # noqa: E402
+from undulate.sweep import _executors  # noqa: E402
+from undulate.sweep._store import read_run_file  # noqa: E402
+
+CLI = [sys.executable, "-m", "undulate.cli"]
+
+
+def _data(ds: xr.Dataset) -> xr.Dataset:
+    ds = ds.copy()
+    ds.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("provenance_")}
+    return ds
+
+
+def test_physics_time_is_recorded_per_run_and_summed(tmp_path):
+    from undulate.params import Scene, SimOptions
+    from undulate.simulation import resolve_options
+
+    grid = Grid(axes={"dphi_rad": [0.0, 1.0, 2.0], "duration_s": [1.0]})
+    res = run_sweep(sweep_funcs.swimmer_pair, grid, tmp_path / "s", workers=2, batch=1, progress=False)
+    assert res.ok
+    n_steps = resolve_options(Scene(phases_rad=(0.0, 1.0)), SimOptions(duration_s=1.0)).n_steps
+    timings = [read_run_file(p)[1]["timing"] for p in sorted((tmp_path / "s" / "runs").glob("*.nc"))]
+    assert len(timings) == 3
+    for t in timings:
+        assert t["steps"] == n_steps  # one scene stepped n_steps times, counted in the worker
+        assert 0 < t["physics_s"] <= t["wall_s"]
+    assert res.timing["executor"] == "local" and res.timing["steps"] == 3 * n_steps
+    assert res.timing["physics_s"] == pytest.approx(sum(t["physics_s"] for t in timings))
+    # in this process (serial) the same counts
+    ser = run_sweep(sweep_funcs.swimmer_pair, grid, tmp_path / "ser", workers=1, progress=False)
+    assert ser.timing["executor"] == "serial" and ser.timing["steps"] == 3 * n_steps
+    xr.testing.assert_identical(_data(ser.dataset), _data(res.dataset))  # timing is not part of the result
+
+
+def _pids(res) -> set[int]:
+    return set(int(p) for p in np.ravel(res.dataset["pid"].values))
+
+
+def test_warm_workers_serve_every_sweep_with_the_same_processes(tmp_path):
+    grid_a = Grid(axes={"k": list(range(8))})
+    grid_b = Grid(axes={"k": list(range(8, 16))})
+    with warm_workers():
+        a = run_sweep(sweep_funcs.worker_pid, grid_a, tmp_path / "a", workers=2, batch=1, progress=False)
+        b = run_sweep(sweep_funcs.worker_pid, grid_b, tmp_path / "b", workers=2, batch=1, progress=False)
+        assert a.ok and b.ok and os.getpid() not in _pids(a)
+        assert len(_pids(a) | _pids(b)) <= 2  # one pool of two processes served both
+        pool = _executors._WARM["pool"]
+        assert pool is not None
+    assert _executors._WARM["pool"] is None  # stopped when the context exits
+    # outside the context every sweep starts (and stops) its own processes
+    c = run_sweep(sweep_funcs.worker_pid, grid_a, tmp_path / "c", workers=2, batch=1, progress=False)
+    d = run_sweep(sweep_funcs.worker_pid, grid_b, tmp_path / "d", workers=2, batch=1, progress=False)
+    assert not (_pids(c) & _pids(d)) and not (_pids(c) & (_pids(a) | _pids(b)))
+
+
+def test_warm_pool_gives_the_serial_results_and_resumes(tmp_path):
+    grid = Grid(axes={"damping_Nms": [0.05, 0.1, 0.2], "length_m": [0.3, 0.5]}, replicates=2, seed=7)
+    ref = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "serial", workers=1, progress=False)
+    with warm_workers():
+        warm = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "warm", workers=2, batch=2, progress=False)
+        again = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "warm", workers=2, batch=2, progress=False)
+    xr.testing.assert_identical(_data(warm.dataset), _data(ref.dataset))
+    assert again.n_computed == 0 and again.n_reused == grid.n_runs
+
+
+def test_warm_pool_replaced_when_a_waiting_worker_dies(tmp_path):
+    grid = Grid(axes={"k": list(range(6))})
+    with warm_workers():
+        first = run_sweep(sweep_funcs.worker_pid, grid, tmp_path / "a", workers=2, batch=1, progress=False)
+        victim = min(_pids(first))
+        os.kill(victim, signal.SIGKILL)  # dies while the pool waits between sweeps
+        for _ in range(100):  # the pool's manager thread notices
+            if getattr(_executors._WARM["pool"], "_broken", False):
+                break
+            time.sleep(0.05)
+        second = run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": list(range(6, 12))}), tmp_path / "b",
+                           workers=2, batch=1, progress=False)
+    assert second.ok and second.n_computed == 6 and victim not in _pids(second)
+
+
+def test_a_crash_inside_a_warm_pool_is_isolated_as_without_it(tmp_path):
+    grid = Grid(axes={"damping_Nms": [0.1, 0.2, -1.0, 0.3, 0.4, 0.5], "length_m": [0.5]})
+    with warm_workers():
+        res = run_sweep(sweep_funcs.pendulum_or_crash, grid, tmp_path / "crash", workers=2, batch=2, progress=False)
+        after = run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": [1, 2, 3, 4]}), tmp_path / "after",
+                          workers=2, batch=1, progress=False)
+    (f,) = res.failures
+    assert f.point["damping_Nms"] == -1.0 and f.error.startswith("WorkerLost")
+    assert res.n_computed == 5 and after.ok
+
+
+def test_no_dask_import_for_numpy_data_and_dask_arrays_still_work():
+    pytest.importorskip("dask")
+    code = textwrap.dedent("""
+        import sys
+        from undulate import Scene, SimOptions, simulate
+        ds = simulate(Scene(phases_rad=(0.0, 1.0)), SimOptions(duration_s=0.5))
+        ds.to_netcdf(sys.argv[1], engine="h5netcdf")
+        print("dask" in sys.modules, "dask.array" in sys.modules, "distributed" in sys.modules)
+        import dask.array as da
+        import xarray as xr
+        from xarray.namedarray.pycompat import array_type, is_duck_dask_array
+        a = xr.DataArray(da.arange(6, chunks=3), dims="x")
+        assert is_duck_dask_array(a.data) and a.chunks == ((3, 3),) and array_type("dask") == (da.Array,)
+        b = ds["x"].chunk({"time": 10})
+        assert is_duck_dask_array(b.data) and abs(float(b.sum().compute()) - float(ds["x"].sum())) < 1e-12
+        print("ok")
+    """)
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as d:
+        r = subprocess.run([sys.executable, "-c", code, str(Path(d) / "r.nc")], capture_output=True, text=True,
+                           timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == ["False", "False", "False", "ok"]
+
+
+@pytest.mark.parametrize("command", [["study", "pairs", "--quick"], ["reproduce", "--quick"]])
+@pytest.mark.parametrize("args", [["--workers", "0"], ["--workers", "-2"], ["--workers", "two"],
+                                  ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"]])
+def test_workers_option_is_validated(tmp_path, command, args):
+    out = tmp_path / "out"
+    r = subprocess.run([*CLI, *command, "--out", str(out), *args], capture_output=True, text=True, timeout=120)
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("error:") and "--workers" in lines[0]
+    assert not out.exists()
+
+
+def test_study_config_rejects_bad_workers(tmp_path):
+    from undulate.errors import ParameterError
+    from undulate.studies import StudyConfig
+
+    for bad in (0, -1, 1.5, True):
+        with pytest.raises(ParameterError, match="workers"):
+            StudyConfig(out_dir=tmp_path, workers=bad)
+    with pytest.raises(ParameterError, match="workers"):
+        StudyConfig(out_dir=tmp_path, workers=2, scheduler="tcp://x:1")
+    assert StudyConfig(out_dir=tmp_path, workers=3).workers == 3
