@@ -14,7 +14,10 @@ Two rates per executor:
   merging the run files -- what a user waits for;
 * steady state: from the completion times of the run files (their mtimes),
   runs finished per second between the first and the last -- the throughput
-  once workers are up, which long sweeps approach.
+  once workers are up, which long sweeps approach;
+* warm pool: the same grid on worker processes already started by an earlier
+  sweep (``undulate.sweep.warm_workers``: what a sweep inside ``undulate
+  study`` or ``undulate reproduce`` gets).
 
 Timings are only meaningful on an otherwise idle machine; the script prints
 the load average before and after.
@@ -80,6 +83,19 @@ def main() -> None:
                                      workers=args.workers)
         print(f"  speed-up local/serial: {r_loc / r_ser:.2f}x end-to-end, {s_loc / s_ser:.2f}x steady")
         xr.testing.assert_identical(_data(ref), _data(local))
+        # inside a study or a reproduction the worker processes are already up (warm_workers):
+        # start them with a small sweep first, then time the same grid
+        from undulate.sweep import run_sweep, warm_workers
+
+        with warm_workers():
+            t0 = time.perf_counter()
+            warmup = Grid(axes={"dphi_rad": [0.1 * k for k in range(2 * args.workers)], "duration_s": [0.1]})
+            run_sweep(pair_run, warmup, tmp / "warmup", workers=args.workers, batch=1, progress=False)
+            print(f"{'(starting the warm pool)':<28s} {time.perf_counter() - t0:7.2f} s")
+            r_wrm, s_wrm, warm = _timed(f"warm pool ({args.workers} procs)", pair_run, grid, tmp / "warm",
+                                        workers=args.workers)
+        print(f"  speed-up warm/serial:  {r_wrm / r_ser:.2f}x end-to-end, {s_wrm / s_ser:.2f}x steady")
+        xr.testing.assert_identical(_data(ref), _data(warm))
         if not args.skip_dask:
             import dask
             from distributed import LocalCluster

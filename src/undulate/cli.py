@@ -198,6 +198,17 @@ def list_studies() -> None:
         typer.echo(f"{name:14s} {studies.describe(name)}")
 
 
+_WORKERS_HELP = ("Local worker processes (default: the cores this process may use); results do not depend "
+                 "on it. Not with --scheduler.")
+
+
+def _check_workers(workers: int | None, scheduler: str | None) -> None:
+    if workers is not None and workers < 1:
+        raise ParameterError("--workers", "an integer >= 1 (default: the cores this process may use)", workers)
+    if workers is not None and scheduler is not None:
+        raise ParameterError("--workers", "left out with --scheduler (the Dask cluster sets the workers)", workers)
+
+
 @app.command()
 def study(
     name: str = typer.Argument(..., help="Study name (see `undulate studies`)."),
@@ -205,15 +216,17 @@ def study(
     quick: bool = typer.Option(False, "--quick", help="Reduced resolution that runs in minutes."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
     seed: int = typer.Option(0, help="Base random seed."),
+    workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
 ) -> None:
     """Run one paper study: writes OUT/NAME.nc, OUT/NAME.png (+ .pdf) and OUT/NAME.json."""
     from . import studies
 
     try:
+        _check_workers(workers, scheduler)
         out_path = Path(out)
         if out_path.exists() and not out_path.is_dir():
             raise ParameterError("--out", "a directory", str(out))
-        path = studies.run_study(name, out_path, quick=quick, scheduler=scheduler, seed=seed)
+        path = studies.run_study(name, out_path, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
     except ParameterError as e:
         _fail(str(e), 2)
     except UndulateError as e:
@@ -228,12 +241,14 @@ def reproduce(
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
     seed: int = typer.Option(0, help="Base random seed."),
     only: Optional[str] = typer.Option(None, "--only", help="Comma-separated study names (default: all)."),
+    workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
 ) -> None:
     """Reproduce the paper: every study, animations, and OUT/index.html."""
     from . import studies as registry
     from .reproduce import reproduce as run_all
 
     try:
+        _check_workers(workers, scheduler)
         if out.exists() and not out.is_dir():
             raise ParameterError("--out", "a directory", str(out))
         names = None
@@ -245,7 +260,7 @@ def reproduce(
     except ParameterError as e:
         _fail(str(e), 2)
     path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
-                             log=lambda m: typer.echo(m))
+                             log=lambda m: typer.echo(m), workers=workers)
     failed = [s["name"] for s in statuses if not s["ok"]]
     if failed:
         _fail(f"{len(failed)} stud{'y' if len(failed) == 1 else 'ies'} failed: {', '.join(failed)} (see {path})", 1)

@@ -78,20 +78,66 @@ def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: floa
     return {"file": f"animations/{gif.name}", "data": f"animations/{nc.name}", "caption": caption}
 
 
+def _animations(out: Path, animation_s: float | None, log: Callable[[str], None], workers: int | None) -> list[dict]:
+    """The report's animations, drawn side by side on the local worker processes (the warm
+    pool; ``workers == 1``: here, one after the other).  An animation that fails, or whose
+    process dies, is drawn here instead; one that fails here too is logged and left out."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    from .sweep._executors import default_workers, local_pool
+
+    jobs = [(stem, caption, kw, dur if animation_s is None else animation_s) for stem, caption, kw, dur in ANIMATIONS]
+    done: dict[str, dict] = {}
+    n = min(workers or default_workers(), len(jobs))
+    if n > 1:
+        try:
+            with local_pool(n) as pool:
+                futs = {stem: pool.submit(_make_animation, out, stem, caption, kw, dur)
+                        for stem, caption, kw, dur in jobs}
+                for stem, fut in futs.items():
+                    try:
+                        done[stem] = fut.result()
+                    except (Exception, BrokenProcessPool):  # noqa: BLE001 - retried here below
+                        pass
+        except BrokenProcessPool:  # pragma: no cover - retried here below
+            pass
+    anims = []
+    for stem, caption, kw, dur in jobs:
+        if stem not in done:
+            try:
+                done[stem] = _make_animation(out, stem, caption, kw, dur)
+            except Exception as e:  # pragma: no cover - reported in the log and on the page
+                log(f"animation {stem}: FAILED: {type(e).__name__}: {e}")
+                continue
+        anims.append(done[stem])
+    return anims
+
+
 def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None = None, seed: int = 0,
               studies: list[str] | None = None, log: Callable[[str], None] = print,
-              animation_s: float | None = None) -> tuple[Path, list[dict]]:
+              animation_s: float | None = None, workers: int | None = None) -> tuple[Path, list[dict]]:
     """Run every registered study (or ``studies``) and write ``out_dir/index.html``.
 
     ``animation_s`` overrides the simulated duration of each animation (s).
+    ``workers``: local worker processes (default: every core this process may
+    use); one pool of them stays warm across every study's sweeps.
 
     Returns the report path and the per-study statuses (``name``, ``ok``,
     ``wall_s``, ``error``, ``reused``).
     """
     from . import studies as registry
+    from .studies import StudyConfig
+    from .sweep import warm_workers
+
+    StudyConfig(out_dir=Path(out_dir), quick=quick, scheduler=scheduler, seed=seed, workers=workers)  # validate first
+    with warm_workers():
+        return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers)
+
+
+def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, log, animation_s,
+               workers) -> tuple[Path, list[dict]]:
     from .report import write_report
 
-    out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     mode = "quick" if quick else "full"
     names = list(studies) if studies is not None else registry.names()
@@ -109,7 +155,7 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
         log(f"[{i}/{len(names)}] {name}: running ({mode})")
         t0 = time.perf_counter()
         try:
-            registry.run_study(name, out, quick=quick, scheduler=scheduler, seed=seed)
+            registry.run_study(name, out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
             st = {"name": name, "ok": True, "wall_s": time.perf_counter() - t0, "error": None, "reused": False}
             log(f"[{i}/{len(names)}] {name}: done in {st['wall_s']:.1f} s")
         except KeyboardInterrupt:
@@ -123,12 +169,7 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
         state["studies"][name] = {k: v for k, v in st.items() if k != "reused"}
         _save_state(out, state)
 
-    anims = []
-    for stem, caption, kw, dur in ANIMATIONS:
-        try:
-            anims.append(_make_animation(out, stem, caption, kw, dur if animation_s is None else animation_s))
-        except Exception as e:  # pragma: no cover - reported in the log and on the page
-            log(f"animation {stem}: FAILED: {type(e).__name__}: {e}")
+    anims = _animations(out, animation_s, log, None if scheduler is not None else workers)
     total = time.perf_counter() - t_all
     from .claims import collect, write_claims_json
 

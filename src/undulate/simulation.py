@@ -41,6 +41,7 @@ import logging
 import math
 import os
 import shutil
+import time
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -53,8 +54,27 @@ from .errors import DivergenceError, ParameterError
 from .params import Scene, SimOptions
 from .control import Controller, make_controller
 from .scene import CompiledScene, auto_timestep, build, root_link, root_offset_m, servo_damping_rate_per_s, snap_timestep
+from ._xrcompat import install as _lazy_dask
 
-__all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE"]
+_lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
+
+__all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE",
+           "physics_counters"]
+
+# Time spent inside MuJoCo's C stepping (``mujoco.rollout`` calls) by this process, and the
+# scene-steps taken there: the part of a run that is physics.  Read by the sweep workers (each
+# run file records its share) and the reproduction benchmark; never used by the physics itself.
+_PHYSICS = {"seconds": 0.0, "steps": 0}
+
+
+def physics_counters() -> tuple[float, int]:
+    """``(seconds, scene_steps)`` this process has spent inside ``mujoco.rollout`` so far.
+
+    ``seconds`` is wall time of the rollout calls (a batch stepped on several
+    threads counts once); ``scene_steps`` counts every scene's steps (a batch
+    of 4 scenes stepped 1000 times adds 4000).  Monotone: take differences.
+    """
+    return _PHYSICS["seconds"], _PHYSICS["steps"]
 
 
 RK4_DAMPING_STEP = 1.0
@@ -436,8 +456,11 @@ def simulate_batch(
             if ctl is None:
                 for b, cs in enumerate(compiled):
                     ctrl_buf[b] = controls(cs, t)
+                t_phys = time.perf_counter()
                 st, sd = runner.rollout(models if nb > 1 else models[0], datas, cur, ctrl_buf,
                                         state=state_buf, sensordata=sens_buf)
+                _PHYSICS["seconds"] += time.perf_counter() - t_phys
+                _PHYSICS["steps"] += nb * k
                 cmd_rows = phase_rows = None
             else:
                 t_rows = np.round((done // sps + 1 + np.arange(ns)) * (sps * dt), 12)  # as emit() stamps them
@@ -540,7 +563,10 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner, models, datas, cur, la
             tr = t_rows[sel]
             cmd_rows[sel] = ctl.commands(tr)[0]
             phase_rows[sel] = ctl.gait_phase(tr)
+        t_phys = time.perf_counter()
         runner.rollout(model, datas, cur, u, state=st, sensordata=sd, skip_checks=True, nstep=n_t)
+        _PHYSICS["seconds"] += time.perf_counter() - t_phys
+        _PHYSICS["steps"] += nb * n_t
         if not one:
             ctrl_buf[:, a:e], state_buf[:, a:e], sens_buf[:, a:e] = u, st, sd
         cur[:] = st[:, -1]

@@ -21,8 +21,8 @@ def _edges(c: np.ndarray) -> np.ndarray:
 def plot_packing(ds):
     """Figure from the ``packing`` study dataset.
 
-    Heatmap: the mean joint error (log colour scale) averaged over phase
-    draws, over ``(phi_max, rho~)``; cells where every draw failed are grey,
+    Heatmap: the mean joint error (log colour scale) averaged over the
+    heatmap's phase draws, over ``(phi_max, rho~)`` on the heatmap's grid; cells where every draw failed are grey,
     cells with some failed draws carry an ``x``.  Blue circles: the simulated
     threshold (mean, error bars the standard deviation over draws).  Red:
     Monte-Carlo density; green dashed: closed form; green dotted: closed form
@@ -31,10 +31,14 @@ def plot_packing(ds):
     from matplotlib.colors import LogNorm
 
     phi = ds["phi_max"].values
-    rho = ds["rho_tilde"].values
-    err = ds["mean_joint_error"]
-    mean = err.mean("draw", skipna=True).values  # (phi, rho)
-    failed = ds["run_failed"].values
+    if "heatmap_joint_error" in ds:  # the heatmap's own grid (the threshold grid may be searched by bisection)
+        rho = ds["rho_heatmap"].values
+        mean = ds["heatmap_joint_error"].mean("heatmap_draw", skipna=True).values  # (phi, rho)
+        failed = ds["heatmap_failed"].values
+    else:
+        rho = ds["rho_tilde"].values
+        mean = ds["mean_joint_error"].mean("draw", skipna=True).values
+        failed = ds["run_failed"].values
     n_fail = failed.sum(axis=-1)
     n_draw = failed.shape[-1]
 

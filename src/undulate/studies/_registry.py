@@ -98,13 +98,22 @@ class StudyConfig:
     ``out_dir``: where the study's files go (and its resumable sweep stores);
     ``quick``: the reduced plan that runs in minutes; ``scheduler``: a Dask
     scheduler address, or None for local processes; ``seed``: the root seed
-    of every random draw.
+    of every random draw; ``workers``: local worker processes (None: every
+    core this process may use; results do not depend on it).
     """
 
     out_dir: Path
     quick: bool = False
     scheduler: str | None = None
     seed: int = 0
+    workers: int | None = None
+
+    def __post_init__(self):
+        w = self.workers
+        if w is not None and (isinstance(w, bool) or not isinstance(w, int) or w < 1):
+            raise ParameterError("workers", "an integer >= 1 (or None: every core this process may use)", w)
+        if w is not None and self.scheduler is not None:
+            raise ParameterError("workers", "left out when a Dask scheduler is given (the cluster sets the workers)", w)
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)
@@ -268,7 +277,7 @@ class StudyContext:
         from ..sweep import run_sweep
 
         out = where or self.sweep_dir(part)
-        workers = 1 if self.config.scheduler is None and grid.n_runs < SERIAL_BELOW else None
+        workers = 1 if self.config.scheduler is None and grid.n_runs < SERIAL_BELOW else self.config.workers
         res: SweepResult = run_sweep(fn, grid, out, scheduler=self.config.scheduler, workers=workers,
                                      progress=self.progress)
         try:
@@ -277,7 +286,7 @@ class StudyContext:
             rel = str(out)
         self.sweeps.append({"part": part, "store": rel, **res.identity, "n_runs": res.n_runs,
                             "n_computed": res.n_computed, "n_reused": res.n_reused, "stale": res.stale,
-                            "elapsed_s": res.elapsed_s, "n_failed": len(res.failures)})
+                            "elapsed_s": res.elapsed_s, "n_failed": len(res.failures), "timing": res.timing})
         self.failures += [f"{part}: {f}" for f in res.failures]
         return res.dataset
 
@@ -376,20 +385,44 @@ def _write_all(name: str, ds: xr.Dataset, figure: Figure, doc: dict[str, Any], o
     return out_dir / f"{name}.nc"
 
 
+def _timing(ctx: StudyContext, p0: tuple[float, int], p1: tuple[float, int]) -> dict[str, Any]:
+    """Physics time of a study: inside ``mujoco.rollout`` in this process (serial sweeps and
+    direct simulations) plus what its sweeps' worker processes report.  Measured, not a result."""
+    away = [s["timing"] for s in ctx.sweeps if s.get("timing", {}).get("executor") not in (None, "serial")]
+    return {"physics_s": (p1[0] - p0[0]) + sum(t["physics_s"] for t in away),
+            "steps": (p1[1] - p0[1]) + sum(t["steps"] for t in away),
+            "physics_in_workers_s": sum(t["physics_s"] for t in away),
+            "runs_in_workers_wall_s": sum(t["runs_wall_s"] for t in away),
+            "n_runs_computed": sum(s["n_computed"] for s in ctx.sweeps)}
+
+
 def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
-              scheduler: str | None = None, seed: int = 0, progress: bool = True) -> Path:
+              scheduler: str | None = None, seed: int = 0, progress: bool = True,
+              workers: int | None = None) -> Path:
     """Run study ``name`` and write its files into ``out_dir`` (created if needed).
 
     Returns ``out_dir/NAME.nc``; beside it ``NAME.png``, ``NAME.pdf`` and
     ``NAME.json``, each whole or not at all.  Sweeps finished earlier by the
     same code and arguments are reused; anything else is computed.  An
     unknown ``name`` raises :class:`~undulate.errors.ParameterError`.
+    ``workers``: local worker processes (default: every core this process may
+    use), kept warm across the study's sweeps (:func:`undulate.sweep.warm_workers`).
     """
     info = describe(name)
-    out = Path(out_dir)
+    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=int(seed),
+                         workers=workers)
+    out = config.out_dir
     out.mkdir(parents=True, exist_ok=True)
-    config = StudyConfig(out_dir=out, quick=bool(quick), scheduler=scheduler, seed=int(seed))
-    t0 = time.perf_counter()
+    from ..sweep import warm_workers
+
+    with warm_workers():
+        return _run_study(info, name, config, out, progress)
+
+
+def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress: bool) -> Path:
+    from ..sweep._worker import physics_now
+
+    t0, p0 = time.perf_counter(), physics_now()
     ctx = StudyContext(config, name, progress=progress)
     plan = info.plan(config.quick)
     ds = info.dataset(ctx, plan)
@@ -406,6 +439,7 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
         "sweeps": ctx.sweeps,
         "n_computed": sum(s["n_computed"] for s in ctx.sweeps),
         "wall_s": time.perf_counter() - t0,
+        "timing": _timing(ctx, p0, physics_now()),
         "config": config.to_dict(),
         "identity": identity(name, config),
         "provenance": provenance(),

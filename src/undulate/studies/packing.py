@@ -77,26 +77,68 @@ SAMPLE_RATE_HZ = 10.0
 
 # --------------------------------------------------------------------- the study
 class PackingPlan:
-    """Grid of the packing study: ``phi_max_rad`` x ``rho_tilde`` x ``draws``."""
+    """Grids of the packing study.
+
+    ``phi_max_rad`` x ``rho_tilde`` x ``draws``: the densities along which each
+    phase draw's threshold is searched; ``heatmap_rho`` x ``heatmap_draws``: the
+    runs done at every ``phi_max`` for the heatmap (default: the whole threshold
+    grid, every draw).  Where the heatmap does not cover the threshold grid, the
+    threshold of each (phi_max, draw) is found by bisection over ``rho_tilde``
+    (:func:`bisection_probes`), reusing the heatmap's runs.
+    """
 
     def __init__(self, phi_max_rad, rho_tilde, draws: int, n_swimmers: int = N_SWIMMERS,
-                 duration_s: float = DURATION_S):
+                 duration_s: float = DURATION_S, heatmap_rho=None, heatmap_draws: int | None = None):
         self.phi_max_rad = [float(v) for v in phi_max_rad]
         self.rho_tilde = sorted(float(v) for v in rho_tilde)
         self.draws = int(draws)
         self.n_swimmers = int(n_swimmers)
         self.duration_s = float(duration_s)
+        self.heatmap_rho = self.rho_tilde if heatmap_rho is None else sorted(float(v) for v in heatmap_rho)
+        self.heatmap_draws = self.draws if heatmap_draws is None else int(heatmap_draws)
+        if not 1 <= self.heatmap_draws <= self.draws:
+            raise ValueError(f"heatmap_draws must be 1..{self.draws}")
 
 
 def plan(quick: bool) -> PackingPlan:
-    """Full: 13 phase spreads (0 to 2 pi in pi/6) x 19 densities (0.5; 1 to 4 in 0.25,
-    where the thresholds lie; 4.5 to 6.5 in 0.5) x 5 draws = 1235 runs of 50 swimmers,
-    10 s each.  Quick: 4 x 5 x 2 = 40 runs of 8 s."""
+    """Full: 13 phase spreads (0 to 2 pi in pi/6); thresholds over 19 densities (0.5; 1 to 4
+    in 0.25, where the thresholds lie; 4.5 to 6.5 in 0.5) for 5 phase draws, found by
+    bisection; heatmap at 7 densities (0.5 to 6.5 in 1) for the first 2 draws: 50
+    swimmers, 10 s each (about 400 runs instead of the 1235 of the whole grid; same
+    thresholds: docs/performance.md).  Quick: 4 x 5 x 2 = 40 runs of 8 s, every one."""
     if quick:
         return PackingPlan([0.0, np.pi / 2, np.pi, 2 * np.pi], [1.5, 2.5, 3.5, 4.5, 5.5], draws=2,
                            duration_s=8.0)
     rho = np.round(np.r_[0.5, np.arange(1.0, 4.01, 0.25), np.arange(4.5, 6.51, 0.5)], 10)
-    return PackingPlan(np.linspace(0, 2 * np.pi, 13), rho, draws=5)
+    return PackingPlan(np.linspace(0, 2 * np.pi, 13), rho, draws=5,
+                       heatmap_rho=np.round(np.arange(0.5, 6.51, 1.0), 10), heatmap_draws=2)
+
+
+def bisection_probes(known: dict[int, bool | None], m: int) -> list[int]:
+    """The next density indices to run for one (phi_max, draw) threshold; ``[]``: found.
+
+    ``known``: index into the threshold grid (``m`` densities) -> whether the
+    run there is above the threshold (True), below (False) or failed/diverged
+    (None).  While the runs known are monotone (every one below lies below
+    every one above) and none failed, one probe halves the bracket between
+    the highest index below and the lowest above; the search ends when they
+    are neighbours (or the lowest density is above, or the highest below):
+    the same two runs, hence the same interpolated threshold, as the whole
+    column gives when the joint error's crossing is monotone in density (it
+    is in all 65 columns of the full grid: docs/performance.md).  A failed
+    run or a non-monotone column asks for every remaining density, so
+    :func:`density_threshold` then sees the whole column, as without bisection.
+    """
+    rest = [j for j in range(m) if j not in known]
+    if any(v is None for v in known.values()):
+        return rest
+    lo = max((j for j, v in known.items() if not v), default=-1)
+    hi = min((j for j, v in known.items() if v), default=m)
+    if lo > hi:  # not monotone: look at the whole column
+        return rest
+    if hi == lo + 1 or lo == m - 1 or hi == 0:
+        return []
+    return [(lo + hi) // 2]
 
 
 def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
@@ -212,15 +254,50 @@ def dataset(ctx: StudyContext, p: PackingPlan):
 
     fn = functools.partial(packing_point, amplitude_m=amp, base_seed=int(config.seed),
                            n_swimmers=p.n_swimmers, duration_s=p.duration_s)
-    grid = Grid(axes={"phi_max_rad": p.phi_max_rad, "rho_tilde": p.rho_tilde,
-                      "draw": list(range(p.draws))}, seed=config.seed)
-    sw = ctx.sweep("groups", fn, grid).isel(replicate=0)
-    diverged = sw["diverged"].values == 1  # (phi, rho, draw)
-    failed = sw["run_failed"].values.astype(bool) | diverged
-    err = sw["mean_joint_error_rad"].values
+    # the heatmap: every phi_max at the heatmap densities, the first heatmap_draws draws (the
+    # whole threshold grid by default, then this is the only sweep)
+    grid = Grid(axes={"phi_max_rad": p.phi_max_rad, "rho_tilde": p.heatmap_rho,
+                      "draw": list(range(p.heatmap_draws))}, seed=config.seed)
+    heat = ctx.sweep("groups", fn, grid).isel(replicate=0)
+    nphi, nrho, ndraw = len(p.phi_max_rad), len(p.rho_tilde), p.draws
+    names = ("mean_joint_error_rad", "channel_width_m", "max_penetration_m")
+    vals = {k: np.full((nphi, nrho, ndraw), np.nan) for k in names}
+    evaluated = np.zeros((nphi, nrho, ndraw), bool)
+    diverged = np.zeros_like(evaluated)
+    failed = np.zeros_like(evaluated)
+
+    def take(i, j, k, run) -> None:
+        evaluated[i, j, k] = True
+        diverged[i, j, k] = bool(run["diverged"] == 1)
+        failed[i, j, k] = bool(run["run_failed"]) or diverged[i, j, k]
+        for name in names:
+            vals[name][i, j, k] = float(run[name])
+
+    col = {round(r, 9): j for j, r in enumerate(p.rho_tilde)}
+    for jh, r in enumerate(p.heatmap_rho):
+        if round(r, 9) in col:
+            for i in range(nphi):
+                for k in range(p.heatmap_draws):
+                    take(i, col[round(r, 9)], k, heat.isel(phi_max_rad=i, rho_tilde=jh, draw=k))
+
+    def state(i, k) -> dict[int, bool | None]:
+        e = vals["mean_joint_error_rad"][i, :, k] - base_err - THRESHOLD_RAD
+        return {j: (None if failed[i, j, k] or not np.isfinite(e[j]) else bool(e[j] > 0))
+                for j in range(nrho) if evaluated[i, j, k]}
+
+    rounds = 0
+    while True:  # bisection over density, all (phi_max, draw) searches side by side, one sweep a round
+        probes = [(i, j, k) for i in range(nphi) for k in range(ndraw) for j in bisection_probes(state(i, k), nrho)]
+        if not probes:
+            break
+        rounds += 1
+        pts = [{"phi_max_rad": p.phi_max_rad[i], "rho_tilde": p.rho_tilde[j], "draw": k} for i, j, k in probes]
+        got = ctx.sweep(f"bisection-{rounds}", fn, Grid(points=pts, seed=config.seed)).isel(replicate=0)
+        for n, (i, j, k) in enumerate(probes):
+            take(i, j, k, got.isel(point=n))
+    err = vals["mean_joint_error_rad"]
     excess = err - base_err - THRESHOLD_RAD
 
-    nphi, nrho, ndraw = err.shape
     thr = np.full((nphi, ndraw), np.nan)
     lo = np.full_like(thr, np.nan)
     hi = np.full_like(thr, np.nan)
@@ -236,15 +313,24 @@ def dataset(ctx: StudyContext, p: PackingPlan):
     ds = xr.Dataset(
         {
             "mean_joint_error": (("phi_max", "rho_tilde", "draw"), err, {
-                "units": "rad", "long_name": "mean joint error (swimmers, joints, t >= 2 s); NaN: run failed"}),
+                "units": "rad", "long_name": "mean joint error (swimmers, joints, t >= 2 s); "
+                                             "NaN: run failed or not run (see evaluated)"}),
+            "evaluated": (("phi_max", "rho_tilde", "draw"), evaluated, {
+                "long_name": "run done (heatmap or threshold bisection)"}),
             "run_failed": (("phi_max", "rho_tilde", "draw"), failed, {
                 "long_name": "run diverged (DivergenceError) or failed"}),
             "diverged": (("phi_max", "rho_tilde", "draw"), diverged, {
                 "long_name": "run diverged (DivergenceError)"}),
-            "channel_width": (("phi_max", "rho_tilde", "draw"), sw["channel_width_m"].values, {
+            "channel_width": (("phi_max", "rho_tilde", "draw"), vals["channel_width_m"], {
                 "units": "m", "long_name": "channel width Y (2 A N / rho~)"}),
-            "max_penetration": (("phi_max", "rho_tilde", "draw"), sw["max_penetration_m"].values, {
+            "max_penetration": (("phi_max", "rho_tilde", "draw"), vals["max_penetration_m"], {
                 "units": "m", "long_name": "deepest interpenetration"}),
+            "heatmap_joint_error": (("phi_max", "rho_heatmap", "heatmap_draw"),
+                                    heat["mean_joint_error_rad"].values, {
+                "units": "rad", "long_name": "mean joint error on the heatmap grid; NaN: run failed"}),
+            "heatmap_failed": (("phi_max", "rho_heatmap", "heatmap_draw"),
+                               heat["run_failed"].values.astype(bool) | (heat["diverged"].values == 1), {
+                "long_name": "heatmap run diverged or failed"}),
             "threshold_rho_tilde": (("phi_max", "draw"), thr, {
                 **one, "long_name": "simulated compatibility threshold (first rho~ with excess joint error)"}),
             "threshold_lo": (("phi_max", "draw"), lo, {**one, "long_name": "last density below threshold"}),
@@ -263,6 +349,8 @@ def dataset(ctx: StudyContext, p: PackingPlan):
             "phi_max": ("phi_max", np.asarray(p.phi_max_rad), {"units": "rad", "long_name": "phase spread phi_max"}),
             "rho_tilde": ("rho_tilde", np.asarray(p.rho_tilde), {**one, "long_name": "normalised density 2AN/Y"}),
             "draw": ("draw", np.arange(ndraw), {**one, "long_name": "phase draw (replicate)"}),
+            "rho_heatmap": ("rho_heatmap", np.asarray(p.heatmap_rho), {**one, "long_name": "heatmap density 2AN/Y"}),
+            "heatmap_draw": ("heatmap_draw", np.arange(p.heatmap_draws), {**one, "long_name": "heatmap phase draw"}),
             "phi_fine": ("phi_fine", phi_fine, {"units": "rad", "long_name": "phase spread phi_max (theory)"}),
         },
         attrs={
@@ -271,6 +359,10 @@ def dataset(ctx: StudyContext, p: PackingPlan):
             "threshold_rad": THRESHOLD_RAD,
             "w_over_2A": w2a,
             "duration_s": p.duration_s,
+            "bisection_rounds": rounds,
+            "threshold_search": "whole grid" if bool(evaluated.all()) else
+                                "bisection over rho_tilde (heatmap runs reused; a failed run or a non-monotone "
+                                "column: the whole column)",
             "short_channel_m": SHORT_CHANNEL_OVER_L * geo.length_m,
         },
     )
@@ -319,7 +411,7 @@ def summary(ds) -> dict[str, Any]:
         "max_rel_diff_closed_form_vs_monte_carlo": float(rel_mc.max()),
         "monte_carlo_rel_stderr_at_max_diff": float(ds["rho_monte_carlo_stderr"].values[worst]
                                                     / ds["rho_monte_carlo"].values[worst]),
-        "n_runs": int(failed.size),
+        "n_runs": int(ds["evaluated"].sum()) if "evaluated" in ds else int(failed.size),
         "n_failed": int(failed.sum()),
         "n_diverged": int(ds["diverged"].sum()),
         "diverged_or_failed_by_phi_max": where,

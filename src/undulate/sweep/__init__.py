@@ -10,6 +10,7 @@ See docs/sweeps.md for the store layout, resuming, Dask and SLURM.
 """
 
 from ._grid import Grid, Run
+from ._executors import warm_workers
 from ._sweep import RunFailure, SweepFailed, SweepResult, load_sweep, run_sweep
 
-__all__ = ["Grid", "Run", "RunFailure", "SweepFailed", "SweepResult", "load_sweep", "run_sweep"]
+__all__ = ["Grid", "Run", "RunFailure", "SweepFailed", "SweepResult", "load_sweep", "run_sweep", "warm_workers"]

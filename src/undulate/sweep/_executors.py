@@ -7,10 +7,12 @@ already on disk by then (the worker writes them), so the parent only counts.
 
 from __future__ import annotations
 
+import atexit
+import contextlib
 import multiprocessing
 import os
 from collections import deque
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import replace
@@ -97,9 +99,80 @@ def _new_pool(ctx, workers: int) -> ProcessPoolExecutor:
     return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_local_worker)
 
 
+# ---- one warm pool for a series of sweeps --------------------------------
+_WARM: dict[str, Any] = {"depth": 0, "pool": None, "workers": 0}
+
+
+@contextlib.contextmanager
+def warm_workers() -> Iterator[None]:
+    """Inside this context, local sweeps share one pool of worker processes.
+
+    Outside it every :func:`run_local` call starts its own pool and shuts it
+    down at the end (each process pays ~1.5 s of imports, and the first run in
+    a process ~0.8 s more).  A study or a reproduction runs many sweeps one
+    after the other, so :func:`undulate.studies.run_study` and
+    :func:`undulate.reproduce.reproduce` enter this context: the processes
+    start once and stay warm until it exits.  The code cannot change under
+    them in between (it is one call of this process, whose own modules are
+    fixed too).  A pool that breaks (a worker died) is dropped and the next
+    sweep starts a fresh one; nesting is allowed (the outermost exit stops
+    the pool).
+    """
+    _WARM["depth"] += 1
+    try:
+        yield
+    finally:
+        _WARM["depth"] -= 1
+        if _WARM["depth"] == 0:
+            _drop_warm(wait=True)
+
+
+def _drop_warm(wait: bool = False) -> None:
+    pool, _WARM["pool"], _WARM["workers"] = _WARM["pool"], None, 0
+    if pool is not None:
+        pool.shutdown(wait=wait, cancel_futures=True)
+
+
+atexit.register(_drop_warm)
+
+
+def _acquire_pool(ctx, workers: int) -> tuple[ProcessPoolExecutor, bool]:
+    """A pool of at least ``workers`` processes and whether it is the shared warm one."""
+    if _WARM["depth"] == 0:
+        return _new_pool(ctx, workers), False
+    pool = _WARM["pool"]
+    if pool is not None and (getattr(pool, "_broken", False) or getattr(pool, "_shutdown_thread", False)
+                             or _WARM["workers"] < workers):
+        _drop_warm()  # a worker died while it waited, or more processes are wanted now
+        pool = None
+    if pool is None:
+        pool = _new_pool(ctx, workers)
+        _WARM["pool"], _WARM["workers"] = pool, workers
+    return pool, True
+
+
+@contextlib.contextmanager
+def local_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """A process pool for other work than sweeps (e.g. a reproduction's animations): the
+    warm one inside :func:`warm_workers`, else a fresh one stopped on exit."""
+    pool, warm = _acquire_pool(multiprocessing.get_context("spawn"), workers)
+    try:
+        yield pool
+    except BaseException:
+        _stop_now(pool)
+        if warm:
+            _drop_warm()
+        raise
+    finally:
+        if not warm:
+            pool.shutdown(wait=True, cancel_futures=True)
+        elif getattr(pool, "_broken", False) and _WARM["pool"] is pool:
+            _drop_warm()
+
+
 def _run_pool(ctx, workers: int, pending: deque[Chunk], on_done: OnDone, health: _Health) -> list[Chunk]:
     """Run ``pending`` on one pool until it is empty or the pool breaks; return the chunks lost in a break."""
-    pool = _new_pool(ctx, workers)
+    pool, warm = _acquire_pool(ctx, workers)
     inflight: dict[Future, Chunk] = {}
     broken: list[Chunk] = []
     try:
@@ -129,9 +202,14 @@ def _run_pool(ctx, workers: int, pending: deque[Chunk], on_done: OnDone, health:
         return broken
     except BaseException:
         _stop_now(pool)
+        if warm:
+            _drop_warm()
         raise
     finally:
-        pool.shutdown(wait=not broken, cancel_futures=True)
+        if not warm:
+            pool.shutdown(wait=not broken, cancel_futures=True)
+        elif broken and _WARM["pool"] is pool:
+            _drop_warm()
 
 
 def _quarantine(ctx, chunks: list[Chunk], on_done: OnDone, on_lost: OnLost, health: _Health) -> None:

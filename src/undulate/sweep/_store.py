@@ -32,6 +32,9 @@ import xarray as xr
 from .._io import atomic_write_bytes, atomic_write_text, remove_temporaries, write_netcdf
 from ..errors import ParameterError
 from ._grid import RESERVED, Grid, Run
+from .._xrcompat import install as _lazy_dask
+
+_lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
 
 FORMAT = "undulate-sweep/1"
 #: The merged file: netCDF-4 (HDF5).
@@ -314,11 +317,14 @@ def check_output(ds: Any, grid_names: Sequence[str]) -> xr.Dataset:
     return ds
 
 
-def write_result(runs_dir: Path, run: Run, ds: xr.Dataset, provenance: dict[str, Any] | None = None) -> None:
+def write_result(runs_dir: Path, run: Run, ds: xr.Dataset, provenance: dict[str, Any] | None = None,
+                 timing: dict[str, Any] | None = None) -> None:
     """Persist a finished run atomically, then drop any failure record of an earlier try.
 
     ``provenance``: the sweep's :func:`run_provenance`; the file records it with
-    the host and the UTC time of writing (attribute ``sweep_run``).
+    the host and the UTC time of writing (attribute ``sweep_run``).  ``timing``:
+    where the run's time went (``wall_s``, ``physics_s`` inside ``mujoco.rollout``,
+    ``steps``), recorded beside it (benchmarks read it; nothing else does).
     """
     import socket
     from datetime import datetime, timezone
@@ -327,6 +333,8 @@ def write_result(runs_dir: Path, run: Run, ds: xr.Dataset, provenance: dict[str,
     meta["provenance"] = {**(provenance or {}), "hostname": socket.gethostname(),
                           "created_utc": datetime.now(timezone.utc).isoformat(timespec="seconds")}
     meta["dtypes"] = {str(k): v.dtype.str for k, v in ds.variables.items()}
+    if timing is not None:
+        meta["timing"] = dict(timing)
     ds = ds.copy(deep=False)
     ds.attrs = {**ds.attrs, RUN_ATTR: json.dumps(meta)}
     data = _run_file_bytes(ds)

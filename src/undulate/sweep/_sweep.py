@@ -83,6 +83,11 @@ class SweepResult:
     """The fully bound function call, code hash and package version every run was computed with."""
     stale: list[str] = field(default_factory=list)
     """Why runs found in ``out_dir`` were discarded as stale (empty: none were)."""
+    timing: dict[str, Any] = field(default_factory=dict)
+    """Where this call's time went: ``executor`` (``"serial"``: this process, ``"local"``,
+    ``"dask"``), ``runs_wall_s`` (sum over the runs computed now of their own wall time, in
+    whichever process ran them), ``physics_s`` (of that, inside ``mujoco.rollout``) and
+    ``steps`` (scene-steps).  Measured, for benchmarks; never part of a result."""
 
     @property
     def n_runs(self) -> int:
@@ -231,10 +236,15 @@ def run_sweep(
                     f"{len(todo)} to compute on {where} in tasks of {size}"
                 )
             counts = {OK: 0, FAILED: 0, EXISTS: 0}
+            executor = "dask" if client is not None else ("serial" if n_workers == 1 else "local")
+            timing = {"executor": executor, "runs_wall_s": 0.0, "physics_s": 0.0, "steps": 0}
 
             def on_done(chunk: Chunk, outcomes: list[Outcome]) -> None:
                 for o in outcomes:
                     counts[o.status] += 1
+                    timing["runs_wall_s"] += o.seconds
+                    timing["physics_s"] += o.physics_s
+                    timing["steps"] += o.steps
                     if o.status == FAILED:
                         log.info("run %s failed: %s", o.key, o.error)
                 bar.update(sum(o.status != FAILED for o in outcomes), sum(o.status == FAILED for o in outcomes))
@@ -294,6 +304,7 @@ def run_sweep(
         grid=grid,
         identity=run_provenance(store.manifest),
         stale=list(store.stale),
+        timing=timing,
     )
     if progress:
         _summary(result, stream or sys.stderr)

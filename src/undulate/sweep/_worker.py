@@ -7,6 +7,7 @@ its imports light and holds no state.
 from __future__ import annotations
 
 import signal
+import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -30,6 +31,10 @@ class Outcome:
     ``"exists"`` (already saved, e.g. by an earlier try of this chunk)."""
     error: str = ""
     seconds: float = 0.0
+    physics_s: float = 0.0
+    """Of ``seconds``, the time spent inside MuJoCo's stepping (``mujoco.rollout``)."""
+    steps: int = 0
+    """Scene-steps taken in those rollouts."""
 
 
 @dataclass(frozen=True)
@@ -48,6 +53,16 @@ class Chunk:
 def init_local_worker() -> None:
     """Initializer of local pool processes: Ctrl-C is the parent's to handle."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def physics_now() -> tuple[float, int]:
+    """This process's rollout seconds and steps so far (0 if it never simulated)."""
+    sim = sys.modules.get("undulate.simulation")
+    return sim.physics_counters() if sim is not None else (0.0, 0)
+
+
+def _timing(wall: float, p0: tuple[float, int], p1: tuple[float, int], share: int = 1) -> dict:
+    return {"wall_s": wall / share, "physics_s": (p1[0] - p0[0]) / share, "steps": (p1[1] - p0[1]) // share}
 
 
 def run_chunk(chunk: Chunk) -> list[Outcome]:
@@ -72,21 +87,23 @@ def run_chunk(chunk: Chunk) -> list[Outcome]:
 
 
 def _run_one(chunk: Chunk, runs_dir: Path, run: Run, compute: Callable[[Run], object]) -> Outcome:
-    t0 = time.perf_counter()
+    t0, p0 = time.perf_counter(), physics_now()
     try:
         ds = check_output(compute(run), chunk.grid_names)
-        write_result(runs_dir, run, ds, dict(chunk.provenance))
+        tm = _timing(time.perf_counter() - t0, p0, physics_now())
+        write_result(runs_dir, run, ds, dict(chunk.provenance), timing=tm)
     except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
         rec = write_failure(runs_dir, run, exc)
-        return Outcome(run.key, FAILED, rec["error"], time.perf_counter() - t0)
-    return Outcome(run.key, OK, "", time.perf_counter() - t0)
+        tm = _timing(time.perf_counter() - t0, p0, physics_now())
+        return Outcome(run.key, FAILED, rec["error"], tm["wall_s"], tm["physics_s"], tm["steps"])
+    return Outcome(run.key, OK, "", time.perf_counter() - t0, tm["physics_s"], tm["steps"])
 
 
 def _run_batched(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outcome]:
     """``fn(points, seeds) -> list[Dataset]`` on all runs at once; on error, one by one."""
     if not runs:
         return []
-    t0 = time.perf_counter()
+    t0, p0 = time.perf_counter(), physics_now()
     try:
         results = list(chunk.fn([dict(r.point) for r in runs], [r.seed for r in runs]))
         if len(results) != len(runs):
@@ -94,15 +111,15 @@ def _run_batched(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outc
         results = [check_output(ds, chunk.grid_names) for ds in results]
     except Exception:  # noqa: BLE001 - isolate the failing point(s)
         return [_run_one(chunk, runs_dir, r, lambda r: _single(chunk.fn, r)) for r in runs]
-    each = (time.perf_counter() - t0) / len(runs)
+    tm = _timing(time.perf_counter() - t0, p0, physics_now(), share=len(runs))  # the batch's, shared evenly
     out = []
     for run, ds in zip(runs, results):
         try:
-            write_result(runs_dir, run, ds, dict(chunk.provenance))
-            out.append(Outcome(run.key, OK, "", each))
+            write_result(runs_dir, run, ds, dict(chunk.provenance), timing=tm)
+            out.append(Outcome(run.key, OK, "", tm["wall_s"], tm["physics_s"], tm["steps"]))
         except Exception as exc:  # noqa: BLE001
             rec = write_failure(runs_dir, run, exc)
-            out.append(Outcome(run.key, FAILED, rec["error"], each))
+            out.append(Outcome(run.key, FAILED, rec["error"], tm["wall_s"], tm["physics_s"], tm["steps"]))
     return out
 
 
