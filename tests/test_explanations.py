@@ -70,6 +70,9 @@ def test_sensitivity_uses_the_claims_own_criteria_and_the_model_defaults():
 
     assert (S.SLOPE_TOL, S.RMS_TOL) == (pairs.SLOPE_TOL, pairs.RMS_TOL)
     assert (S.WIDTH_TOL, S.CENTRAL) == (conf.WIDTH_TOL, conf.CENTRAL)
+    import undulate.studies.potential as pot
+
+    assert (S.R2_MIN, S.IMPULSE_S) == (pot.R2_MIN, pot.IMPULSE_DURATION_S)
     assert S.MODEL_DEFAULTS["kp_Nm_per_rad"] == Servo().kp_Nm_per_rad
     assert S.MODEL_DEFAULTS["torque_limit_Nm"] == Servo().torque_limit_Nm
     assert S.MODEL_DEFAULTS["max_speed_rad_s"] == Servo().max_speed_rad_s

@@ -65,7 +65,8 @@ resumed sweep finds the same parameters after a bitwise-different re-measurement
 
 
 _PAIR_KEYS = ("dx0_over_lambda", "dphi_rad", "phi0_rad", "channel_width_m", "d_over_2A", "amplitude_m",
-              "amplitude_rad", "force_N", "ground", "waves_per_body", "body_width_m")
+              "amplitude_rad", "force_N", "ground", "waves_per_body", "body_width_m",
+              "fluid_density_kg_m3")
 
 MODEL_KEYS = ("kp_Nm_per_rad", "torque_limit_Nm", "max_speed_rad_s", "contact_timeconst_s", "drag_N_s_per_m")
 """Optional point keys of :func:`group_point` that change one model choice (the sensitivity
@@ -159,7 +160,9 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body`` (xi; 1),
     ``force_N`` (dF, N: swimmer a is pushed toward -x and b toward +x, from
     ``force_onset_s``; 0), ``ground`` (``"viscous"`` or ``"swimming"``),
-    ``body_width_m`` (w of every link, m; the SwimmerGeometry default).
+    ``body_width_m`` (w of every link, m; the SwimmerGeometry default),
+    ``fluid_density_kg_m3`` (the swimming ground's fluid density, kg/m^3:
+    the strength of its anisotropic drag; :meth:`Ground.swimming`'s default).
     """
     unknown = set(point) - set(_PAIR_KEYS)
     if unknown:
@@ -177,7 +180,11 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
         width = float(point["d_over_2A"]) * 2.0 * float(amp)
     else:
         width = float(point.get("channel_width_m", PAIR_WIDTH_M))
-    ground = Ground.swimming() if point.get("ground", "viscous") == "swimming" else Ground()
+    if point.get("ground", "viscous") == "swimming":
+        rho = point.get("fluid_density_kg_m3")
+        ground = Ground.swimming() if rho is None else Ground.swimming(fluid_density_kg_m3=float(rho))
+    else:
+        ground = Ground()
     f = float(point.get("force_N", 0.0))
     return Scene(
         phases_rad=(float(point.get("phi0_rad", 0.0)),
