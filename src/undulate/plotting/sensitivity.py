@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import textwrap
+
 import numpy as np
 
 from . import new_figure
@@ -28,7 +30,7 @@ def plot_sensitivity(ds, s: dict):
         ax.text(j + 0.5, i + 0.5, t["verdict"], ha="center", va="center", fontsize=7)
     ax.set_xlim(0, len(claims))
     ax.set_ylim(len(rows), 0)
-    ax.set_xticks(np.arange(len(claims)) + 0.5, [c.replace(" ", "\n", 3) for c in claims], fontsize=7)
+    ax.set_xticks(np.arange(len(claims)) + 0.5, [textwrap.fill(c, 16) for c in claims], fontsize=7)
     ax.xaxis.tick_top()
     ax.set_yticks(np.arange(len(rows)) + 0.5, [f"{f}: {lv}" for f, lv in rows], fontsize=7)
     ax.set_title("(a) which claims hold where (one factor changed at a time)", fontsize=9)
