@@ -43,7 +43,10 @@ def test_every_study_states_the_protocol(name):
         assert isinstance(c, studies.Claim) and c.claim and c.paper and c.criterion and callable(c.judge)
     assert callable(info.summary) and callable(info.figure)
     if info.needs_simulation:
-        assert info.claims, f"{name}: a simulation study judges at least one claim"
+        assert info.claims or info.explanations, \
+            f"{name}: a simulation study judges at least one claim or checks at least one explanation"
+    for e in info.explanations:
+        assert isinstance(e, studies.Explanation) and e.study and e.claim and e.cause and callable(e.check)
 
 
 # ---- a cheap real study: a pendulum sweep through the registry --------------------
