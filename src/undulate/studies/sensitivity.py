@@ -141,7 +141,7 @@ def equal_amplitude_beta(ctx: StudyContext, n_links: int, target_m: float, xi: f
     def amp(beta):
         return float(ctx.lone_swimmer(amplitude_rad=beta, n_links=n_links, waves_per_body=xi)["amplitude_m"])
 
-    b0 = round(math.radians(BETA_DEG) * 3.0 / n_links, 9)
+    b0 = math.radians(BETA_DEG) * 3.0 / n_links  # exactly the links study's curvature rule (shared free swimmer)
     a0 = amp(b0)
     if abs(a0 - target_m) <= A_TOL_M:
         return b0, a0
