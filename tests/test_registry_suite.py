@@ -43,7 +43,10 @@ def test_every_study_states_the_protocol(name):
         assert isinstance(c, studies.Claim) and c.claim and c.paper and c.criterion and callable(c.judge)
     assert callable(info.summary) and callable(info.figure)
     if info.needs_simulation:
-        assert info.claims, f"{name}: a simulation study judges at least one claim"
+        assert info.claims or info.explanations, \
+            f"{name}: a simulation study judges at least one claim or checks at least one explanation"
+    for e in info.explanations:
+        assert isinstance(e, studies.Explanation) and e.study and e.claim and e.cause and callable(e.check)
 
 
 # ---- a cheap real study: a pendulum sweep through the registry --------------------
@@ -102,7 +105,7 @@ def test_reproduce_with_another_seed_recomputes_the_study(tmp_path, pendulum_stu
     doc = json.loads((tmp_path / "_pendulum.json").read_text())
     assert doc["identity"]["seed"] == 1 and doc["summary"] != s0
     claims = json.loads((tmp_path / "claims.json").read_text())
-    assert claims["claims"] == [] and set(claims["counts"]) == {"holds", "fails", "no result"}
+    assert claims["claims"] == [] and set(claims["counts"]) == {"holds", "explained", "fails", "no result"}
 
 
 # ---- every registered study in quick mode ------------------------------------------

@@ -44,3 +44,15 @@ def test_the_same_wave_travels_on_four_links():
 def test_xi_one_on_three_links_is_a_travelling_wave():
     off = _joint_phase_offsets(Gait(waves_per_body=1.0), 3)
     np.testing.assert_allclose(np.abs(np.angle(np.exp(1j * (off[1] - off[0])))), 2 * np.pi / 3, atol=1e-9)
+
+
+def test_eight_links_carry_a_travelling_wave_at_xi_three_halves():
+    """The N the sensitivity study uses to show the cause: joint steps 2 pi xi / N = 3 pi / 8,
+    neither 0 nor pi, and no joint is the mirror (or copy) of its neighbour."""
+    g = Gait(waves_per_body=1.5)
+    off = _joint_phase_offsets(g, 8)
+    steps = np.angle(np.exp(1j * np.diff(off)))
+    np.testing.assert_allclose(np.abs(steps), 3 * np.pi / 8, atol=1e-9)
+    a = g.joint_angles(np.linspace(0, 4, 1001), [0.0], 8)[:, 0, :]
+    for i in range(a.shape[1] - 1):
+        assert not np.allclose(a[:, i + 1], -a[:, i], atol=1e-3) and not np.allclose(a[:, i + 1], a[:, i], atol=1e-3)

@@ -57,7 +57,7 @@ _CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
 h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
 table{border-collapse:collapse;margin:.6em 0;font-size:.92em}td,th{border:1px solid #ddd;padding:.3em .6em;text-align:left;vertical-align:top}
-th{background:#f4f4f4}.ok{color:#176b2c;font-weight:600}.no{color:#b3141f;font-weight:600}.na{color:#777}
+th{background:#f4f4f4}.ok{color:#176b2c;font-weight:600}.ex{color:#8a5a00;font-weight:600}.why{font-weight:400;color:#444;font-size:.9em}.no{color:#b3141f;font-weight:600}.na{color:#777}
 img.fig{max-width:100%;border:1px solid #eee}.anims{display:flex;flex-wrap:wrap;gap:1em}.anims figure{margin:0;max-width:520px}
 .anims img{max-width:100%;border:1px solid #eee}.failed{background:#fde8ea;border:1px solid #f3b5bc;padding:.6em}
 code{background:#f6f6f6;padding:0 .2em}
@@ -92,25 +92,45 @@ def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: s
         + (f"; <span class='no'>failed: {_esc(', '.join(failed))}</span>" if failed else "")
         + (f". Total wall time {total_wall_s:.0f} s." if total_wall_s is not None else ".") + "</p>")
 
-    # claims
+    # claims (rows with the studies' demonstrated explanations applied: undulate.claims)
+    from .claims import collect
+
+    rows = collect(out, [st["name"] for st in statuses if st.get("ok")])
+    counts = {v: sum(r["verdict"] == v for r in rows) for v in ("holds", "explained", "fails", "no result")}
     add("<h2 id='claims'>The paper's claims</h2>")
     add("<p>Measured values carry 95 % intervals in brackets; every criterion is stated on them. "
-        "Also in <a href='claims.json'>claims.json</a>.</p>")
+        "<b>explained</b>: the claim fails under the default model and a study's own runs show the cause "
+        "(the evidence and its figure are linked); a failing claim without a demonstrated cause stays "
+        "<b>fails</b>. Counts: " + ", ".join(f"{_esc(k)} {n}" for k, n in counts.items())
+        + ". Also in <a href='claims.json'>claims.json</a>.</p>")
     add("<table><tr><th>study</th><th>claim</th><th>paper</th><th>measured</th><th>criterion</th>"
         "<th>verdict</th></tr>")
+    by_study: dict[str, list[dict]] = {}
+    for r in rows:
+        by_study.setdefault(r["study"], []).append(r)
     for st in statuses:
         name = st["name"]
         if not st.get("ok"):
             add(f"<tr><td>{_esc(name)}</td><td colspan='4' class='no'>study failed: {_esc(st.get('error'))}</td>"
                 "<td class='no'>—</td></tr>")
             continue
-        for c in docs.get(name, {}).get("claims", []):
+        for c in by_study.get(name, []):
             verdict = c.get("verdict")
-            cls = {"holds": "ok", "fails": "no"}.get(verdict, "na")
+            cls = {"holds": "ok", "fails": "no", "explained": "ex"}.get(verdict, "na")
             reason = f" ({c['reason']})" if c.get("reason") else ""
+            why = ""
+            ex = c.get("explanation")
+            if ex:
+                ev = ex.get("evidence_study", "")
+                why = (f"<br><span class='why'>cause: {_esc(ex.get('cause'))} Evidence: {_esc(ex.get('measured'))} "
+                       f"(<a href='#{_esc(ev)}'>{_esc(ev)}</a>, <a href='{_esc(ex.get('evidence_figure'))}'>"
+                       "figure</a>)</span>")
+            elif c.get("explanations_not_shown"):
+                why = "".join(f"<br><span class='why'>cause tested, not shown by the runs: {_esc(e.get('cause'))} "
+                              f"({_esc(e.get('measured'))})</span>" for e in c["explanations_not_shown"])
             add(f"<tr><td>{_esc(name)}</td><td>{_esc(c.get('claim', ''))}</td><td>{_esc(c.get('paper', ''))}</td>"
                 f"<td>{_esc(c.get('measured', ''))}</td><td>{_esc(c.get('criterion', ''))}</td>"
-                f"<td class='{cls}'>{_esc(verdict)}{_esc(reason)}</td></tr>")
+                f"<td class='{cls}'>{_esc(verdict)}{_esc(reason)}{why}</td></tr>")
     add("</table>")
 
     # animations
@@ -147,7 +167,14 @@ def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: s
         add("</table></details>")
         if doc.get("failures"):
             add("<div class='failed'>Failed runs:<br>" + "<br>".join(_esc(f) for f in doc["failures"][:20]) + "</div>")
-        rows = _summary_rows(doc.get("summary", {}))
+        table = doc.get("summary", {}).get("table")
+        if isinstance(table, list) and table and all(isinstance(t, dict) for t in table):
+            cols = list(table[0])
+            add("<table><tr>" + "".join(f"<th>{_esc(k)}</th>" for k in cols) + "</tr>")
+            for t in table:
+                add("<tr>" + "".join(f"<td>{_esc(_fmt(t.get(k, '')))}</td>" for k in cols) + "</tr>")
+            add("</table>")
+        rows = _summary_rows({k: v for k, v in doc.get("summary", {}).items() if k != "table"})
         if rows:
             add("<details><summary>summary numbers</summary><table>")
             for k, v in rows:

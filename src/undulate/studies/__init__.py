@@ -14,6 +14,7 @@ append the module's name to :data:`STUDY_MODULES` (README: "Add a study").
 from ._registry import (
     STUDY_MODULES,
     Claim,
+    Explanation,
     Study,
     StudyConfig,
     StudyContext,
@@ -30,6 +31,7 @@ from ._registry import (
 __all__ = [
     "STUDY_MODULES",
     "Claim",
+    "Explanation",
     "Study",
     "StudyConfig",
     "StudyContext",

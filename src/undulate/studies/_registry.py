@@ -71,6 +71,8 @@ __all__ = [
     "identity",
     "is_current",
     "VERDICTS",
+    "Explanation",
+    "explain",
 ]
 
 #: Study modules imported (in this order) when the registry is first used.
@@ -85,10 +87,14 @@ STUDY_MODULES: tuple[str, ...] = (
     "potential",
     "swimming",
     "synchronization",
+    "sensitivity",
 )
 
 HOLDS, FAILS, NO_RESULT = "holds", "fails", "no result"
 VERDICTS = (HOLDS, FAILS, NO_RESULT)
+EXPLAINED = "explained"
+"""Not a study's verdict: :mod:`undulate.claims` turns a claim that ``fails`` into
+``explained`` when some study's :class:`Explanation` of it was shown by that study's runs."""
 
 
 @dataclass(frozen=True)
@@ -179,6 +185,37 @@ def judge(study: str, claims: tuple[Claim, ...], summary: dict[str, Any]) -> lis
     return rows
 
 
+@dataclass(frozen=True)
+class Explanation:
+    """A demonstrated cause of a claim that fails under the default model.
+
+    ``study``/``claim``: the claim explained (its study's name and its exact
+    ``Claim.claim`` text; :func:`undulate.claims.collect` matches on both);
+    ``cause``: the cause in one sentence; ``check``: a pure function of the
+    *explaining* study's summary returning ``(shown, measured, value)``:
+    whether that study's own runs show the cause (judged on 95 % intervals,
+    e.g. "the claim's criterion fails with the default and holds with only
+    this factor changed"), the evidence numbers as text, and as numbers.
+    The explaining study's figure is the evidence figure.
+    """
+
+    study: str
+    claim: str
+    cause: str
+    check: Callable[[dict[str, Any]], tuple[bool, str, Any]] = field(repr=False, compare=False)
+
+
+def explain(study: str, explanations: tuple[Explanation, ...], summary: dict[str, Any]) -> list[dict[str, Any]]:
+    """Rows ``{study, claim, cause, shown, measured, value, evidence_study, evidence_figure}``."""
+    rows = []
+    for e in explanations:
+        shown, measured, value = e.check(summary)
+        rows.append({"study": e.study, "claim": e.claim, "cause": e.cause, "shown": bool(shown),
+                     "measured": measured, "value": value, "evidence_study": study,
+                     "evidence_figure": f"{study}.png"})
+    return rows
+
+
 # ------------------------------------------------------------------- studies
 @dataclass(frozen=True)
 class Study:
@@ -191,6 +228,7 @@ class Study:
     summary: Callable[[xr.Dataset], dict[str, Any]] = field(repr=False, compare=False)
     figure: Callable[[xr.Dataset], Figure] = field(repr=False, compare=False)
     claims: tuple[Claim, ...] = ()
+    explanations: tuple[Explanation, ...] = ()
     paper_figure: str | None = None
     needs_simulation: bool = True
     module: str = ""
@@ -434,6 +472,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
         "study": name,
         "summary": summary,
         "claims": claims,
+        "explanations": explain(name, info.explanations, summary),
         "n_failed": len(ctx.failures),
         "failures": ctx.failures[:50],
         "sweeps": ctx.sweeps,

@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from ..params import Channel, Gait, Ground, Scene, SimOptions, SwimmerGeometry
+from ..params import Channel, ContactModel, Gait, Ground, Scene, Servo, SimOptions, SwimmerGeometry
 
 __all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", "PAIR_WIDTH_M",
            "PAIR_DURATION_S", "RECORD_HZ", "PAIR_STEADY_TOL", "LONE_DURATION_S", "LONE_CHANNEL_WIDTH_M",
@@ -65,7 +65,26 @@ resumed sweep finds the same parameters after a bitwise-different re-measurement
 
 
 _PAIR_KEYS = ("dx0_over_lambda", "dphi_rad", "phi0_rad", "channel_width_m", "d_over_2A", "amplitude_m",
-              "amplitude_rad", "force_N", "ground", "waves_per_body")
+              "amplitude_rad", "force_N", "ground", "waves_per_body", "body_width_m",
+              "fluid_density_kg_m3")
+
+MODEL_KEYS = ("kp_Nm_per_rad", "torque_limit_Nm", "max_speed_rad_s", "contact_timeconst_s", "drag_N_s_per_m")
+"""Optional point keys of :func:`group_point` that change one model choice (the sensitivity
+study): servo gain, torque limit, top speed (slew limit), contact time constant (s; 0 = the
+default, two time steps), linear drag."""
+
+
+def _model_parts(point: dict[str, Any]) -> dict[str, Any]:
+    """Scene keyword arguments for the :data:`MODEL_KEYS` present in ``point`` (others: defaults)."""
+    servo = {k: float(point[k]) for k in ("kp_Nm_per_rad", "torque_limit_Nm", "max_speed_rad_s") if k in point}
+    out: dict[str, Any] = {}
+    if servo:
+        out["servo"] = Servo(**servo)
+    if float(point.get("contact_timeconst_s", 0.0)) > 0:
+        out["contact"] = ContactModel(timeconst_s=float(point["contact_timeconst_s"]))
+    if "drag_N_s_per_m" in point:
+        out["ground"] = Ground(drag_N_s_per_m=float(point["drag_N_s_per_m"]))
+    return out
 
 
 def round_amplitude(a_m: float) -> float:
@@ -82,7 +101,8 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
     neighbours in the initial stack, rad: swimmer ``j`` gets ``j dphi``;
     default 0), ``waves_per_body`` (xi, default 1), ``n_links`` (default 3),
     ``amplitude_rad`` (beta, default 45 degrees), ``timestep_s`` (default
-    :data:`TIMESTEP_S`).  With ``random_phases`` every swimmer's phase is
+    :data:`TIMESTEP_S`) and any of :data:`MODEL_KEYS` (servo ``kp``, torque
+    limit, top speed; contact time constant, s; linear drag per link, N s/m).  With ``random_phases`` every swimmer's phase is
     drawn uniformly from ``[0, 2 pi)`` with ``numpy.random.default_rng(seed)``
     (the sweep's per-run seed) and ``dphi_rad`` is ignored.  Swimmers start
     straight, laterally in contact, at dx0 = 0 (paper Methods).
@@ -108,6 +128,7 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
         gait=Gait(amplitude_rad=beta, waves_per_body=xi),
         geometry=SwimmerGeometry(n_links=n_links, length_m=BODY_LENGTH_M),
         channel=Channel(width_m=channel_width_m),
+        **_model_parts(point),
     )
     ds = simulate(scene, SimOptions(duration_s=duration_s, timestep_s=dt, sample_rate_hz=sample_rate_hz))
     time = ds["time"].values
@@ -138,7 +159,10 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     keyword ``amplitude_m``),
     ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body`` (xi; 1),
     ``force_N`` (dF, N: swimmer a is pushed toward -x and b toward +x, from
-    ``force_onset_s``; 0), ``ground`` (``"viscous"`` or ``"swimming"``).
+    ``force_onset_s``; 0), ``ground`` (``"viscous"`` or ``"swimming"``),
+    ``body_width_m`` (w of every link, m; the SwimmerGeometry default),
+    ``fluid_density_kg_m3`` (the swimming ground's fluid density, kg/m^3:
+    the strength of its anisotropic drag; :meth:`Ground.swimming`'s default).
     """
     unknown = set(point) - set(_PAIR_KEYS)
     if unknown:
@@ -147,7 +171,7 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
         raise ParameterError("point", f"keys among {_PAIR_KEYS}", sorted(unknown))
     gait = Gait(amplitude_rad=float(point.get("amplitude_rad", Gait().amplitude_rad)),
                 waves_per_body=float(point.get("waves_per_body", 1.0)))
-    geo = SwimmerGeometry()
+    geo = SwimmerGeometry(width_m=float(point.get("body_width_m", SwimmerGeometry().width_m)))
     lam = gait.wavelength_m(geo.length_m)
     if "d_over_2A" in point:
         amp = point.get("amplitude_m", amplitude_m)
@@ -156,7 +180,11 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
         width = float(point["d_over_2A"]) * 2.0 * float(amp)
     else:
         width = float(point.get("channel_width_m", PAIR_WIDTH_M))
-    ground = Ground.swimming() if point.get("ground", "viscous") == "swimming" else Ground()
+    if point.get("ground", "viscous") == "swimming":
+        rho = point.get("fluid_density_kg_m3")
+        ground = Ground.swimming() if rho is None else Ground.swimming(fluid_density_kg_m3=float(rho))
+    else:
+        ground = Ground()
     f = float(point.get("force_N", 0.0))
     return Scene(
         phases_rad=(float(point.get("phi0_rad", 0.0)),

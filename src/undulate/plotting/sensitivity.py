@@ -1,0 +1,80 @@
+"""The sensitivity study's figure: which claims hold where, and the three demonstrations."""
+
+from __future__ import annotations
+
+import textwrap
+
+import numpy as np
+
+from . import new_figure
+
+__all__ = ["plot_sensitivity"]
+
+COLOURS = {"holds": "#8fd19e", "fails": "#f3a6ae", "no result": "#dddddd"}
+
+
+def plot_sensitivity(ds, s: dict):
+    """(a) one row per (factor, level) of the summary's table, one column per claim, coloured by
+    verdict; (b) xi = 3/2 final dx/lambda against dphi/2pi per N; (c) equal-A rule: RMS residual
+    against N; (d) width of the central state against d/2A per body width, with the model's."""
+    table = s["table"]
+    claims = list(dict.fromkeys(t["claim"] for t in table))
+    rows = list(dict.fromkeys((t["factor"], t["level"]) for t in table))
+    fig = new_figure(15.0, max(6.0, 0.3 * len(rows) + 1.5))
+    gs = fig.add_gridspec(3, 2, width_ratios=[1.5, 1])
+    ax = fig.add_subplot(gs[:, 0])
+    for t in table:
+        i, j = rows.index((t["factor"], t["level"])), claims.index(t["claim"])
+        ax.add_patch(__import__("matplotlib.patches", fromlist=["Rectangle"]).Rectangle(
+            (j, i), 1, 1, facecolor=COLOURS.get(t["verdict"], "#dddddd"), edgecolor="white"))
+        ax.text(j + 0.5, i + 0.5, t["verdict"], ha="center", va="center", fontsize=7)
+    ax.set_xlim(0, len(claims))
+    ax.set_ylim(len(rows), 0)
+    ax.set_xticks(np.arange(len(claims)) + 0.5, [textwrap.fill(c, 16) for c in claims], fontsize=7)
+    ax.xaxis.tick_top()
+    ax.set_yticks(np.arange(len(rows)) + 0.5, [f"{f}: {lv}" for f, lv in rows], fontsize=7)
+    ax.set_title("(a) which claims hold where (one factor changed at a time)", fontsize=9)
+
+    # (b) xi = 3/2 per N
+    bx = fig.add_subplot(gs[0, 1])
+    dphi = ds["dphi"].values / (2 * np.pi)
+    for i in range(ds.sizes["case"]):
+        if str(ds["claim"].values[i]) == "xi32":
+            bx.plot(dphi, ds["dx_final_over_lambda"].values[i], "o-", ms=3, label=str(ds["level"].values[i]))
+    bx.plot(dphi, dphi, "k--", lw=0.8, label="compatibility")
+    bx.set_xlabel("dphi / 2 pi")
+    bx.set_ylabel("final dx / lambda")
+    bx.set_title("(b) xi = 3/2: links per body", fontsize=9)
+    bx.legend(fontsize=6)
+
+    # (c) equal-A rule
+    cx = fig.add_subplot(gs[1, 1])
+    L = s.get("links_equal_A")
+    if L:
+        for key, lab in (("rms_residual_over_lambda", "all dphi"),
+                         ("rms_residual_over_lambda_open_interval", "dphi = +-pi left out")):
+            v = np.array([np.nan if r["value"] is None else r["value"] for r in L[key]])
+            lo = np.array([np.nan if r["ci95"][0] is None else r["ci95"][0] for r in L[key]])
+            hi = np.array([np.nan if r["ci95"][1] is None else r["ci95"][1] for r in L[key]])
+            cx.errorbar(L["n_links"], v, yerr=[v - lo, hi - v], marker="o", capsize=3, label=lab)
+        cx.legend(fontsize=6)
+    cx.set_xlabel("links N (equal-A rule: A held at the 3-link value)")
+    cx.set_ylabel("RMS residual / lambda")
+    cx.set_title("(c) link-number trend at fixed d/2A", fontsize=9)
+
+    # (d) confinement
+    dx = fig.add_subplot(gs[2, 1])
+    from ..theory import neutral_offset_m
+
+    A = s["amplitude_3_links_m"]
+    r = np.linspace(0.6, 1.6, 101)
+    for key, c in s["confinement"].items():
+        line = dx.plot(c["d_over_2A"], c["central_width_over_lambda"], "o", label=f"measured, w = {key}")[0]
+        model = 2 * neutral_offset_m(r * 2 * A, A, 0.54, c["body_width_m"]) / 0.54
+        dx.plot(r, model, "-", color=line.get_color(), lw=0.8, label=f"model, w = {key}")
+    dx.axvspan(0.6, 1.2, color="0.9", zorder=0)
+    dx.set_xlabel("d / 2A (centre-line A)")
+    dx.set_ylabel("central state width / lambda")
+    dx.set_title("(d) confinement: where the central state opens", fontsize=9)
+    dx.legend(fontsize=6)
+    return fig

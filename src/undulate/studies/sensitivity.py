@@ -1,0 +1,549 @@
+"""Study ``sensitivity``: which claims hold under which of the model choices the paper leaves open.
+
+One factor at a time, around the defaults, each with its own runs (nothing
+is borrowed from another study's files):
+
+* **xi = 1 pairs** (the claim "pairs follow the compatibility line", the
+  pairs study's criterion, 9 paper phases, 3-link pairs from dx0 = 0 in
+  d = 0.13 m, as :mod:`.pairs` runs them): servo gain ``kp`` x 1/2, torque
+  limit x 1/2, top speed (set-point slew limit) 6 -> 3 rad/s, contact time
+  constant 2 dt -> 8 ms (softer), linear drag x 1/2 and x 2; run duration
+  20 / 30 / 60 s and the steady window (mean of the last 1 / 3 / 5 periods),
+  both from one 60 s run per phase cut short; the treatment of dphi = +-pi
+  (the two compatible branches +-lambda/2 are equally near: nearest branch,
+  the default, or the points left out).
+* **xi = 3/2 pairs**: links per body N = 3 (the default, whose two joints
+  move in exact antiphase: a standing wave, ``tests/test_wave_symmetry.py``)
+  against N = 8 (joint phase steps 3 pi / 8: a travelling wave), only N
+  changed (joint amplitude 45 degrees, the simulator's time step for N),
+  30 s; N = 8 also at 60 s.
+* **links** (the claim "the error from compatibility falls as links are
+  added"): a third joint-amplitude rule, ``equal-A``, in which the joint
+  amplitude beta(N) is chosen so that the free N-link swimmer's body
+  amplitude A equals the 3-link body's (secant iteration on free-swimmer
+  runs), so d/2A is the same at every N (the links study's two rules change
+  A and therefore the confinement).  With and without the dphi = +-pi points.
+* **confinement** (the claim "the central state broadens over d/2A =
+  0.6-1.2"): dphi = 0 pairs from dx0/lambda in {-0.15, 0, 0.15} (full: 5
+  starts) for 40 s at d/2A = 0.9, 1.2 and the d at which the body's *edge*
+  amplitude A + w/2 gives d/2(A + w/2) = 1.2, for the default body width
+  w = 15 mm and for thin bodies (w = 3 mm, only w changed); the claim is
+  judged with A the centre-line amplitude (default) and with A + w/2.  The
+  compatibility model for bodies of width w has no band of neutral offsets
+  until the clearance d - 2A - 2w is positive, i.e. below d/2A = 1 + w/A.
+
+* **swimming** (the claim "swimming pairs behave like non-swimming ones",
+  judged by the pairs criterion): the swimming ground's fluid density 1000
+  (water, the default) and 250 kg/m^3 (a quarter of the anisotropic drag).
+* **potential** (the claim "the contact impulse over the first two periods
+  grows linearly with |dphi|", R^2 lower bound >= 0.9): the impulse runs
+  of the potential study (dx0 = 0, 6 s, 4 phases phi0) fitted with and
+  without dphi = +-pi.
+
+The summary's ``table`` has one row per (factor, level, claim): the verdict
+by that claim's own criterion and its key number with the 95 % interval.
+``EXPLANATIONS`` state the causes of failing claims that these runs
+demonstrate (:class:`~._registry.Explanation`; :mod:`undulate.claims`
+marks such a claim ``explained`` only when the check is true).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import xarray as xr
+
+from .. import stats, theory
+from ..observables import steady_state
+from ..params import SwimmerGeometry
+from ..sweep import Grid
+from . import _analysis as C
+from ._registry import Explanation, Study, StudyContext, register
+from ._runners import BODY_LENGTH_M, PERIOD_S, group_point, pair_point
+
+SLOPE_TOL = 0.2
+RMS_TOL = 0.1
+"""The pairs study's criterion ("follows the compatibility line"): the slope's 95 % interval within
+1 +- SLOPE_TOL and the RMS residual's upper bound below RMS_TOL lambda (tests check they agree)."""
+WIDTH_TOL = 0.01
+"""The confinement study's criterion: width (lambda) above which the central state is open."""
+CENTRAL = 0.5
+PAPER_RANGE_HIGH = 1.2
+CHANNEL_WIDTH_M = 0.13
+LONG_S = 60.0
+"""Length of the default xi = 1 runs and the N = 8 xi = 3/2 runs, s (cut short for 20 and 30 s)."""
+DEFAULT_S = 30.0
+CONFINEMENT_S = 40.0
+THIN_BODY_M = 0.003
+BETA_DEG = 45.0
+R2_MIN = 0.9
+"""The potential study's criterion for "linear": the lower 95 % bound of R^2 at least this."""
+IMPULSE_S = 6.0
+"""Length of the impulse runs (the impulse is taken over the first 2 periods), s: the potential study's."""
+IMPULSE_PHI0 = (0.0, math.pi / 2, math.pi, 3 * math.pi / 2)
+FLUID_DENSITIES = (1000.0, 250.0)
+"""Swimming ground: water (the default, Ground.swimming) and a quarter of it (weaker anisotropic drag)."""
+A_TOL_M = 1e-4
+"""The equal-A rule's tolerance on the free swimmer's amplitude, m."""
+
+# (factor, level label, group_point overrides) for xi = 1; the default is run at LONG_S
+MODEL_LEVELS = (
+    ("servo stiffness", "kp 5 N m/rad (default 10)", {"kp_Nm_per_rad": 5.0}),
+    ("torque limit", "0.75 N m (default 1.5)", {"torque_limit_Nm": 0.75}),
+    ("slew limit", "3 rad/s (default 6)", {"max_speed_rad_s": 3.0}),
+    ("contact softness", "time constant 8 ms (default 2 dt = 4 ms)", {"contact_timeconst_s": 0.008}),
+    ("drag", "1 N s/m per link (default 2)", {"drag_N_s_per_m": 1.0}),
+    ("drag", "4 N s/m per link (default 2)", {"drag_N_s_per_m": 4.0}),
+)
+MODEL_DEFAULTS = {"kp_Nm_per_rad": 10.0, "torque_limit_Nm": 1.5, "max_speed_rad_s": 6.0,
+                  "contact_timeconst_s": 0.0, "drag_N_s_per_m": 2.0}
+"""The defaults of the MODEL_LEVELS keys (0 s contact time constant: two time steps); a test checks
+them against the parameter types."""
+DURATIONS_S = (20.0, 30.0, 60.0)
+WINDOWS = (1, 3, 5)
+
+
+@dataclass(frozen=True)
+class Plan:
+    dphi_rad: tuple[float, ...]
+    xi32_links: tuple[int, ...] = (3, 8)
+    links: tuple[int, ...] = (3, 5, 7, 9)
+    confinement_starts: tuple[float, ...] = (-0.15, 0.0, 0.15)
+    confinement_d_over_2A: tuple[float, ...] = (0.9, 1.2)
+
+
+def plan(quick: bool) -> Plan:
+    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, 3 confinement starts; full: 17 dphi
+    (step pi/8), N = 3, 4, 6, 8 and 5 starts."""
+    if quick:
+        return Plan(tuple(float(p) for p in C.paper_phases()))
+    return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
+                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3))
+
+
+def _timestep(n_links: int) -> float:
+    from ..params import Scene
+    from ..scene import auto_timestep
+
+    return auto_timestep(Scene(geometry=SwimmerGeometry(n_links=n_links)))
+
+
+def equal_amplitude_beta(ctx: StudyContext, n_links: int, target_m: float, xi: float = 1.0) -> tuple[float, float]:
+    """beta(N) (rad) at which the free N-link swimmer's amplitude A equals ``target_m``; and that A.
+
+    Secant iteration on :meth:`StudyContext.lone_swimmer` runs (each cached), from the
+    curvature rule's 45 deg x 3/N and its proportional correction, to :data:`A_TOL_M`.
+    """
+    def amp(beta):
+        return float(ctx.lone_swimmer(amplitude_rad=beta, n_links=n_links, waves_per_body=xi)["amplitude_m"])
+
+    b0 = math.radians(BETA_DEG) * 3.0 / n_links  # exactly the links study's curvature rule (shared free swimmer)
+    a0 = amp(b0)
+    if abs(a0 - target_m) <= A_TOL_M:
+        return b0, a0
+    b1 = round(b0 * target_m / a0, 9)
+    a1 = amp(b1)
+    for _ in range(4):
+        if abs(a1 - target_m) <= A_TOL_M or a1 == a0:
+            break
+        b0, a0, b1 = b1, a1, round(b1 + (target_m - a1) * (b1 - b0) / (a1 - a0), 9)
+        a1 = amp(b1)
+    return b1, a1
+
+
+def _cut(run: xr.Dataset, duration_s: float) -> xr.Dataset:
+    return run.sel(time=slice(None, duration_s + 1e-9))
+
+
+def _pair_rows(run: xr.Dataset, dphi: float, lam: float, amp: float, windows=(3,)) -> dict[int, tuple]:
+    """Final dx/lambda, residual/lambda and steady flag of one pair run per steady window."""
+    rec, series = C.pair_record(run, dphi, lam, amp)
+    out = {}
+    for w in windows:
+        if w == C.STEADY_WINDOW:
+            out[w] = (rec["dx_steady"] / lam, rec["residual"] / lam, rec["steady"])
+            continue
+        da = xr.DataArray(series / lam, coords={"time": run["time"].values}, dims="time")
+        st = steady_state(da, PERIOD_S, tol=C.STEADY_TOL, window=w)
+        v = float(st["value"])
+        out[w] = (v, float(theory.compatibility_residual(v, dphi, 1.0)), float(bool(st["steady"])))
+    return out
+
+
+def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
+    dphis = np.asarray(p.dphi_rad, float)
+    lam1 = BODY_LENGTH_M
+    A3 = float(ctx.lone_swimmer()["amplitude_m"])
+    cases: list[dict[str, Any]] = []  # each: claim, factor, level, default, n_links, beta, values (dphi,3)
+
+    def add(claim, factor, level, default, rows, n_links=3, beta=math.radians(BETA_DEG), amp=A3, xi=1.0):
+        cases.append({"claim": claim, "factor": factor, "level": level, "default": default, "n_links": n_links,
+                      "beta": beta, "amplitude": amp, "xi": xi, "rows": np.asarray(rows, float)})
+
+    # --- xi = 1: model levels (30 s) and the default (60 s, cut short) ---------------------------
+    fn30 = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M, duration_s=DEFAULT_S)
+    fn60 = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M, duration_s=LONG_S)
+    pts = [{**MODEL_DEFAULTS, **over, "dphi_rad": float(d)} for _, _, over in MODEL_LEVELS for d in dphis]
+    sim = ctx.sweep("xi1-model", fn30, Grid(points=pts, seed=ctx.config.seed)).isel(replicate=0)
+    base = ctx.sweep("xi1-default", fn60, Grid(axes={"dphi_rad": list(dphis)}, seed=ctx.config.seed)
+                     ).isel(replicate=0)
+
+    def nan_rows():
+        return [(math.nan,) * 3] * len(dphis)
+
+    for k, (factor, level, _) in enumerate(MODEL_LEVELS):
+        rows = nan_rows()
+        for j, d in enumerate(dphis):
+            run = sim.isel(point=k * len(dphis) + j)
+            if not bool(run["run_failed"]):
+                rows[j] = _pair_rows(run, d, lam1, A3)[3]
+        add("xi1", factor, level, False, rows)
+    per_dur = {D: nan_rows() for D in DURATIONS_S}
+    per_win = {w: nan_rows() for w in WINDOWS}
+    for j, d in enumerate(dphis):
+        run = base.isel(dphi_rad=j)
+        if bool(run["run_failed"]):
+            continue
+        for D in DURATIONS_S:
+            r = _pair_rows(_cut(run, D), d, lam1, A3, windows=WINDOWS if D == DEFAULT_S else (3,))
+            per_dur[D][j] = r[3]
+            if D == DEFAULT_S:
+                for w in WINDOWS:
+                    per_win[w][j] = r[w]
+    for D in DURATIONS_S:
+        add("xi1", "run duration", f"{D:g} s" + (" (default)" if D == DEFAULT_S else ""), D == DEFAULT_S,
+            per_dur[D])
+    for w in WINDOWS:
+        if w != C.STEADY_WINDOW:
+            add("xi1", "steady-state rule", f"final = mean of last {w} period(s) (default 3)", False, per_win[w])
+    add("xi1", "dphi = +-pi", "left out (default: nearest branch)", False,
+        [r if abs(d) < np.pi - 1e-9 else (math.nan,) * 3 for r, d in zip(per_dur[DEFAULT_S], dphis)])
+
+    # --- xi = 3/2: links per body -------------------------------------------------------------------
+    lam32 = BODY_LENGTH_M / 1.5
+    for n in p.xi32_links:
+        dur = LONG_S if n > 3 else DEFAULT_S
+        fn = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M, duration_s=dur)
+        g = Grid(points=[{"waves_per_body": 1.5, "n_links": n, "timestep_s": _timestep(n), "dphi_rad": float(d)}
+                         for d in dphis], seed=ctx.config.seed)
+        sw = ctx.sweep(f"xi32-N{n}", fn, g).isel(replicate=0)
+        amp = float(ctx.lone_swimmer(n_links=n, waves_per_body=1.5)["amplitude_m"])
+        for D in ((DEFAULT_S, LONG_S) if dur == LONG_S else (DEFAULT_S,)):
+            rows = nan_rows()
+            for j, d in enumerate(dphis):
+                run = sw.isel(point=j)
+                if not bool(run["run_failed"]):
+                    rows[j] = _pair_rows(_cut(run, D), d, lam32, amp)[3]
+            add("xi32", "links per body N at xi = 3/2", f"N = {n}, {D:g} s" + (" (default)" if n == 3 else ""),
+                n == 3, rows, n_links=n, amp=amp, xi=1.5)
+
+    # --- links: the equal-A rule ---------------------------------------------------------------------
+    gaits = []
+    for n in p.links:
+        beta, a = (math.radians(BETA_DEG), A3) if n == 3 else equal_amplitude_beta(ctx, n, A3)
+        gaits.append((n, beta, a))
+    pts = [{"n_links": n, "amplitude_rad": b, "timestep_s": _timestep(n), "waves_per_body": 1.0,
+            "dphi_rad": float(d)} for n, b, _ in gaits for d in dphis]
+    sw = ctx.sweep("links-equalA", fn30, Grid(points=pts, seed=ctx.config.seed)).isel(replicate=0)
+    for i, (n, b, a) in enumerate(gaits):
+        rows = nan_rows()
+        for j, d in enumerate(dphis):
+            run = sw.isel(point=i * len(dphis) + j)
+            if not bool(run["run_failed"]):
+                rows[j] = _pair_rows(run, d, lam1, a)[3]
+        add("links", "joint-amplitude rule", f"equal-A, N = {n}", False, rows, n_links=n, beta=b, amp=a)
+
+    # --- confinement: body width, A definition -------------------------------------------------------
+    w0 = SwimmerGeometry().width_m
+    r_edge = round(PAPER_RANGE_HIGH * (A3 + w0 / 2) / A3, 6)
+    ratios = tuple(p.confinement_d_over_2A) + (r_edge,)
+    fnc = functools.partial(pair_point, duration_s=CONFINEMENT_S, amplitude_m=A3)
+    gc = Grid(axes={"body_width_m": [w0, THIN_BODY_M], "d_over_2A": list(ratios),
+                    "dx0_over_lambda": list(p.confinement_starts)}, seed=ctx.config.seed)
+    conf = ctx.sweep("confinement", fnc, gc).isel(replicate=0)
+    conf_final = np.where(conf["run_failed"].values, np.nan, conf["dx_final_over_lambda"].values)
+
+    # --- swimming: strength of the anisotropic drag --------------------------------------------------
+    fns = functools.partial(pair_point, duration_s=DEFAULT_S)
+    gs = Grid(axes={"ground": ["swimming"], "fluid_density_kg_m3": list(FLUID_DENSITIES), "dphi_rad": list(dphis)},
+              seed=ctx.config.seed)
+    swim = ctx.sweep("swimming", fns, gs).isel(replicate=0, ground=0)
+    for k, rho in enumerate(FLUID_DENSITIES):
+        rows = nan_rows()
+        for j, d in enumerate(dphis):
+            run = swim.isel(fluid_density_kg_m3=k, dphi_rad=j)
+            if not bool(run["run_failed"]):
+                v = float(run["dx_final_over_lambda"])
+                rows[j] = (v, float(theory.compatibility_residual(v, d, 1.0)), float(run["steady"]))
+        add("swim", "anisotropic drag (swimming ground)",
+            f"fluid density {rho:g} kg/m^3" + (" (default)" if k == 0 else ""), k == 0, rows)
+
+    # --- potential: contact impulse over the first two periods, dphi = +-pi in or out -----------------
+    fni = functools.partial(pair_point, duration_s=IMPULSE_S)
+    gi = Grid(axes={"dphi_rad": list(dphis), "phi0_rad": list(IMPULSE_PHI0)}, seed=ctx.config.seed)
+    imp = ctx.sweep("impulse", fni, gi).isel(replicate=0)
+    impulse = np.nanmean(np.where(imp["run_failed"].values, np.nan, imp["impulse_2T_Ns"].values), axis=1)
+
+    n_d = len(dphis)
+    one = {"units": "1"}
+    ds = xr.Dataset(
+        {
+            "dx_final_over_lambda": (("case", "dphi"), np.stack([c["rows"][:, 0] for c in cases]), {
+                **one, "long_name": "final dx/lambda (x_1 - x_0; mean of the case's steady window)"}),
+            "residual_over_lambda": (("case", "dphi"), np.stack([c["rows"][:, 1] for c in cases]), {
+                **one, "long_name": "distance from the nearest compatibility branch / lambda"}),
+            "steady": (("case", "dphi"), np.stack([c["rows"][:, 2] for c in cases]) == 1.0, {
+                "long_name": "steady by observables.steady_state (tol 0.01 lambda)"}),
+            "n_links": ("case", [c["n_links"] for c in cases], {"units": "1"}),
+            "joint_amplitude": ("case", [c["beta"] for c in cases], {"units": "rad"}),
+            "amplitude": ("case", [c["amplitude"] for c in cases], {
+                "units": "m", "long_name": "free swimmer's body amplitude A"}),
+            "waves_per_body": ("case", [c["xi"] for c in cases], {"units": "1"}),
+            "is_default": ("case", [c["default"] for c in cases]),
+            "conf_dx_final_over_lambda": (("body_width", "d_over_2A", "dx0"), conf_final, {
+                **one, "long_name": "confinement runs: final dx/lambda (mean of the last 3 periods)"}),
+            "conf_dx_over_lambda": (("body_width", "d_over_2A", "dx0", "time"), conf["dx_over_lambda"].values, {
+                **one, "long_name": "confinement runs: dx/lambda over time"}),
+            "impulse": ("dphi", impulse, {"units": "N s", "long_name": "pair contact impulse over the first "
+                                                                       "2 periods from dx0 = 0, mean over phi0"}),
+            "amplitude_3_links": ((), A3, {"units": "m", "long_name": "free 3-link swimmer's A (default gait)"}),
+        },
+        coords={
+            "case": ("case", np.arange(len(cases)), {"units": "1", "long_name": "case index"}),
+            "claim": ("case", [c["claim"] for c in cases]),
+            "factor": ("case", [c["factor"] for c in cases]),
+            "level": ("case", [c["level"] for c in cases]),
+            "dphi": ("dphi", dphis, {"units": "rad", "long_name": "phase difference phi_1 - phi_0"}),
+            "body_width": ("body_width", [w0, THIN_BODY_M], {"units": "m", "long_name": "link width w"}),
+            "d_over_2A": ("d_over_2A", list(ratios), {**one, "long_name": "wall spacing over 2 A (centre-line A)"}),
+            "dx0": ("dx0", list(p.confinement_starts), {**one, "long_name": "initial dx0/lambda"}),
+            "time": ("time", conf["time"].values, {"units": "s"}),
+        },
+        attrs={"title": "model sensitivity: claims against the model choices the paper leaves open",
+               "channel_width_m": CHANNEL_WIDTH_M, "n_dphi": n_d, "steady_rule": C.STEADY_RULE,
+               "slope_method": C.SLOPE_METHOD},
+    )
+    return ds
+
+
+# ------------------------------------------------------------------ summary
+def _line(y, dphi) -> dict[str, Any]:
+    fit = C.compatibility_fit(y, dphi)
+    res = theory.compatibility_residual(np.asarray(y, float), np.asarray(dphi, float), 1.0)
+    return {"slope": fit.slope, "rms": C.rms(res)}
+
+
+def follows_line(slope: stats.Estimate, rms: stats.Estimate) -> bool | None:
+    """The pairs study's criterion on the intervals (None without intervals)."""
+    if not (slope.has_interval and rms.has_interval):
+        return None
+    return slope.inside(1 - SLOPE_TOL, 1 + SLOPE_TOL) is True and rms.high < RMS_TOL
+
+
+CLAIM_LABELS = {"xi1": "xi = 1 pairs follow the line", "xi32": "xi = 3/2 pairs follow the line",
+                "swim": "swimming pairs follow the line"}
+
+
+def _verdict(ok: bool | None) -> str:
+    return "no result" if ok is None else ("holds" if ok else "fails")
+
+
+def central_width(dx_final) -> float:
+    xf = np.asarray(dx_final, float)
+    c = np.isfinite(xf) & (np.abs(xf) < CENTRAL)
+    return float(xf[c].max() - xf[c].min()) if c.any() else math.nan
+
+
+def _broadens(ratios, widths, high=PAPER_RANGE_HIGH) -> bool | None:
+    r, w = np.asarray(ratios, float), np.asarray(widths, float)
+    ok = np.isfinite(w)
+    inside = ok & (r <= high + 1e-6)
+    if not inside.any():
+        return None
+    grows = bool(np.all(np.diff(w[ok]) >= -WIDTH_TOL))
+    return bool(np.nanmax(w[inside]) > WIDTH_TOL and grows)
+
+
+def summary(ds: xr.Dataset) -> dict:
+    """Pure: per case the verdict by its claim's criterion and the key numbers; the table."""
+    dphi = ds["dphi"].values
+    table, cases = [], {}
+    for i in range(ds.sizes["case"]):
+        c = ds.isel(case=i)
+        claim, factor, level = str(c["claim"].values), str(c["factor"].values), str(c["level"].values)
+        y = c["dx_final_over_lambda"].values
+        fit = _line(y, dphi)
+        open_ = np.abs(dphi) < np.pi - 1e-9
+        entry = {"claim": claim, "factor": factor, "level": level, "default": bool(c["is_default"]),
+                 "n_links": int(c["n_links"]), "joint_amplitude_deg": math.degrees(float(c["joint_amplitude"])),
+                 "amplitude_m": float(c["amplitude"]), "slope": fit["slope"].to_dict(),
+                 "rms_residual_over_lambda": fit["rms"].to_dict(),
+                 "rms_residual_over_lambda_open_interval": C.rms(c["residual_over_lambda"].values[open_]).to_dict(),
+                 "n_runs": int(np.isfinite(y).sum()), "n_steady": int(c["steady"].values.sum()),
+                 "follows_line": follows_line(fit["slope"], fit["rms"])}
+        cases[f"{claim}: {factor}: {level}"] = entry
+        if claim != "links":
+            table.append({"claim": CLAIM_LABELS[claim], "factor": factor, "level": level,
+                          "verdict": _verdict(entry["follows_line"]),
+                          "key number": f"slope {fit['slope']:.2f}, RMS {fit['rms']:.3f} lambda, "
+                                        f"{entry['n_steady']}/{entry['n_runs']} steady"})
+    # links, equal-A rule: the links study's criterion
+    links = [e for e in cases.values() if e["claim"] == "links"]
+    links.sort(key=lambda e: e["n_links"])
+    out_links = None
+    if links:
+        rms = [stats.Estimate.from_dict(e["rms_residual_over_lambda"]) for e in links]
+        rms_open = [stats.Estimate.from_dict(e["rms_residual_over_lambda_open_interval"]) for e in links]
+
+        def falls(seq):
+            if not all(r.has_interval for r in seq):
+                return None
+            return all(b.value < a.value for a, b in zip(seq, seq[1:])) and seq[-1].high < seq[0].low
+
+        out_links = {"n_links": [e["n_links"] for e in links],
+                     "joint_amplitude_deg": [e["joint_amplitude_deg"] for e in links],
+                     "amplitude_m": [e["amplitude_m"] for e in links],
+                     "rms_residual_over_lambda": [r.to_dict() for r in rms],
+                     "rms_residual_over_lambda_open_interval": [r.to_dict() for r in rms_open],
+                     "falls": falls(rms), "falls_open_interval": falls(rms_open)}
+        for label, seq, ok in (("equal-A (all dphi)", rms, out_links["falls"]),
+                               ("equal-A, dphi = +-pi left out", rms_open, out_links["falls_open_interval"])):
+            table.append({"claim": "error falls as links are added", "factor": "joint-amplitude rule",
+                          "level": label, "verdict": _verdict(ok),
+                          "key number": "RMS / lambda at N = " + ", ".join(
+                              f"{e['n_links']}: {r:.3f}" for e, r in zip(links, seq))})
+    # potential: impulse linear in |dphi|
+    imp = ds["impulse"].values
+    pot = {}
+    for label, use in (("all dphi (default)", np.ones(dphi.shape, bool)),
+                       ("dphi = +-pi left out", np.abs(dphi) < np.pi - 1e-9)):
+        f = stats.line_fit(np.abs(dphi[use]), imp[use])
+        ok = None if not f.r2.has_interval else bool(f.r2.low >= R2_MIN and f.slope.low > 0)
+        pot[label] = {"slope_Ns_per_rad": f.slope.to_dict(), "r2": f.r2.to_dict(), "linear": ok}
+        table.append({"claim": "impulse over 2 periods linear in |dphi|", "factor": "dphi = +-pi",
+                      "level": label, "verdict": _verdict(ok),
+                      "key number": f"a = {f.slope:.3g} N s/rad, R^2 = {f.r2:.2f}"})
+    # confinement
+    A = float(ds["amplitude_3_links"])
+    ratios = ds["d_over_2A"].values
+    conf = {}
+    for wi, w in enumerate(ds["body_width"].values):
+        widths = [central_width(ds["conf_dx_final_over_lambda"].values[wi, k]) for k in range(len(ratios))]
+        r_edge = ratios * A / (A + float(w) / 2)
+        conf[f"{float(w) * 1000:g} mm"] = {
+            "body_width_m": float(w), "d_over_2A": ratios, "d_over_2A_edge": r_edge,
+            "central_width_over_lambda": np.asarray(widths),
+            "model_opening_d_over_2A": 1.0 + float(w) / A,
+            "broadens_centreline_A": _broadens(ratios, widths),
+            "broadens_edge_A": _broadens(r_edge, widths)}
+    w0 = f"{float(ds['body_width'].values[0]) * 1000:g} mm"
+    for key, v in conf.items():
+        wtxt = ", ".join(f"{r:.2f}: {x:.3f}" for r, x in zip(v["d_over_2A"], v["central_width_over_lambda"]))
+        table.append({"claim": "central state broadens over d/2A 0.6-1.2", "factor": "body width w",
+                      "level": f"w = {key}" + (" (default)" if key == w0 else ""),
+                      "verdict": _verdict(v["broadens_centreline_A"]),
+                      "key number": f"width/lambda at d/2A = {wtxt}; model opens at d/2A = "
+                                    f"{v['model_opening_d_over_2A']:.2f}"})
+    v = conf[w0]
+    table.append({"claim": "central state broadens over d/2A 0.6-1.2", "factor": "definition of A",
+                  "level": "edge amplitude A + w/2 (default: centre line A)",
+                  "verdict": _verdict(v["broadens_edge_A"]),
+                  "key number": "width/lambda at d/2(A + w/2) = " + ", ".join(
+                      f"{r:.2f}: {x:.3f}" for r, x in zip(v["d_over_2A_edge"], v["central_width_over_lambda"]))})
+    return {"table": table, "cases": cases, "links_equal_A": out_links, "confinement": conf, "impulse": pot,
+            "impulse_Ns": imp,
+            "amplitude_3_links_m": A,
+            "criteria": {"pairs": f"slope 95 % interval within 1 +- {SLOPE_TOL}, RMS upper bound < {RMS_TOL} "
+                                  "lambda (the pairs study's)",
+                         "links": "RMS falls at every step in N and the largest N's interval lies below N = 3's",
+                         "confinement": f"central width > {WIDTH_TOL} lambda within d/2A <= 1.2, never "
+                                        f"shrinking by more than {WIDTH_TOL}"}}
+
+
+# ------------------------------------------------------------------ explanations
+def _case(s: dict, claim: str, level_start: str) -> dict | None:
+    for e in s["cases"].values():
+        if e["claim"] == claim and e["level"].startswith(level_start):
+            return e
+    return None
+
+
+def _xi32_check(s: dict):
+    e3, e8 = _case(s, "xi32", "N = 3, 30 s"), _case(s, "xi32", "N = 8, 30 s")
+    if e3 is None or e8 is None:
+        return False, "no N = 3 or N = 8 runs in this plan", None
+    E = stats.Estimate.from_dict
+    txt = "; ".join(f"N = {e['n_links']}: slope {E(e['slope']):.2f}, RMS {E(e['rms_residual_over_lambda']):.3f} "
+                    f"lambda" for e in (e3, e8))
+    shown = e3["follows_line"] is False and e8["follows_line"] is True
+    return shown, txt + " (30 s, only N changed)", {"N3": e3["follows_line"], "N8": e8["follows_line"]}
+
+
+def _links_check(s: dict):
+    L = s["links_equal_A"]
+    if L is None:
+        return False, "no equal-A runs", None
+    E = stats.Estimate.from_dict
+    txt = ("equal-A rule (A = " + ", ".join(f"{a * 1000:.1f}" for a in L["amplitude_m"]) + " mm at N = "
+           + ", ".join(str(n) for n in L["n_links"]) + "): RMS / lambda "
+           + ", ".join(f"{E(r):.3f}" for r in L["rms_residual_over_lambda"])
+           + "; without dphi = +-pi " + ", ".join(f"{E(r):.3f}" for r in L["rms_residual_over_lambda_open_interval"]))
+    return L["falls"] is True, txt, {"falls": L["falls"], "falls_open_interval": L["falls_open_interval"]}
+
+
+def _confinement_check(s: dict):
+    conf = s["confinement"]
+    keys = list(conf)
+    d, thin = conf[keys[0]], conf[keys[1]]
+    txt = (f"default w: opens past d/2A = {d['model_opening_d_over_2A']:.2f} (model), widths "
+           + ", ".join(f"{r:.2f}: {x:.3f}" for r, x in zip(d["d_over_2A"], d["central_width_over_lambda"]))
+           + f"; w = {keys[1]} (only w changed): widths "
+           + ", ".join(f"{r:.2f}: {x:.3f}" for r, x in zip(thin["d_over_2A"], thin["central_width_over_lambda"])))
+    w_d = np.asarray(d["central_width_over_lambda"], float)
+    r = np.asarray(d["d_over_2A"], float)
+    closed_in_range = bool(np.all(w_d[r <= PAPER_RANGE_HIGH + 1e-9] <= WIDTH_TOL))
+    open_beyond = bool(np.any(w_d[r > d["model_opening_d_over_2A"]] > WIDTH_TOL))
+    shown = (d["broadens_centreline_A"] is False and closed_in_range and open_beyond
+             and d["model_opening_d_over_2A"] > PAPER_RANGE_HIGH and thin["broadens_centreline_A"] is True)
+    return shown, txt, {"default_closed_in_range": closed_in_range, "default_open_beyond_model": open_beyond,
+                        "thin_broadens": thin["broadens_centreline_A"]}
+
+
+EXPLANATIONS = (
+    Explanation("pairs", "xi = 3/2: contact drives pairs to a steady dx that follows the compatibility line",
+                "with N = 3 links and joint phases 2 pi xi i / N the two joints of a xi = 3/2 gait move in exact "
+                "antiphase (tests/test_wave_symmetry.py): a standing wave with no phase for a neighbour to match; "
+                "with N = 8 links (joint steps 3 pi/8, a travelling wave) the pairs follow the line.", _xi32_check),
+    Explanation("links", "error from compatibility falls as links are added (joint amplitude 45 deg at every N)",
+                "tested: both of the links study's amplitude rules change the free swimmer's amplitude A with N "
+                "and so the confinement d/2A; shown only if, with A held at the 3-link value (equal-A rule), the "
+                "error falls with N by the claim's own criterion.",
+                _links_check),
+    Explanation("links", "error from compatibility falls as links are added (joint amplitude 45 deg x 3/N)",
+                "tested: both of the links study's amplitude rules change the free swimmer's amplitude A with N "
+                "and so the confinement d/2A; shown only if, with A held at the 3-link value (equal-A rule), the "
+                "error falls with N by the claim's own criterion.",
+                _links_check),
+    Explanation("confinement", "the central (dx = 0) state broadens as the confinement d/2A grows (over 0.6-1.2)",
+                "bodies of width w leave a band of neutral offsets only when the clearance d - 2A - 2w is positive, "
+                "i.e. from d/2A = 1 + w/A, above the paper's range for our 15 mm links; with thin links (only w "
+                "changed) the central state opens within d/2A <= 1.2.", _confinement_check),
+)
+
+
+def figure(ds: xr.Dataset):
+    from ..plotting.sensitivity import plot_sensitivity
+
+    return plot_sensitivity(ds, summary(ds))
+
+
+register(Study(
+    name="sensitivity", plan=plan, dataset=dataset, summary=summary, claims=(), explanations=EXPLANATIONS,
+    figure=figure,
+    description="Model sensitivity: the xi = 1 and xi = 3/2 pair claims, the link-number trend and the "
+                "confinement claim against servo, contact, drag, duration, steady rule, dphi = +-pi, links per "
+                "body, the equal-A amplitude rule, body width and the definition of A (one at a time)."))

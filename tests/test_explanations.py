@@ -1,0 +1,111 @@
+"""The `explained` verdict: a failing claim becomes `explained` only when a study's own runs
+show the cause; the sensitivity study's checks, constants and explanation targets."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import pytest
+
+from undulate import stats
+from undulate.claims import VERDICTS, apply_explanations, collect
+from undulate.params import Ground, Servo
+from undulate.report import write_report
+from undulate.studies import describe, names
+from undulate.studies import sensitivity as S
+
+
+def row(verdict, study="pairs", claim="c"):
+    return {"study": study, "claim": claim, "paper": "", "measured": "m", "value": None, "verdict": verdict,
+            "reason": "", "criterion": ""}
+
+
+def expl(shown, study="pairs", claim="c"):
+    return {"study": study, "claim": claim, "cause": "because", "shown": shown, "measured": "numbers",
+            "value": None, "evidence_study": "sensitivity", "evidence_figure": "sensitivity.png"}
+
+
+def test_only_a_shown_explanation_turns_fails_into_explained():
+    assert "explained" in VERDICTS
+    (r,) = apply_explanations([row("fails")], [expl(True)])
+    assert r["verdict"] == "explained" and r["explanation"]["evidence_figure"] == "sensitivity.png"
+    (r,) = apply_explanations([row("fails")], [expl(False)])
+    assert r["verdict"] == "fails" and r["explanation"] is None and r["explanations_not_shown"]
+    (r,) = apply_explanations([row("holds")], [expl(True)])  # a claim that holds stays `holds`
+    assert r["verdict"] == "holds"
+    (r,) = apply_explanations([row("no result")], [expl(True)])
+    assert r["verdict"] == "no result"
+    (r,) = apply_explanations([row("fails")], [expl(True, claim="another claim")])
+    assert r["verdict"] == "fails"
+
+
+def test_every_explanation_names_a_registered_claim():
+    found = 0
+    for name in names():
+        for e in describe(name).explanations:
+            assert e.study in names(), e
+            assert e.claim in [c.claim for c in describe(e.study).claims], e
+            found += 1
+    assert found >= 4
+
+
+def test_report_and_claims_json_show_the_cause_with_a_link_to_the_evidence(tmp_path):
+    claim = describe("pairs").claims[2].claim
+    (tmp_path / "pairs.json").write_text(json.dumps({"claims": [row("fails", "pairs", claim)], "files": []}))
+    (tmp_path / "sensitivity.json").write_text(json.dumps(
+        {"claims": [], "explanations": [expl(True, "pairs", claim)], "files": []}))
+    rows = collect(tmp_path, ["pairs", "sensitivity"])
+    assert [r["verdict"] for r in rows] == ["explained"]
+    statuses = [{"name": n, "ok": True, "wall_s": 1.0} for n in ("pairs", "sensitivity")]
+    html = write_report(tmp_path, statuses, mode="quick").read_text()
+    assert "explained" in html and "href='sensitivity.png'" in html and "because" in html
+    # without the evidence study the claim is reported failing
+    assert [r["verdict"] for r in collect(tmp_path, ["pairs"])] == ["fails"]
+
+
+def test_sensitivity_uses_the_claims_own_criteria_and_the_model_defaults():
+    import undulate.studies.confinement as conf
+    import undulate.studies.pairs as pairs
+
+    assert (S.SLOPE_TOL, S.RMS_TOL) == (pairs.SLOPE_TOL, pairs.RMS_TOL)
+    assert (S.WIDTH_TOL, S.CENTRAL) == (conf.WIDTH_TOL, conf.CENTRAL)
+    import undulate.studies.potential as pot
+
+    assert (S.R2_MIN, S.IMPULSE_S) == (pot.R2_MIN, pot.IMPULSE_DURATION_S)
+    assert S.MODEL_DEFAULTS["kp_Nm_per_rad"] == Servo().kp_Nm_per_rad
+    assert S.MODEL_DEFAULTS["torque_limit_Nm"] == Servo().torque_limit_Nm
+    assert S.MODEL_DEFAULTS["max_speed_rad_s"] == Servo().max_speed_rad_s
+    assert S.MODEL_DEFAULTS["drag_N_s_per_m"] == Ground().drag_N_s_per_m
+    for _, _, over in S.MODEL_LEVELS:  # one factor changed at a time
+        assert len(over) == 1 and over != {k: S.MODEL_DEFAULTS[k] for k in over}
+
+
+def E(v, lo=math.nan, hi=math.nan):
+    return stats.Estimate(v, math.nan, lo, hi, 9, "test")
+
+
+def test_follows_line_is_judged_on_the_intervals():
+    assert S.follows_line(E(1.0, 0.9, 1.1), E(0.03, 0.02, 0.05)) is True
+    assert S.follows_line(E(1.0, 0.7, 1.3), E(0.03, 0.02, 0.05)) is False  # interval too wide
+    assert S.follows_line(E(1.0, 0.9, 1.1), E(0.05, 0.02, 0.12)) is False
+    assert S.follows_line(E(1.0), E(0.03, 0.02, 0.05)) is None
+
+
+def _case(claim, level, ok):
+    return {"claim": claim, "level": level, "n_links": int(level.split()[2].rstrip(",")), "follows_line": ok,
+            "slope": E(1, 0.9, 1.1).to_dict(), "rms_residual_over_lambda": E(0.03, 0.02, 0.04).to_dict()}
+
+
+@pytest.mark.parametrize("n3, n8, shown", [(False, True, True), (False, False, False), (True, True, False)])
+def test_xi_three_halves_explanation_needs_n3_failing_and_n8_holding(n3, n8, shown):
+    s = {"cases": {"a": _case("xi32", "N = 3, 30 s (default)", n3), "b": _case("xi32", "N = 8, 30 s", n8)}}
+    assert S._xi32_check(s)[0] is shown
+
+
+def test_central_state_width_and_broadening():
+    assert S.central_width([0.0, 0.04, -0.05, 0.9]) == pytest.approx(0.09)  # 0.9: another branch
+    assert math.isnan(S.central_width([0.8, -0.9]))
+    assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.1, 0.2]) is True
+    assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.0, 0.2]) is False  # opens only beyond 1.2
+    assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.1, 0.05]) is False  # shrinks
