@@ -152,12 +152,15 @@ def _acquire_pool(ctx, workers: int) -> tuple[ProcessPoolExecutor, bool]:
 
 
 @contextlib.contextmanager
-def local_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
-    """A process pool for other work than sweeps (e.g. a reproduction's animations): the
-    warm one inside :func:`warm_workers`, else a fresh one stopped on exit."""
-    pool, warm = _acquire_pool(multiprocessing.get_context("spawn"), workers)
+def _held_pool(ctx, workers: int) -> Iterator[tuple[ProcessPoolExecutor, dict]]:
+    """Hold a pool (the warm one, else a fresh one) for a block: yields ``(pool, state)``;
+    set ``state["broken"]`` when the block saw the pool break.  On an exception the pool's
+    processes are stopped at once (and the warm pool forgotten); on exit a fresh pool is
+    shut down, a broken warm pool forgotten."""
+    pool, warm = _acquire_pool(ctx, workers)
+    state = {"broken": False}
     try:
-        yield pool
+        yield pool, state
     except BaseException:
         _stop_now(pool)
         if warm:
@@ -165,51 +168,56 @@ def local_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
         raise
     finally:
         if not warm:
-            pool.shutdown(wait=True, cancel_futures=True)
-        elif getattr(pool, "_broken", False) and _WARM["pool"] is pool:
+            pool.shutdown(wait=not state["broken"], cancel_futures=True)
+        elif (state["broken"] or getattr(pool, "_broken", False)) and _WARM["pool"] is pool:
             _drop_warm()
+
+
+@contextlib.contextmanager
+def local_pool(workers: int) -> Iterator[ProcessPoolExecutor]:
+    """A process pool for other work than sweeps (e.g. a reproduction's animations): the
+    warm one inside :func:`warm_workers`, else a fresh one stopped on exit."""
+    with _held_pool(multiprocessing.get_context("spawn"), workers) as (pool, _):
+        yield pool
 
 
 def _run_pool(ctx, workers: int, pending: deque[Chunk], on_done: OnDone, health: _Health) -> list[Chunk]:
     """Run ``pending`` on one pool until it is empty or the pool breaks; return the chunks lost in a break."""
-    pool, warm = _acquire_pool(ctx, workers)
+    with _held_pool(ctx, workers) as (pool, state):
+        broken = _drain(pool, workers, pending, on_done, health)
+        state["broken"] = bool(broken)
+        return broken
+
+
+def _drain(pool, workers: int, pending: deque[Chunk], on_done: OnDone, health: _Health) -> list[Chunk]:
+    """Submit ``pending`` (at most two chunks a worker in flight) and hand each outcome to
+    ``on_done``; stop at the first broken-pool error and return every chunk lost with it."""
     inflight: dict[Future, Chunk] = {}
     broken: list[Chunk] = []
-    try:
-        while (pending or inflight) and not broken:
-            while pending and len(inflight) < 2 * workers:
-                chunk = pending.popleft()
-                inflight[pool.submit(run_chunk, chunk)] = chunk
-            done, _ = wait(inflight, return_when=FIRST_COMPLETED)
-            for fut in done:
-                chunk = inflight.pop(fut)
-                try:
-                    outcomes = fut.result()
-                except BrokenProcessPool:
-                    broken.append(chunk)
-                    continue
-                health.done()
-                on_done(chunk, outcomes)
-        if broken:
-            health.broke()
-            for fut, chunk in inflight.items():  # the rest of the pool's chunks fail with it
-                try:
-                    outcomes = fut.result()
-                except BrokenProcessPool:
-                    broken.append(chunk)
-                    continue
-                on_done(chunk, outcomes)
-        return broken
-    except BaseException:
-        _stop_now(pool)
-        if warm:
-            _drop_warm()
-        raise
-    finally:
-        if not warm:
-            pool.shutdown(wait=not broken, cancel_futures=True)
-        elif broken and _WARM["pool"] is pool:
-            _drop_warm()
+    while (pending or inflight) and not broken:
+        while pending and len(inflight) < 2 * workers:
+            chunk = pending.popleft()
+            inflight[pool.submit(run_chunk, chunk)] = chunk
+        done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+        for fut in done:
+            chunk = inflight.pop(fut)
+            try:
+                outcomes = fut.result()
+            except BrokenProcessPool:
+                broken.append(chunk)
+                continue
+            health.done()
+            on_done(chunk, outcomes)
+    if broken:
+        health.broke()
+        for fut, chunk in inflight.items():  # the rest of the pool's chunks fail with it
+            try:
+                outcomes = fut.result()
+            except BrokenProcessPool:
+                broken.append(chunk)
+                continue
+            on_done(chunk, outcomes)
+    return broken
 
 
 def _quarantine(ctx, chunks: list[Chunk], on_done: OnDone, on_lost: OnLost, health: _Health) -> None:
