@@ -203,10 +203,13 @@ _WORKERS_HELP = ("Local worker processes (default: the cores this process may us
 
 
 def _check_workers(workers: int | None, scheduler: str | None) -> None:
-    if workers is not None and workers < 1:
-        raise ParameterError("--workers", "an integer >= 1 (default: the cores this process may use)", workers)
-    if workers is not None and scheduler is not None:
-        raise ParameterError("--workers", "left out with --scheduler (the Dask cluster sets the workers)", workers)
+    """``--workers`` by :class:`~undulate.studies.StudyConfig`'s own rule, named as the CLI option."""
+    from .studies import StudyConfig
+
+    try:
+        StudyConfig(out_dir=Path("."), scheduler=scheduler, workers=workers)
+    except ParameterError as e:
+        raise _cli_name(e, {"workers": "--workers"}) from None
 
 
 @app.command()

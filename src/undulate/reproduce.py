@@ -97,7 +97,7 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
                 for stem, fut in futs.items():
                     try:
                         done[stem] = fut.result()
-                    except (Exception, BrokenProcessPool):  # noqa: BLE001 - retried here below
+                    except Exception:  # noqa: BLE001 - incl. BrokenProcessPool: retried here below
                         pass
         except BrokenProcessPool:  # pragma: no cover - retried here below
             pass

@@ -195,13 +195,17 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     def nan_rows():
         return [(math.nan,) * 3] * len(dphis)
 
-    for k, (factor, level, _) in enumerate(MODEL_LEVELS):
+    def steady_rows(sweep, first: int, lam: float, amp: float, cut_s: float | None = None):
+        """The default steady rows of points ``first ..`` (one per dphi) of ``sweep``; NaN where a run failed."""
         rows = nan_rows()
         for j, d in enumerate(dphis):
-            run = sim.isel(point=k * len(dphis) + j)
+            run = sweep.isel(point=first + j)
             if not bool(run["run_failed"]):
-                rows[j] = _pair_rows(run, d, lam1, A3)[3]
-        add("xi1", factor, level, False, rows)
+                rows[j] = _pair_rows(run if cut_s is None else _cut(run, cut_s), d, lam, amp)[3]
+        return rows
+
+    for k, (factor, level, _) in enumerate(MODEL_LEVELS):
+        add("xi1", factor, level, False, steady_rows(sim, k * len(dphis), lam1, A3))
     per_dur = {D: nan_rows() for D in DURATIONS_S}
     per_win = {w: nan_rows() for w in WINDOWS}
     for j, d in enumerate(dphis):
@@ -233,11 +237,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
         sw = ctx.sweep(f"xi32-N{n}", fn, g).isel(replicate=0)
         amp = float(ctx.lone_swimmer(n_links=n, waves_per_body=1.5)["amplitude_m"])
         for D in ((DEFAULT_S, LONG_S) if dur == LONG_S else (DEFAULT_S,)):
-            rows = nan_rows()
-            for j, d in enumerate(dphis):
-                run = sw.isel(point=j)
-                if not bool(run["run_failed"]):
-                    rows[j] = _pair_rows(_cut(run, D), d, lam32, amp)[3]
+            rows = steady_rows(sw, 0, lam32, amp, cut_s=D)
             add("xi32", "links per body N at xi = 3/2", f"N = {n}, {D:g} s" + (" (default)" if n == 3 else ""),
                 n == 3, rows, n_links=n, amp=amp, xi=1.5)
 
@@ -250,11 +250,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
             "dphi_rad": float(d)} for n, b, _ in gaits for d in dphis]
     sw = ctx.sweep("links-equalA", fn30, Grid(points=pts, seed=ctx.config.seed)).isel(replicate=0)
     for i, (n, b, a) in enumerate(gaits):
-        rows = nan_rows()
-        for j, d in enumerate(dphis):
-            run = sw.isel(point=i * len(dphis) + j)
-            if not bool(run["run_failed"]):
-                rows[j] = _pair_rows(run, d, lam1, a)[3]
+        rows = steady_rows(sw, i * len(dphis), lam1, a)
         add("links", "joint-amplitude rule", f"equal-A, N = {n}", False, rows, n_links=n, beta=b, amp=a)
 
     # --- confinement: body width, A definition -------------------------------------------------------
