@@ -12,7 +12,7 @@ import xarray as xr
 from undulate.observables import neighbour_offsets
 from undulate.studies import names, run_study
 from undulate.studies import _analysis as C
-from undulate.studies.groups import group_records
+from undulate.studies._analysis import group_records
 
 
 def _run(tmp_path_factory, name):

@@ -44,6 +44,7 @@ __all__ = [
     "compatibility_fit",
     "band_excess",
     "rms",
+    "group_records",
 ]
 
 STEADY_TOL = 0.01
@@ -316,3 +317,34 @@ def rms(values: Sequence[float] | np.ndarray) -> stats.Estimate:
     """Root mean square over the finite values, with a seeded bootstrap 95 % interval
     (:func:`undulate.stats.rms`; NaN when there are none)."""
     return stats.rms(values)
+
+
+def group_records(traj: xr.Dataset, amplitude_m: float) -> list[dict]:
+    """Nearest-neighbour steady offsets of one group run, bottom to top.
+
+    ``traj``: a trajectory (:func:`trajectory`: ``x``, ``y``,
+    ``phase``, attrs ``wavelength`` and ``period``).  Neighbours are taken in
+    the lateral order at the end of the run (:func:`_analysis.final_neighbours`)
+    and followed by id over the whole run, so a swap on the way does not
+    break the series.  One dict per neighbouring pair with the keys of
+    :data:`NEIGHBOUR_FIELDS` (but ``group_size`` and ``run_index``) and
+    :data:`NEIGHBOUR_FLAGS`.
+    """
+    lam = float(traj.attrs["wavelength"])
+    pairs, stable = final_neighbours(traj)
+    ids = [p[0] for p in pairs] + [pairs[-1][1]]
+    changed = ids != sorted(ids)
+    out = []
+    for rank, (lo, up) in enumerate(pairs):
+        dx, dy, dphi = neighbour_series(traj, lo, up)
+        st = steady_offsets(dx, dy, lam)
+        res = float(theory.compatibility_residual(st.dx_m, dphi, lam))
+        out.append({
+            "rank": rank, "lower": lo, "upper": up, "dphi": dphi,
+            "dx_steady": st.dx_m, "dx_steady_over_lambda": st.dx_m / lam, "dy_steady": st.dy_m,
+            "residual": res, "residual_over_lambda": res / lam,
+            "band_excess": float(band_excess(st.dx_m, dphi, st.dy_m, amplitude_m, lam)),
+            "settle_time": st.settle_time_s, "steady": st.steady, "order_stable": stable,
+            "order_changed": changed,
+        })
+    return out

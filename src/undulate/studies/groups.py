@@ -27,6 +27,7 @@ import xarray as xr
 from .. import stats, theory
 from ..sweep import Grid
 from . import _analysis as C
+from ._analysis import group_records
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import BODY_LENGTH_M, DURATION_S, group_point
 
@@ -88,37 +89,6 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                     Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
     A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
     return groups_dataset({2: two, 3: three, 4: four}, A)
-
-
-def group_records(traj: xr.Dataset, amplitude_m: float) -> list[dict]:
-    """Nearest-neighbour steady offsets of one group run, bottom to top.
-
-    ``traj``: a trajectory (:func:`_analysis.trajectory`: ``x``, ``y``,
-    ``phase``, attrs ``wavelength`` and ``period``).  Neighbours are taken in
-    the lateral order at the end of the run (:func:`_analysis.final_neighbours`)
-    and followed by id over the whole run, so a swap on the way does not
-    break the series.  One dict per neighbouring pair with the keys of
-    :data:`NEIGHBOUR_FIELDS` (but ``group_size`` and ``run_index``) and
-    :data:`NEIGHBOUR_FLAGS`.
-    """
-    lam = float(traj.attrs["wavelength"])
-    pairs, stable = C.final_neighbours(traj)
-    ids = [p[0] for p in pairs] + [pairs[-1][1]]
-    changed = ids != sorted(ids)
-    out = []
-    for rank, (lo, up) in enumerate(pairs):
-        dx, dy, dphi = C.neighbour_series(traj, lo, up)
-        st = C.steady_offsets(dx, dy, lam)
-        res = float(theory.compatibility_residual(st.dx_m, dphi, lam))
-        out.append({
-            "rank": rank, "lower": lo, "upper": up, "dphi": dphi,
-            "dx_steady": st.dx_m, "dx_steady_over_lambda": st.dx_m / lam, "dy_steady": st.dy_m,
-            "residual": res, "residual_over_lambda": res / lam,
-            "band_excess": float(C.band_excess(st.dx_m, dphi, st.dy_m, amplitude_m, lam)),
-            "settle_time": st.settle_time_s, "steady": st.steady, "order_stable": stable,
-            "order_changed": changed,
-        })
-    return out
 
 
 def _runs(sweep: xr.Dataset):

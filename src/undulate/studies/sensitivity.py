@@ -35,6 +35,13 @@ is borrowed from another study's files):
 * **swimming** (the claim "swimming pairs behave like non-swimming ones",
   judged by the pairs criterion): the swimming ground's fluid density 1000
   (water, the default) and 250 kg/m^3 (a quarter of the anisotropic drag).
+* **groups** (the claims "groups of 3 / 4 follow the compatibility line with
+  more scatter than pairs", the groups study's criterion against reference
+  pairs in d = 0.13 m): the groups study's runs (three swimmers at phases
+  ``(0, dphi, 2 dphi)`` in d = 0.19 m; four with random phases in 0.22 m;
+  30 s) and the same runs (same phases, same draws) in the channel that
+  gives neighbours the reference pairs' lateral spacing,
+  ``d = 0.13 m + (n - 2) x`` :data:`PAIR_SPACING_M` (0.162 and 0.194 m).
 * **potential** (the claim "the contact impulse over the first two periods
   grows linearly with |dphi|", R^2 lower bound >= 0.9): the impulse runs
   of the potential study (dx0 = 0, 6 s, 4 phases phi0) fitted with and
@@ -104,6 +111,16 @@ MODEL_DEFAULTS = {"kp_Nm_per_rad": 10.0, "torque_limit_Nm": 1.5, "max_speed_rad_
 """The defaults of the MODEL_LEVELS keys (0 s contact time constant: two time steps); a test checks
 them against the parameter types."""
 DURATIONS_S = (20.0, 30.0, 60.0)
+GROUP_CHANNEL_M = {3: 0.19, 4: 0.22}
+"""The groups study's channels (the paper's), m."""
+PAIR_SPACING_M = 0.032
+"""Median steady lateral spacing of the reference pairs' centre lines in d = 0.13 m, m (measured by the
+groups study, quick and full mode: 32.0 mm): each swimmer beyond two adds this much channel in the
+spaced-group runs."""
+GROUP_SLOPE_TOL = 0.2
+GROUP_RMS_TOL = 0.2
+"""The groups study's criterion: slope interval within 1 +- 0.2, RMS interval below 0.2 lambda and wholly
+above the reference pairs'."""
 WINDOWS = (1, 3, 5)
 
 
@@ -114,15 +131,22 @@ class Plan:
     links: tuple[int, ...] = (3, 5, 7, 9)
     confinement_starts: tuple[float, ...] = (-0.15, 0.0, 0.15)
     confinement_d_over_2A: tuple[float, ...] = (0.9, 1.2)
+    group_draws: int = 8
+
+
+def spaced_channel_m(n_swimmers: int) -> float:
+    """Channel width (m) that gives ``n_swimmers`` neighbours the reference pairs' lateral spacing:
+    ``0.13 m + (n - 2)`` :data:`PAIR_SPACING_M`."""
+    return round(CHANNEL_WIDTH_M + (int(n_swimmers) - 2) * PAIR_SPACING_M, 6)
 
 
 def plan(quick: bool) -> Plan:
-    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, 3 confinement starts; full: 17 dphi
-    (step pi/8), N = 3, 4, 6, 8 and 5 starts."""
+    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, 3 confinement starts, 8 draws of four
+    swimmers; full: 17 dphi (step pi/8), N = 3, 4, 6, 8, 5 starts and 40 draws (the groups study's)."""
     if quick:
         return Plan(tuple(float(p) for p in C.paper_phases()))
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
-                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3))
+                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3), group_draws=40)
 
 
 def _timestep(n_links: int) -> float:
@@ -263,6 +287,32 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     conf = ctx.sweep("confinement", fnc, gc).isel(replicate=0)
     conf_final = np.where(conf["run_failed"].values, np.nan, conf["dx_final_over_lambda"].values)
 
+    # --- groups: lateral spacing of neighbours (the same phases and draws in two channels) -------------
+    group_cases = [(2, CHANNEL_WIDTH_M, True, [_cut(base.isel(dphi_rad=j), DEFAULT_S)
+                                               for j in range(len(dphis)) if not bool(base.isel(dphi_rad=j)["run_failed"])])]
+    for n in (3, 4):
+        for w in (GROUP_CHANNEL_M[n], spaced_channel_m(n)):
+            if n == 3:
+                fng = functools.partial(group_point, n_swimmers=3, channel_width_m=w, duration_s=DEFAULT_S)
+                gg = Grid(axes={"dphi_rad": list(dphis)}, seed=ctx.config.seed)
+            else:  # the groups study's grid: the same per-run seeds, hence the same phase draws, in both channels
+                fng = functools.partial(group_point, n_swimmers=4, channel_width_m=w, random_phases=True,
+                                        duration_s=DEFAULT_S)
+                gg = Grid(axes={"waves_per_body": [1.0]}, replicates=p.group_draws, seed=ctx.config.seed)
+            sw = ctx.sweep(f"groups{n}-d{w:g}", fng, gg)
+            flat = sw.stack(run=list(sw["run_failed"].dims)).transpose("run", ...)
+            runs = [flat.isel(run=k) for k in range(flat.sizes["run"])]
+            group_cases.append((n, w, w == GROUP_CHANNEL_M[n], [r for r in runs if not bool(r["run_failed"])]))
+    g_fields = ("dphi", "dx_steady_over_lambda", "residual_over_lambda", "dy_steady", "band_excess")
+    g_recs = [[rec for r in runs for rec in C.group_records(C.trajectory(r, lam1), A3)]
+              for _, _, _, runs in group_cases]
+    n_nb = max(1, max(len(r) for r in g_recs))
+    g_vals = {f: np.full((len(group_cases), n_nb), np.nan) for f in g_fields}
+    for i, recs in enumerate(g_recs):
+        for k, rec in enumerate(recs):
+            for f in g_fields:
+                g_vals[f][i, k] = rec[f]
+
     # --- swimming: strength of the anisotropic drag --------------------------------------------------
     fns = functools.partial(pair_point, duration_s=DEFAULT_S)
     gs = Grid(axes={"ground": ["swimming"], "fluid_density_kg_m3": list(FLUID_DENSITIES), "dphi_rad": list(dphis)},
@@ -306,6 +356,16 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                 **one, "long_name": "confinement runs: dx/lambda over time"}),
             "impulse": ("dphi", impulse, {"units": "N s", "long_name": "pair contact impulse over the first "
                                                                        "2 periods from dx0 = 0, mean over phi0"}),
+            "group_dphi": (("group_case", "neighbour"), g_vals["dphi"], {
+                "units": "rad", "long_name": "groups: neighbour phase difference phi_upper - phi_lower (NaN: padding)"}),
+            "group_dx_over_lambda": (("group_case", "neighbour"), g_vals["dx_steady_over_lambda"], {
+                **one, "long_name": "groups: steady neighbour offset dx / lambda"}),
+            "group_residual_over_lambda": (("group_case", "neighbour"), g_vals["residual_over_lambda"], {
+                **one, "long_name": "groups: distance from the nearest compatibility branch / lambda"}),
+            "group_dy": (("group_case", "neighbour"), g_vals["dy_steady"], {
+                "units": "m", "long_name": "groups: steady lateral spacing of the neighbours' centre lines"}),
+            "group_band_excess": (("group_case", "neighbour"), g_vals["band_excess"], {
+                "units": "m", "long_name": "groups: distance outside the full compatibility band (0 = inside)"}),
             "amplitude_3_links": ((), A3, {"units": "m", "long_name": "free 3-link swimmer's A (default gait)"}),
         },
         coords={
@@ -318,6 +378,10 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
             "d_over_2A": ("d_over_2A", list(ratios), {**one, "long_name": "wall spacing over 2 A (centre-line A)"}),
             "dx0": ("dx0", list(p.confinement_starts), {**one, "long_name": "initial dx0/lambda"}),
             "time": ("time", conf["time"].values, {"units": "s"}),
+            "group_size": ("group_case", [c[0] for c in group_cases], {"units": "1", "long_name": "swimmers"}),
+            "group_channel_width": ("group_case", [c[1] for c in group_cases], {"units": "m", "long_name": "d"}),
+            "group_default": ("group_case", [c[2] for c in group_cases], {
+                "long_name": "the groups study's channel (2: the reference pairs)"}),
         },
         attrs={"title": "model sensitivity: claims against the model choices the paper leaves open",
                "channel_width_m": CHANNEL_WIDTH_M, "n_dphi": n_d, "steady_rule": C.STEADY_RULE,
@@ -450,7 +514,20 @@ def summary(ds: xr.Dataset) -> dict:
                   "verdict": _verdict(v["broadens_edge_A"]),
                   "key number": "width/lambda at d/2(A + w/2) = " + ", ".join(
                       f"{r:.2f}: {x:.3f}" for r, x in zip(v["d_over_2A_edge"], v["central_width_over_lambda"]))})
+    groups = _groups_summary(ds)
+    for key, g in groups.items():
+        if g["group_size"] == 2:
+            continue
+        table.append({"claim": f"groups of {g['group_size']} follow the line with more scatter than pairs",
+                      "factor": "neighbour spacing (channel width)",
+                      "level": f"d = {g['channel_width_m']:g} m" + (
+                          " (default)" if g["default"] else ": the pairs' spacing (0.13 m + 32 mm per extra swimmer)"),
+                      "verdict": _verdict(g["follows_line_more_scatter"]),
+                      "key number": f"slope {stats.Estimate.from_dict(g['slope']):.2f}, RMS "
+                                    f"{stats.Estimate.from_dict(g['rms_residual_over_lambda']):.3f} lambda, "
+                                    f"neighbour spacing {g['median_dy_m'] * 1000:.1f} mm"})
     return {"table": table, "cases": cases, "links_equal_A": out_links, "confinement": conf, "impulse": pot,
+            "groups": groups,
             "impulse_Ns": imp,
             "amplitude_3_links_m": A,
             "criteria": {"pairs": f"slope 95 % interval within 1 +- {SLOPE_TOL}, RMS upper bound < {RMS_TOL} "
@@ -458,6 +535,37 @@ def summary(ds: xr.Dataset) -> dict:
                          "links": "RMS falls at every step in N and the largest N's interval lies below N = 3's",
                          "confinement": f"central width > {WIDTH_TOL} lambda within d/2A <= 1.2, never "
                                         f"shrinking by more than {WIDTH_TOL}"}}
+
+
+def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
+    """Per group case: slope and RMS residual (95 % intervals) of the neighbours against the line,
+    their median lateral spacing, the fractions inside the contact-free band and short of the line, and
+    the groups study's verdict against the reference pairs (size 2)."""
+    out: dict[str, dict[str, Any]] = {}
+    ref_rms = None
+    for i in range(ds.sizes.get("group_case", 0)):
+        c = ds.isel(group_case=i)
+        size, w = int(c["group_size"]), float(c["group_channel_width"])
+        dphi, dx = c["group_dphi"].values, c["group_dx_over_lambda"].values
+        ok = np.isfinite(dphi) & np.isfinite(dx)
+        dphi, dx = dphi[ok], dx[ok]
+        fit = C.compatibility_fit(dx, dphi)
+        rms = C.rms(c["group_residual_over_lambda"].values[ok])
+        if size == 2:
+            ref_rms = rms
+        entry = {"group_size": size, "channel_width_m": w, "default": bool(c["group_default"]),
+                 "n_neighbour_pairs": int(ok.sum()), "slope": fit.slope.to_dict(),
+                 "rms_residual_over_lambda": rms.to_dict(),
+                 "median_dy_m": float(np.median(c["group_dy"].values[ok])) if ok.any() else math.nan,
+                 "fraction_inside_band": float(np.mean(c["group_band_excess"].values[ok] == 0)) if ok.any() else math.nan,
+                 "fraction_short_of_line": float(np.mean(np.abs(dx) < np.abs(dphi) / (2 * np.pi))) if ok.any() else math.nan,
+                 "follows_line_more_scatter": None}
+        if size > 2 and ref_rms is not None and fit.slope.has_interval and rms.has_interval and ref_rms.has_interval:
+            entry["follows_line_more_scatter"] = bool(
+                fit.slope.inside(1 - GROUP_SLOPE_TOL, 1 + GROUP_SLOPE_TOL) is True
+                and rms.high < GROUP_RMS_TOL and rms.low > ref_rms.high)
+        out[f"{size} in {w:g} m"] = entry
+    return out
 
 
 # ------------------------------------------------------------------ explanations
@@ -509,7 +617,42 @@ def _confinement_check(s: dict):
                         "thin_broadens": thin["broadens_centreline_A"]}
 
 
+def _groups_check(size: int):
+    def check(s: dict):
+        g = s.get("groups", {})
+        ref = next((e for e in g.values() if e["group_size"] == 2), None)
+        dflt = next((e for e in g.values() if e["group_size"] == size and e["default"]), None)
+        spaced = next((e for e in g.values() if e["group_size"] == size and not e["default"]), None)
+        if ref is None or dflt is None or spaced is None:
+            return False, f"no groups of {size} in this plan", None
+        E = stats.Estimate.from_dict
+
+        def txt(e):
+            return (f"d = {e['channel_width_m']:g} m: slope {E(e['slope']):.2f}, RMS {E(e['rms_residual_over_lambda']):.3f} "
+                    f"lambda, neighbour spacing {e['median_dy_m'] * 1000:.1f} mm, "
+                    f"{e['fraction_short_of_line'] * 100:.0f} % short of the line, "
+                    f"{e['fraction_inside_band'] * 100:.0f} % inside the contact-free band")
+        measured = (f"{txt(dflt)}; {txt(spaced)} (same phases); pairs in 0.13 m: RMS "
+                    f"{E(ref['rms_residual_over_lambda']):.3f} lambda, spacing {ref['median_dy_m'] * 1000:.1f} mm")
+        shown = (dflt["follows_line_more_scatter"] is False and dflt["fraction_short_of_line"] > 0.5
+                 and spaced["follows_line_more_scatter"] is True)
+        return shown, measured, {"default": dflt["follows_line_more_scatter"],
+                                 "pairs_spacing": spaced["follows_line_more_scatter"],
+                                 "default_fraction_short": dflt["fraction_short_of_line"]}
+    return check
+
+
+_GROUPS_CAUSE = ("in the groups' channels (0.19 m for three, 0.22 m for four) neighbour centre lines settle farther "
+                 "apart than the reference pairs' in 0.13 m; at that spacing the band of offsets at which two bodies "
+                 "need not touch is wider, and neighbours stop at its near edge, short of the line; shown only if, "
+                 "with the channel narrowed so that neighbours have the pairs' spacing (0.13 m + 32 mm per extra "
+                 "swimmer; the same phases), the groups meet the claim's criterion.")
+
 EXPLANATIONS = (
+    Explanation("groups", "groups of 3 follow the compatibility line with more scatter than pairs", _GROUPS_CAUSE,
+                _groups_check(3)),
+    Explanation("groups", "groups of 4 follow the compatibility line with more scatter than pairs", _GROUPS_CAUSE,
+                _groups_check(4)),
     Explanation("pairs", "xi = 3/2: contact drives pairs to a steady dx that follows the compatibility line",
                 "with N = 3 links and joint phases 2 pi xi i / N the two joints of a xi = 3/2 gait move in exact "
                 "antiphase (tests/test_wave_symmetry.py): a standing wave with no phase for a neighbour to match; "
@@ -542,4 +685,5 @@ register(Study(
     figure=figure,
     description="Model sensitivity: the xi = 1 and xi = 3/2 pair claims, the link-number trend and the "
                 "confinement claim against servo, contact, drag, duration, steady rule, dphi = +-pi, links per "
-                "body, the equal-A amplitude rule, body width and the definition of A (one at a time)."))
+                "body, the equal-A amplitude rule, body width and the definition of A; groups against the "
+                "neighbours' lateral spacing (one at a time)."))
