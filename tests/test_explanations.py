@@ -109,3 +109,52 @@ def test_central_state_width_and_broadening():
     assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.1, 0.2]) is True
     assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.0, 0.2]) is False  # opens only beyond 1.2
     assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.1, 0.05]) is False  # shrinks
+
+
+def _group_ds(cases):
+    """A sensitivity-shaped dataset with only the group variables: ``cases`` = (size, width, default,
+    dx/lambda per neighbour as a function of dphi, residual scale, spacing m)."""
+    import numpy as np
+    import xarray as xr
+
+    rng = np.random.default_rng(3)
+    dphi = np.tile(np.linspace(-0.8 * np.pi, 0.8 * np.pi, 9), 4)
+    rows = {k: [] for k in ("dphi", "dx", "res", "dy", "be")}
+    for _, _, _, gain, scatter, dy in cases:
+        noise = scatter * rng.standard_normal(dphi.size)
+        dx = gain * dphi / (2 * np.pi) + noise
+        rows["dphi"].append(dphi)
+        rows["dx"].append(dx)
+        rows["res"].append(dx - dphi / (2 * np.pi))
+        rows["dy"].append(np.full(dphi.size, dy))
+        rows["be"].append(np.zeros(dphi.size))
+    g = ("group_case", "neighbour")
+    return xr.Dataset(
+        {"group_dphi": (g, np.array(rows["dphi"])), "group_dx_over_lambda": (g, np.array(rows["dx"])),
+         "group_residual_over_lambda": (g, np.array(rows["res"])), "group_dy": (g, np.array(rows["dy"])),
+         "group_band_excess": (g, np.array(rows["be"]))},
+        coords={"group_size": ("group_case", [c[0] for c in cases]),
+                "group_channel_width": ("group_case", [c[1] for c in cases]),
+                "group_default": ("group_case", [c[2] for c in cases])})
+
+
+@pytest.mark.parametrize("spaced_gain, spaced_scatter, shown", [
+    (1.0, 0.08, True),    # at the pairs' spacing: on the line, more scatter than pairs -> the cause is shown
+    (0.6, 0.08, False),   # still short of the line at the pairs' spacing: not shown
+    (1.0, 0.01, False),   # on the line but no more scatter than pairs: the claim's criterion fails, not shown
+])
+def test_groups_explanation_needs_default_failing_and_the_pairs_spacing_meeting_the_whole_criterion(
+        spaced_gain, spaced_scatter, shown):
+    ds = _group_ds([(2, 0.13, True, 1.0, 0.01, 0.032), (3, 0.19, True, 0.6, 0.02, 0.040),
+                    (3, S.spaced_channel_m(3), False, spaced_gain, spaced_scatter, 0.031)])
+    g = S._groups_summary(ds)
+    assert g["3 in 0.19 m"]["follows_line_more_scatter"] is False
+    assert g["3 in 0.19 m"]["fraction_short_of_line"] > 0.5
+    ok, measured, _ = S._groups_check(3)({"groups": g})
+    assert ok is shown and "0.162 m" in measured
+    assert S._groups_check(4)({"groups": g})[0] is False  # no groups of four in this summary
+
+
+def test_spaced_channel_adds_the_pairs_spacing_per_extra_swimmer():
+    assert S.spaced_channel_m(2) == S.CHANNEL_WIDTH_M
+    assert S.spaced_channel_m(3) == pytest.approx(0.162) and S.spaced_channel_m(4) == pytest.approx(0.194)
