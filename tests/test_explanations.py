@@ -158,3 +158,21 @@ def test_groups_explanation_needs_default_failing_and_the_pairs_spacing_meeting_
 def test_spaced_channel_adds_the_pairs_spacing_per_extra_swimmer():
     assert S.spaced_channel_m(2) == S.CHANNEL_WIDTH_M
     assert S.spaced_channel_m(3) == pytest.approx(0.162) and S.spaced_channel_m(4) == pytest.approx(0.194)
+
+
+@pytest.mark.parametrize("default_ok, strong_ok, speed, shown", [
+    (False, True, 3.5e-3, True),
+    (False, True, 0.0, False),     # the stronger drag stopped them swimming: not a swimming model any more
+    (False, False, 3.5e-3, False),
+    (True, True, 3.5e-3, False),   # the claim holds at the default: nothing to explain
+])
+def test_swimming_explanation_needs_the_stronger_drag_to_hold_while_the_pairs_still_swim(
+        default_ok, strong_ok, speed, shown):
+    est = stats.Estimate(1.0, 0.01, 0.98, 1.02, 9, "t").to_dict()
+    cases = {"a": {"claim": "swim", "level": "fluid density 1000 kg/m^3 (default)", "follows_line": default_ok,
+                   "slope": est, "rms_residual_over_lambda": est},
+             "b": {"claim": "swim", "level": f"{S.SWIM_DRAG_N_S_PER_M:g} N s/m per link (default 0.1)",
+                   "follows_line": strong_ok, "slope": est, "rms_residual_over_lambda": est}}
+    ok, measured, _ = S._swimming_check({"cases": cases, "swim_drag_pair_speed_m_s": speed})
+    assert ok is shown and "only the drag changed" in measured
+    assert S._swimming_check({"cases": {}})[0] is False

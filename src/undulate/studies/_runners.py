@@ -66,7 +66,7 @@ resumed sweep finds the same parameters after a bitwise-different re-measurement
 
 _PAIR_KEYS = ("dx0_over_lambda", "dphi_rad", "phi0_rad", "channel_width_m", "d_over_2A", "amplitude_m",
               "amplitude_rad", "force_N", "ground", "waves_per_body", "body_width_m",
-              "fluid_density_kg_m3")
+              "fluid_density_kg_m3", "swim_drag_N_s_per_m")
 
 MODEL_KEYS = ("kp_Nm_per_rad", "torque_limit_Nm", "max_speed_rad_s", "contact_timeconst_s", "drag_N_s_per_m")
 """Optional point keys of :func:`group_point` that change one model choice (the sensitivity
@@ -162,7 +162,9 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     ``force_onset_s``; 0), ``ground`` (``"viscous"`` or ``"swimming"``),
     ``body_width_m`` (w of every link, m; the SwimmerGeometry default),
     ``fluid_density_kg_m3`` (the swimming ground's fluid density, kg/m^3:
-    the strength of its anisotropic drag; :meth:`Ground.swimming`'s default).
+    the strength of its anisotropic drag; :meth:`Ground.swimming`'s default),
+    ``swim_drag_N_s_per_m`` (the swimming ground's linear drag per link, N s/m;
+    :meth:`Ground.swimming`'s default).
     """
     unknown = set(point) - set(_PAIR_KEYS)
     if unknown:
@@ -181,8 +183,10 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     else:
         width = float(point.get("channel_width_m", PAIR_WIDTH_M))
     if point.get("ground", "viscous") == "swimming":
-        rho = point.get("fluid_density_kg_m3")
-        ground = Ground.swimming() if rho is None else Ground.swimming(fluid_density_kg_m3=float(rho))
+        kw = {k: float(point[k]) for k in ("fluid_density_kg_m3",) if k in point}
+        if "swim_drag_N_s_per_m" in point:
+            kw["drag_N_s_per_m"] = float(point["swim_drag_N_s_per_m"])
+        ground = Ground.swimming(**kw)
     else:
         ground = Ground()
     f = float(point.get("force_N", 0.0))
