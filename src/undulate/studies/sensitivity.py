@@ -541,10 +541,10 @@ def summary(ds: xr.Dataset) -> dict:
     for key, g in groups.items():
         if g["group_size"] == 2:
             continue
-        table.append({"claim": f"groups of {g['group_size']} follow the line with more scatter than pairs",
+        table.append({"claim": f"groups of {g['group_size']} follow the line, more scatter",
                       "factor": "neighbour spacing (channel width)",
                       "level": f"d = {g['channel_width_m']:g} m" + (
-                          " (default)" if g["default"] else ": the pairs' spacing (0.13 m + 32 mm per extra swimmer)"),
+                          " (default)" if g["default"] else ": the pairs' spacing"),
                       "verdict": _verdict(g["follows_line_more_scatter"]),
                       "key number": f"slope {stats.Estimate.from_dict(g['slope']):.2f}, RMS "
                                     f"{stats.Estimate.from_dict(g['rms_residual_over_lambda']):.3f} lambda, "
