@@ -45,7 +45,18 @@ __all__ = [
     "band_excess",
     "rms",
     "group_records",
+    "sweep_runs",
+    "GROUP_CHANNEL_M",
+    "GROUP_SLOPE_TOL",
+    "GROUP_RMS_TOL",
+    "group_follows_line",
 ]
+
+GROUP_CHANNEL_M = {3: 0.19, 4: 0.22}
+"""Channels of the groups of three and four (the paper's), m."""
+GROUP_SLOPE_TOL = 0.2
+GROUP_RMS_TOL = 0.2
+"""RMS residual allowed for groups, in wavelengths (twice the pairs' tolerance: more scatter)."""
 
 STEADY_TOL = 0.01
 """Steady-state tolerance on dx/lambda (dx/L for the standing wave), dimensionless."""
@@ -348,3 +359,21 @@ def group_records(traj: xr.Dataset, amplitude_m: float) -> list[dict]:
             "order_changed": changed,
         })
     return out
+
+
+def sweep_runs(sweep: xr.Dataset):
+    """(run Dataset or None if failed) for every run of a sweep, flattened in grid order."""
+    flat = sweep.stack(run=[d for d in sweep["run_failed"].dims]).transpose("run", ...)
+    for k in range(flat.sizes["run"]):
+        r = flat.isel(run=k)
+        yield None if bool(r["run_failed"]) else r
+
+
+def group_follows_line(slope: stats.Estimate, rms: stats.Estimate, pair_rms: stats.Estimate) -> bool | None:
+    """The groups claim's criterion on 95 % intervals: the slope within 1 +- :data:`GROUP_SLOPE_TOL`,
+    the RMS residual below :data:`GROUP_RMS_TOL` and wholly above the reference pairs' ``pair_rms``
+    (more scatter); None when an interval is missing."""
+    if not (slope.has_interval and rms.has_interval and pair_rms.has_interval):
+        return None
+    return bool(slope.inside(1 - GROUP_SLOPE_TOL, 1 + GROUP_SLOPE_TOL) is True
+                and rms.high < GROUP_RMS_TOL and rms.low > pair_rms.high)

@@ -183,10 +183,8 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     else:
         width = float(point.get("channel_width_m", PAIR_WIDTH_M))
     if point.get("ground", "viscous") == "swimming":
-        kw = {k: float(point[k]) for k in ("fluid_density_kg_m3",) if k in point}
-        if "swim_drag_N_s_per_m" in point:
-            kw["drag_N_s_per_m"] = float(point["swim_drag_N_s_per_m"])
-        ground = Ground.swimming(**kw)
+        names = {"fluid_density_kg_m3": "fluid_density_kg_m3", "swim_drag_N_s_per_m": "drag_N_s_per_m"}
+        ground = Ground.swimming(**{arg: float(point[key]) for key, arg in names.items() if key in point})
     else:
         ground = Ground()
     f = float(point.get("force_N", 0.0))

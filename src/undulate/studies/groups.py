@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import xarray as xr
 
-from .. import stats, theory
+from .. import stats
 from ..sweep import Grid
 from . import _analysis as C
 from ._analysis import group_records
@@ -32,7 +32,7 @@ from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import BODY_LENGTH_M, DURATION_S, group_point
 
 XI = 1.0
-CHANNEL_WIDTH_M = {3: 0.19, 4: 0.22}
+CHANNEL_WIDTH_M = C.GROUP_CHANNEL_M
 N_DRAWS = {True: 8, False: 40}
 FULL_PHASES = 33
 
@@ -91,14 +91,6 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     return groups_dataset({2: two, 3: three, 4: four}, A)
 
 
-def _runs(sweep: xr.Dataset):
-    """(run Dataset or None if failed) for every run of a sweep, flattened in grid order."""
-    flat = sweep.stack(run=[d for d in sweep["run_failed"].dims]).transpose("run", ...)
-    for k in range(flat.sizes["run"]):
-        r = flat.isel(run=k)
-        yield None if bool(r["run_failed"]) else r
-
-
 def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Dataset:
     """Study dataset: one row per nearest-neighbour pair, and the trajectories per run."""
     lam = BODY_LENGTH_M / XI
@@ -107,7 +99,7 @@ def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Data
     time = next(iter(sweeps.values()))["time"].values
     nmax = max(sweeps)
     for n, sweep in sweeps.items():
-        for r in _runs(sweep):
+        for r in C.sweep_runs(sweep):
             k = len(run_size)
             run_size.append(n)
             run_failed.append(r is None)
@@ -207,9 +199,8 @@ def summary(ds: xr.Dataset) -> dict:
     }
 
 
-SLOPE_TOL = 0.2
-RMS_TOL = 0.2
-"""RMS residual allowed for groups, in wavelengths (twice the pairs' tolerance: more scatter)."""
+SLOPE_TOL = C.GROUP_SLOPE_TOL
+RMS_TOL = C.GROUP_RMS_TOL
 E = stats.Estimate.from_dict
 
 
@@ -221,9 +212,9 @@ def _group_follows(size: str) -> Callable[[dict], Verdict]:
                     f"same dphi ({g['n_neighbour_pairs']} neighbour pairs)")
         value = {"slope": g["slope"], "rms_residual_over_lambda": g["rms_residual_over_lambda"],
                  "pairs_rms_residual_over_lambda": pair["rms_residual_over_lambda"]}
-        if not (slope.has_interval and rms.has_interval and rms2.has_interval):
+        ok = C.group_follows_line(slope, rms, rms2)
+        if ok is None:
             return Verdict.none("a slope or RMS without an interval (too few neighbour pairs)", measured, value)
-        ok = slope.inside(1 - SLOPE_TOL, 1 + SLOPE_TOL) is True and rms.high < RMS_TOL and rms.low > rms2.high
         return Verdict.judged(ok, measured, value)
     return judge
 

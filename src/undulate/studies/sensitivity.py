@@ -95,12 +95,12 @@ IMPULSE_S = 6.0
 """Length of the impulse runs (the impulse is taken over the first 2 periods), s: the potential study's."""
 IMPULSE_PHI0 = (0.0, math.pi / 2, math.pi, 3 * math.pi / 2)
 FLUID_DENSITIES = (1000.0, 250.0)
+"""Swimming ground: water (the default, Ground.swimming) and a quarter of it (weaker anisotropic drag)."""
 SWIM_DRAG_N_S_PER_M = 0.5
 """A stronger linear drag per link for the swimming ground (default 0.1 N s/m; the viscous ground's is 2):
 the damping of sliding, the other half of the swimming model."""
 SWIM_MIN_SPEED_M_S = 1e-3
 """Pairs must still swim (mean speed over the dphi) for the drag level to count as a swimming model."""
-"""Swimming ground: water (the default, Ground.swimming) and a quarter of it (weaker anisotropic drag)."""
 A_TOL_M = 1e-4
 """The equal-A rule's tolerance on the free swimmer's amplitude, m."""
 
@@ -118,16 +118,10 @@ MODEL_DEFAULTS = {"kp_Nm_per_rad": 10.0, "torque_limit_Nm": 1.5, "max_speed_rad_
 """The defaults of the MODEL_LEVELS keys (0 s contact time constant: two time steps); a test checks
 them against the parameter types."""
 DURATIONS_S = (20.0, 30.0, 60.0)
-GROUP_CHANNEL_M = {3: 0.19, 4: 0.22}
-"""The groups study's channels (the paper's), m."""
 PAIR_SPACING_M = 0.032
 """Median steady lateral spacing of the reference pairs' centre lines in d = 0.13 m, m (measured by the
 groups study, quick and full mode: 32.0 mm): each swimmer beyond two adds this much channel in the
 spaced-group runs."""
-GROUP_SLOPE_TOL = 0.2
-GROUP_RMS_TOL = 0.2
-"""The groups study's criterion: slope interval within 1 +- 0.2, RMS interval below 0.2 lambda and wholly
-above the reference pairs'."""
 WINDOWS = (1, 3, 5)
 
 
@@ -298,7 +292,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     group_cases = [(2, CHANNEL_WIDTH_M, True, [_cut(base.isel(dphi_rad=j), DEFAULT_S)
                                                for j in range(len(dphis)) if not bool(base.isel(dphi_rad=j)["run_failed"])])]
     for n in (3, 4):
-        for w in (GROUP_CHANNEL_M[n], spaced_channel_m(n)):
+        for w in (C.GROUP_CHANNEL_M[n], spaced_channel_m(n)):
             if n == 3:
                 fng = functools.partial(group_point, n_swimmers=3, channel_width_m=w, duration_s=DEFAULT_S)
                 gg = Grid(axes={"dphi_rad": list(dphis)}, seed=ctx.config.seed)
@@ -306,10 +300,8 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                 fng = functools.partial(group_point, n_swimmers=4, channel_width_m=w, random_phases=True,
                                         duration_s=DEFAULT_S)
                 gg = Grid(axes={"waves_per_body": [1.0]}, replicates=p.group_draws, seed=ctx.config.seed)
-            sw = ctx.sweep(f"groups{n}-d{w:g}", fng, gg)
-            flat = sw.stack(run=list(sw["run_failed"].dims)).transpose("run", ...)
-            runs = [flat.isel(run=k) for k in range(flat.sizes["run"])]
-            group_cases.append((n, w, w == GROUP_CHANNEL_M[n], [r for r in runs if not bool(r["run_failed"])]))
+            runs = [r for r in C.sweep_runs(ctx.sweep(f"groups{n}-d{w:g}", fng, gg)) if r is not None]
+            group_cases.append((n, w, w == C.GROUP_CHANNEL_M[n], runs))
     g_fields = ("dphi", "dx_steady_over_lambda", "residual_over_lambda", "dy_steady", "band_excess")
     g_recs = [[rec for r in runs for rec in C.group_records(C.trajectory(r, lam1), A3)]
               for _, _, _, runs in group_cases]
@@ -325,28 +317,27 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     gs = Grid(axes={"ground": ["swimming"], "fluid_density_kg_m3": list(FLUID_DENSITIES), "dphi_rad": list(dphis)},
               seed=ctx.config.seed)
     swim = ctx.sweep("swimming", fns, gs).isel(replicate=0, ground=0)
-    for k, rho in enumerate(FLUID_DENSITIES):
+
+    def pair_point_rows(runs):
+        """Final dx/lambda, residual and steady flag per dphi of ``pair_point`` runs (NaN where one failed)."""
         rows = nan_rows()
-        for j, d in enumerate(dphis):
-            run = swim.isel(fluid_density_kg_m3=k, dphi_rad=j)
+        for j, (d, run) in enumerate(zip(dphis, runs)):
             if not bool(run["run_failed"]):
                 v = float(run["dx_final_over_lambda"])
                 rows[j] = (v, float(theory.compatibility_residual(v, d, 1.0)), float(run["steady"]))
+        return rows
+
+    for k, rho in enumerate(FLUID_DENSITIES):
         add("swim", "anisotropic drag (swimming ground)",
-            f"fluid density {rho:g} kg/m^3" + (" (default)" if k == 0 else ""), k == 0, rows)
+            f"fluid density {rho:g} kg/m^3" + (" (default)" if k == 0 else ""), k == 0,
+            pair_point_rows([swim.isel(fluid_density_kg_m3=k, dphi_rad=j) for j in range(len(dphis))]))
 
     gsd = Grid(points=[{"ground": "swimming", "swim_drag_N_s_per_m": SWIM_DRAG_N_S_PER_M, "dphi_rad": float(d)}
                        for d in dphis], seed=ctx.config.seed)
     swd = ctx.sweep("swimming-drag", fns, gsd).isel(replicate=0)
-    rows, swim_speed = nan_rows(), np.full(len(dphis), np.nan)
-    for j, d in enumerate(dphis):
-        run = swd.isel(point=j)
-        if not bool(run["run_failed"]):
-            v = float(run["dx_final_over_lambda"])
-            rows[j] = (v, float(theory.compatibility_residual(v, d, 1.0)), float(run["steady"]))
-            swim_speed[j] = float(run["speed_m_s"])
-    add("swim", "linear drag of the swimming ground",
-        f"{SWIM_DRAG_N_S_PER_M:g} N s/m per link (default 0.1)", False, rows)
+    add("swim", "linear drag of the swimming ground", f"{SWIM_DRAG_N_S_PER_M:g} N s/m per link (default 0.1)",
+        False, pair_point_rows([swd.isel(point=j) for j in range(len(dphis))]))
+    swim_speed = np.where(swd["run_failed"].values, np.nan, swd["speed_m_s"].values)
 
     # --- potential: contact impulse over the first two periods, dphi = +-pi in or out -----------------
     fni = functools.partial(pair_point, duration_s=IMPULSE_S)
@@ -551,8 +542,7 @@ def summary(ds: xr.Dataset) -> dict:
                                     f"neighbour spacing {g['median_dy_m'] * 1000:.1f} mm"})
     return {"table": table, "cases": cases, "links_equal_A": out_links, "confinement": conf, "impulse": pot,
             "groups": groups,
-            "swim_drag_pair_speed_m_s": float(np.nanmean(ds["swim_drag_pair_speed"].values))
-            if "swim_drag_pair_speed" in ds and np.isfinite(ds["swim_drag_pair_speed"].values).any() else math.nan,
+            "swim_drag_pair_speed_m_s": _finite_mean(ds["swim_drag_pair_speed"].values),
             "impulse_Ns": imp,
             "amplitude_3_links_m": A,
             "criteria": {"pairs": f"slope 95 % interval within 1 +- {SLOPE_TOL}, RMS upper bound < {RMS_TOL} "
@@ -560,6 +550,11 @@ def summary(ds: xr.Dataset) -> dict:
                          "links": "RMS falls at every step in N and the largest N's interval lies below N = 3's",
                          "confinement": f"central width > {WIDTH_TOL} lambda within d/2A <= 1.2, never "
                                         f"shrinking by more than {WIDTH_TOL}"}}
+
+
+def _finite_mean(values) -> float:
+    v = np.asarray(values, float)
+    return float(v[np.isfinite(v)].mean()) if np.isfinite(v).any() else math.nan
 
 
 def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
@@ -585,10 +580,8 @@ def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
                  "fraction_inside_band": float(np.mean(c["group_band_excess"].values[ok] == 0)) if ok.any() else math.nan,
                  "fraction_short_of_line": float(np.mean(np.abs(dx) < np.abs(dphi) / (2 * np.pi))) if ok.any() else math.nan,
                  "follows_line_more_scatter": None}
-        if size > 2 and ref_rms is not None and fit.slope.has_interval and rms.has_interval and ref_rms.has_interval:
-            entry["follows_line_more_scatter"] = bool(
-                fit.slope.inside(1 - GROUP_SLOPE_TOL, 1 + GROUP_SLOPE_TOL) is True
-                and rms.high < GROUP_RMS_TOL and rms.low > ref_rms.high)
+        if size > 2 and ref_rms is not None:
+            entry["follows_line_more_scatter"] = C.group_follows_line(fit.slope, rms, ref_rms)
         out[f"{size} in {w:g} m"] = entry
     return out
 
