@@ -337,3 +337,54 @@ def test_grid_from_dict_round_trips_and_rejects_unknown_keys():
     assert Grid.from_dict(g.to_dict()) == g
     with pytest.raises(ParameterError, match="seeed"):
         Grid.from_dict({**g.to_dict(), "seeed": 1})
+
+
+_EDITED_DURING_RUN = r"""
+import os, sys
+from pathlib import Path
+import undulate
+from undulate._source import SourceChangedError, code_hash
+from undulate.studies._runners import pair_point
+from undulate.sweep import Grid, run_sweep
+
+before = code_hash(pair_point)
+theory = Path(undulate.__file__).parent / "theory.py"
+theory.write_text(theory.read_text() + "\n# edited while a long run was going\n")
+os.utime(theory, ns=(theory.stat().st_atime_ns, theory.stat().st_mtime_ns + 10**9))
+try:
+    code_hash(pair_point)
+except SourceChangedError as e:
+    print("hash refused:", "theory.py" in str(e))
+try:
+    run_sweep(pair_point, Grid(axes={"dphi_rad": [0.0]}), sys.argv[1], workers=1, progress=False)
+except SourceChangedError:
+    print("sweep refused:", not (Path(sys.argv[1]) / "sweep.nc").exists())
+print("before", before)
+"""
+
+
+def test_a_source_edit_during_a_run_is_refused_not_mislabelled(tmp_path):
+    """The hash names the code the process runs: a package file edited on disk after `import undulate`
+    (a user editing the code during a long reproduction) makes the next hash, and a sweep about to write
+    its merged result, stop with a diagnosis; a fresh process gets the new hash."""
+    import shutil
+    import subprocess
+    import sys
+
+    import undulate
+
+    pkg = tmp_path / "pkg"
+    shutil.copytree(Path(undulate.__file__).parent, pkg / "undulate",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    env = {**os.environ, "PYTHONPATH": str(pkg)}
+    script = tmp_path / "edit.py"
+    script.write_text(_EDITED_DURING_RUN)
+    out = subprocess.run([sys.executable, str(script), str(tmp_path / "sweep")], env=env, capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert "hash refused: True" in out.stdout and "sweep refused: True" in out.stdout, out.stdout
+    before = out.stdout.split("before ")[1].strip()
+    fresh = subprocess.run([sys.executable, "-c", "from undulate._source import code_hash; from "
+                            "undulate.studies._runners import pair_point; print(code_hash(pair_point))"],
+                           env=env, capture_output=True, text=True, timeout=120)
+    assert fresh.returncode == 0 and len(fresh.stdout.strip()) == 16 and fresh.stdout.strip() != before

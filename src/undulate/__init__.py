@@ -12,8 +12,11 @@ is listed here; everything else may change.
 
 from __future__ import annotations
 
+from . import _source
 from .errors import DivergenceError, ParameterError, UndulateError
 from .params import Channel, ContactModel, Gait, Ground, Scene, Servo, SimOptions, SwimmerGeometry
+
+_source.snapshot()  # the code this process runs: a result is never labelled with files edited later
 
 __all__ = [
     # parameters

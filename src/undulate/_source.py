@@ -10,6 +10,12 @@ blocks.  The test suite asserts it has no cycle.
 sweep's run.  Any edit there (a constant such as a duration or a tolerance,
 a default, the simulator) changes the hash, and the sweep store then
 recomputes instead of reusing (:mod:`undulate.sweep`).
+
+The hash must name the code the process *runs*, not the files as they are
+when the hash is taken: :func:`snapshot` records every package file when
+``undulate`` is imported, and a hash taken after one of them changed on
+disk raises :class:`SourceChangedError` (so does :func:`check_unchanged`,
+which a sweep calls before it writes its merged result).
 """
 
 from __future__ import annotations
@@ -21,7 +27,10 @@ import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
-__all__ = ["PACKAGE", "module_files", "import_graph", "find_cycle", "closure", "code_hash", "function_modules"]
+from .errors import UndulateError
+
+__all__ = ["PACKAGE", "module_files", "import_graph", "find_cycle", "closure", "code_hash", "function_modules",
+           "snapshot", "check_unchanged", "SourceChangedError"]
 
 PACKAGE = "undulate"
 _ROOT = Path(__file__).resolve().parent
@@ -151,9 +160,42 @@ def _file_digest(path: str, mtime_ns: int, size: int) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _digest(path: Path) -> str:
+_SEEN: dict[str, tuple[int, int]] = {}
+"""``{file: (mtime_ns, size)}`` of the package's files as this process first saw them (at ``import
+undulate``: :func:`snapshot`), i.e. the code this process runs."""
+
+
+def _stat(path: Path) -> tuple[int, int]:
     st = path.stat()
-    return _file_digest(str(path), st.st_mtime_ns, st.st_size)
+    return st.st_mtime_ns, st.st_size
+
+
+def snapshot(root: Path = _ROOT) -> None:
+    """Record the package's files as they are now (called once, when ``undulate`` is imported)."""
+    for p in module_files(root).values():
+        _SEEN.setdefault(str(p), _stat(p))
+
+
+class SourceChangedError(UndulateError, RuntimeError):
+    """A package file changed on disk after this process loaded the package: a result computed now
+    could not be attributed to one version of the code."""
+
+
+def _digest(path: Path) -> str:
+    now = _stat(path)
+    first = _SEEN.get(str(path), now)  # files outside the package (a user's module) are hashed as they are
+    if now != first:
+        raise SourceChangedError(
+            f"{path} changed after this process started: a result computed now would be labelled with code "
+            "it did not run; start the command again (finished runs are kept, and recomputed only where "
+            "their code changed)")
+    return _file_digest(str(path), *now)
+
+
+def check_unchanged(fn: Callable) -> None:
+    """Raise :class:`SourceChangedError` if a file behind ``fn`` (see :func:`code_hash`) changed since
+    this process loaded the package (the sweep engine calls it before it writes a merged result)."""
+    code_hash(fn)
 
 
 def code_hash(fn: Callable) -> str:

@@ -20,6 +20,7 @@ from ..errors import ParameterError, UndulateError
 from . import _executors
 from ._grid import Grid
 from ._progress import Progress
+from .._source import check_unchanged
 from ._store import (ENGINE, MERGED, Store, atomic_write_netcdf, function_id, make_manifest, merge, run_provenance,
                      write_failure)
 from ._worker import EXISTS, FAILED, OK, Chunk, Outcome
@@ -202,9 +203,10 @@ def run_sweep(
         if store.stale:
             msg = (f"sweep {store.root}: the stored runs were computed by other code or arguments "
                    f"({'; '.join(store.stale)}); they were discarded and are recomputed")
-            log.warning(msg)
             if progress:
                 print(msg, file=stream or sys.stderr, flush=True)
+            else:
+                log.warning(msg)
         run_prov = tuple(run_provenance(store.manifest).items())
         runs = grid.runs()
         done = store.done_keys()
@@ -282,6 +284,7 @@ def run_sweep(
             if own_client:
                 client.close()
 
+        check_unchanged(fn)  # the runs above ran the code the manifest names
         ds = merge(grid, runs, store.runs_dir, store.manifest.get("code"))
         failures = []
         for r in runs:
