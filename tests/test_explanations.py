@@ -176,3 +176,48 @@ def test_swimming_explanation_needs_the_stronger_drag_to_hold_while_the_pairs_st
     ok, measured, _ = S._swimming_check({"cases": cases, "swim_drag_pair_speed_m_s": speed})
     assert ok is shown and "only the drag changed" in measured
     assert S._swimming_check({"cases": {}})[0] is False
+
+
+def _drag_row(c, linear, escape):
+    est = stats.Estimate(0.9, 0.02, 0.85, 0.99, 9, "t").to_dict()
+    return {"drag_N_s_per_m": c, "default": c == S.IMPULSE_DRAG_DEFAULT, "slope_Ns_per_rad": est, "r2": est,
+            "linear": linear, "phi0_spread_large_dphi": 2.0, "first_period_dx_large_dphi": escape}
+
+
+@pytest.mark.parametrize("default_ok, ok8, ok16, escapes, shown", [
+    (False, True, True, (0.15, 0.07, 0.04), True),
+    (False, True, False, (0.15, 0.07, 0.04), False),   # must hold at every level of the scan from 8 up
+    (False, True, True, (0.15, 0.16, 0.04), False),    # more drag must slow the escape (the stated cause)
+    (True, True, True, (0.15, 0.07, 0.04), False),     # holds at the default: nothing to explain
+])
+def test_impulse_explanation_needs_the_default_failing_and_every_stronger_drag_holding(
+        default_ok, ok8, ok16, escapes, shown):
+    rows = [_drag_row(1.0, False, 0.19), _drag_row(S.IMPULSE_DRAG_DEFAULT, default_ok, escapes[0]),
+            _drag_row(8.0, ok8, escapes[1]), _drag_row(16.0, ok16, escapes[2])]
+    ok, measured, value = S._impulse_check({"impulse": {"by_drag": rows}})
+    assert ok is shown and "only the drag changed" in measured and "(default)" in measured
+    assert S._impulse_check({"impulse": {}})[0] is False
+    assert S.IMPULSE_DRAG_DEFAULT == Ground().drag_N_s_per_m
+
+
+def test_pair_scene_sets_the_viscous_drag_and_refuses_it_on_the_swimming_ground():
+    from undulate.errors import ParameterError
+    from undulate.studies._runners import pair_scene
+
+    assert pair_scene({"drag_N_s_per_m": 8.0}).ground.drag_N_s_per_m == 8.0
+    assert pair_scene({}).ground == Ground()
+    with pytest.raises(ParameterError, match="drag_N_s_per_m"):
+        pair_scene({"ground": "swimming", "drag_N_s_per_m": 8.0})
+
+
+def test_more_drag_slows_the_escape_from_dx0_and_lengthens_contact():
+    """Real runs (one period, dphi = 3 pi/4 from dx0 = 0): contact pushes an overdamped pair apart at
+    force / drag, so with 4x the drag it has moved less after a period and collected more impulse."""
+    from undulate.studies._runners import pair_point
+
+    out = {}
+    for c in (S.IMPULSE_DRAG_DEFAULT, 8.0):
+        r = pair_point({"dphi_rad": 3 * math.pi / 4, "drag_N_s_per_m": c}, 0, duration_s=6.0)
+        out[c] = (abs(float(r["dx_period_over_lambda"].values[0])), float(r["impulse_2T_Ns"]))
+    (esc2, imp2), (esc8, imp8) = out[S.IMPULSE_DRAG_DEFAULT], out[8.0]
+    assert esc8 < 0.8 * esc2 and imp8 > imp2 > 0

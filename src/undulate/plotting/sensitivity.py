@@ -16,12 +16,14 @@ COLOURS = {"holds": "#8fd19e", "fails": "#f3a6ae", "no result": "#dddddd"}
 def plot_sensitivity(ds, s: dict):
     """(a) one row per (factor, level) of the summary's table, one column per claim, coloured by
     verdict; (b) xi = 3/2 final dx/lambda against dphi/2pi per N; (c) equal-A rule: RMS residual
-    against N; (d) width of the central state against d/2A per body width, with the model's."""
+    against N; (d) width of the central state against d/2A per body width, with the model's; (e) the
+    two-period contact impulse against |dphi| per linear drag of the ground (mean over phi0, scaled by
+    its largest value, so the shapes compare)."""
     table = s["table"]
     claims = list(dict.fromkeys(t["claim"] for t in table))
     rows = list(dict.fromkeys((t["factor"], t["level"]) for t in table))
     fig = new_figure(15.0, max(6.0, 0.3 * len(rows) + 1.5))
-    gs = fig.add_gridspec(3, 2, width_ratios=[1.5, 1])
+    gs = fig.add_gridspec(4, 2, width_ratios=[1.5, 1])
     ax = fig.add_subplot(gs[:, 0])
     for t in table:
         i, j = rows.index((t["factor"], t["level"])), claims.index(t["claim"])
@@ -77,4 +79,22 @@ def plot_sensitivity(ds, s: dict):
     dx.set_ylabel("central state width / lambda")
     dx.set_title("(d) confinement: where the central state opens", fontsize=9)
     dx.legend(fontsize=6)
+
+    # (e) impulse against |dphi| per drag
+    ex = fig.add_subplot(gs[3, 1])
+    if "impulse_drag" in ds.sizes:
+        dp = np.abs(ds["dphi"].values)
+        order = np.argsort(dp, kind="stable")
+        r2 = {r["drag_N_s_per_m"]: r["r2"]["value"] for r in s["impulse"].get("by_drag", [])}
+        for k, c in enumerate(ds["impulse_drag"].values):
+            m = np.nanmean(ds["impulse_drag_all"].values[k], axis=1)
+            top = np.nanmax(m)
+            if np.isfinite(top) and top > 0:
+                rr = r2.get(float(c))
+                ex.plot(dp[order] / np.pi, m[order] / top, "o-", ms=3,
+                        label=f"{c:g} N s/m" + ("" if rr is None else f", R^2 {rr:.2f}"))
+        ex.legend(fontsize=6, title="linear drag per link", title_fontsize=6)
+    ex.set_xlabel("|dphi| / pi")
+    ex.set_ylabel("impulse over 2 periods / its largest")
+    ex.set_title("(e) contact impulse against detuning, by drag (default 2)", fontsize=9)
     return fig

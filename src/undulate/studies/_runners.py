@@ -66,7 +66,7 @@ resumed sweep finds the same parameters after a bitwise-different re-measurement
 
 _PAIR_KEYS = ("dx0_over_lambda", "dphi_rad", "phi0_rad", "channel_width_m", "d_over_2A", "amplitude_m",
               "amplitude_rad", "force_N", "ground", "waves_per_body", "body_width_m",
-              "fluid_density_kg_m3", "swim_drag_N_s_per_m")
+              "fluid_density_kg_m3", "swim_drag_N_s_per_m", "drag_N_s_per_m")
 
 MODEL_KEYS = ("kp_Nm_per_rad", "torque_limit_Nm", "max_speed_rad_s", "contact_timeconst_s", "drag_N_s_per_m")
 """Optional point keys of :func:`group_point` that change one model choice (the sensitivity
@@ -164,7 +164,8 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     ``fluid_density_kg_m3`` (the swimming ground's fluid density, kg/m^3:
     the strength of its anisotropic drag; :meth:`Ground.swimming`'s default),
     ``swim_drag_N_s_per_m`` (the swimming ground's linear drag per link, N s/m;
-    :meth:`Ground.swimming`'s default).
+    :meth:`Ground.swimming`'s default), ``drag_N_s_per_m`` (the viscous
+    ground's linear drag per link, N s/m; :class:`Ground`'s default).
     """
     unknown = set(point) - set(_PAIR_KEYS)
     if unknown:
@@ -183,8 +184,15 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     else:
         width = float(point.get("channel_width_m", PAIR_WIDTH_M))
     if point.get("ground", "viscous") == "swimming":
+        if "drag_N_s_per_m" in point:
+            from ..errors import ParameterError
+
+            raise ParameterError("drag_N_s_per_m", "the viscous ground's drag (use swim_drag_N_s_per_m for the "
+                                 "swimming ground)", point["drag_N_s_per_m"])
         names = {"fluid_density_kg_m3": "fluid_density_kg_m3", "swim_drag_N_s_per_m": "drag_N_s_per_m"}
         ground = Ground.swimming(**{arg: float(point[key]) for key, arg in names.items() if key in point})
+    elif "drag_N_s_per_m" in point:
+        ground = Ground(drag_N_s_per_m=float(point["drag_N_s_per_m"]))
     else:
         ground = Ground()
     f = float(point.get("force_N", 0.0))
