@@ -17,6 +17,7 @@ from typing import Optional
 import typer
 
 from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, load_netcdf, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
+from ._source import SourceChangedError
 from .errors import DivergenceError, ParameterError, UndulateError
 from .params import Channel as _Channel
 from .params import ControllerParams as _ControllerParams
@@ -262,8 +263,11 @@ def reproduce(
                     raise ParameterError("--only", "study names from: " + ", ".join(registry.names()), n)
     except ParameterError as e:
         _fail(str(e), 2)
-    path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
-                             log=lambda m: typer.echo(m), workers=workers)
+    try:
+        path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
+                                 log=lambda m: typer.echo(m), workers=workers)
+    except SourceChangedError as e:
+        _fail(str(e), 1)
     failed = [s["name"] for s in statuses if not s["ok"]]
     if failed:
         _fail(f"{len(failed)} stud{'y' if len(failed) == 1 else 'ies'} failed: {', '.join(failed)} (see {path})", 1)

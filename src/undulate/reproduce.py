@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Callable
 
 from ._io import atomic_output
+from ._source import SourceChangedError
 
 __all__ = ["reproduce", "ANIMATIONS"]
 
@@ -158,7 +159,7 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
             registry.run_study(name, out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
             st = {"name": name, "ok": True, "wall_s": time.perf_counter() - t0, "error": None, "reused": False}
             log(f"[{i}/{len(names)}] {name}: done in {st['wall_s']:.1f} s")
-        except KeyboardInterrupt:
+        except (KeyboardInterrupt, SourceChangedError):  # the code changed under us: nothing after is attributable
             raise
         except Exception as e:  # a failed study is reported, the others go on
             st = {"name": name, "ok": False, "wall_s": time.perf_counter() - t0,
