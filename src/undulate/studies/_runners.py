@@ -191,10 +191,8 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
                                  "swimming ground)", point["drag_N_s_per_m"])
         names = {"fluid_density_kg_m3": "fluid_density_kg_m3", "swim_drag_N_s_per_m": "drag_N_s_per_m"}
         ground = Ground.swimming(**{arg: float(point[key]) for key, arg in names.items() if key in point})
-    elif "drag_N_s_per_m" in point:
-        ground = Ground(drag_N_s_per_m=float(point["drag_N_s_per_m"]))
     else:
-        ground = Ground()
+        ground = _model_parts(point).get("ground", Ground())  # the viscous ground, drag_N_s_per_m if given
     f = float(point.get("force_N", 0.0))
     return Scene(
         phases_rad=(float(point.get("phi0_rad", 0.0)),
