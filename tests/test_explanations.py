@@ -155,6 +155,17 @@ def test_groups_explanation_needs_default_failing_and_the_pairs_spacing_meeting_
     assert S._groups_check(4)({"groups": g})[0] is False  # no groups of four in this summary
 
 
+@pytest.mark.parametrize("quick", [True, False])
+def test_groups_cases_rerun_the_groups_studys_own_design(quick):
+    """Only the channel may differ from the groups study: the same phases (and reference pairs) and the
+    same number of random draws of four, in quick and in full mode."""
+    from undulate.studies import groups
+
+    g, p = groups.plan(quick), S.plan(quick)
+    assert p.group_dphi_rad == g.dphi_rad and p.group_draws == g.draws
+    assert len(p.group_dphi_rad) == (9 if quick else 33)
+
+
 def test_spaced_channel_adds_the_pairs_spacing_per_extra_swimmer():
     assert S.spaced_channel_m(2) == S.CHANNEL_WIDTH_M
     assert S.spaced_channel_m(3) == pytest.approx(0.162) and S.spaced_channel_m(4) == pytest.approx(0.194)

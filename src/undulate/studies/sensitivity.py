@@ -140,6 +140,7 @@ class Plan:
     links: tuple[int, ...] = (3, 5, 7, 9)
     confinement_starts: tuple[float, ...] = (-0.15, 0.0, 0.15)
     confinement_d_over_2A: tuple[float, ...] = (0.9, 1.2)
+    group_dphi_rad: tuple[float, ...] = ()
     group_draws: int = 8
 
 
@@ -150,12 +151,17 @@ def spaced_channel_m(n_swimmers: int) -> float:
 
 
 def plan(quick: bool) -> Plan:
-    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, 3 confinement starts, 8 draws of four
-    swimmers; full: 17 dphi (step pi/8), N = 3, 4, 6, 8, 5 starts and 40 draws (the groups study's)."""
+    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, 3 confinement starts; full: 17 dphi (step
+    pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's own plan (quick: the nine
+    dphi and 8 draws of four swimmers; full: 33 dphi and 40 draws), so that only the channel differs."""
+    from . import groups
+
+    g = groups.plan(quick)
     if quick:
-        return Plan(tuple(float(p) for p in C.paper_phases()))
+        return Plan(tuple(float(p) for p in C.paper_phases()), group_dphi_rad=g.dphi_rad, group_draws=g.draws)
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
-                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3), group_draws=40)
+                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3), group_dphi_rad=g.dphi_rad,
+                group_draws=g.draws)
 
 
 def _timestep(n_links: int) -> float:
@@ -297,13 +303,14 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     conf_final = np.where(conf["run_failed"].values, np.nan, conf["dx_final_over_lambda"].values)
 
     # --- groups: lateral spacing of neighbours (the same phases and draws in two channels) -------------
-    group_cases = [(2, CHANNEL_WIDTH_M, True, [_cut(base.isel(dphi_rad=j), DEFAULT_S)
-                                               for j in range(len(dphis)) if not bool(base.isel(dphi_rad=j)["run_failed"])])]
+    gdphis = list(p.group_dphi_rad) or list(dphis)
+    ref = ctx.sweep("groups2-d0.13", fn30, Grid(axes={"dphi_rad": gdphis}, seed=ctx.config.seed))
+    group_cases = [(2, CHANNEL_WIDTH_M, True, [r for r in C.sweep_runs(ref) if r is not None])]
     for n in (3, 4):
         for w in (C.GROUP_CHANNEL_M[n], spaced_channel_m(n)):
             if n == 3:
                 fng = functools.partial(group_point, n_swimmers=3, channel_width_m=w, duration_s=DEFAULT_S)
-                gg = Grid(axes={"dphi_rad": list(dphis)}, seed=ctx.config.seed)
+                gg = Grid(axes={"dphi_rad": gdphis}, seed=ctx.config.seed)
             else:  # the groups study's grid: the same per-run seeds, hence the same phase draws, in both channels
                 fng = functools.partial(group_point, n_swimmers=4, channel_width_m=w, random_phases=True,
                                         duration_s=DEFAULT_S)
