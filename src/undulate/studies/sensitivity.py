@@ -41,8 +41,9 @@ is borrowed from another study's files):
   more scatter than pairs", the groups study's criterion against reference
   pairs in d = 0.13 m): the groups study's runs (three swimmers at phases
   ``(0, dphi, 2 dphi)`` in d = 0.19 m; four with random phases in 0.22 m;
-  30 s) and the same runs (same phases, same draws) in the channel that
-  gives neighbours the reference pairs' lateral spacing,
+  30 s; the groups study's plan: its phases and draws, and its reference
+  pairs at the same phases) and the same runs (same phases, same draws) in
+  the channel that gives neighbours the reference pairs' lateral spacing,
   ``d = 0.13 m + (n - 2) x`` :data:`PAIR_SPACING_M` (0.162 and 0.194 m).
 * **potential** (the claim "the contact impulse over the first two periods
   grows linearly with |dphi|", R^2 lower bound >= 0.9): the impulse runs
