@@ -47,6 +47,8 @@ __all__ = [
     "group_records",
     "sweep_runs",
     "GROUP_CHANNEL_M",
+    "GROUP_DRAWS",
+    "group_phases",
     "GROUP_SLOPE_TOL",
     "GROUP_RMS_TOL",
     "group_follows_line",
@@ -54,6 +56,17 @@ __all__ = [
 
 GROUP_CHANNEL_M = {3: 0.19, 4: 0.22}
 """Channels of the groups of three and four (the paper's), m."""
+GROUP_DRAWS = {True: 8, False: 40}
+"""Random phase draws of the groups of four: quick mode (True) and full mode (False)."""
+GROUP_FULL_PHASES = 33
+"""dphi of the groups of three (and their reference pairs) in full mode: step pi/16 over [-pi, pi]."""
+
+
+def group_phases(quick: bool) -> np.ndarray:
+    """dphi (rad) of the groups of three and their reference pairs: the paper's nine in quick mode,
+    :data:`GROUP_FULL_PHASES` in full mode.  One design for the groups study and for every study that
+    reruns its groups (``sensitivity``), so that those differ from it only in what they vary."""
+    return paper_phases() if quick else phase_grid(GROUP_FULL_PHASES)
 GROUP_SLOPE_TOL = 0.2
 GROUP_RMS_TOL = 0.2
 """RMS residual allowed for groups, in wavelengths (twice the pairs' tolerance: more scatter)."""

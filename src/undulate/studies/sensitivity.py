@@ -153,16 +153,15 @@ def spaced_channel_m(n_swimmers: int) -> float:
 
 def plan(quick: bool) -> Plan:
     """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, 3 confinement starts; full: 17 dphi (step
-    pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's own plan (quick: the nine
-    dphi and 8 draws of four swimmers; full: 33 dphi and 40 draws), so that only the channel differs."""
-    from . import groups
-
-    g = groups.plan(quick)
+    pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's design
+    (:func:`._analysis.group_phases`, :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of
+    four swimmers; full 33 dphi and 40 draws), so that only the channel differs."""
+    groups = {"group_dphi_rad": tuple(float(p) for p in C.group_phases(quick)),
+              "group_draws": C.GROUP_DRAWS[bool(quick)]}
     if quick:
-        return Plan(tuple(float(p) for p in C.paper_phases()), group_dphi_rad=g.dphi_rad, group_draws=g.draws)
+        return Plan(tuple(float(p) for p in C.paper_phases()), **groups)
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
-                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3), group_dphi_rad=g.dphi_rad,
-                group_draws=g.draws)
+                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3), **groups)
 
 
 def _timestep(n_links: int) -> float:
