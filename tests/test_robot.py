@@ -229,8 +229,12 @@ def test_dry_run_writes_the_commands_a_run_sends(tmp_path, capsys):
     with bus:
         cfg = _cfg(bus, ids=(1, 2, 3, 4), duration=2.0, scene=_scene(phases=(0, math.pi / 2)))
         run = run_robot(cfg, log=lambda m: None)
-    assert np.array_equal(run["goal_position"].values, ds["goal_position"].values)
-    assert np.array_equal(run["joint_command"].values, ds["joint_command"].values)
+    # a loaded machine may make the real-time run skip ticks (counted); every tick it ran sent the dry run's
+    assert run.sizes["time"] + run.attrs["ticks_skipped"] == ds.sizes["time"] and run.sizes["time"] >= 80
+    ran = np.isin(np.round(ds["time"].values * 50).astype(int), np.round(run["time"].values * 50).astype(int))
+    assert ran.sum() == run.sizes["time"]
+    assert np.array_equal(run["goal_position"].values, ds["goal_position"].values[ran])
+    assert np.array_equal(run["joint_command"].values, ds["joint_command"].values[ran])
 
 
 class _FailingController(OpenLoop):
