@@ -60,13 +60,6 @@ GROUP_DRAWS = {True: 8, False: 40}
 """Random phase draws of the groups of four: quick mode (True) and full mode (False)."""
 GROUP_FULL_PHASES = 33
 """dphi of the groups of three (and their reference pairs) in full mode: step pi/16 over [-pi, pi]."""
-
-
-def group_phases(quick: bool) -> np.ndarray:
-    """dphi (rad) of the groups of three and their reference pairs: the paper's nine in quick mode,
-    :data:`GROUP_FULL_PHASES` in full mode.  One design for the groups study and for every study that
-    reruns its groups (``sensitivity``), so that those differ from it only in what they vary."""
-    return paper_phases() if quick else phase_grid(GROUP_FULL_PHASES)
 GROUP_SLOPE_TOL = 0.2
 GROUP_RMS_TOL = 0.2
 """RMS residual allowed for groups, in wavelengths (twice the pairs' tolerance: more scatter)."""
@@ -93,6 +86,13 @@ def phase_grid(n: int) -> np.ndarray:
     With ``n = 8 k + 1`` the grid contains the paper's nine values.
     """
     return np.linspace(-np.pi, np.pi, int(n))
+
+
+def group_phases(quick: bool) -> np.ndarray:
+    """dphi (rad) of the groups of three and their reference pairs: the paper's nine in quick mode,
+    :data:`GROUP_FULL_PHASES` in full mode.  One design for the groups study and for every study that
+    reruns its groups (``sensitivity``), so that those differ from it only in what they vary."""
+    return paper_phases() if quick else phase_grid(GROUP_FULL_PHASES)
 
 
 # ------------------------------------------------------------------ analysis
@@ -348,11 +348,11 @@ def group_records(traj: xr.Dataset, amplitude_m: float) -> list[dict]:
 
     ``traj``: a trajectory (:func:`trajectory`: ``x``, ``y``,
     ``phase``, attrs ``wavelength`` and ``period``).  Neighbours are taken in
-    the lateral order at the end of the run (:func:`_analysis.final_neighbours`)
+    the lateral order at the end of the run (:func:`final_neighbours`)
     and followed by id over the whole run, so a swap on the way does not
     break the series.  One dict per neighbouring pair with the keys of
-    :data:`NEIGHBOUR_FIELDS` (but ``group_size`` and ``run_index``) and
-    :data:`NEIGHBOUR_FLAGS`.
+    ``groups.NEIGHBOUR_FIELDS`` (but ``group_size`` and ``run_index``) and
+    ``groups.NEIGHBOUR_FLAGS``.
     """
     lam = float(traj.attrs["wavelength"])
     pairs, stable = final_neighbours(traj)

@@ -25,6 +25,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
+from ..errors import ParameterError
 from ..params import Channel, ContactModel, Gait, Ground, Scene, Servo, SimOptions, SwimmerGeometry
 
 __all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", "PAIR_WIDTH_M",
@@ -169,8 +170,6 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     """
     unknown = set(point) - set(_PAIR_KEYS)
     if unknown:
-        from ..errors import ParameterError
-
         raise ParameterError("point", f"keys among {_PAIR_KEYS}", sorted(unknown))
     gait = Gait(amplitude_rad=float(point.get("amplitude_rad", Gait().amplitude_rad)),
                 waves_per_body=float(point.get("waves_per_body", 1.0)))
@@ -185,9 +184,7 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
         width = float(point.get("channel_width_m", PAIR_WIDTH_M))
     if point.get("ground", "viscous") == "swimming":
         if "drag_N_s_per_m" in point:
-            from ..errors import ParameterError
-
-            raise ParameterError("drag_N_s_per_m", "the viscous ground's drag (use swim_drag_N_s_per_m for the "
+                raise ParameterError("drag_N_s_per_m", "the viscous ground's drag (use swim_drag_N_s_per_m for the "
                                  "swimming ground)", point["drag_N_s_per_m"])
         names = {"fluid_density_kg_m3": "fluid_density_kg_m3", "swim_drag_N_s_per_m": "drag_N_s_per_m"}
         ground = Ground.swimming(**{arg: float(point[key]) for key, arg in names.items() if key in point})

@@ -33,7 +33,6 @@ from ._runners import BODY_LENGTH_M, DURATION_S, group_point
 
 XI = 1.0
 CHANNEL_WIDTH_M = C.GROUP_CHANNEL_M
-N_DRAWS = C.GROUP_DRAWS
 
 NEIGHBOUR_FIELDS = {
     "group_size": ("1", "swimmers in the group"),
@@ -72,7 +71,7 @@ class Plan:
 
 def plan(quick: bool) -> Plan:
     """Quick: nine dphi, 8 draws of four; full: 33 dphi, 40 draws."""
-    return Plan(tuple(float(p) for p in C.group_phases(quick)), N_DRAWS[bool(quick)])
+    return Plan(tuple(float(p) for p in C.group_phases(quick)), C.GROUP_DRAWS[bool(quick)])
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:

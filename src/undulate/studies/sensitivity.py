@@ -141,8 +141,8 @@ class Plan:
     links: tuple[int, ...] = (3, 5, 7, 9)
     confinement_starts: tuple[float, ...] = (-0.15, 0.0, 0.15)
     confinement_d_over_2A: tuple[float, ...] = (0.9, 1.2)
-    group_dphi_rad: tuple[float, ...] = ()
-    group_draws: int = 8
+    group_dphi_rad: tuple[float, ...] = tuple(float(p) for p in C.group_phases(True))
+    group_draws: int = C.GROUP_DRAWS[True]
 
 
 def spaced_channel_m(n_swimmers: int) -> float:
@@ -156,12 +156,11 @@ def plan(quick: bool) -> Plan:
     pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's design
     (:func:`._analysis.group_phases`, :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of
     four swimmers; full 33 dphi and 40 draws), so that only the channel differs."""
-    groups = {"group_dphi_rad": tuple(float(p) for p in C.group_phases(quick)),
-              "group_draws": C.GROUP_DRAWS[bool(quick)]}
     if quick:
-        return Plan(tuple(float(p) for p in C.paper_phases()), **groups)
+        return Plan(tuple(float(p) for p in C.paper_phases()))
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
-                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3), **groups)
+                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),
+                group_dphi_rad=tuple(float(p) for p in C.group_phases(False)), group_draws=C.GROUP_DRAWS[False])
 
 
 def _timestep(n_links: int) -> float:
@@ -303,7 +302,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     conf_final = np.where(conf["run_failed"].values, np.nan, conf["dx_final_over_lambda"].values)
 
     # --- groups: lateral spacing of neighbours (the same phases and draws in two channels) -------------
-    gdphis = list(p.group_dphi_rad) or list(dphis)
+    gdphis = list(p.group_dphi_rad)
     ref = ctx.sweep("groups2-d0.13", fn30, Grid(axes={"dphi_rad": gdphis}, seed=ctx.config.seed))
     group_cases = [(2, CHANNEL_WIDTH_M, True, [r for r in C.sweep_runs(ref) if r is not None])]
     for n in (3, 4):
