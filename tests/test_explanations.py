@@ -166,6 +166,17 @@ def test_groups_cases_rerun_the_groups_studys_own_design(quick):
     assert len(p.group_dphi_rad) == (9 if quick else 33)
 
 
+@pytest.mark.parametrize("quick", [True, False])
+def test_impulse_cases_rerun_the_potential_studys_own_design(quick):
+    """The impulse runs at the default drag are the potential study's (its dphi and common phases, quick
+    and full), so the sensitivity study's default row is the claim's own number; only the drag varies."""
+    from undulate.studies import potential
+
+    pot, p = potential.plan(quick), S.plan(quick)
+    assert list(p.impulse_dphi_rad) == pot.impulse_dphi and list(p.impulse_phi0_rad) == pot.impulse_phi0
+    assert (len(p.impulse_dphi_rad), len(p.impulse_phi0_rad)) == ((9, 4) if quick else (37, 8))
+
+
 def test_spaced_channel_adds_the_pairs_spacing_per_extra_swimmer():
     assert S.spaced_channel_m(2) == S.CHANNEL_WIDTH_M
     assert S.spaced_channel_m(3) == pytest.approx(0.162) and S.spaced_channel_m(4) == pytest.approx(0.194)

@@ -83,7 +83,7 @@ def plot_sensitivity(ds, s: dict):
     # (e) impulse against |dphi| per drag
     ex = fig.add_subplot(gs[3, 1])
     if "impulse_drag" in ds.sizes:
-        dp = np.abs(ds["dphi"].values)
+        dp = np.abs(ds["impulse_dphi"].values)
         order = np.argsort(dp, kind="stable")
         r2 = {r["drag_N_s_per_m"]: r["r2"]["value"] for r in s["impulse"].get("by_drag", [])}
         for k, c in enumerate(ds["impulse_drag"].values):

@@ -49,6 +49,7 @@ __all__ = [
     "GROUP_CHANNEL_M",
     "GROUP_DRAWS",
     "group_phases",
+    "impulse_design",
     "GROUP_SLOPE_TOL",
     "GROUP_RMS_TOL",
     "group_follows_line",
@@ -60,6 +61,10 @@ GROUP_DRAWS = {True: 8, False: 40}
 """Random phase draws of the groups of four: quick mode (True) and full mode (False)."""
 GROUP_FULL_PHASES = 33
 """dphi of the groups of three (and their reference pairs) in full mode: step pi/16 over [-pi, pi]."""
+IMPULSE_PHASES = {True: 9, False: 37}
+"""dphi of the two-period contact-impulse runs over [-pi, pi] (both ends): quick mode (True), full (False)."""
+IMPULSE_COMMON_PHASES = {True: 4, False: 8}
+"""Common phases phi0 (swimmer 0's phase, equally spaced over [0, 2 pi)) the impulse is averaged over."""
 GROUP_SLOPE_TOL = 0.2
 GROUP_RMS_TOL = 0.2
 """RMS residual allowed for groups, in wavelengths (twice the pairs' tolerance: more scatter)."""
@@ -93,6 +98,14 @@ def group_phases(quick: bool) -> np.ndarray:
     :data:`GROUP_FULL_PHASES` in full mode.  One design for the groups study and for every study that
     reruns its groups (``sensitivity``), so that those differ from it only in what they vary."""
     return paper_phases() if quick else phase_grid(GROUP_FULL_PHASES)
+
+
+def impulse_design(quick: bool) -> tuple[np.ndarray, np.ndarray]:
+    """``(dphi, phi0)`` (rad) of the two-period contact-impulse runs (``pair_point`` from dx0 = 0): the
+    potential study's, and that of every study that reruns them (``sensitivity``), so that those differ
+    from it only in what they vary.  Quick: 9 dphi x 4 phi0; full: 37 x 8."""
+    phi0 = np.linspace(0.0, 2 * np.pi, IMPULSE_COMMON_PHASES[quick], endpoint=False)
+    return phase_grid(IMPULSE_PHASES[quick]), phi0
 
 
 # ------------------------------------------------------------------ analysis

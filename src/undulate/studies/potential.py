@@ -53,6 +53,7 @@ import numpy as np
 
 from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
+from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import PAIR_WIDTH_M, pair_point
 
@@ -160,13 +161,14 @@ class PotentialPlan:
 
 def plan(quick: bool) -> PotentialPlan:
     """Full: 37 dphi x 8 common phases; 3 beta x 9 d/2A (0.6 to 1.4) x 13 forces (5 mN to
-    0.5 N) = 351 runs.  Quick: 9 dphi x 4 phases; 3 x 3 x 5 = 45 runs."""
+    0.5 N) = 351 runs.  Quick: 9 dphi x 4 phases; 3 x 3 x 5 = 45 runs.  The impulse grid is
+    :func:`._analysis.impulse_design`, shared with the studies that rerun these runs."""
+    dphi, phi0 = C.impulse_design(quick)
     if quick:
-        return PotentialPlan(np.linspace(-np.pi, np.pi, 9), [30, 45, 60], [0.8, 1.0, 1.2],
-                             [0.02, 0.05, 0.1, 0.2, 0.3])
-    return PotentialPlan(np.linspace(-np.pi, np.pi, 37), [30, 45, 60], np.round(np.arange(0.6, 1.41, 0.1), 10),
+        return PotentialPlan(dphi, [30, 45, 60], [0.8, 1.0, 1.2], [0.02, 0.05, 0.1, 0.2, 0.3], impulse_phi0=phi0)
+    return PotentialPlan(dphi, [30, 45, 60], np.round(np.arange(0.6, 1.41, 0.1), 10),
                          [0.005, 0.01, 0.02, 0.03, 0.04, 0.06, 0.08, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5],
-                         impulse_phi0=np.linspace(0, 2 * np.pi, 8, endpoint=False))
+                         impulse_phi0=phi0)
 
 
 def dataset(ctx: StudyContext, p: PotentialPlan):

@@ -47,8 +47,9 @@ is borrowed from another study's files):
   ``d = 0.13 m + (n - 2) x`` :data:`PAIR_SPACING_M` (0.162 and 0.194 m).
 * **potential** (the claim "the contact impulse over the first two periods
   grows linearly with |dphi|", R^2 lower bound >= 0.9): the impulse runs
-  of the potential study (dx0 = 0, 6 s, 4 phases phi0) fitted with and
-  without dphi = +-pi, and the same runs with the viscous ground's linear
+  of the potential study (dx0 = 0, 6 s; its grid,
+  :func:`._analysis.impulse_design`: 9 dphi x 4 common phases phi0 quick,
+  37 x 8 full) fitted with and without dphi = +-pi, and the same runs with the viscous ground's linear
   drag per link 1, 4, 8 and 16 N s/m (default 2): with how fast the pair
   escapes from dx = 0 toward compatibility (the first period's mean |dx|
   is recorded) changes what the two-period window measures.
@@ -97,7 +98,6 @@ R2_MIN = 0.9
 """The potential study's criterion for "linear": the lower 95 % bound of R^2 at least this."""
 IMPULSE_S = 6.0
 """Length of the impulse runs (the impulse is taken over the first 2 periods), s: the potential study's."""
-IMPULSE_PHI0 = (0.0, math.pi / 2, math.pi, 3 * math.pi / 2)
 IMPULSE_DRAGS_N_S_PER_M = (1.0, 4.0, 8.0, 16.0)
 """The viscous ground's linear drag per link for the impulse runs besides the default 2 N s/m: the drag sets
 how fast contact pushes the pair apart along x (overdamped: speed = force / drag), and so how much of the
@@ -143,6 +143,8 @@ class Plan:
     confinement_d_over_2A: tuple[float, ...] = (0.9, 1.2)
     group_dphi_rad: tuple[float, ...] = tuple(float(p) for p in C.group_phases(True))
     group_draws: int = C.GROUP_DRAWS[True]
+    impulse_dphi_rad: tuple[float, ...] = tuple(float(p) for p in C.impulse_design(True)[0])
+    impulse_phi0_rad: tuple[float, ...] = tuple(float(p) for p in C.impulse_design(True)[1])
 
 
 def spaced_channel_m(n_swimmers: int) -> float:
@@ -160,7 +162,9 @@ def plan(quick: bool) -> Plan:
         return Plan(tuple(float(p) for p in C.paper_phases()))
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
                 confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),
-                group_dphi_rad=tuple(float(p) for p in C.group_phases(False)), group_draws=C.GROUP_DRAWS[False])
+                group_dphi_rad=tuple(float(p) for p in C.group_phases(False)), group_draws=C.GROUP_DRAWS[False],
+                impulse_dphi_rad=tuple(float(p) for p in C.impulse_design(False)[0]),
+                impulse_phi0_rad=tuple(float(p) for p in C.impulse_design(False)[1]))
 
 
 def _timestep(n_links: int) -> float:
@@ -355,14 +359,15 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
 
     # --- potential: contact impulse over the first two periods, dphi = +-pi in or out -----------------
     fni = functools.partial(pair_point, duration_s=IMPULSE_S)
-    gi = Grid(axes={"dphi_rad": list(dphis), "phi0_rad": list(IMPULSE_PHI0)}, seed=ctx.config.seed)
+    idphis, iphi0 = list(p.impulse_dphi_rad), list(p.impulse_phi0_rad)
+    gi = Grid(axes={"dphi_rad": idphis, "phi0_rad": iphi0}, seed=ctx.config.seed)
     imp = ctx.sweep("impulse", fni, gi).isel(replicate=0)
     impulse = np.nanmean(np.where(imp["run_failed"].values, np.nan, imp["impulse_2T_Ns"].values), axis=1)
-    gid = Grid(axes={"drag_N_s_per_m": list(IMPULSE_DRAGS_N_S_PER_M), "dphi_rad": list(dphis),
-                     "phi0_rad": list(IMPULSE_PHI0)}, seed=ctx.config.seed)
+    gid = Grid(axes={"drag_N_s_per_m": list(IMPULSE_DRAGS_N_S_PER_M), "dphi_rad": idphis, "phi0_rad": iphi0},
+               seed=ctx.config.seed)
     impd = ctx.sweep("impulse-drag", fni, gid).isel(replicate=0)
     drags = sorted((IMPULSE_DRAG_DEFAULT, *IMPULSE_DRAGS_N_S_PER_M))
-    imp_by_drag = np.full((len(drags), len(dphis), len(IMPULSE_PHI0)), np.nan)
+    imp_by_drag = np.full((len(drags), len(idphis), len(iphi0)), np.nan)
     escape_by_drag = np.full_like(imp_by_drag, np.nan)
     for k, c in enumerate(drags):
         run = imp if c == IMPULSE_DRAG_DEFAULT else impd.isel(drag_N_s_per_m=IMPULSE_DRAGS_N_S_PER_M.index(c))
@@ -390,12 +395,12 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                 **one, "long_name": "confinement runs: final dx/lambda (mean of the last 3 periods)"}),
             "conf_dx_over_lambda": (("body_width", "d_over_2A", "dx0", "time"), conf["dx_over_lambda"].values, {
                 **one, "long_name": "confinement runs: dx/lambda over time"}),
-            "impulse": ("dphi", impulse, {"units": "N s", "long_name": "pair contact impulse over the first "
+            "impulse": ("impulse_dphi", impulse, {"units": "N s", "long_name": "pair contact impulse over the first "
                                                                        "2 periods from dx0 = 0, mean over phi0"}),
-            "impulse_drag_all": (("impulse_drag", "dphi", "phi0"), imp_by_drag, {
+            "impulse_drag_all": (("impulse_drag", "impulse_dphi", "phi0"), imp_by_drag, {
                 "units": "N s", "long_name": "pair contact impulse over the first 2 periods from dx0 = 0, per "
                                              "linear drag of the viscous ground"}),
-            "impulse_drag_escape": (("impulse_drag", "dphi", "phi0"), escape_by_drag, {
+            "impulse_drag_escape": (("impulse_drag", "impulse_dphi", "phi0"), escape_by_drag, {
                 **one, "long_name": "|dx| / lambda, mean over the first period (how far the pair has moved "
                                     "from dx0 = 0 toward compatibility)"}),
             "group_dphi": (("group_case", "neighbour"), g_vals["dphi"], {
@@ -424,7 +429,9 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
             "dx0": ("dx0", list(p.confinement_starts), {**one, "long_name": "initial dx0/lambda"}),
             "impulse_drag": ("impulse_drag", drags, {"units": "N s/m", "long_name": "linear drag per link of the "
                                                                                   "viscous ground (impulse runs)"}),
-            "phi0": ("phi0", list(IMPULSE_PHI0), {"units": "rad", "long_name": "phase of swimmer 0 (impulse runs)"}),
+            "impulse_dphi": ("impulse_dphi", idphis, {"units": "rad", "long_name": "phase difference of the "
+                                                                    "impulse runs (the potential study's grid)"}),
+            "phi0": ("phi0", iphi0, {"units": "rad", "long_name": "phase of swimmer 0 (impulse runs)"}),
             "time": ("time", conf["time"].values, {"units": "s"}),
             "group_size": ("group_case", [c[0] for c in group_cases], {"units": "1", "long_name": "swimmers"}),
             "group_channel_width": ("group_case", [c[1] for c in group_cases], {"units": "m", "long_name": "d"}),
@@ -524,12 +531,13 @@ def summary(ds: xr.Dataset) -> dict:
                           "level": label, "verdict": _verdict(ok),
                           "key number": "RMS / lambda at N = " + ", ".join(
                               f"{e['n_links']}: {r:.3f}" for e, r in zip(links, seq))})
-    # potential: impulse linear in |dphi|
+    # potential: impulse linear in |dphi| (on the potential study's grid)
     imp = ds["impulse"].values
+    idphi = ds["impulse_dphi"].values
     pot = {}
-    for label, use in (("all dphi (default)", np.ones(dphi.shape, bool)),
-                       ("dphi = +-pi left out", np.abs(dphi) < np.pi - 1e-9)):
-        f = stats.line_fit(np.abs(dphi[use]), imp[use])
+    for label, use in (("all dphi (default)", np.ones(idphi.shape, bool)),
+                       ("dphi = +-pi left out", np.abs(idphi) < np.pi - 1e-9)):
+        f = stats.line_fit(np.abs(idphi[use]), imp[use])
         ok = None if not f.r2.has_interval else bool(f.r2.low >= R2_MIN and f.slope.low > 0)
         pot[label] = {"slope_Ns_per_rad": f.slope.to_dict(), "r2": f.r2.to_dict(), "linear": ok}
         table.append({"claim": "impulse over 2 periods linear in |dphi|", "factor": "dphi = +-pi",
@@ -537,10 +545,10 @@ def summary(ds: xr.Dataset) -> dict:
                       "key number": f"a = {f.slope:.3g} N s/rad, R^2 = {f.r2:.2f}"})
     pot_drag = []
     if "impulse_drag" in ds.sizes:
-        big = np.abs(dphi) >= np.pi / 2 - 1e-9
+        big = np.abs(idphi) >= np.pi / 2 - 1e-9
         for k, c in enumerate(ds["impulse_drag"].values):
             allv = ds["impulse_drag_all"].values[k]
-            f = stats.line_fit(np.abs(dphi), np.nanmean(allv, axis=1))
+            f = stats.line_fit(np.abs(idphi), np.nanmean(allv, axis=1))
             ok = None if not f.r2.has_interval else bool(f.r2.low >= R2_MIN and f.slope.low > 0)
             with np.errstate(invalid="ignore", divide="ignore"):
                 spread = float(np.nanmedian((np.nanmax(allv, 1) / np.nanmin(allv, 1))[big]))
