@@ -1,0 +1,227 @@
+"""Candidate causes of the links claim's failure (exploratory; measured, never asserted).
+
+    python benchmarks/links_mechanisms.py wavelength   # ~1 min on 2 cores
+    python benchmarks/links_mechanisms.py attractor    # ~15 s
+    python benchmarks/links_mechanisms.py recoil       # ~20 s
+    python benchmarks/links_mechanisms.py yaw-guided   # ~20 s
+
+Pairs of N = 3, 5, 7, 9 links, xi = 1, d = 0.13 m, the paper's nine dphi, 30 s
+from dx0 = 0 at the simulator's time step (the links study's set-up).
+
+* ``wavelength``: for the links study's two rules and the sensitivity study's
+  equal-A rule, the in-pair head-to-tail extent along x per wave, lambda_x
+  (time mean over t >= 20 s, both swimmers), and the RMS distance from the
+  nearest compatibility branch with lambda = L (the report's) and with
+  lambda = lambda_x (the wavelength along the channel, the one a lab-frame
+  sinusoid y = A sin(2 pi x / lambda - omega t) has).
+* ``attractor``: equal-A pairs run 90 s from dx0 = 0 and from beyond the
+  line: dx / L averaged over 5 s windows (is the steady offset one stable
+  point or the near edge of a band?).
+* ``recoil``: the free equal-A swimmer's yaw recoil (head-to-tail chord angle
+  amplitude) and the kinematically compatible offset of its lab-frame shapes:
+  the dx that minimises the spread (max - min over x and a period) of the
+  lateral gap between a shape and the same shape delayed by dphi / omega;
+  then the same with the recoil rotated out (chord along x).
+* ``yaw-guided``: equal-A pairs whose yaw is driven (a stiff PD actuator on
+  the root yaw joint, added here by patching :mod:`undulate.scene`; not a
+  model the package offers) so that the commanded shape's chord stays along
+  x: the dynamic test of the recoil.
+
+Results: docs/claims_explained.md (links).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from concurrent.futures import ProcessPoolExecutor
+
+import numpy as np
+
+from undulate import theory
+from undulate.params import Channel, Gait, Scene, SimOptions, SwimmerGeometry
+from undulate.simulation import simulate
+from undulate.studies import _analysis as C
+from undulate.studies.links import joint_amplitude, timestep
+
+L_M = 0.54
+EQUAL_A_DEG = {3: 45.0, 5: 30.860722776778964, 7: 22.742857116869637, 9: 17.846897234093458}
+"""The sensitivity study's equal-A joint amplitudes (free swimmer's A = 52.3 mm at every N)."""
+N_LINKS = (3, 5, 7, 9)
+
+
+def _beta(rule: str, n: int) -> float:
+    return math.radians(EQUAL_A_DEG[n]) if rule == "equal-A" else joint_amplitude(rule, n)
+
+
+def _pair(n, beta, dphi, duration_s=30.0, dx0_over_L=0.0, record=("x", "y")):
+    sc = Scene(phases_rad=(0.0, dphi), gait=Gait(amplitude_rad=beta), dx0_m=dx0_over_L * L_M,
+               geometry=SwimmerGeometry(n_links=n, length_m=L_M), channel=Channel(width_m=0.13))
+    return simulate(sc, SimOptions(duration_s=duration_s, timestep_s=timestep(n), sample_rate_hz=50,
+                                   record=record))
+
+
+def _upper_dx(ds, dphi, t_from):
+    """(dx_upper_minus_lower / L over t >= t_from, dphi_upper_minus_lower)."""
+    t, x, y = ds["time"].values, ds["x"].values, ds["y"].values
+    late = t >= t_from
+    up = 1 if y[late, 1].mean() > y[late, 0].mean() else 0
+    return float((x[late, up] - x[late, 1 - up]).mean() / L_M), (dphi if up == 1 else -dphi)
+
+
+def _wavelength_run(args):
+    rule, n, dphi = args
+    ds = _pair(n, _beta(rule, n), dphi, record=("x", "y", "node_x"))
+    late = ds["time"].values >= 20.0
+    nx = ds["node_x"].values[late]
+    lx = float(np.abs(nx[..., -1] - nx[..., 0]).mean())
+    dx, dph = _upper_dx(ds, dphi, 25.0)
+    return rule, n, dph, dx, lx
+
+
+def wavelength():
+    jobs = [(r, n, float(d)) for r in ("fixed", "curvature", "equal-A") for n in N_LINKS for d in C.paper_phases()]
+    with ProcessPoolExecutor(2) as ex:
+        res = list(ex.map(_wavelength_run, jobs))
+    for rule in ("fixed", "curvature", "equal-A"):
+        for n in N_LINKS:
+            rows = [r for r in res if r[0] == rule and r[1] == n]
+            dph, dx, lx = (np.array([r[k] for r in rows]) for k in (2, 3, 4))
+            lam_x = lx.mean()
+            r_L = C.rms(theory.compatibility_residual(dx * L_M, dph, L_M) / L_M)
+            r_x = C.rms(theory.compatibility_residual(dx * L_M, dph, lam_x) / lam_x)
+            print(f"{rule:9s} N={n}: lambda_x/L {lam_x / L_M:.3f} ({lx.min() / L_M:.3f}-{lx.max() / L_M:.3f}); "
+                  f"RMS with L {r_L.value:.3f} [{r_L.low:.3f}, {r_L.high:.3f}], with lambda_x {r_x.value:.3f} "
+                  f"[{r_x.low:.3f}, {r_x.high:.3f}]", flush=True)
+
+
+def _attractor_run(args):
+    n, dphi, dx0 = args
+    ds = _pair(n, _beta("equal-A", n), dphi, duration_s=90.0, dx0_over_L=dx0)
+    t, x = ds["time"].values, ds["x"].values
+    dx = (x[:, 1] - x[:, 0]) / L_M
+    return args, [float(dx[(t >= a) & (t < a + 5)].mean()) for a in range(0, 90, 5)]
+
+
+def attractor():
+    jobs = [(n, d, x0) for n in (3, 9) for d, starts in ((math.pi / 2, (0.0, 0.45)), (math.pi / 4, (0.0, 0.3)))
+            for x0 in starts]
+    with ProcessPoolExecutor(2) as ex:
+        for (n, d, x0), v in ex.map(_attractor_run, jobs):
+            print(f"N={n} dphi={d / math.pi:.2f} pi dx0={x0:.2f} L: dx/L per 5 s " + " ".join(f"{q:.3f}" for q in v),
+                  flush=True)
+
+
+def _free_shapes(n):
+    sc = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=_beta("equal-A", n)),
+               geometry=SwimmerGeometry(n_links=n, length_m=L_M), channel=Channel(width_m=0.5))
+    period = sc.gait.period_s
+    ds = simulate(sc, SimOptions(duration_s=6 * period, timestep_s=timestep(n), sample_rate_hz=400 / period,
+                                 record=("x", "node_x", "node_y")))
+    last = ds["time"].values >= 5 * period - 1e-9
+    return ds["node_x"].values[last, 0][:-1], ds["node_y"].values[last, 0][:-1]  # one period, 400 samples
+
+
+def _chord_along_x(nx, ny):
+    cx, cy = nx.mean(axis=1, keepdims=True), ny.mean(axis=1, keepdims=True)
+    a = np.arctan2(ny[:, 0] - ny[:, -1], nx[:, 0] - nx[:, -1]) - np.pi  # tail -> head chord; head toward -x
+    c, s = np.cos(-a)[:, None], np.sin(-a)[:, None]
+    return cx + c * (nx - cx) - s * (ny - cy), cy + s * (nx - cx) + c * (ny - cy)
+
+
+def _profile(nx, ny, xs):
+    out = np.empty((nx.shape[0], xs.size))
+    for k in range(nx.shape[0]):
+        o = np.argsort(nx[k])
+        out[k] = np.interp(xs, nx[k][o], ny[k][o], left=np.nan, right=np.nan)
+    return out
+
+
+def _compatible_dx(nx, ny, dphi):
+    shift = int(round(dphi / (2 * np.pi) * nx.shape[0]))  # B(t) = A(t - dphi / omega)
+    xs = np.linspace(nx.min(), nx.max(), 400)
+    ya = _profile(nx, ny, xs)
+    grid = np.linspace(-0.1, 0.5, 241) * L_M
+    spread = []
+    for dx in grid:
+        g = _profile(np.roll(nx, shift, axis=0) + dx, np.roll(ny, shift, axis=0), xs) - ya
+        spread.append(np.nanmax(g) - np.nanmin(g))
+    return grid[int(np.argmin(spread))] / L_M
+
+
+def recoil():
+    for n in N_LINKS:
+        nx, ny = _free_shapes(n)
+        chord = np.unwrap(np.arctan2(ny[:, -1] - ny[:, 0], nx[:, -1] - nx[:, 0]))
+        rx, ry = _chord_along_x(nx, ny)
+        phases = (np.pi / 4, np.pi / 2, 3 * np.pi / 4)
+        lab = [_compatible_dx(nx, ny, d) for d in phases]
+        straight = [_compatible_dx(rx, ry, d) for d in phases]
+        print(f"N={n}: chord recoil {(chord.max() - chord.min()) / 2:.3f} rad; compatible dx/L at dphi = pi/4, pi/2, "
+              f"3pi/4: lab-frame shapes " + " ".join(f"{v:.3f}" for v in lab)
+              + "; recoil rotated out " + " ".join(f"{v:.3f}" for v in straight), flush=True)
+
+
+YAW_KP_NM_PER_RAD = 200.0
+
+
+def _patch_yaw_guide():
+    import mujoco
+
+    import undulate.scene as S
+
+    if getattr(S, "_yaw_guided", False):
+        return
+    S._yaw_guided = True
+    spec0, controls0 = S.swimmer_spec, S.CompiledScene.controls
+
+    def spec(scene, timestep_s, *, push=None):
+        sp = spec0(scene, timestep_s, push=push)
+        a = sp.add_actuator(name="yawguide", target="yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.set_to_pid(kp=YAW_KP_NM_PER_RAD, kv=YAW_KP_NM_PER_RAD / 50, ki=-1, imax=-1, slewmax=-1)
+        return sp
+
+    def desired(alpha, rl):
+        c = np.concatenate([np.zeros_like(alpha[..., :1]), np.cumsum(alpha, axis=-1)], axis=-1)
+        c = c - c[..., rl:rl + 1]
+        return -np.arctan2(np.sin(c).sum(-1), np.cos(c).sum(-1))
+
+    def controls(self, t_s):
+        u = controls0(self, t_s)
+        sc, n = self.scene, self.scene.geometry.n_links
+        rl, t = S.root_link(n), np.asarray(t_s, float)
+        yaw = desired(sc.gait.joint_angles(t, sc.phases_rad, n), rl)
+        h = 1e-4
+        rate = (desired(sc.gait.joint_angles(t + h, sc.phases_rad, n), rl)
+                - desired(sc.gait.joint_angles(t - h, sc.phases_rad, n), rl)) / (2 * h)
+        for j in range(sc.n_swimmers):
+            adr = int(self.model.actuator_ctrladr[self.model.actuator(f"s{j}_yawguide").id])
+            u[:, adr], u[:, adr + 1] = yaw[:, j], rate[:, j]
+        return u
+
+    S.swimmer_spec, S.CompiledScene.controls = spec, controls
+
+
+def _guided_run(args):
+    _patch_yaw_guide()
+    n, dphi = args
+    ds = _pair(n, _beta("equal-A", n), dphi)
+    return (n,) + _upper_dx(ds, dphi, 25.0)
+
+
+def yaw_guided():
+    with ProcessPoolExecutor(2) as ex:
+        res = list(ex.map(_guided_run, [(n, float(d)) for n in N_LINKS for d in C.paper_phases()]))
+    for n in N_LINKS:
+        rows = [r for r in res if r[0] == n]
+        dx, dph = np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
+        r = C.rms(theory.compatibility_residual(dx, dph, 1.0))
+        print(f"yaw guided N={n}: RMS {r.value:.3f} [{r.low:.3f}, {r.high:.3f}]; dx/L " + " ".join(f"{v:+.3f}" for v in dx),
+              flush=True)
+
+
+if __name__ == "__main__":
+    cmds = {"wavelength": wavelength, "attractor": attractor, "recoil": recoil, "yaw-guided": yaw_guided}
+    if len(sys.argv) != 2 or sys.argv[1] not in cmds:
+        sys.exit("usage: python benchmarks/links_mechanisms.py {" + ",".join(cmds) + "}")
+    cmds[sys.argv[1]]()
