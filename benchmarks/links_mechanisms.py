@@ -61,12 +61,13 @@ def _pair(n, beta, dphi, duration_s=30.0, dx0_over_L=0.0, record=("x", "y")):
                                    record=record))
 
 
-def _upper_dx(ds, dphi, t_from):
-    """(dx_upper_minus_lower / L over t >= t_from, dphi_upper_minus_lower)."""
-    t, x, y = ds["time"].values, ds["x"].values, ds["y"].values
-    late = t >= t_from
-    up = 1 if y[late, 1].mean() > y[late, 0].mean() else 0
-    return float((x[late, up] - x[late, 1 - up]).mean() / L_M), (dphi if up == 1 else -dphi)
+def _steady_dx(ds):
+    """(steady dx_upper - dx_lower over L, dphi_upper - dphi_lower): the studies' neighbour order and
+    steady-state rule (:mod:`undulate.studies._analysis`)."""
+    traj = C.trajectory(ds, L_M, float(ds.attrs["period"]))
+    (lower, upper), = C.final_neighbours(traj)[0]
+    dx, dy, dphi = C.neighbour_series(traj, lower, upper)
+    return C.steady_offsets(dx, dy, L_M).dx_m / L_M, dphi
 
 
 def _wavelength_run(args):
@@ -75,7 +76,7 @@ def _wavelength_run(args):
     late = ds["time"].values >= 20.0
     nx = ds["node_x"].values[late]
     lx = float(np.abs(nx[..., -1] - nx[..., 0]).mean())
-    dx, dph = _upper_dx(ds, dphi, 25.0)
+    dx, dph = _steady_dx(ds)
     return rule, n, dph, dx, lx
 
 
@@ -206,7 +207,7 @@ def _guided_run(args):
     _patch_yaw_guide()
     n, dphi = args
     ds = _pair(n, _beta("equal-A", n), dphi)
-    return (n,) + _upper_dx(ds, dphi, 25.0)
+    return (n,) + _steady_dx(ds)
 
 
 def yaw_guided():

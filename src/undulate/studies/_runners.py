@@ -184,7 +184,7 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
         width = float(point.get("channel_width_m", PAIR_WIDTH_M))
     if point.get("ground", "viscous") == "swimming":
         if "drag_N_s_per_m" in point:
-                raise ParameterError("drag_N_s_per_m", "the viscous ground's drag (use swim_drag_N_s_per_m for the "
+            raise ParameterError("drag_N_s_per_m", "the viscous ground's drag (use swim_drag_N_s_per_m for the "
                                  "swimming ground)", point["drag_N_s_per_m"])
         names = {"fluid_density_kg_m3": "fluid_density_kg_m3", "swim_drag_N_s_per_m": "drag_N_s_per_m"}
         ground = Ground.swimming(**{arg: float(point[key]) for key, arg in names.items() if key in point})

@@ -134,6 +134,14 @@ spaced-group runs."""
 WINDOWS = (1, 3, 5)
 
 
+def _impulse_grid(quick: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The potential study's impulse grid (:func:`._analysis.impulse_design`) as ``(dphi, phi0)`` tuples."""
+    return tuple(tuple(float(v) for v in a) for a in C.impulse_design(quick))
+
+
+_IMPULSE_QUICK = _impulse_grid(True)
+
+
 @dataclass(frozen=True)
 class Plan:
     dphi_rad: tuple[float, ...]
@@ -143,8 +151,8 @@ class Plan:
     confinement_d_over_2A: tuple[float, ...] = (0.9, 1.2)
     group_dphi_rad: tuple[float, ...] = tuple(float(p) for p in C.group_phases(True))
     group_draws: int = C.GROUP_DRAWS[True]
-    impulse_dphi_rad: tuple[float, ...] = tuple(float(p) for p in C.impulse_design(True)[0])
-    impulse_phi0_rad: tuple[float, ...] = tuple(float(p) for p in C.impulse_design(True)[1])
+    impulse_dphi_rad: tuple[float, ...] = _IMPULSE_QUICK[0]
+    impulse_phi0_rad: tuple[float, ...] = _IMPULSE_QUICK[1]
 
 
 def spaced_channel_m(n_swimmers: int) -> float:
@@ -160,11 +168,11 @@ def plan(quick: bool) -> Plan:
     four swimmers; full 33 dphi and 40 draws), so that only the channel differs."""
     if quick:
         return Plan(tuple(float(p) for p in C.paper_phases()))
+    impulse_dphi, impulse_phi0 = _impulse_grid(False)
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
                 confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),
                 group_dphi_rad=tuple(float(p) for p in C.group_phases(False)), group_draws=C.GROUP_DRAWS[False],
-                impulse_dphi_rad=tuple(float(p) for p in C.impulse_design(False)[0]),
-                impulse_phi0_rad=tuple(float(p) for p in C.impulse_design(False)[1]))
+                impulse_dphi_rad=impulse_dphi, impulse_phi0_rad=impulse_phi0)
 
 
 def _timestep(n_links: int) -> float:
