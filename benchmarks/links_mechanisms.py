@@ -4,6 +4,11 @@
     python benchmarks/links_mechanisms.py attractor    # ~15 s
     python benchmarks/links_mechanisms.py recoil       # ~20 s
     python benchmarks/links_mechanisms.py yaw-guided   # ~20 s
+    python benchmarks/links_mechanisms.py smooth-limit # ~20 s
+    python benchmarks/links_mechanisms.py quasi-static # ~45 s
+    python benchmarks/links_mechanisms.py waves        # ~2 min
+    python benchmarks/links_mechanisms.py inertia      # ~1.5 min
+    python benchmarks/links_mechanisms.py held-force   # ~10 s
 
 Pairs of N = 3, 5, 7, 9 links, xi = 1, d = 0.13 m, the paper's nine dphi, 30 s
 from dx0 = 0 at the simulator's time step (the links study's set-up).
@@ -26,6 +31,17 @@ from dx0 = 0 at the simulator's time step (the links study's set-up).
   the root yaw joint, added here by patching :mod:`undulate.scene`; not a
   model the package offers) so that the commanded shape's chord stays along
   x: the dynamic test of the recoil.
+* ``smooth-limit``: N = 9, 13, 17 at (near) equal A, three dphi: does the
+  offset converge as the body gets smoother, and to what?
+* ``quasi-static``: N = 3 and 9 at three dphi with one model choice changed
+  at a time (frequency, drag, contact softness, link height, mass, collision
+  shape, link width at the same clearance).
+* ``waves``: bodies of 2 and 3 waves (xi), each wave of N = 3 ... 9 links of
+  the usual size (length and mass scale with xi): is it the finite body?
+* ``inertia``: the three amplitude rules with 3x and 10x the body mass.
+* ``held-force``: pairs with x held at dx0 (``Scene.hold_x``): the
+  cycle-mean longitudinal contact force and the link pairs that carry it
+  (a diagnostic that steps MuJoCo from Python to read every contact).
 
 Results: docs/claims_explained.md (links).
 """
@@ -54,11 +70,21 @@ def _beta(rule: str, n: int) -> float:
     return math.radians(EQUAL_A_DEG[n]) if rule == "equal-A" else joint_amplitude(rule, n)
 
 
-def _pair(n, beta, dphi, duration_s=30.0, dx0_over_L=0.0, record=("x", "y")):
-    sc = Scene(phases_rad=(0.0, dphi), gait=Gait(amplitude_rad=beta), dx0_m=dx0_over_L * L_M,
-               geometry=SwimmerGeometry(n_links=n, length_m=L_M), channel=Channel(width_m=0.13))
-    return simulate(sc, SimOptions(duration_s=duration_s, timestep_s=timestep(n), sample_rate_hz=50,
-                                   record=record))
+def _pair_scene(n, beta, dphi, dx0_over_L=0.0, *, xi=1.0, frequency_hz=0.5, width_m=0.13, geometry=None,
+                ground=None, contact=None, hold_x=False):
+    """The links study's pair, with one model choice changed (``geometry``: SwimmerGeometry overrides;
+    ``xi`` > 1 scales the body length and mass with xi, so each wave keeps N links of the same size)."""
+    g = dict(n_links=int(round(n * xi)), length_m=L_M * xi, mass_kg=0.3 * xi) | (geometry or {})
+    extra = {k: v for k, v in (("ground", ground), ("contact", contact)) if v is not None}
+    return Scene(phases_rad=(0.0, dphi), gait=Gait(amplitude_rad=beta, waves_per_body=xi, frequency_hz=frequency_hz),
+                 dx0_m=dx0_over_L * L_M, geometry=SwimmerGeometry(**g), channel=Channel(width_m=width_m),
+                 hold_x=hold_x, **extra)
+
+
+def _pair(n, beta, dphi, duration_s=30.0, dx0_over_L=0.0, record=("x", "y"), **change):
+    """Run :func:`_pair_scene` at the links study's time step for N (per wave) and 50 samples per second."""
+    sc = _pair_scene(n, beta, dphi, dx0_over_L, **change)
+    return simulate(sc, SimOptions(duration_s=duration_s, timestep_s=timestep(n), sample_rate_hz=50, record=record))
 
 
 def _steady_dx(ds):
@@ -221,8 +247,164 @@ def yaw_guided():
               flush=True)
 
 
+# --- the smooth-body limit, the quasi-static screen, more waves per body, inertia, held-dx forces -----------
+
+SMOOTH_BETA_DEG = {9: EQUAL_A_DEG[9], 13: 12.4, 17: 9.5}
+"""N = 13 and 17: joint amplitudes near the equal-A value (not iterated; the free A is printed)."""
+THREE_DPHI = (math.pi / 4, math.pi / 2, 3 * math.pi / 4)
+
+
+def _free_amplitude(n, beta):
+    sc = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=beta), geometry=SwimmerGeometry(n_links=n, length_m=L_M),
+               channel=Channel(width_m=0.5))
+    ds = simulate(sc, SimOptions(duration_s=10.0, timestep_s=timestep(n), sample_rate_hz=100, record=("node_y",)))
+    y = ds["node_y"].values[ds["time"].values >= 6.0]
+    return float(y.max() - y.min()) / 2
+
+
+def _smooth_run(args):
+    n, dphi = args
+    beta = math.radians(SMOOTH_BETA_DEG[n])
+    return args, (_free_amplitude(n, beta) if dphi is None else _steady_dx(_pair(n, beta, dphi))[0])
+
+
+def smooth_limit():
+    jobs = [(n, d) for n in SMOOTH_BETA_DEG for d in (None,) + THREE_DPHI]
+    with ProcessPoolExecutor(2) as ex:
+        res = dict(ex.map(_smooth_run, jobs))
+    for n, b in SMOOTH_BETA_DEG.items():
+        print(f"N={n} beta {b:.1f} deg, free A {res[(n, None)] * 1e3:.1f} mm: dx/L at dphi = pi/4, pi/2, 3pi/4: "
+              + " ".join(f"{res[(n, d)]:.3f}" for d in THREE_DPHI) + " (line 0.125 0.250 0.375)", flush=True)
+
+
+def _variants():
+    from undulate.params import ContactModel, Ground
+
+    return {
+        "default": {},
+        "frequency 0.125 Hz": {"frequency_hz": 0.125}, "frequency 0.25 Hz": {"frequency_hz": 0.25},
+        "frequency 1 Hz": {"frequency_hz": 1.0},
+        "drag x1/3 (0.67 N s/m per link)": {"ground": Ground(drag_N_s_per_m=2 / 3)},
+        "drag x3 (6 N s/m per link)": {"ground": Ground(drag_N_s_per_m=6.0)},
+        "contact time constant 10 ms": {"contact": ContactModel(timeconst_s=0.01)},
+        "link height 5 mm (rotational drag)": {"geometry": {"height_m": 0.005}},
+        "link height 150 mm": {"geometry": {"height_m": 0.15}},
+        "mass x0.1": {"geometry": {"mass_kg": 0.03}}, "mass x10": {"geometry": {"mass_kg": 3.0}},
+        "box collision": {"geometry": {"collision_shape": "box"}},
+        "width 3 mm, d = 0.106 m (same clearance)": {"geometry": {"width_m": 0.003}, "width_m": 0.106},
+    }
+
+
+def _variant_run(args):
+    n, name, dphi = args
+    change = _variants()[name]
+    dur = 15.0 / change.get("frequency_hz", 0.5)
+    return args, _steady_dx(_pair(n, _beta("equal-A", n), dphi, duration_s=dur, **change))[0]
+
+
+def quasi_static():
+    names = list(_variants())
+    jobs = [(n, k, d) for k in names for n in (3, 9) for d in THREE_DPHI]
+    with ProcessPoolExecutor(2) as ex:
+        res = dict(ex.map(_variant_run, jobs))
+    for k in names:
+        for n in (3, 9):
+            print(f"{k:42s} N={n}: dx/L at dphi = pi/4, pi/2, 3pi/4: " + " ".join(f"{res[(n, k, d)]:.3f}" for d in THREE_DPHI)
+                  + " (line 0.125 0.250 0.375)", flush=True)
+
+
+def _rms_line(rows):
+    dx, dph = np.array([r[0] for r in rows]), np.array([r[1] for r in rows])
+    r = C.rms(theory.compatibility_residual(dx, dph, 1.0))
+    return f"RMS {r.value:.3f} [{r.low:.3f}, {r.high:.3f}] lambda; dx/lambda " + " ".join(f"{v:+.3f}" for v in dx)
+
+
+def _waves_run(args):
+    xi, n, dphi = args
+    return args, _steady_dx(_pair(n, _beta("equal-A", n), dphi, xi=xi))
+
+
+def waves():
+    jobs = [(xi, n, float(d)) for xi in (2.0, 3.0) for n in N_LINKS for d in C.paper_phases()]
+    with ProcessPoolExecutor(2) as ex:
+        res = list(ex.map(_waves_run, jobs))
+    for xi in (2.0, 3.0):
+        for n in N_LINKS:
+            print(f"xi={xi:g}, {n} links per wave ({int(n * xi)} links): "
+                  + _rms_line([r[1] for r in res if r[0][:2] == (xi, n)]), flush=True)
+
+
+def _inertia_run(args):
+    rule, mass, n, dphi = args
+    return args, _steady_dx(_pair(n, _beta(rule, n), dphi, geometry={"mass_kg": mass}))
+
+
+def inertia():
+    jobs = [(r, m, n, float(d)) for r in ("equal-A", "fixed", "curvature") for m in (0.9, 3.0) for n in N_LINKS
+            for d in C.paper_phases()]
+    with ProcessPoolExecutor(2) as ex:
+        res = list(ex.map(_inertia_run, jobs))
+    for rule in ("equal-A", "fixed", "curvature"):
+        for m in (0.9, 3.0):
+            for n in N_LINKS:
+                print(f"{rule:9s} mass {m:.1f} kg N={n}: " + _rms_line([r[1] for r in res if r[0][:3] == (rule, m, n)]),
+                      flush=True)
+
+
+def _held_force_run(args):
+    """Diagnostic only (steps in Python to read every contact; not how the package simulates): a pair with
+    its x held at dx0, periods 16-20; the cycle-mean x-force on swimmer 1 from swimmer 0 by link of each."""
+    import re
+
+    import mujoco
+
+    from undulate.scene import build
+
+    n, dphi, dx0 = args
+    sc = _pair_scene(n, _beta("equal-A", n), dphi, dx0, hold_x=True)
+    dt = timestep(n)
+    cs = build(sc, dt)
+    m, d = cs.model, mujoco.MjData(cs.model)
+    sw, lk = np.full(m.ngeom, -1), np.full(m.ngeom, -1)
+    for g in range(m.ngeom):
+        r = re.match(r"s(\d+)_?link(\d+)", m.body(m.geom_bodyid[g]).name)
+        if r:
+            sw[g], lk[g] = int(r.group(1)), int(r.group(2))
+    T = sc.gait.period_s
+    steps, start = int(round(20 * T / dt)), int(round(16 * T / dt))
+    F, f6, count = np.zeros((n, n)), np.zeros(6), 0
+    for k in range(steps):
+        d.ctrl[:] = cs.controls(np.array([d.time]))[0]
+        mujoco.mj_step(m, d)
+        if k < start:
+            continue
+        count += 1
+        for c in range(d.ncon):
+            con = d.contact[c]
+            a, b = con.geom1, con.geom2
+            if sw[a] < 0 or sw[b] < 0 or sw[a] == sw[b]:
+                continue
+            mujoco.mj_contactForce(m, d, c, f6)
+            fx = (con.frame.reshape(3, 3).T @ f6[:3])[0]  # on geom2's body, world x
+            i1, i0, fx = (lk[b], lk[a], fx) if sw[b] == 1 else (lk[a], lk[b], -fx)
+            F[i1, i0] += fx
+    return args, F / count
+
+
+def held_force():
+    jobs = [(n, math.pi / 2, x0) for n in (3, 9) for x0 in (0.15, 0.2, 0.25, 0.3)]
+    with ProcessPoolExecutor(2) as ex:
+        for (n, _, x0), F in ex.map(_held_force_run, jobs):
+            top = sorted(((abs(F[i, j]), i, j) for i in range(n) for j in range(n) if F[i, j]), reverse=True)[:3]
+            print(f"N={n} dphi=pi/2, dx held at {x0:.2f} L: cycle-mean x-force on swimmer 1 {F.sum() * 1e3:+.1f} mN; "
+                  "largest (swimmer-1 link, swimmer-0 link, mN): "
+                  + ", ".join(f"({i}, {j}, {F[i, j] * 1e3:+.1f})" for _, i, j in top), flush=True)
+
+
 if __name__ == "__main__":
-    cmds = {"wavelength": wavelength, "attractor": attractor, "recoil": recoil, "yaw-guided": yaw_guided}
+    cmds = {"wavelength": wavelength, "attractor": attractor, "recoil": recoil, "yaw-guided": yaw_guided,
+            "smooth-limit": smooth_limit, "quasi-static": quasi_static, "waves": waves, "inertia": inertia,
+            "held-force": held_force}
     if len(sys.argv) != 2 or sys.argv[1] not in cmds:
         sys.exit("usage: python benchmarks/links_mechanisms.py {" + ",".join(cmds) + "}")
     cmds[sys.argv[1]]()
