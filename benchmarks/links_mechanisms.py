@@ -58,6 +58,7 @@ from undulate import theory
 from undulate.params import Channel, Gait, Scene, SimOptions, SwimmerGeometry
 from undulate.simulation import simulate
 from undulate.studies import _analysis as C
+from undulate.studies._runners import lone_swimmer
 from undulate.studies.links import joint_amplitude, timestep
 
 L_M = 0.54
@@ -240,11 +241,7 @@ def yaw_guided():
     with ProcessPoolExecutor(2) as ex:
         res = list(ex.map(_guided_run, [(n, float(d)) for n in N_LINKS for d in C.paper_phases()]))
     for n in N_LINKS:
-        rows = [r for r in res if r[0] == n]
-        dx, dph = np.array([r[1] for r in rows]), np.array([r[2] for r in rows])
-        r = C.rms(theory.compatibility_residual(dx, dph, 1.0))
-        print(f"yaw guided N={n}: RMS {r.value:.3f} [{r.low:.3f}, {r.high:.3f}]; dx/L " + " ".join(f"{v:+.3f}" for v in dx),
-              flush=True)
+        print(f"yaw guided N={n}: " + _rms_line([r[1:] for r in res if r[0] == n]), flush=True)
 
 
 # --- the smooth-body limit, the quasi-static screen, more waves per body, inertia, held-dx forces -----------
@@ -254,18 +251,12 @@ SMOOTH_BETA_DEG = {9: EQUAL_A_DEG[9], 13: 12.4, 17: 9.5}
 THREE_DPHI = (math.pi / 4, math.pi / 2, 3 * math.pi / 4)
 
 
-def _free_amplitude(n, beta):
-    sc = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=beta), geometry=SwimmerGeometry(n_links=n, length_m=L_M),
-               channel=Channel(width_m=0.5))
-    ds = simulate(sc, SimOptions(duration_s=10.0, timestep_s=timestep(n), sample_rate_hz=100, record=("node_y",)))
-    y = ds["node_y"].values[ds["time"].values >= 6.0]
-    return float(y.max() - y.min()) / 2
-
-
 def _smooth_run(args):
     n, dphi = args
     beta = math.radians(SMOOTH_BETA_DEG[n])
-    return args, (_free_amplitude(n, beta) if dphi is None else _steady_dx(_pair(n, beta, dphi))[0])
+    if dphi is None:  # the free swimmer's A, the package's one definition (studies._runners.lone_swimmer)
+        return args, float(lone_swimmer({"amplitude_rad": beta, "n_links": n}, 0)["amplitude_m"])
+    return args, _steady_dx(_pair(n, beta, dphi))[0]
 
 
 def smooth_limit():
@@ -352,11 +343,13 @@ def inertia():
 
 
 def _held_force_run(args):
-    """Diagnostic only (steps in Python to read every contact; not how the package simulates): a pair with
-    its x held at dx0, periods 16-20; the cycle-mean x-force on swimmer 1 from swimmer 0 by link of each."""
+    """A pair with its x held at dx0: the cycle-mean x-force on swimmer 1 from swimmer 0 over periods 16-20,
+    by link of each.  Diagnostic only: the 16 settling periods run in C (``mujoco.rollout``), the 4
+    measured ones step in Python to read every contact (not how the package simulates)."""
     import re
 
     import mujoco
+    from mujoco import rollout
 
     from undulate.scene import build
 
@@ -372,13 +365,17 @@ def _held_force_run(args):
             sw[g], lk[g] = int(r.group(1)), int(r.group(2))
     T = sc.gait.period_s
     steps, start = int(round(20 * T / dt)), int(round(16 * T / dt))
-    F, f6, count = np.zeros((n, n)), np.zeros(6), 0
-    for k in range(steps):
-        d.ctrl[:] = cs.controls(np.array([d.time]))[0]
+    u = cs.controls(np.arange(steps) * dt)  # the open-loop controls of every step, once
+    kind = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    state = np.empty(mujoco.mj_stateSize(m, kind))
+    mujoco.mj_getState(m, d, state, kind)
+    for k0 in range(0, start, 20000):  # the 16 settling periods in C, in chunks (memory)
+        state = rollout.rollout(m, d, state, u[k0:min(k0 + 20000, start)])[0][0, -1]
+    mujoco.mj_setState(m, d, state, kind)
+    F, f6 = np.zeros((n, n)), np.zeros(6)
+    for k in range(start, steps):  # the 4 measured periods: every contact of every step
+        d.ctrl[:] = u[k]
         mujoco.mj_step(m, d)
-        if k < start:
-            continue
-        count += 1
         for c in range(d.ncon):
             con = d.contact[c]
             a, b = con.geom1, con.geom2
@@ -388,7 +385,7 @@ def _held_force_run(args):
             fx = (con.frame.reshape(3, 3).T @ f6[:3])[0]  # on geom2's body, world x
             i1, i0, fx = (lk[b], lk[a], fx) if sw[b] == 1 else (lk[a], lk[b], -fx)
             F[i1, i0] += fx
-    return args, F / count
+    return args, F / (steps - start)
 
 
 def held_force():
