@@ -243,3 +243,34 @@ def test_more_drag_slows_the_escape_from_dx0_and_lengthens_contact():
         out[c] = (abs(float(r["dx_period_over_lambda"].values[0])), float(r["impulse_2T_Ns"]))
     (esc2, imp2), (esc8, imp8) = out[S.IMPULSE_DRAG_DEFAULT], out[8.0]
     assert esc8 < 0.8 * esc2 and imp8 > imp2 > 0
+
+
+def _links_set(claim, values, intervals):
+    return {"label": S.LINK_SETS[claim], "n_links": [3, 5, 7, 9], "amplitude_m": [0.0522] * 4,
+            "wavelength_over_L": [0.93] * 4,
+            "rms_residual_over_lambda": [E(v, lo, hi).to_dict() for v, (lo, hi) in zip(values, intervals)],
+            "falls": S.C.falls_with_links([E(v, lo, hi) for v, (lo, hi) in zip(values, intervals)])}
+
+
+FLAT = ([0.03, 0.035, 0.03, 0.035], [(0.02, 0.04)] * 4)
+FALLING = ([0.009, 0.003, 0.0007, 0.001], [(0.007, 0.011), (0.002, 0.004), (0.0004, 0.0009), (0.0008, 0.0012)])
+
+
+@pytest.mark.parametrize("guided_x, alone, shown", [(FALLING, FLAT, True), (FLAT, FLAT, False),
+                                                    (FALLING, FALLING, False)])
+def test_links_explanation_needs_both_changes_and_neither_alone(guided_x, alone, shown):
+    sets = {"links": _links_set("links", *FLAT), "links-x": _links_set("links-x", *alone),
+            "links-guided": _links_set("links-guided", *FLAT), "links-guided-x": _links_set("links-guided-x", *guided_x)}
+    assert S._links_check({"links_sets": sets})[0] is shown
+    del sets["links-x"]
+    assert S._links_check({"links_sets": sets})[0] is False  # a set missing: not shown
+
+
+def test_the_link_number_criterion_is_judged_on_the_intervals():
+    f = S.C.falls_with_links
+    assert f([E(*v) for v in ((0.009, 0.007, 0.011), (0.003, 0.002, 0.004), (0.0007, 0.0004, 0.0009),
+                              (0.001, 0.0008, 0.0012))]) is True  # the last step: a point rise inside the intervals
+    assert f([E(*v) for v in ((0.009, 0.007, 0.011), (0.003, 0.002, 0.004), (0.0007, 0.0004, 0.0009),
+                              (0.002, 0.0015, 0.0025))]) is False  # a rise beyond the intervals
+    assert f([E(*v) for v in ((0.04, 0.03, 0.05), (0.035, 0.028, 0.045))]) is False  # no significant overall fall
+    assert f([E(0.04), E(0.01)]) is None

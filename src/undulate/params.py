@@ -485,6 +485,16 @@ class Scene(_Params):
     hold_x: bool = False
     """Lock each swimmer's longitudinal position (its body midpoint's x): the
     swimmer has no x degree of freedom; lateral motion and rotation stay free."""
+    heading_guide: bool = False
+    """Remove the yaw recoil: a stiff PD actuator on each swimmer's root yaw joint
+    (:data:`undulate.scene.HEADING_GUIDE_KP_NM_PER_RAD`) holds the heading at
+    which the commanded body shape's head-to-tail chord lies along the channel
+    (x).  On isotropic drag a free body turns back and forth as it bends (the
+    chord swings by about +-0.13 rad), which adds a standing wave to its
+    lab-frame shape; with the guide the lab-frame shape is the commanded
+    travelling wave, the body the compatibility model assumes.  Lateral and
+    longitudinal motion stay free.  Open-loop gait only.  A model the
+    sensitivity study uses to test the link-number claim, not the default."""
 
     def __post_init__(self):
         try:
@@ -513,6 +523,12 @@ class Scene(_Params):
         if not isinstance(self.hold_x, (bool, np.bool_)):
             raise ParameterError("hold_x", "True or False", self.hold_x)
         object.__setattr__(self, "hold_x", bool(self.hold_x))
+        if not isinstance(self.heading_guide, (bool, np.bool_)):
+            raise ParameterError("heading_guide", "True or False", self.heading_guide)
+        object.__setattr__(self, "heading_guide", bool(self.heading_guide))
+        if self.heading_guide and self.controller.closed_loop:
+            raise ParameterError("heading_guide", "False with a closed-loop controller (the guide follows the "
+                                 "open-loop gait's commanded shape)", self.heading_guide)
         if self.forces_N is not None:
             forces = tuple(_finite("forces_N", f) for f in self.forces_N)
             if len(forces) != n:

@@ -72,6 +72,32 @@ _Q_ALONG_X_UP = (math.sqrt(0.5), 0.0, math.sqrt(0.5), 0.0)  # plane normal +x
 _Q_ALONG_X_DOWN = (math.sqrt(0.5), 0.0, -math.sqrt(0.5), 0.0)  # plane normal -x
 
 _SWIMMER_RGBA = (0.85, 0.45, 0.2, 1.0)
+
+HEADING_GUIDE_KP_NM_PER_RAD = 200.0
+"""Stiffness of the heading guide (:attr:`~undulate.params.Scene.heading_guide`), N m/rad.  Stiff
+against the drag torques it cancels (the 0.3 kg, 0.54 m body's rotational drag ~ 0.1 N m s/rad):
+the guided pairs' offsets are the same to 1e-4 L at 50 and 800 N m/rad
+(benchmarks/links_mechanisms.py)."""
+HEADING_GUIDE_KV_NMS_PER_RAD = 4.0
+"""Damping of the heading guide, N m s/rad (kp / 50)."""
+
+
+def chord_heading(alpha: np.ndarray, alpha_dot: np.ndarray, n_links: int) -> tuple[np.ndarray, np.ndarray]:
+    """The root yaw (rad) at which a body of joint angles ``alpha`` has its head-to-tail chord along x,
+    and its rate (rad/s) for joint velocities ``alpha_dot`` (both ``(..., N-1)``).
+
+    Link ``k`` points at ``yaw + c_k - c_r`` with ``c_k = alpha_0 + ... + alpha_{k-1}`` and ``r`` the
+    root link; the links are equal, so the chord points along ``(sum cos, sum sin)`` of those angles
+    and is along x when ``yaw = -atan2(S, C)``, ``S, C = sum_k sin, cos(c_k - c_r)``.
+    """
+    rl = root_link(n_links)
+    zeros = np.zeros_like(alpha[..., :1])
+    c = np.concatenate([zeros, np.cumsum(alpha, axis=-1)], axis=-1)
+    cd = np.concatenate([zeros, np.cumsum(alpha_dot, axis=-1)], axis=-1)
+    c, cd = c - c[..., rl:rl + 1], cd - cd[..., rl:rl + 1]
+    S, C = np.sin(c).sum(-1), np.cos(c).sum(-1)
+    dS, dC = (np.cos(c) * cd).sum(-1), (-np.sin(c) * cd).sum(-1)
+    return -np.arctan2(S, C), -(C * dS - S * dC) / (S * S + C * C)
 _WALL_RGBA = (0.5, 0.5, 0.55, 0.4)
 
 
@@ -219,6 +245,9 @@ def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None) -
                      slewmax=sv.max_speed_rad_s if sv.max_speed_rad_s > 0 else -1)
         a.forcelimited = True
         a.forcerange = [-sv.torque_limit_Nm, sv.torque_limit_Nm]
+    if scene.heading_guide:  # Scene.heading_guide: a stiff PD actuator on the root yaw (set-point, rate)
+        a = spec.add_actuator(name="headguide", target="yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT)
+        a.set_to_pid(kp=HEADING_GUIDE_KP_NM_PER_RAD, kv=HEADING_GUIDE_KV_NMS_PER_RAD, ki=-1, imax=-1, slewmax=-1)
     # the perturbation force, spread equally over the links: F/N along world x at each link's centre
     if not (scene.forces_N is not None if push is None else push):
         return spec
@@ -327,7 +356,8 @@ class SceneIndex:
     joint ``i`` (closed-loop controllers only; shape ``(n, 0)`` otherwise), ``qpos_joint[j, i]`` the hinge of joint ``i``;
     ``ctrl_pos[j, i]`` / ``ctrl_vel[j, i]`` the servo's position / velocity
     set-point inputs; ``ctrl_push[j, k]`` the perturbation force input on link ``k`` (N;
-    shape ``(n, 0)`` when the scene has no ``forces_N``);
+    shape ``(n, 0)`` when the scene has no ``forces_N``); ``ctrl_heading[j]`` the heading guide's
+    (yaw set-point, rate) inputs (shape ``(n, 0)`` without :attr:`~undulate.params.Scene.heading_guide`);
     ``sens_com[j]`` the first of 3 sensordata entries of the centre of mass;
     ``sens_pair[p]`` the 3-vector net force between swimmers ``p, p+1``;
     ``sens_wall[k]`` the 3-vector net force of all swimmers on wall ``k``
@@ -344,6 +374,7 @@ class SceneIndex:
     ctrl_vel: np.ndarray
     ctrl_push: np.ndarray
     sens_com: np.ndarray
+    ctrl_heading: np.ndarray
     sens_pair: np.ndarray
     sens_wall: np.ndarray
     sens_mindist: int
@@ -364,7 +395,8 @@ class CompiledScene:
         Servo inputs are the gait's angle and angular-velocity set-points (rad,
         rad/s; the angle set-point leads by ``b omega_cmd / kp``, the back-EMF
         feed-forward of :attr:`~undulate.params.Servo.back_emf`); push inputs are the perturbation forces (N), on from
-        ``scene.force_onset_s``.
+        ``scene.force_onset_s``; heading-guide inputs are :func:`chord_heading` of the commanded
+        angles (rad, rad/s).
         """
         sc, ix = self.scene, self.index
         n_links = sc.geometry.n_links
@@ -378,6 +410,10 @@ class CompiledScene:
             on = (np.asarray(t_s) >= sc.force_onset_s)[:, None]
             per_link = np.asarray(sc.forces_N)[:, None] / sc.geometry.n_links * np.ones(ix.ctrl_push.shape)
             u[:, ix.ctrl_push] = np.where(on[..., None], per_link[None], 0.0)
+        if ix.ctrl_heading.size:  # the commanded shape's chord along x (not the lead-corrected set-point)
+            ang = sc.gait.joint_angles(t_s, sc.phases_rad, n_links)
+            yaw, rate = chord_heading(ang, omega_cmd, n_links)
+            u[:, ix.ctrl_heading[:, 0]], u[:, ix.ctrl_heading[:, 1]] = yaw, rate
         return u
 
 
@@ -501,6 +537,8 @@ def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool =
         ctrl_push=np.array([[cadr(f"s{j}_push{k}") for k in range(nj + 1)] for j in range(n)] if push
                            else np.zeros((n, 0)), dtype=int),
         sens_com=np.array([sadr(f"s{j}_com") for j in range(n)], dtype=int),
+        ctrl_heading=np.array([[cadr(f"s{j}_headguide"), cadr(f"s{j}_headguide") + 1] for j in range(n)]
+                              if scene.heading_guide else np.zeros((n, 0)), dtype=int),
         sens_pair=np.array([sadr(f"pair{j}_force") for j in range(n - 1 if pair_sensors else 0)], dtype=int),
         sens_wall=np.array([sadr(f"{w}_force") for w in walls], dtype=int),
         sens_mindist=sadr("mindist"),

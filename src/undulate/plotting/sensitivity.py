@@ -51,18 +51,21 @@ def plot_sensitivity(ds, s: dict):
 
     # (c) equal-A rule
     cx = fig.add_subplot(gs[1, 1])
-    L = s.get("links_equal_A")
-    if L:
-        for key, lab in (("rms_residual_over_lambda", "all dphi"),
-                         ("rms_residual_over_lambda_open_interval", "dphi = +-pi left out")):
-            v = np.array([np.nan if r["value"] is None else r["value"] for r in L[key]])
-            lo = np.array([np.nan if r["ci95"][0] is None else r["ci95"][0] for r in L[key]])
-            hi = np.array([np.nan if r["ci95"][1] is None else r["ci95"][1] for r in L[key]])
-            cx.errorbar(L["n_links"], v, yerr=[v - lo, hi - v], marker="o", capsize=3, label=lab)
-        cx.legend(fontsize=6)
+    sets = s.get("links_sets") or ({"links": s["links_equal_A"] | {"label": "equal-A, lambda = L"}}
+                                   if s.get("links_equal_A") else {})
+    for k, L in enumerate(sets.values()):
+        r = L["rms_residual_over_lambda"]
+        v = np.array([np.nan if q["value"] is None else q["value"] for q in r])
+        lo = np.array([np.nan if q["ci95"][0] is None else q["ci95"][0] for q in r])
+        hi = np.array([np.nan if q["ci95"][1] is None else q["ci95"][1] for q in r])
+        n = np.asarray(L["n_links"], float) + 0.08 * (k - 1.5)  # side by side
+        cx.errorbar(n, v, yerr=[v - lo, hi - v], marker="o", ms=3, capsize=2, label=L["label"])
+    if sets:
+        cx.set_yscale("log")
+        cx.legend(fontsize=5)
     cx.set_xlabel("links N (equal-A rule: A held at the 3-link value)")
     cx.set_ylabel("RMS residual / lambda")
-    cx.set_title("(c) link-number trend at fixed d/2A", fontsize=9)
+    cx.set_title("(c) link-number trend at fixed d/2A (all dphi)", fontsize=9)
 
     # (d) confinement
     dx = fig.add_subplot(gs[2, 1])

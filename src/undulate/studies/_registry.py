@@ -329,11 +329,12 @@ class StudyContext:
         return res.dataset
 
     def lone_swimmer(self, *, amplitude_rad: float | None = None, waves_per_body: float = 1.0,
-                     n_links: int = 3, ground: str = "viscous") -> xr.Dataset:
+                     n_links: int = 3, ground: str = "viscous", heading_guide: bool = False) -> xr.Dataset:
         """The free swimmer of one gait and ground (:func:`._runners.lone_swimmer`): its
         amplitude ``amplitude_m`` (the one definition of A), ``mean_joint_error_rad``,
         ``speed_m_s``, ``x_period_m``.  Measured once per gait and ground and shared by
-        every study in ``OUT`` (store ``OUT/.sweeps/_lone/KEY``)."""
+        every study in ``OUT`` (store ``OUT/.sweeps/_lone/KEY``).  ``heading_guide``:
+        :attr:`~undulate.params.Scene.heading_guide` (the yaw recoil removed)."""
         from ..params import Gait
         from ..sweep import Grid
         from ._runners import lone_swimmer
@@ -342,6 +343,9 @@ class StudyContext:
         point = {"amplitude_rad": beta, "waves_per_body": float(waves_per_body), "n_links": int(n_links),
                  "ground": str(ground)}
         key = f"{ground}-N{int(n_links)}-xi{float(waves_per_body):g}-beta{beta:.9f}"
+        if heading_guide:  # Scene.heading_guide (the yaw recoil removed)
+            point["heading_guide"] = True
+            key += "-headingguide"
         out = Path(self.config.out_dir) / ".sweeps" / "_lone" / key
         ds = self.sweep(f"lone {key}", lone_swimmer, Grid(points=[point], seed=0), where=out)
         if bool(ds["run_failed"].any()):

@@ -111,8 +111,11 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
     Returns (dims; units): ``x``, ``y`` (time, swimmer; m) centres of mass,
     ``phase`` (swimmer; rad), ``joint_error`` (time, swimmer; rad, mean over
     the joints), ``contact_force_pair`` (time, pair; N, swimmers p and p+1
-    of the initial stack), ``penetration_max`` (m), and the wavelength
-    ``wavelength`` (m, inf for xi = 0).
+    of the initial stack), ``penetration_max`` (m), the wavelength
+    ``wavelength`` (m, inf for xi = 0) and ``extent_x`` (swimmer; m), the
+    head-to-tail extent along x averaged over the second half of the run (for
+    xi waves per body, xi times the wavelength along the channel).
+    ``heading_guide`` (bool, default False): :attr:`~undulate.params.Scene.heading_guide`.
     """
     from ..simulation import simulate
 
@@ -129,10 +132,13 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
         gait=Gait(amplitude_rad=beta, waves_per_body=xi),
         geometry=SwimmerGeometry(n_links=n_links, length_m=BODY_LENGTH_M),
         channel=Channel(width_m=channel_width_m),
+        heading_guide=bool(point.get("heading_guide", False)),
         **_model_parts(point),
     )
     ds = simulate(scene, SimOptions(duration_s=duration_s, timestep_s=dt, sample_rate_hz=sample_rate_hz))
     time = ds["time"].values
+    nx = ds["node_x"].values[time >= time[-1] / 2]
+    extent = np.abs(nx[..., -1] - nx[..., 0]).mean(axis=0)
     return xr.Dataset(
         {
             "x": (("time", "swimmer"), ds["x"].values, {"units": "m", "long_name": "centre of mass x"}),
@@ -145,6 +151,8 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
                                                                "and pair+1 of the initial stack"}),
             "penetration_max": ((), float(ds["penetration"].max()), {"units": "m"}),
             "wavelength": ((), float(ds.attrs["wavelength"]), {"units": "m"}),
+            "extent_x": ("swimmer", extent, {"units": "m", "long_name": "head-to-tail extent along x, "
+                                                                        "mean over the second half of the run"}),
         },
         coords={"time": ("time", time, {"units": "s"})},
     )
@@ -275,7 +283,7 @@ def lone_swimmer(point: dict, seed: int, *, duration_s: float = LONE_DURATION_S)
 
     ``point``: ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body``
     (xi; 1), ``n_links`` (3), ``ground`` (``"viscous"`` or ``"swimming"``,
-    :meth:`Ground.swimming`).  One swimmer in a :data:`LONE_CHANNEL_WIDTH_M`
+    :meth:`Ground.swimming`), ``heading_guide`` (False; :attr:`Scene.heading_guide`).  One swimmer in a :data:`LONE_CHANNEL_WIDTH_M`
     wide channel for ``duration_s`` at the simulator's time step.  Returns
     ``amplitude_m`` (A: :func:`~undulate.observables.gait_amplitude` over the
     last :data:`LONE_PERIODS` periods, rounded to :data:`AMPLITUDE_ROUND_M`),
@@ -292,7 +300,7 @@ def lone_swimmer(point: dict, seed: int, *, duration_s: float = LONE_DURATION_S)
     g = Ground.swimming() if point.get("ground", "viscous") == "swimming" else Ground()
     scene = Scene(phases_rad=(0.0,), gait=gait, ground=g,
                   geometry=SwimmerGeometry(n_links=int(point.get("n_links", 3)), length_m=BODY_LENGTH_M),
-                  channel=Channel(width_m=LONE_CHANNEL_WIDTH_M))
+                  channel=Channel(width_m=LONE_CHANNEL_WIDTH_M), heading_guide=bool(point.get("heading_guide", False)))
     ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=50.0))
     period = scene.gait.period_s
     amp = round_amplitude(gait_amplitude(ds, periods=LONE_PERIODS))
