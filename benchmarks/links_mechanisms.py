@@ -9,6 +9,7 @@
     python benchmarks/links_mechanisms.py waves        # ~2 min
     python benchmarks/links_mechanisms.py inertia      # ~1.5 min
     python benchmarks/links_mechanisms.py held-force   # ~10 s
+    python benchmarks/links_mechanisms.py recoil-free  # ~1.5 min
 
 Pairs of N = 3, 5, 7, 9 links, xi = 1, d = 0.13 m, the paper's nine dphi, 30 s
 from dx0 = 0 at the simulator's time step (the links study's set-up).
@@ -27,10 +28,10 @@ from dx0 = 0 at the simulator's time step (the links study's set-up).
   the dx that minimises the spread (max - min over x and a period) of the
   lateral gap between a shape and the same shape delayed by dphi / omega;
   then the same with the recoil rotated out (chord along x).
-* ``yaw-guided``: equal-A pairs whose yaw is driven (a stiff PD actuator on
-  the root yaw joint, added here by patching :mod:`undulate.scene`; not a
-  model the package offers) so that the commanded shape's chord stays along
-  x: the dynamic test of the recoil.
+* ``yaw-guided``: equal-A pairs (the free body's beta) whose yaw recoil is
+  removed (``Scene.heading_guide``: a stiff PD actuator on the root yaw holds
+  the commanded shape's chord along x).  The guided body's A is then smaller
+  (41 mm at N = 9), so the confinement changes too: see ``recoil-free``.
 * ``smooth-limit``: N = 9, 13, 17 at (near) equal A, three dphi: does the
   offset converge as the body gets smoother, and to what?
 * ``quasi-static``: N = 3 and 9 at three dphi with one model choice changed
@@ -42,6 +43,12 @@ from dx0 = 0 at the simulator's time step (the links study's set-up).
 * ``held-force``: pairs with x held at dx0 (``Scene.hold_x``): the
   cycle-mean longitudinal contact force and the link pairs that carry it
   (a diagnostic that steps MuJoCo from Python to read every contact).
+* ``recoil-free``: the cause.  The free body's lateral excursion along it
+  with and without the heading guide; then pairs with the recoil removed at
+  the guided A equal to the 3-link body's (only the guide and beta changed),
+  the residual taken with lambda = L and with the measured lambda_x (the
+  head-to-tail extent along x); and the same with 4x servo stiffness and
+  torque.  The sensitivity study runs the default-servo part.
 
 Results: docs/claims_explained.md (links).
 """
@@ -72,14 +79,14 @@ def _beta(rule: str, n: int) -> float:
 
 
 def _pair_scene(n, beta, dphi, dx0_over_L=0.0, *, xi=1.0, frequency_hz=0.5, width_m=0.13, geometry=None,
-                ground=None, contact=None, hold_x=False):
+                ground=None, contact=None, hold_x=False, heading_guide=False, servo=None):
     """The links study's pair, with one model choice changed (``geometry``: SwimmerGeometry overrides;
     ``xi`` > 1 scales the body length and mass with xi, so each wave keeps N links of the same size)."""
     g = dict(n_links=int(round(n * xi)), length_m=L_M * xi, mass_kg=0.3 * xi) | (geometry or {})
-    extra = {k: v for k, v in (("ground", ground), ("contact", contact)) if v is not None}
+    extra = {k: v for k, v in (("ground", ground), ("contact", contact), ("servo", servo)) if v is not None}
     return Scene(phases_rad=(0.0, dphi), gait=Gait(amplitude_rad=beta, waves_per_body=xi, frequency_hz=frequency_hz),
                  dx0_m=dx0_over_L * L_M, geometry=SwimmerGeometry(**g), channel=Channel(width_m=width_m),
-                 hold_x=hold_x, **extra)
+                 hold_x=hold_x, heading_guide=heading_guide, **extra)
 
 
 def _pair(n, beta, dphi, duration_s=30.0, dx0_over_L=0.0, record=("x", "y"), **change):
@@ -190,50 +197,9 @@ def recoil():
               + "; recoil rotated out " + " ".join(f"{v:.3f}" for v in straight), flush=True)
 
 
-YAW_KP_NM_PER_RAD = 200.0
-
-
-def _patch_yaw_guide():
-    import mujoco
-
-    import undulate.scene as S
-
-    if getattr(S, "_yaw_guided", False):
-        return
-    S._yaw_guided = True
-    spec0, controls0 = S.swimmer_spec, S.CompiledScene.controls
-
-    def spec(scene, timestep_s, *, push=None):
-        sp = spec0(scene, timestep_s, push=push)
-        a = sp.add_actuator(name="yawguide", target="yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        a.set_to_pid(kp=YAW_KP_NM_PER_RAD, kv=YAW_KP_NM_PER_RAD / 50, ki=-1, imax=-1, slewmax=-1)
-        return sp
-
-    def desired(alpha, rl):
-        c = np.concatenate([np.zeros_like(alpha[..., :1]), np.cumsum(alpha, axis=-1)], axis=-1)
-        c = c - c[..., rl:rl + 1]
-        return -np.arctan2(np.sin(c).sum(-1), np.cos(c).sum(-1))
-
-    def controls(self, t_s):
-        u = controls0(self, t_s)
-        sc, n = self.scene, self.scene.geometry.n_links
-        rl, t = S.root_link(n), np.asarray(t_s, float)
-        yaw = desired(sc.gait.joint_angles(t, sc.phases_rad, n), rl)
-        h = 1e-4
-        rate = (desired(sc.gait.joint_angles(t + h, sc.phases_rad, n), rl)
-                - desired(sc.gait.joint_angles(t - h, sc.phases_rad, n), rl)) / (2 * h)
-        for j in range(sc.n_swimmers):
-            adr = int(self.model.actuator_ctrladr[self.model.actuator(f"s{j}_yawguide").id])
-            u[:, adr], u[:, adr + 1] = yaw[:, j], rate[:, j]
-        return u
-
-    S.swimmer_spec, S.CompiledScene.controls = spec, controls
-
-
 def _guided_run(args):
-    _patch_yaw_guide()
     n, dphi = args
-    ds = _pair(n, _beta("equal-A", n), dphi)
+    ds = _pair(n, _beta("equal-A", n), dphi, heading_guide=True)
     return (n,) + _steady_dx(ds)
 
 
@@ -398,10 +364,80 @@ def held_force():
                   + ", ".join(f"({i}, {j}, {F[i, j] * 1e3:+.1f})" for _, i, j in top), flush=True)
 
 
+# --- the cause: yaw recoil (Scene.heading_guide) and the wavelength along the channel ---------------------
+
+def _free_envelope(n, beta, guide):
+    """A free swimmer's lateral excursion (half range of y over the last period) at each node, m, and
+    its head-to-tail chord's swing, rad."""
+    sc = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=beta), geometry=SwimmerGeometry(n_links=n, length_m=L_M),
+               channel=Channel(width_m=0.5), heading_guide=guide)
+    period = sc.gait.period_s
+    ds = simulate(sc, SimOptions(duration_s=6 * period, timestep_s=timestep(n), sample_rate_hz=400 / period,
+                                 record=("node_x", "node_y")))
+    nx, ny = ds["node_x"].values[-400:, 0], ds["node_y"].values[-400:, 0]
+    chord = np.arctan2(ny[:, -1] - ny[:, 0], nx[:, -1] - nx[:, 0])
+    return (ny.max(0) - ny.min(0)) / 2, (chord.max() - chord.min()) / 2
+
+
+def _guided_beta(n):
+    """beta at which the guided free swimmer's A is the 3-link free swimmer's (secant, as the sensitivity study)."""
+    target = float(lone_swimmer({}, 0)["amplitude_m"])
+
+    def amp(b):
+        return float(lone_swimmer({"amplitude_rad": b, "n_links": n, "heading_guide": True}, 0)["amplitude_m"])
+    b0 = math.radians(45.0) * 3 / n
+    a0 = amp(b0)
+    b1 = b0 * target / a0
+    a1 = amp(b1)
+    for _ in range(6):
+        if abs(a1 - target) <= 1e-4 or a1 == a0:
+            break
+        b0, a0, b1 = b1, a1, b1 + (target - a1) * (b1 - b0) / (a1 - a0)
+        a1 = amp(b1)
+    return b1, a1
+
+
+def _recoil_free_run(args):
+    n, beta, dphi, servo_x = args
+    from undulate.params import Servo
+
+    sv = Servo(kp_Nm_per_rad=Servo().kp_Nm_per_rad * servo_x, torque_limit_Nm=Servo().torque_limit_Nm * servo_x)
+    ds = _pair(n, beta, dphi, record=("x", "y", "node_x"), heading_guide=True, servo=sv)
+    late = ds["time"].values >= 15.0
+    nx = ds["node_x"].values[late]
+    return args, _steady_dx(ds) + (float(np.abs(nx[..., -1] - nx[..., 0]).mean()),)
+
+
+def recoil_free():
+    """The cause of the link-number failure, measured: the free body's lab-frame envelope with and without
+    the heading guide; equal-A pairs with the recoil removed against the line with lambda = L and with the
+    measured lambda_x; the same with 4x servo stiffness and torque (the N = 7, 9 floor)."""
+    for n in (3, 9):
+        for guide in (False, True):
+            env, swing = _free_envelope(n, _beta("equal-A", n), guide)
+            print(f"free N={n} (equal-A beta){' guided' if guide else ''}: chord swing +-{swing:.3f} rad; lateral "
+                  f"excursion along the body " + " ".join(f"{e * 1e3:.0f}" for e in env) + " mm", flush=True)
+    betas = {n: _guided_beta(n) for n in N_LINKS}
+    for n, (b, a) in betas.items():
+        print(f"recoil removed, N={n}: beta {math.degrees(b):.2f} deg gives A = {a * 1e3:.1f} mm", flush=True)
+    jobs = [(n, betas[n][0], float(d), sx) for sx in (1.0, 4.0) for n in N_LINKS for d in C.paper_phases()]
+    with ProcessPoolExecutor(2) as ex:
+        res = list(ex.map(_recoil_free_run, jobs))
+    for sx in (1.0, 4.0):
+        for n in N_LINKS:
+            rows = [v for a, v in res if a[0] == n and a[3] == sx]
+            dx, dph, lx = (np.array([q[k] for q in rows]) for k in range(3))
+            lam = lx.mean() / L_M
+            r_x = C.rms(theory.compatibility_residual(dx, dph, lam) / lam)
+            print(f"recoil removed, servo x{sx:g}, N={n}: lambda_x/L {lam:.3f}; "
+                  + _rms_line([(a, b) for a, b, _ in rows]).replace("RMS", "RMS (lambda = L)", 1)
+                  + f"; RMS (lambda = lambda_x) {r_x.value:.4f} [{r_x.low:.4f}, {r_x.high:.4f}]", flush=True)
+
+
 if __name__ == "__main__":
     cmds = {"wavelength": wavelength, "attractor": attractor, "recoil": recoil, "yaw-guided": yaw_guided,
             "smooth-limit": smooth_limit, "quasi-static": quasi_static, "waves": waves, "inertia": inertia,
-            "held-force": held_force}
+            "held-force": held_force, "recoil-free": recoil_free}
     if len(sys.argv) != 2 or sys.argv[1] not in cmds:
         sys.exit("usage: python benchmarks/links_mechanisms.py {" + ",".join(cmds) + "}")
     cmds[sys.argv[1]]()
