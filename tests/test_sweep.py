@@ -160,7 +160,10 @@ def test_lost_worker_process(tmp_path):
     res = run_sweep(sweep_funcs.pendulum_or_crash, grid, tmp_path / "crash", workers=2, batch=2, progress=False)
     (f,) = res.failures
     assert f.point["damping_Nms"] == -1.0 and f.error.startswith("WorkerLost: its worker process died 3 times")
-    assert res.n_computed == 5 and not res.dataset["run_failed"].sel(damping_Nms=[0.1, 0.5]).any()
+    # the 5 healthy runs all have results; one that a worker saved just before its pool broke is found on
+    # disk when its chunk is re-run alone and counts as reused (a race, seen on a loaded machine)
+    assert res.n_computed + res.n_reused == 5
+    assert not res.dataset["run_failed"].sel(damping_Nms=[0.1, 0.2, 0.3, 0.4, 0.5]).any()
 
 
 def test_progress_lines_when_not_a_terminal(tmp_path):
