@@ -102,7 +102,7 @@ def test_links_quick(links_run):
         for row in per_n.values():
             assert row["n_failed"] == 0
             assert row["rms_residual_over_lambda"]["value"] >= 0
-        assert isinstance(summary["per_rule"][rule]["rms_falls_with_n"], bool)
+        assert summary["per_rule"][rule]["rms_falls_with_n"] in (True, False, None)
     # both rules share the 3-link gait, so they agree there exactly
     a = ds["dx_steady"].sel(n_links=3)
     np.testing.assert_allclose(a.sel(rule="fixed"), a.sel(rule="curvature"))

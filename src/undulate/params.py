@@ -490,7 +490,7 @@ class Scene(_Params):
     (:data:`undulate.scene.HEADING_GUIDE_KP_NM_PER_RAD`) holds the heading at
     which the commanded body shape's head-to-tail chord lies along the channel
     (x).  On isotropic drag a free body turns back and forth as it bends (the
-    chord swings by about +-0.13 rad), which adds a standing wave to its
+    chord swings by +-0.10-0.13 rad), which adds a standing wave to its
     lab-frame shape; with the guide the lab-frame shape is the commanded
     travelling wave, the body the compatibility model assumes.  Lateral and
     longitudinal motion stay free.  Open-loop gait only.  A model the

@@ -75,9 +75,9 @@ _SWIMMER_RGBA = (0.85, 0.45, 0.2, 1.0)
 
 HEADING_GUIDE_KP_NM_PER_RAD = 200.0
 """Stiffness of the heading guide (:attr:`~undulate.params.Scene.heading_guide`), N m/rad.  Stiff
-against the drag torques it cancels (the 0.3 kg, 0.54 m body's rotational drag ~ 0.1 N m s/rad):
-the guided pairs' offsets are the same to 1e-4 L at 50 and 800 N m/rad
-(benchmarks/links_mechanisms.py)."""
+against the drag torques it cancels (the default body's rotational drag is ~0.1 N m s/rad): guided
+9-link pairs settle at the same offsets to 3e-4 L with 50, 200 and 800 N m/rad (3-link pairs at
+dphi >= pi/2 may end on another branch)."""
 HEADING_GUIDE_KV_NMS_PER_RAD = 4.0
 """Damping of the heading guide, N m s/rad (kp / 50)."""
 

@@ -23,6 +23,13 @@ is borrowed from another study's files):
   amplitude A equals the 3-link body's (secant iteration on free-swimmer
   runs), so d/2A is the same at every N (the links study's two rules change
   A and therefore the confinement).  With and without the dphi = +-pi points.
+  The same runs judged against the line drawn with lambda_x, the bodies'
+  wavelength along the channel (their head-to-tail extent, measured in the
+  runs); and equal-A pairs (beta(N) from free swimmers with the guide) with
+  the yaw recoil removed (:attr:`~undulate.params.Scene.heading_guide`, only
+  that changed), judged with lambda = L and with lambda_x (``LINK_SETS``).
+  The cause of the link-number failure counts as shown only when the last
+  set alone meets the claim's criterion.
 * **confinement** (the claim "the central state broadens over d/2A =
   0.6-1.2"): dphi = 0 pairs from dx0/lambda in {-0.15, 0, 0.15} (full: 5
   starts) for 40 s at d/2A = 0.9, 1.2 and the d at which the body's *edge*
