@@ -57,3 +57,28 @@ def test_the_guide_is_validated_and_only_in_the_model_when_asked():
     assert build(Scene()).index.ctrl_heading.shape == (2, 0)
     cs = build(Scene(heading_guide=True))
     assert cs.index.ctrl_heading.shape == (2, 2) and cs.model.nu == build(Scene()).model.nu + 4
+
+
+def test_heading_guide_from_the_command_line(tmp_path):
+    import json
+    import subprocess
+    import sys
+
+    import xarray as xr
+
+    cli = [sys.executable, "-m", "undulate.cli"]
+    out = tmp_path / "g.nc"
+    r = subprocess.run([*cli, "simulate", "--phases", "0", "--links", "9", "--amplitude", "23", "--channel-width",
+                        "0.5", "--heading-guide", "--duration", "6", "--sample-rate", "100", "--out", str(out)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    with xr.open_dataset(out, engine="h5netcdf") as ds:
+        nx, ny = ds["node_x"].values[-200:, 0], ds["node_y"].values[-200:, 0]
+        assert json.loads(ds.attrs["config"])["scene"]["heading_guide"] is True  # provenance
+    chord = np.arctan2(ny[:, -1] - ny[:, 0], nx[:, -1] - nx[:, 0])
+    assert (chord.max() - chord.min()) / 2 < 0.02
+    bad = tmp_path / "bad.nc"
+    r = subprocess.run([*cli, "simulate", "--heading-guide", "--controller", "phase-oscillator", "--out", str(bad)],
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 2 and "--heading-guide" in r.stderr and "Traceback" not in r.stderr
+    assert len(r.stderr.strip().splitlines()) == 1 and not bad.exists()

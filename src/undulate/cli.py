@@ -9,7 +9,6 @@ xarray, matplotlib, Dask) happen inside the commands, so ``--help`` is fast.
 from __future__ import annotations
 
 import math
-import os
 import sys
 from pathlib import Path
 from typing import Optional
@@ -56,6 +55,7 @@ def simulate(
     coupling: float = typer.Option(_CTRL.coupling, help="phase-oscillator load-feedback strength sigma, rad/s per N m (>= 0)."),
     control_rate: float = typer.Option(_CTRL.control_rate_hz, help="Closed-loop control (servo-bus) rate, Hz."),
     hold_x: bool = typer.Option(False, "--hold-x", help="Lock each swimmer's longitudinal position (lateral motion and rotation stay free)."),
+    heading_guide: bool = typer.Option(False, "--heading-guide", help="Remove the yaw recoil: a stiff actuator holds each swimmer's commanded head-to-tail chord along the channel (open-loop controller only; see Scene.heading_guide)."),
     out: Path = typer.Option(Path("run.nc"), "--out", "-o", help="Output netCDF file."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
 ) -> None:
@@ -98,10 +98,11 @@ def simulate(
             raise ParameterError("--coupling", "0 unless --controller phase-oscillator", coupling)
         try:
             scene = Scene(phases_rad=tuple(math.radians(p) for p in phases_deg), gait=gait, geometry=geometry,
-                          channel=channel, dx0_m=dx0, forces_N=forces, controller=ctl, hold_x=hold_x)
+                          channel=channel, dx0_m=dx0, forces_N=forces, controller=ctl, hold_x=hold_x,
+                          heading_guide=heading_guide)
         except ParameterError as e:
             raise _cli_name(e, {"channel width": "--channel-width (m)", "dx0_m": "--dx0 (m)",
-                                "phases_rad": "--phases (degrees)"}) from None
+                                "phases_rad": "--phases (degrees)", "heading_guide": "--heading-guide"}) from None
         try:
             options = SimOptions(duration_s=duration, timestep_s=timestep, sample_rate_hz=sample_rate)
         except ParameterError as e:
