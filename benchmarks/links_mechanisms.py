@@ -147,9 +147,11 @@ def attractor():
                   flush=True)
 
 
-def _free_shapes(n):
-    sc = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=_beta("equal-A", n)),
-               geometry=SwimmerGeometry(n_links=n, length_m=L_M), channel=Channel(width_m=0.5))
+def _free_shapes(n, beta=None, guide=False):
+    """One period of a free swimmer's node positions (400 samples): equal-A beta unless given;
+    ``guide``: ``Scene.heading_guide``."""
+    sc = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=_beta("equal-A", n) if beta is None else beta),
+               geometry=SwimmerGeometry(n_links=n, length_m=L_M), channel=Channel(width_m=0.5), heading_guide=guide)
     period = sc.gait.period_s
     ds = simulate(sc, SimOptions(duration_s=6 * period, timestep_s=timestep(n), sample_rate_hz=400 / period,
                                  record=("x", "node_x", "node_y")))
@@ -367,34 +369,28 @@ def held_force():
 # --- the cause: yaw recoil (Scene.heading_guide) and the wavelength along the channel ---------------------
 
 def _free_envelope(n, beta, guide):
-    """A free swimmer's lateral excursion (half range of y over the last period) at each node, m, and
+    """A free swimmer's lateral excursion (half range of y over one period) at each node, m, and
     its head-to-tail chord's swing, rad."""
-    sc = Scene(phases_rad=(0.0,), gait=Gait(amplitude_rad=beta), geometry=SwimmerGeometry(n_links=n, length_m=L_M),
-               channel=Channel(width_m=0.5), heading_guide=guide)
-    period = sc.gait.period_s
-    ds = simulate(sc, SimOptions(duration_s=6 * period, timestep_s=timestep(n), sample_rate_hz=400 / period,
-                                 record=("node_x", "node_y")))
-    nx, ny = ds["node_x"].values[-400:, 0], ds["node_y"].values[-400:, 0]
+    nx, ny = _free_shapes(n, beta, guide)
     chord = np.arctan2(ny[:, -1] - ny[:, 0], nx[:, -1] - nx[:, 0])
     return (ny.max(0) - ny.min(0)) / 2, (chord.max() - chord.min()) / 2
 
 
-def _guided_beta(n):
-    """beta at which the guided free swimmer's A is the 3-link free swimmer's (secant, as the sensitivity study)."""
-    target = float(lone_swimmer({}, 0)["amplitude_m"])
+class _LoneContext:
+    """What :func:`undulate.studies.sensitivity.equal_amplitude_beta` needs of a StudyContext: its
+    ``lone_swimmer`` (here uncached: :func:`undulate.studies._runners.lone_swimmer` run directly)."""
 
-    def amp(b):
-        return float(lone_swimmer({"amplitude_rad": b, "n_links": n, "heading_guide": True}, 0)["amplitude_m"])
-    b0 = math.radians(45.0) * 3 / n
-    a0 = amp(b0)
-    b1 = b0 * target / a0
-    a1 = amp(b1)
-    for _ in range(6):
-        if abs(a1 - target) <= 1e-4 or a1 == a0:
-            break
-        b0, a0, b1 = b1, a1, b1 + (target - a1) * (b1 - b0) / (a1 - a0)
-        a1 = amp(b1)
-    return b1, a1
+    @staticmethod
+    def lone_swimmer(**point):
+        return lone_swimmer(point, 0)
+
+
+def _guided_beta(n):
+    """beta at which the guided free swimmer's A is the 3-link free swimmer's: the sensitivity study's
+    own secant (``equal_amplitude_beta``)."""
+    from undulate.studies.sensitivity import equal_amplitude_beta
+
+    return equal_amplitude_beta(_LoneContext(), n, float(lone_swimmer({}, 0)["amplitude_m"]), heading_guide=True)
 
 
 def _recoil_free_run(args):

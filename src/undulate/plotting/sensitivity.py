@@ -51,8 +51,7 @@ def plot_sensitivity(ds, s: dict):
 
     # (c) equal-A rule
     cx = fig.add_subplot(gs[1, 1])
-    sets = s.get("links_sets") or ({"links": s["links_equal_A"] | {"label": "equal-A, lambda = L"}}
-                                   if s.get("links_equal_A") else {})
+    sets = s["links_sets"]
     for k, L in enumerate(sets.values()):
         r = L["rms_residual_over_lambda"]
         v = np.array([np.nan if q["value"] is None else q["value"] for q in r])
