@@ -603,11 +603,11 @@ class SimOptions(_Params):
     chunk_steps: int = 2000
     """Steps per call into ``mujoco.rollout`` (bounds memory)."""
     solver: str = "auto"
-    """Constraint solver: ``"auto"`` (Newton while MuJoCo uses a dense
-    Jacobian, i.e. fewer than 60 degrees of freedom; conjugate gradient for
-    larger scenes, where MuJoCo's sparse Newton path failed to converge in
-    jammed 50-swimmer packs and blew up while CG, at the same cost per step,
-    did not), ``"newton"``, ``"cg"`` or ``"pgs"``."""
+    """Constraint solver: ``"auto"`` (Newton at every scene size: with the
+    pinned MuJoCo 3.17.0 its sparse-Jacobian path, used from 60 degrees of
+    freedom, agrees with dense Newton on jammed 50-swimmer packs and is the
+    cheapest correct solver there; MuJoCo 4.0.0's is wrong, see
+    docs/contact.md), ``"newton"``, ``"cg"`` or ``"pgs"``."""
     integrator: str = "implicitfast"
     """``"implicitfast"`` (default: first order, implicit in the servo and
     contact damping) or ``"rk4"`` (fourth order, ~4x the cost).  The

@@ -110,8 +110,8 @@ def compile_scene(scene: Scene, options: SimOptions, *, push: bool | None = None
     cs.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
     m = cs.model
     solver = options.solver
-    if solver == "auto":
-        solver = "newton" if m.nv < 60 else "cg"  # 60: where MuJoCo's "auto" Jacobian turns sparse
+    if solver == "auto":  # Newton at any size: MuJoCo 3.17's sparse Newton is correct (docs/contact.md §5)
+        solver = "newton"
     m.opt.solver = {"newton": mujoco.mjtSolver.mjSOL_NEWTON, "cg": mujoco.mjtSolver.mjSOL_CG,
                     "pgs": mujoco.mjtSolver.mjSOL_PGS}[solver]
     cs.model.opt.integrator = {
