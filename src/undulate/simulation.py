@@ -6,9 +6,11 @@ and the perturbation forces), hands the chunk to ``rollout`` and decimates
 its output to the recording rate.  Chunks bound memory for long runs and
 large groups.
 
-Solver warm-starting is disabled, so every step depends on the state alone:
-results are bitwise independent of the chunk size and of batching, and equal
-to a plain ``mj_step`` loop (``tests/test_simulate.py``).
+The constraint solver is warm-started from the previous step's
+accelerations, as in a plain ``mj_step`` loop, and each scene's warm start is
+carried from one ``rollout`` call to the next (:class:`_Stepper`): results are
+bitwise independent of the chunk size and of batching, and equal to a plain
+``mj_step`` loop from a fresh ``MjData`` (``tests/test_simulation.py``).
 
 Recorded variables (dims; units in each variable's ``units`` attr):
 
@@ -107,7 +109,6 @@ def compile_scene(scene: Scene, options: SimOptions, *, push: bool | None = None
     options = resolve_options(scene, options)
     cs = build(scene, options.timestep_s, pair_sensors="contact_force_pair" in options.recorded, push=push,
                loads=loads)
-    cs.model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_WARMSTART)
     m = cs.model
     solver = options.solver
     if solver == "auto":  # Newton at any size: MuJoCo 3.17's sparse Newton is correct (docs/contact.md §5)
@@ -323,6 +324,58 @@ def _outs(out, nb: int) -> list[Path] | None:
     return paths
 
 
+class _Stepper:
+    """Rolls each scene out in C, its solver warm start carried across calls.
+
+    ``mujoco.rollout`` starts every call's constraint solver from
+    ``initial_warmstart`` (zero if not given), while ``mj_step`` starts each
+    step from the previous step's accelerations.  Passing each scene's last
+    ``qacc_warmstart`` on makes a run rolled out in pieces (chunks, control
+    periods) bitwise equal to one ``mj_step`` loop.  The warm start of a
+    scene is read from the ``MjData`` that stepped it, so every scene has its
+    own; ``nthread > 0`` steps the scenes of a batch on that many threads
+    (MuJoCo releases the GIL while it steps).
+    """
+
+    def __init__(self, models: Sequence[mujoco.MjModel], nthread: int = 0):
+        self.models = list(models)
+        self.datas = [mujoco.MjData(m) for m in self.models]
+        self.warm = np.zeros((len(self.models), self.models[0].nv))
+        self.pool = None
+        if nthread > 0 and len(self.models) > 1:
+            from concurrent.futures import ThreadPoolExecutor
+            self.pool = ThreadPoolExecutor(nthread)
+        self.runners = [_rollout.Rollout(nthread=0) for _ in (self.models if self.pool else self.models[:1])]
+        self.seconds = 0.0  # wall time inside rollout, s
+        self.steps = 0  # scene-steps taken
+
+    def _one(self, b: int, cur, u, st, sd, nstep: int) -> None:
+        self.runners[b if self.pool else 0].rollout(self.models[b], self.datas[b], cur[b:b + 1], u[b:b + 1], nstep=nstep,
+                            initial_warmstart=self.warm[b:b + 1], state=st[b:b + 1], sensordata=sd[b:b + 1])
+        self.warm[b] = self.datas[b].qacc_warmstart
+
+    def rollout(self, cur: np.ndarray, u: np.ndarray, st: np.ndarray, sd: np.ndarray, nstep: int):
+        """Step every scene ``nstep`` steps from ``cur`` under controls ``u``, into ``st``, ``sd``."""
+        t0 = time.perf_counter()
+        if self.pool is None:
+            for b in range(len(self.models)):
+                self._one(b, cur, u, st, sd, nstep)
+        else:
+            list(self.pool.map(lambda b: self._one(b, cur, u, st, sd, nstep), range(len(self.models))))
+        dt = time.perf_counter() - t0
+        self.seconds += dt
+        self.steps += len(self.models) * nstep
+        _PHYSICS["seconds"] += dt
+        _PHYSICS["steps"] += len(self.models) * nstep
+        return st, sd
+
+    def close(self) -> None:
+        for r in self.runners:
+            r.close()
+        if self.pool is not None:
+            self.pool.shutdown()
+
+
 def simulate_batch(
     scenes: Sequence[Scene],
     options: SimOptions | None = None,
@@ -333,8 +386,8 @@ def simulate_batch(
 ) -> list[xr.Dataset]:
     """Simulate several scenes of one structure together in one rollout.
 
-    ``nthread = 0`` steps them on the calling thread; ``> 0`` uses MuJoCo's
-    rollout thread pool.  Returns one Dataset per scene, identical to
+    ``nthread = 0`` steps them on the calling thread; ``> 0`` steps the
+    scenes on that many threads.  Returns one Dataset per scene, identical to
     :func:`simulate` on each scene alone.
 
     ``out``: one ``.nc`` path per scene (a single path for one scene) to
@@ -418,9 +471,7 @@ def simulate_batch(
         else:
             recorders[b].add(block, builders[b])
 
-    models = [c.model for c in compiled]
-    datas = [mujoco.MjData(m0) for _ in range(max(1, nthread))]
-    runner = _rollout.Rollout(nthread=nthread)
+    stepper = _Stepper([c.model for c in compiled], nthread)
     # MuJoCo's own warnings (printed and appended to ./MUJOCO_LOG.TXT by default) go to the
     # log instead while we step: a divergence is diagnosed below from the state itself.
     previous_handler = mujoco.get_mju_user_warning()
@@ -456,16 +507,12 @@ def simulate_batch(
             if ctl is None:
                 for b, cs in enumerate(compiled):
                     ctrl_buf[b] = controls(cs, t)
-                t_phys = time.perf_counter()
-                st, sd = runner.rollout(models if nb > 1 else models[0], datas, cur, ctrl_buf,
-                                        state=state_buf, sensordata=sens_buf)
-                _PHYSICS["seconds"] += time.perf_counter() - t_phys
-                _PHYSICS["steps"] += nb * k
+                st, sd = stepper.rollout(cur, ctrl_buf, state_buf, sens_buf, k)
                 cmd_rows = phase_rows = None
             else:
                 t_rows = np.round((done // sps + 1 + np.arange(ns)) * (sps * dt), 12)  # as emit() stamps them
                 st, sd, cmd_rows, phase_rows = _closed_loop_chunk(
-                    ctl, compiled, runner, models, datas, cur, last_sens, t, tick, rows, t_rows,
+                    ctl, compiled, stepper, cur, last_sens, t, tick, rows, t_rows,
                     state_buf, sens_buf, ctrl_buf, q0)
                 last_sens = sd[:, k - 1].copy()
             depth = depth_of(sd)
@@ -502,14 +549,14 @@ def simulate_batch(
         ok = True
         return results
     finally:
-        runner.close()
+        stepper.close()
         mujoco.set_mju_user_warning(previous_handler)
         if not ok and outs is not None:
             for r in recorders:
                 r.abort()
 
 
-def _closed_loop_chunk(ctl: Controller, compiled, runner, models, datas, cur, last_sens, t, tick, rows, t_rows,
+def _closed_loop_chunk(ctl: Controller, compiled, stepper: _Stepper, cur, last_sens, t, tick, rows, t_rows,
                        state_buf, sens_buf, ctrl_buf, q0):
     """Step one chunk a control period at a time: sense, command, roll out in C.
 
@@ -532,7 +579,6 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner, models, datas, cur, la
     if compiled[0].index.ctrl_push.size:
         for b, cs in enumerate(compiled):
             ctrl_buf[b] = controls(cs, t)
-    model = list(models)  # skip_checks: a list of models, one per scene
     pos_flat, vel_flat = pos_cols.ravel(), vel_cols.ravel()
     # the sensed joints: views of the current state and of the last step's sensors
     sens = last_sens
@@ -563,10 +609,7 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner, models, datas, cur, la
             tr = t_rows[sel]
             cmd_rows[sel] = ctl.commands(tr)[0]
             phase_rows[sel] = ctl.gait_phase(tr)
-        t_phys = time.perf_counter()
-        runner.rollout(model, datas, cur, u, state=st, sensordata=sd, skip_checks=True, nstep=n_t)
-        _PHYSICS["seconds"] += time.perf_counter() - t_phys
-        _PHYSICS["steps"] += nb * n_t
+        stepper.rollout(cur, u, st, sd, n_t)
         if not one:
             ctrl_buf[:, a:e], state_buf[:, a:e], sens_buf[:, a:e] = u, st, sd
         cur[:] = st[:, -1]
