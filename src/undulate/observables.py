@@ -28,6 +28,7 @@ __all__ = [
     "contact_impulse",
     "mean_contact_force",
     "wrap_angle",
+    "middle_link_pose",
 ]
 
 
@@ -260,3 +261,20 @@ def mean_contact_force(ds: xr.Dataset, t_from: float = 0.0, t_to: float | None =
     for v in out.data_vars.values():
         v.attrs = {"units": "N"}
     return out
+
+
+def middle_link_pose(ds) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centre and heading of every swimmer's middle link ``N // 2`` (head = link 0;
+    for even N the first link behind the middle joint) from a run's centre-line
+    nodes: ``x, y`` (m) and ``heading`` (rad, head -> tail direction from +x,
+    unwrapped over time), each (time, swimmer).
+
+    The robots carry their tag on this link
+    (:func:`undulate.track.calibration.robot_tag_link`) and the tracker measures
+    its centre, so experiment and simulation are compared at the same body point.
+    """
+    nx, ny = np.asarray(ds["node_x"].values, float), np.asarray(ds["node_y"].values, float)
+    k = (nx.shape[-1] - 1) // 2
+    x0, y0, x1, y1 = nx[..., k], ny[..., k], nx[..., k + 1], ny[..., k + 1]
+    heading = np.unwrap(np.arctan2(y1 - y0, x1 - x0), axis=0)
+    return 0.5 * (x0 + x1), 0.5 * (y0 + y1), heading

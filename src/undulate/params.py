@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from . import schema as _schema
 from .errors import ParameterError
 
 __all__ = [
@@ -616,14 +617,13 @@ class SimOptions(_Params):
     it (tests/test_simulate.py)."""
 
     record: tuple[str, ...] | None = None
-    """Variables to record (names of :data:`undulate.simulation.RECORDABLE`), or
+    """Variables to record (names of :data:`undulate.schema.RECORDABLE`), or
     None for all.  Recording fewer saves memory and file size; without
     ``"contact_force_pair"`` the swimmer-swimmer contact sensors are not built
     at all (each scans every contact every step)."""
 
     MAX_TIMESTEP_S = 0.004
-    RECORDABLE = ("x", "y", "heading", "node_x", "node_y", "joint_angle", "joint_command", "joint_error",
-                  "contact_force_pair", "contact_force_wall", "penetration", "gait_phase")
+    RECORDABLE = _schema.RECORDABLE
 
     @property
     def recorded(self) -> tuple[str, ...]:

@@ -3,7 +3,7 @@
 Ground truth for the tracker (:func:`undulate.track.track_video`): a run's
 bodies are drawn from above on a textured table with the four fixed
 calibration tags and, on every middle link, its robot tag at the link's true
-pose (:func:`~undulate.track.calibration.middle_link_pose`); a pinhole camera
+pose (:func:`~undulate.observables.middle_link_pose`); a pinhole camera
 with lens distortion films the table plane, then blur, uneven lighting,
 sensor noise and H.264 compression degrade the frames.  Frames can be dropped
 (the video then has gaps in its timestamps) and tags occluded by a passing
@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from .calibration import DICTIONARY, FIXED_IDS, TrackCalibration, middle_link_pose
+from ..observables import middle_link_pose
+from .calibration import DICTIONARY, FIXED_IDS, TrackCalibration
 
 __all__ = ["CameraSetup", "Degradation", "Occluder", "DEGRADATIONS", "render_video", "plane_homography"]
 

@@ -276,7 +276,7 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
     if scene is not None:
         if scene.n_swimmers != n:
             raise ParameterError("--phases", f"{n} values, one per robot (--robots {n})", len(scene.phases_rad))
-        from ..simulation import scene_attrs
+        from ..schema import scene_attrs
 
         g = scene.geometry
         attrs.update({
