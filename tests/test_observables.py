@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
@@ -13,7 +12,6 @@ from undulate.observables import (
     neighbour_offsets,
     period_average,
     steady_state,
-    wrap_angle,
 )
 
 
@@ -47,10 +45,6 @@ def test_neighbours_follow_lateral_order_even_after_a_swap():
     np.testing.assert_allclose(after["dx"].values, [-0.1, 0.3])
     np.testing.assert_allclose(after["dphi"].values, [-1.0, 2.5])
     np.testing.assert_allclose(after["dy"].values, [0.02, 0.02])
-
-
-def test_wrap_angle_half_open_at_plus_pi():
-    np.testing.assert_allclose(wrap_angle([math.pi, -math.pi, 3 * math.pi, 0.5]), [math.pi, math.pi, math.pi, 0.5])
 
 
 def test_period_average_of_a_sinusoid_plus_ramp_is_the_ramp_at_mid_period():

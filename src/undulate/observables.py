@@ -32,9 +32,10 @@ __all__ = [
 ]
 
 
-def wrap_angle(a):
-    """Wrap angles (rad) into (-pi, pi] (so a phase difference of pi reads +pi)."""
-    return -wrap_phase(-np.asarray(a, dtype=float))
+wrap_angle = wrap_phase
+"""Wrap angles (rad) into (-pi, pi] (a phase difference of pi reads +pi):
+:func:`undulate.theory.wrap_phase`, the package's one convention, under the name
+the observables have always used."""
 
 
 def _running_mean(a: np.ndarray, n: int) -> np.ndarray:
