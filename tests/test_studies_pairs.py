@@ -9,7 +9,6 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from undulate.observables import neighbour_offsets
 from undulate.studies import names, run_study
 from undulate.studies import _analysis as C
 from undulate.studies._analysis import group_records
@@ -140,32 +139,15 @@ def _swap_dataset():
     return ds
 
 
-def test_neighbours_by_lateral_order_after_swap():
+def test_group_records_follow_the_final_lateral_order_after_a_swap():
+    # the lateral order itself (sample by sample and at the end): tests/test_observables.py
     ds = _swap_dataset()
-    off = neighbour_offsets(ds)
-    # before the swap: (0, 1), (1, 2); after: (1, 0), (0, 2)
-    assert off["lower"].values[0].tolist() == [0, 1] and off["upper"].values[0].tolist() == [1, 2]
-    assert off["lower"].values[-1].tolist() == [1, 0] and off["upper"].values[-1].tolist() == [0, 2]
-    np.testing.assert_allclose(off["dx"].values[-1], [0.10 - (-0.02), 0.30 - 0.10])
-
-    pairs, stable = C.final_neighbours(ds)
-    assert pairs == [(1, 0), (0, 2)] and stable
     recs = group_records(ds, amplitude_m=0.05)
     assert [(r["lower"], r["upper"]) for r in recs] == [(1, 0), (0, 2)]
     assert all(r["order_changed"] for r in recs)
     np.testing.assert_allclose([r["dx_steady"] for r in recs], [0.12, 0.20])
     np.testing.assert_allclose([r["dphi"] for r in recs], [-1.0, 3.0])
     assert all(r["steady"] for r in recs)
-
-
-def test_final_neighbours_ignore_flips_within_a_cycle():
-    """Centres that cross every cycle (interdigitating bodies) keep the order of their mean y."""
-    ds = _swap_dataset().isel(swimmer=[0, 2])
-    t = ds["time"].values
-    y = np.stack([0.004 * np.sin(2 * np.pi * t / 2.0), 0.003 + 0.004 * np.sin(2 * np.pi * t / 2.0 + np.pi)], 1)
-    ds = ds.assign(y=(("time", "swimmer"), y))
-    pairs, _ = C.final_neighbours(ds)
-    assert pairs == [(0, 1)]
 
 
 def test_slope_fit_unwraps_the_pi_ends():

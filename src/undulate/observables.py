@@ -18,6 +18,7 @@ import xarray as xr
 from .theory import wrap_phase
 
 __all__ = [
+    "lateral_ranks",
     "lateral_order",
     "neighbour_offsets",
     "dx_over_wavelength",
@@ -51,6 +52,18 @@ def _running_mean(a: np.ndarray, n: int) -> np.ndarray:
     return (c[hi] - c[lo]) / (hi - lo)[:, None]
 
 
+def lateral_ranks(y) -> np.ndarray:
+    """Swimmer ids from the lowest to the highest ``y`` along the last axis (ties keep id order).
+
+    The package's one rule for lateral neighbours: ranks ``r`` and ``r + 1`` are
+    neighbours, ``r`` the lower.  What ``y`` is averaged over before ranking is the
+    caller's: one gait period around each sample (:func:`lateral_order`) or the
+    steady-state window at the end of a run
+    (:func:`undulate.studies._analysis.final_neighbours`).
+    """
+    return np.argsort(np.asarray(y), axis=-1, kind="stable")
+
+
 def lateral_order(ds: xr.Dataset, window_s: float | None = None) -> xr.DataArray:
     """Swimmer ids sorted by lateral position at each sample: (time, rank).
 
@@ -68,7 +81,7 @@ def lateral_order(ds: xr.Dataset, window_s: float | None = None) -> xr.DataArray
     t = ds["time"].values
     dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
     n = max(1, int(round(window_s / dt)))
-    order = np.argsort(_running_mean(y, n), axis=1, kind="stable")
+    order = lateral_ranks(_running_mean(y, n))
     return xr.DataArray(order, dims=("time", "rank"), coords={"time": ds["time"]},
                         attrs={"long_name": "swimmer id at lateral rank (0 = lowest y)",
                                "window_s": window_s})
