@@ -244,7 +244,7 @@ class Servo(_Params):
     The defaults model a Dynamixel AX-12A (stall torque 1.5 N m), whose
     firmware runs proportional control with no integral term (``ki = 0``);
     ``kp`` is stiff enough that an unobstructed joint tracks the gait closely
-    (RMS error measured in tests/test_simulate.py).
+    (RMS error measured in tests/test_simulation.py).
     """
 
     kp_Nm_per_rad: float = 10.0
@@ -614,7 +614,7 @@ class SimOptions(_Params):
     contact damping) or ``"rk4"`` (fourth order, ~4x the cost).  The
     first-order scheme makes a lone swimmer's centre of mass creep by
     O(dt) (0.3 mm/s at dt = 2 ms, i.e. 0.1 % of L per period); RK4 removes
-    it (tests/test_simulate.py)."""
+    it (tests/test_simulation.py)."""
 
     record: tuple[str, ...] | None = None
     """Variables to record (names of :data:`undulate.schema.RECORDABLE`), or

@@ -8,7 +8,7 @@ large groups.
 
 Solver warm-starting is disabled, so every step depends on the state alone:
 results are bitwise independent of the chunk size and of batching, and equal
-to a plain ``mj_step`` loop (``tests/test_simulate.py``).
+to a plain ``mj_step`` loop (``tests/test_simulation.py``).
 
 Recorded variables: :mod:`undulate.schema` (names, dims, units, long
 names; shared with the robot logger and the tracker).
