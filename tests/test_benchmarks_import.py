@@ -1,6 +1,6 @@
-"""The benchmark scripts are not run by the test suite (timings are never asserted),
-so a renamed function would break them silently: every ``undulate`` name they
-import, at top level or inside a function, must exist."""
+"""The benchmark and exploration scripts are not run by the test suite (timings and
+findings are never asserted), so a renamed function would break them silently:
+every ``undulate`` name they import, at top level or inside a function, must exist."""
 
 from __future__ import annotations
 
@@ -10,8 +10,10 @@ from pathlib import Path
 
 import pytest
 
-BENCH = Path(__file__).resolve().parents[1] / "benchmarks"
-SCRIPTS = sorted(BENCH.glob("*.py"))
+ROOT = Path(__file__).resolve().parents[1]
+BENCH = ROOT / "benchmarks"
+EXPLORE = ROOT / "explorations"
+SCRIPTS = sorted(BENCH.glob("*.py")) + sorted(EXPLORE.glob("*.py"))
 
 
 def _undulate_imports(path: Path):
@@ -25,11 +27,22 @@ def _undulate_imports(path: Path):
                     yield node.lineno, alias.name, None
 
 
-def test_there_are_benchmarks():
-    assert len(SCRIPTS) >= 5
+def test_there_are_benchmarks_and_explorations():
+    assert len(list(BENCH.glob("*.py"))) >= 5
+    assert len(list(EXPLORE.glob("*.py"))) >= 6
 
 
-@pytest.mark.parametrize("script", SCRIPTS, ids=[p.name for p in SCRIPTS])
+def test_benchmarks_holds_only_benchmarks():
+    """``benchmarks/`` times workloads (``bench_*.py``); investigations live in ``explorations/``."""
+    assert sorted(p.name for p in BENCH.glob("*.py") if not p.name.startswith("bench_")) == []
+
+
+def test_the_explorations_readme_lists_every_script():
+    readme = (EXPLORE / "README.md").read_text(encoding="utf-8")
+    assert [p.name for p in sorted(EXPLORE.glob("*.py")) if f"`{p.name}`" not in readme] == []
+
+
+@pytest.mark.parametrize("script", SCRIPTS, ids=[f"{p.parent.name}/{p.name}" for p in SCRIPTS])
 def test_every_undulate_name_a_benchmark_imports_exists(script):
     missing = []
     for line, module, name in _undulate_imports(script):
@@ -43,4 +56,4 @@ def test_every_undulate_name_a_benchmark_imports_exists(script):
                 importlib.import_module(f"{module}.{name}")
             except ImportError:
                 missing.append(f"{script.name}:{line}: {module}.{name}")
-    assert not missing, "benchmarks import names that no longer exist: " + "; ".join(missing)
+    assert not missing, "scripts import names that no longer exist: " + "; ".join(missing)

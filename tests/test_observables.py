@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import math
 
 import numpy as np
 import pytest
@@ -10,11 +9,12 @@ import xarray as xr
 
 from undulate.observables import (
     contact_impulse,
+    lateral_order,
     neighbour_offsets,
     period_average,
     steady_state,
-    wrap_angle,
 )
+from undulate.studies._analysis import final_neighbours
 
 
 def synthetic(x, y, phases, dt=0.1, forces=None):
@@ -34,10 +34,12 @@ def synthetic(x, y, phases, dt=0.1, forces=None):
 
 
 def test_neighbours_follow_lateral_order_even_after_a_swap():
-    T = 40
+    """One rule (lateral_ranks), two windows: sample by sample (neighbour_offsets) and at the end
+    of a run (final_neighbours): both follow swimmers 0 and 1 swapping lateral places for good."""
+    T = 300  # 30 s at 0.1 s, 15 gait periods; the swap at 10 s
     x = np.tile([0.0, 0.1, 0.3], (T, 1))
     y = np.tile([-0.02, 0.0, 0.02], (T, 1))
-    y[T // 2:, 0], y[T // 2:, 1] = 0.0, -0.02  # swimmers 0 and 1 swap lateral places mid-way
+    y[T // 3:, 0], y[T // 3:, 1] = 0.0, -0.02  # swimmers 0 and 1 swap lateral places at 10 s
     ds = synthetic(x, y, phases=[0.0, 1.0, 2.5])
     off = neighbour_offsets(ds)
     before, after = off.isel(time=0), off.isel(time=-1)
@@ -47,10 +49,13 @@ def test_neighbours_follow_lateral_order_even_after_a_swap():
     np.testing.assert_allclose(after["dx"].values, [-0.1, 0.3])
     np.testing.assert_allclose(after["dphi"].values, [-1.0, 2.5])
     np.testing.assert_allclose(after["dy"].values, [0.02, 0.02])
-
-
-def test_wrap_angle_half_open_at_plus_pi():
-    np.testing.assert_allclose(wrap_angle([math.pi, -math.pi, 3 * math.pi, 0.5]), [math.pi, math.pi, math.pi, 0.5])
+    pairs, stable = final_neighbours(ds)
+    assert pairs == [(1, 0), (0, 2)] and stable
+    assert lateral_order(ds).values[-1].tolist() == [1, 0, 2]
+    # still changing places inside the steady window: the final order is flagged unstable
+    late = y.copy()
+    late[-45:, 0], late[-45:, 1] = -0.02, 0.0  # back again 4.5 s before the end
+    assert final_neighbours(synthetic(x, late, phases=[0.0, 1.0, 2.5]))[1] is False
 
 
 def test_period_average_of_a_sinusoid_plus_ramp_is_the_ramp_at_mid_period():
@@ -98,3 +103,5 @@ def test_interleaving_centres_within_a_cycle_keep_their_lateral_order():
     np.testing.assert_allclose(off["dx"].values, 0.1)
     # instantaneous ordering flickers, as documented
     assert set(neighbour_offsets(ds, window_s=0)["lower"].values[:, 0]) == {0, 1}
+    # the end-of-run order ranks the same bodies by their mean y over the steady window
+    assert final_neighbours(ds) == ([(0, 1)], True)

@@ -20,6 +20,49 @@ def test_compatibility_is_registered_theory_only():
     assert str(info).startswith(info.description) and "theory only" in str(info)
 
 
+def test_studies_come_in_the_papers_order():
+    """The order of ``undulate studies``, the reproduction and the report: paper figures
+    3-10, then the Methods, the studies beyond the paper, and last the explanations."""
+    assert studies.names() == ["pairs", "compatibility", "links", "groups", "packing", "basins", "confinement",
+                               "potential", "swimming", "synchronization-pairs", "synchronization-groups",
+                               "sensitivity"]
+
+
+def test_every_study_module_registers_itself():
+    import pkgutil
+
+    modules = {m.name for m in pkgutil.iter_modules(studies.__path__) if not m.name.startswith("_")}
+    registered = {studies.describe(n).module.rsplit(".", 1)[-1] for n in studies.names()}
+    assert modules == registered
+    assert not hasattr(_registry, "STUDY_MODULES")  # no list to edit
+
+
+def test_adding_a_module_is_the_only_step(tmp_path, monkeypatch):
+    (tmp_path / "zz_extra.py").write_text(
+        "from undulate.studies import Study, register\n"
+        "register(Study(name='zz-late', description='t', needs_simulation=False, plan=lambda q: None,\n"
+        "               dataset=lambda c, p: None, summary=lambda ds: {}, figure=lambda ds: None))\n"
+        "register(Study(name='zz-early', description='t', needs_simulation=False, plan=lambda q: None,\n"
+        "               dataset=lambda c, p: None, summary=lambda ds: {}, figure=lambda ds: None, order=4.5))\n"
+        "register(Study(name='zz-fig', description='t', needs_simulation=False, plan=lambda q: None,\n"
+        "               dataset=lambda c, p: None, summary=lambda ds: {}, figure=lambda ds: None,\n"
+        "               paper_figure='8'))\n")
+    import sys
+
+    monkeypatch.setattr(studies, "__path__", [*studies.__path__, str(tmp_path)])
+    monkeypatch.setattr(_registry, "_loaded", False)
+    try:
+        names = studies.names()
+        assert studies.describe("zz-late").module == "undulate.studies.zz_extra"
+        assert names.index("compatibility") < names.index("zz-early") < names.index("links")  # explicit order
+        assert names.index("basins") < names.index("zz-fig") < names.index("confinement")  # figure 8, after basins
+        assert names.index("synchronization-groups") < names.index("zz-late") < names.index("sensitivity")
+    finally:
+        for name in ("zz-late", "zz-early", "zz-fig"):
+            _registry._REGISTRY.pop(name, None)
+        sys.modules.pop("undulate.studies.zz_extra", None)
+
+
 def test_unknown_study_names_the_known_ones(tmp_path):
     with pytest.raises(ParameterError, match="compatibility") as err:
         studies.run_study("no-such-study", tmp_path)

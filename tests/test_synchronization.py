@@ -40,7 +40,8 @@ def test_group_runner_reports_order_parameter_and_final_configuration():
     ds = group_run({"controller": "self-oscillating", "n_swimmers": 3, "spacing_m": 0.065}, 7, duration_s=20.0)
     r = ds["R"].values
     assert np.all((r >= 0) & (r <= 1 + 1e-12))
-    assert 0 <= float(ds["R_final"]) <= 1 and float(ds["compat_rms"]) >= 0
+    assert 0 <= float(ds["R_final"]) <= 1
+    assert 0 <= float(ds["compat_rms"]) <= 0.5  # residuals from the nearest branch lie within half a wavelength
     assert int(ds["phase_locked"]) in (0, 1)
     for v in ds.data_vars:
         assert "units" in ds[v].attrs, v

@@ -360,3 +360,29 @@ def test_invalid_geometry_is_refused():
         theory.phase_mismatch(0.0, 0.0, -1.0)
     with pytest.raises(ParameterError, match="amplitude_m"):
         theory.min_lateral_separation(0.0, 0.0, np.inf, 1.0)
+
+
+# ------------------------------------------------------------------ wrapping
+def test_one_wrapping_convention_half_open_at_plus_pi():
+    from undulate.observables import wrap_angle
+
+    assert wrap_angle is theory.wrap_phase  # one implementation under both names
+    np.testing.assert_array_equal(theory.wrap_phase([np.pi, -np.pi, 3 * np.pi, -5 * np.pi, 0.5, -0.5]),
+                                  [np.pi, np.pi, np.pi, np.pi, 0.5, -0.5])
+    a = np.random.default_rng(3).uniform(-30, 30, 10_000)
+    w = theory.wrap_phase(a)
+    assert ((w > -np.pi) & (w <= np.pi)).all()
+    np.testing.assert_allclose(np.cos(w - a), 1.0, atol=1e-12)  # the same angle
+    # a configuration half a wave off the line reads psi = +pi, as dphi = pi does
+    assert theory.phase_mismatch(-np.pi, 0.0, 1.0) == np.pi
+    assert theory.phase_mismatch(0.0, 0.5, 1.0) == np.pi
+
+
+def test_wrapping_keeps_the_observables_values_bit_for_bit():
+    """The observables wrapped with -((-a + pi) mod 2 pi - pi) before the two conventions
+    became one; dphi, phases and every result built on them are unchanged."""
+    a = np.concatenate([np.random.default_rng(4).uniform(-20, 20, 10_000), np.arange(-16, 17) * np.pi / 8])
+    before = -((-a + np.pi) % TWO_PI - np.pi)
+    np.testing.assert_array_equal(theory.wrap_phase(a), before)
+    assert np.signbit(theory.wrap_phase(0.0)) == np.signbit(before[a == 0.0][0])
+

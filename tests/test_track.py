@@ -28,7 +28,8 @@ from undulate import Channel, Scene, SimOptions, simulate  # noqa: E402
 from undulate.cli import main  # noqa: E402
 from undulate.compare import experiment_offsets, steady_offset  # noqa: E402
 from undulate.params import SwimmerGeometry  # noqa: E402
-from undulate.track import TrackCalibration, middle_link_pose  # noqa: E402
+from undulate.observables import middle_link_pose  # noqa: E402
+from undulate.track import TrackCalibration  # noqa: E402
 from undulate.track.render import DEGRADATIONS, CameraSetup, Occluder, render_video  # noqa: E402
 
 ROBOT_WIDTH_M = 0.04  # an AX-12A robot's link: a 30 mm tag on a 40 mm white plate fits on it

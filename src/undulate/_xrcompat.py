@@ -21,7 +21,7 @@ answer "not a Dask array" is exact.  :func:`install`
   scheduler set.  It matters only for Dask-chunked data (which imports Dask
   first) and for the kind of lock around a write of NumPy data in this one
   process, which any lock serves.  Behaviour with Dask arrays is unchanged
-(``tests/test_xrcompat.py``).  If xarray's internals differ from what this
+(``tests/test_dask.py``).  If xarray's internals differ from what this
 expects, nothing is installed (only the speed-up is lost).
 """
 

@@ -7,7 +7,7 @@ channel): given on the ``undulate track`` command line or taken from the
 robot log (``--gait-from``).  :func:`matching_simulation` runs that scene
 from straight bodies at gait time 0 with the experiment's first measured
 longitudinal offsets and records the same body point the tracker measures,
-the centre of the middle link (:func:`undulate.track.calibration.middle_link_pose`),
+the centre of the middle link (:func:`undulate.observables.middle_link_pose`),
 so both are compared like with like.
 
 Steady offsets: the experiment's and simulation's ``dx / lambda`` of each
@@ -87,7 +87,7 @@ def matching_simulation(exp, *, out: str | os.PathLike | None = None):
     """
     from .params import SimOptions
     from .simulation import simulate
-    from .track.calibration import middle_link_pose
+    from .observables import middle_link_pose
 
     scene = _scene(exp)
     tracked = exp["tracked"].values

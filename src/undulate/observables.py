@@ -18,6 +18,7 @@ import xarray as xr
 from .theory import wrap_phase
 
 __all__ = [
+    "lateral_ranks",
     "lateral_order",
     "neighbour_offsets",
     "dx_over_wavelength",
@@ -28,12 +29,14 @@ __all__ = [
     "contact_impulse",
     "mean_contact_force",
     "wrap_angle",
+    "middle_link_pose",
 ]
 
 
-def wrap_angle(a):
-    """Wrap angles (rad) into (-pi, pi] (so a phase difference of pi reads +pi)."""
-    return -wrap_phase(-np.asarray(a, dtype=float))
+wrap_angle = wrap_phase
+"""Wrap angles (rad) into (-pi, pi] (a phase difference of pi reads +pi):
+:func:`undulate.theory.wrap_phase`, the package's one convention, under the name
+the observables have always used."""
 
 
 def _running_mean(a: np.ndarray, n: int) -> np.ndarray:
@@ -47,6 +50,18 @@ def _running_mean(a: np.ndarray, n: int) -> np.ndarray:
     lo = np.clip(i - n // 2, 0, a.shape[0] - n)
     hi = lo + n
     return (c[hi] - c[lo]) / (hi - lo)[:, None]
+
+
+def lateral_ranks(y) -> np.ndarray:
+    """Swimmer ids from the lowest to the highest ``y`` along the last axis (ties keep id order).
+
+    The package's one rule for lateral neighbours: ranks ``r`` and ``r + 1`` are
+    neighbours, ``r`` the lower.  What ``y`` is averaged over before ranking is the
+    caller's: one gait period around each sample (:func:`lateral_order`) or the
+    steady-state window at the end of a run
+    (:func:`undulate.studies._analysis.final_neighbours`).
+    """
+    return np.argsort(np.asarray(y), axis=-1, kind="stable")
 
 
 def lateral_order(ds: xr.Dataset, window_s: float | None = None) -> xr.DataArray:
@@ -66,7 +81,7 @@ def lateral_order(ds: xr.Dataset, window_s: float | None = None) -> xr.DataArray
     t = ds["time"].values
     dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
     n = max(1, int(round(window_s / dt)))
-    order = np.argsort(_running_mean(y, n), axis=1, kind="stable")
+    order = lateral_ranks(_running_mean(y, n))
     return xr.DataArray(order, dims=("time", "rank"), coords={"time": ds["time"]},
                         attrs={"long_name": "swimmer id at lateral rank (0 = lowest y)",
                                "window_s": window_s})
@@ -260,3 +275,20 @@ def mean_contact_force(ds: xr.Dataset, t_from: float = 0.0, t_to: float | None =
     for v in out.data_vars.values():
         v.attrs = {"units": "N"}
     return out
+
+
+def middle_link_pose(ds) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Centre and heading of every swimmer's middle link ``N // 2`` (head = link 0;
+    for even N the first link behind the middle joint) from a run's centre-line
+    nodes: ``x, y`` (m) and ``heading`` (rad, head -> tail direction from +x,
+    unwrapped over time), each (time, swimmer).
+
+    The robots carry their tag on this link
+    (:func:`undulate.track.calibration.robot_tag_link`) and the tracker measures
+    its centre, so experiment and simulation are compared at the same body point.
+    """
+    nx, ny = np.asarray(ds["node_x"].values, float), np.asarray(ds["node_y"].values, float)
+    k = (nx.shape[-1] - 1) // 2
+    x0, y0, x1, y1 = nx[..., k], ny[..., k], nx[..., k + 1], ny[..., k + 1]
+    heading = np.unwrap(np.arctan2(y1 - y0, x1 - x0), axis=0)
+    return 0.5 * (x0 + x1), 0.5 * (y0 + y1), heading

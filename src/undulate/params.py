@@ -27,6 +27,7 @@ from typing import Any
 
 import numpy as np
 
+from . import schema as _schema
 from .errors import ParameterError
 
 __all__ = [
@@ -243,7 +244,7 @@ class Servo(_Params):
     The defaults model a Dynamixel AX-12A (stall torque 1.5 N m), whose
     firmware runs proportional control with no integral term (``ki = 0``);
     ``kp`` is stiff enough that an unobstructed joint tracks the gait closely
-    (RMS error measured in tests/test_simulate.py).
+    (RMS error measured in tests/test_simulation.py).
     """
 
     kp_Nm_per_rad: float = 10.0
@@ -613,17 +614,16 @@ class SimOptions(_Params):
     contact damping) or ``"rk4"`` (fourth order, ~4x the cost).  The
     first-order scheme makes a lone swimmer's centre of mass creep by
     O(dt) (0.3 mm/s at dt = 2 ms, i.e. 0.1 % of L per period); RK4 removes
-    it (tests/test_simulate.py)."""
+    it (tests/test_simulation.py)."""
 
     record: tuple[str, ...] | None = None
-    """Variables to record (names of :data:`undulate.simulation.RECORDABLE`), or
+    """Variables to record (names of :data:`undulate.schema.RECORDABLE`), or
     None for all.  Recording fewer saves memory and file size; without
     ``"contact_force_pair"`` the swimmer-swimmer contact sensors are not built
     at all (each scans every contact every step)."""
 
     MAX_TIMESTEP_S = 0.004
-    RECORDABLE = ("x", "y", "heading", "node_x", "node_y", "joint_angle", "joint_command", "joint_error",
-                  "contact_force_pair", "contact_force_wall", "penetration", "gait_phase")
+    RECORDABLE = _schema.RECORDABLE
 
     @property
     def recorded(self) -> tuple[str, ...]:

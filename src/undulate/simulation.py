@@ -12,24 +12,8 @@ carried from one ``rollout`` call to the next (:class:`_Stepper`): results are
 bitwise independent of the chunk size and of batching, and equal to a plain
 ``mj_step`` loop from a fresh ``MjData`` (``tests/test_simulation.py``).
 
-Recorded variables (dims; units in each variable's ``units`` attr):
-
-=====================  ==========================  =================================
-``x``, ``y``           time, swimmer               centre of mass, m
-``heading``            time, swimmer               mean link orientation relative to
-                                                   the start (head toward -x), rad
-``node_x``, ``node_y`` time, swimmer, node          centre-line nodes head..tail, m
-``joint_angle``        time, swimmer, joint        alpha, rad
-``joint_command``      time, swimmer, joint        alpha_cmd, rad
-``joint_error``        time, swimmer, joint        abs(alpha - alpha_cmd), rad
-``contact_force_pair`` time, pair                  net swimmer-swimmer contact force
-                                                   between swimmers p and p+1
-                                                   (mean magnitude over the sample
-                                                   interval), N
-``contact_force_wall`` time, wall                  same for all swimmers on each wall, N
-``penetration``        time                        deepest interpenetration over the
-                                                   sample interval, m
-=====================  ==========================  =================================
+Recorded variables: :mod:`undulate.schema` (names, dims, units, long
+names; shared with the robot logger and the tracker).
 
 Forces are interval means: ``sum(F * sample_interval)`` is the exact
 time-integral over the run (every step contributes).
@@ -55,6 +39,7 @@ from mujoco import rollout as _rollout
 from .errors import DivergenceError, ParameterError
 from .params import Scene, SimOptions
 from .control import Controller, make_controller
+from .schema import scene_attrs, variable  # noqa: F401  (scene_attrs: importable from here as before)
 from .scene import CompiledScene, auto_timestep, build, root_link, root_offset_m, servo_damping_rate_per_s, snap_timestep
 from ._xrcompat import install as _lazy_dask
 
@@ -686,43 +671,6 @@ def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record, cm
     return {k: v for k, v in out.items() if k == "time" or k in record}
 
 
-def scene_attrs(scene: Scene) -> dict:
-    """The scene's lengths and period as dataset attributes (SI, ``*_units`` beside them):
-    ``wavelength`` (``inf`` for a standing wave), ``body_length``, ``link_width``,
-    ``channel_width``, ``period``; one block for simulated, robot and tracked datasets."""
-    g = scene.geometry
-    return {
-        "wavelength": scene.wavelength_m if math.isfinite(scene.wavelength_m) else np.inf,
-        "wavelength_units": "m",
-        "body_length": g.length_m,
-        "body_length_units": "m",
-        "link_width": g.width_m,
-        "link_width_units": "m",
-        "channel_width": scene.channel.width_m,
-        "channel_width_units": "m",
-        "period": scene.gait.period_s,
-        "period_units": "s",
-    }
-
-
-_VAR_META = {
-    "x": (("time", "swimmer"), "m", "centre of mass x"),
-    "y": (("time", "swimmer"), "m", "centre of mass y"),
-    "heading": (("time", "swimmer"), "rad", "mean link orientation relative to the start (0: head toward -x)"),
-    "node_x": (("time", "swimmer", "node"), "m", "centre-line node x, head to tail"),
-    "node_y": (("time", "swimmer", "node"), "m", "centre-line node y, head to tail"),
-    "joint_angle": (("time", "swimmer", "joint"), "rad", "joint angle alpha"),
-    "joint_command": (("time", "swimmer", "joint"), "rad", "commanded joint angle"),
-    "joint_error": (("time", "swimmer", "joint"), "rad", "joint error |alpha - alpha_cmd|"),
-    "contact_force_pair": (("time", "pair"), "N",
-                           "net contact force between swimmers pair and pair+1, interval mean"),
-    "contact_force_wall": (("time", "wall"), "N", "net contact force of all swimmers on each wall, interval mean"),
-    "penetration": (("time",), "m", "deepest interpenetration over the interval"),
-    "gait_phase": (("time", "swimmer"), "rad",
-                   "gait phase psi, unwrapped: joint set-points beta sin(2 pi xi i / N - psi); open loop psi = 2 pi f t - phi"),
-}
-
-
 def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=RECORDABLE,
                 timestep_auto: bool = False, control_rate_hz: float | None = None,
                 controller_kind: str | None = None) -> xr.Dataset:
@@ -733,13 +681,9 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=R
     n, nj = sc.n_swimmers, g.n_links - 1
     sps = options.steps_per_sample
 
-    def var(name):
-        dims, units, long_name = _VAR_META[name]
-        return xr.Variable(dims, block[name], attrs={"units": units, "long_name": long_name})
-
     config = {"scene": sc.to_dict(), "options": options.to_dict(), "timestep_auto": timestep_auto}
     ds = xr.Dataset(
-        {name: var(name) for name in RECORDABLE if name in record},
+        {name: variable(name, block[name]) for name in RECORDABLE if name in record},
         coords={
             "time": ("time", block["time"], {"units": "s", "long_name": "time"}),
             "swimmer": ("swimmer", np.arange(n)),

@@ -17,7 +17,7 @@ and ``b`` (upper y)::
 (paper Eqs. (sin1), (sin2)).  Everything below depends on the configuration
 only through the **phase mismatch**
 
-    psi = wrap(dphi - k dx)  in [-pi, pi)
+    psi = wrap(dphi - k dx)  in (-pi, pi]   (:func:`wrap_phase`)
 
 because ``y_b - y_a = dy + 2 A sin(psi / 2) cos(theta + psi / 2)`` with
 ``theta = k x - omega t + phi_a``.  Hence the smallest gap between the two
@@ -89,12 +89,23 @@ def _wavenumber(wavelength_m) -> np.ndarray:
 
 # -------------------------------------------------------------- compatibility
 def wrap_phase(angle_rad):
-    """Wrap an angle (rad) into ``[-pi, pi)``."""
-    return (np.asarray(angle_rad, dtype=float) + np.pi) % TWO_PI - np.pi
+    """Wrap an angle (rad) into ``(-pi, pi]``: the package's one wrapping convention.
+
+    Half a period reads ``+pi`` (never ``-pi``), as the paper writes its phase
+    differences (``dphi in [-pi, pi]`` with the grids' ends at ``+pi``), so a pair
+    started at ``dphi = pi`` is reported at ``pi``.  Every wrapped angle in the
+    package goes through here (:func:`undulate.observables.wrap_angle` is this
+    function).  ``-((pi - a) mod 2 pi - pi)`` keeps the observables' values bit
+    for bit as they were (including ``wrap_phase(0.0) == -0.0``); the theory's
+    own results were ``[-pi, pi)`` before and differ only at ``psi = -pi``
+    (now ``+pi``: every function of psi here is even or equal at +-pi there)
+    and by at most 2 ulp of pi elsewhere.
+    """
+    return -((np.pi - np.asarray(angle_rad, dtype=float)) % TWO_PI - np.pi)
 
 
 def phase_mismatch(dphi_rad, dx_m, wavelength_m):
-    """Phase mismatch ``psi = wrap(dphi - 2 pi dx / lambda)``, rad, in ``[-pi, pi)``.
+    """Phase mismatch ``psi = wrap(dphi - 2 pi dx / lambda)``, rad, in ``(-pi, pi]``.
 
     The left side of paper Eq. (fullcompatibility), wrapped.  ``dphi_rad``:
     phase difference phi_b - phi_a, rad; ``dx_m``: x_b - x_a, m;

@@ -240,7 +240,7 @@ class _Recorder:
         import xarray as xr
 
         from ..provenance import package_version, provenance
-        from ..simulation import _VAR_META, scene_attrs  # the simulation's schema: same names, dims, units
+        from ..schema import scene_attrs, variable  # the simulation's schema: same names, dims, units
 
         cfg, n = self.cfg, self.rows
         sc, g = cfg.scene, cfg.scene.geometry
@@ -248,13 +248,9 @@ class _Recorder:
         t = self.k[:n] * dt
         dims3 = ("time", "swimmer", "joint")
 
-        def var(name, data):
-            dims, units, long_name = _VAR_META[name]
-            return xr.Variable(dims, data, {"units": units, "long_name": long_name})
-
         data = {
-            "joint_command": var("joint_command", self.command[:n]),
-            "gait_phase": var("gait_phase", self.phase[:n]),
+            "joint_command": variable("joint_command", self.command[:n]),
+            "gait_phase": variable("gait_phase", self.phase[:n]),
             "goal_position": xr.Variable(dims3, self.goal_ticks[:n], {
                 "units": "ticks", "long_name": "goal position sent at this tick (the set-point for time + 1/control_rate)"}),
             "goal_angle": xr.Variable(dims3, self.goal[:n], {"units": "rad", "long_name": "joint angle of goal_position"}),
@@ -268,8 +264,8 @@ class _Recorder:
         }
         if not dry:
             data.update({
-                "joint_angle": var("joint_angle", self.angle[:n]),
-                "joint_error": var("joint_error", np.abs(self.angle[:n] - self.command[:n])),
+                "joint_angle": variable("joint_angle", self.angle[:n]),
+                "joint_error": variable("joint_error", np.abs(self.angle[:n] - self.command[:n])),
                 "joint_velocity": xr.Variable(dims3, self.velocity[:n], {
                     "units": "rad/s", "long_name": "present speed (servo's estimate)"}),
                 "servo_load": xr.Variable(dims3, self.load[:n], {

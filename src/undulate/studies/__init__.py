@@ -7,12 +7,13 @@
 PosixPath('results/pairs.nc')
 
 A new study: copy the shape of ``pairs.py`` (``plan``, ``dataset``,
-``summary``, ``CLAIMS``, ``figure``, then ``register(Study(...))``) and
-append the module's name to :data:`STUDY_MODULES` (README: "Add a study").
+``summary``, ``CLAIMS``, ``figure``, then ``register(Study(...))``) in a new
+module here; the registry imports every public module of this package, so there
+is no list to edit (README: "Add a study").  ``Study.order`` places it among the
+others (default: its paper figure number).
 """
 
 from ._registry import (
-    STUDY_MODULES,
     Claim,
     Explanation,
     Study,
@@ -29,7 +30,6 @@ from ._registry import (
 )
 
 __all__ = [
-    "STUDY_MODULES",
     "Claim",
     "Explanation",
     "Study",

@@ -23,7 +23,7 @@ import numpy as np
 import xarray as xr
 
 from .. import stats, theory
-from ..observables import period_average, steady_state, wrap_angle
+from ..observables import lateral_ranks, period_average, steady_state, wrap_angle
 from ._runners import BODY_LENGTH_M, PERIOD_S
 
 __all__ = [
@@ -134,14 +134,15 @@ def final_neighbours(ds: xr.Dataset, period_s: float | None = None,
     cycle, so an instantaneous order flips back and forth.  Returns the
     pairs, bottom to top, and whether every single period of the window has
     the same order of its mean ``y`` (False: the swimmers were still
-    changing lateral places).
+    changing lateral places).  Ranks by :func:`undulate.observables.lateral_ranks`,
+    the rule :func:`undulate.observables.lateral_order` follows sample by sample.
     """
     if period_s is None:
         period_s = float(ds.attrs.get("period", PERIOD_S))
     pa = period_average(ds["y"], period_s).transpose("time", "swimmer").values[-window:]
-    last = np.argsort(pa.mean(axis=0), kind="stable")
+    last = lateral_ranks(pa.mean(axis=0))
     pairs = [(int(a), int(b)) for a, b in zip(last[:-1], last[1:])]
-    stable = all((np.argsort(row, kind="stable") == last).all() for row in pa)
+    stable = bool((lateral_ranks(pa) == last).all())
     return pairs, bool(stable)
 
 

@@ -9,7 +9,10 @@ A study module states, in this order (read ``pairs.py`` as the example)::
     figure(ds) -> Figure
 
 and registers them with ``register(Study(name=..., plan=plan, dataset=...,
-summary=summary, claims=CLAIMS, figure=figure))``.
+summary=summary, claims=CLAIMS, figure=figure))``.  Adding the module under
+``undulate/studies/`` is the only step: the registry imports every public module
+of the package (:func:`_load`).  Studies are listed and reproduced in the order of
+their :attr:`Study.order` (by default the paper's figure number; see there).
 
 The registry (:func:`run_study`) does the rest, the same way for every
 study: it runs and caches the sweeps a study asks for (``ctx.sweep``; one
@@ -39,6 +42,7 @@ import importlib
 import json
 import math
 import os
+import pkgutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -57,7 +61,6 @@ if TYPE_CHECKING:  # heavy imports stay lazy
     from ..sweep import Grid, SweepResult
 
 __all__ = [
-    "STUDY_MODULES",
     "StudyConfig",
     "Study",
     "Claim",
@@ -74,21 +77,6 @@ __all__ = [
     "Explanation",
     "explain",
 ]
-
-#: Study modules imported (in this order) when the registry is first used.
-STUDY_MODULES: tuple[str, ...] = (
-    "pairs",
-    "compatibility",
-    "links",
-    "groups",
-    "packing",
-    "basins",
-    "confinement",
-    "potential",
-    "swimming",
-    "synchronization",
-    "sensitivity",
-)
 
 HOLDS, FAILS, NO_RESULT = "holds", "fails", "no result"
 VERDICTS = (HOLDS, FAILS, NO_RESULT)
@@ -232,6 +220,14 @@ class Study:
     paper_figure: str | None = None
     needs_simulation: bool = True
     module: str = ""
+    order: float | None = None
+    """Where the study comes in ``undulate studies``, the reproduction and the report
+    (ascending; ties keep the order of registration: modules by name, then the order
+    of ``register`` calls in a module).  None (the default) takes it from the study:
+    its paper figure number; 90 for other paper material (``paper_figure`` not a
+    number, e.g. "Methods"); 100 for a study beyond the paper's figures; 200 for a
+    study that only explains other studies' claims (no claims of its own), whose
+    explanations are judged on results the others made first."""
 
     def __str__(self) -> str:
         tags = [f"paper Fig. {self.paper_figure}"] if self.paper_figure else []
@@ -254,23 +250,41 @@ def register(study: Study) -> Study:
     if not study.module:
         mod = inspect.getmodule(study.dataset)
         study = dataclasses.replace(study, module=mod.__name__ if mod else "")
+    if study.order is None:
+        study = dataclasses.replace(study, order=_default_order(study))
     _REGISTRY[study.name] = study
     return study
 
 
+def _default_order(study: Study) -> float:
+    """:attr:`Study.order` when the study declares none (see there)."""
+    fig = (study.paper_figure or "").strip()
+    if fig.isdigit():
+        return float(fig)
+    if fig:
+        return 90.0
+    return 200.0 if study.explanations and not study.claims else 100.0
+
+
 def _load() -> None:
+    """Import every public module of this package (names not starting with ``_``): each
+    registers its studies.  Sorted by name, so registration order never depends on the
+    file system."""
     global _loaded
     if _loaded:
         return
-    for mod in STUDY_MODULES:
-        importlib.import_module(f"{__package__}.{mod}")
+    from . import __path__ as package_path
+
+    for info in sorted(pkgutil.iter_modules(package_path), key=lambda m: m.name):
+        if not info.name.startswith("_"):
+            importlib.import_module(f"{__package__}.{info.name}")
     _loaded = True
 
 
 def names() -> list[str]:
-    """Registered study names, in the order of :data:`STUDY_MODULES` (the paper's)."""
+    """Registered study names, in the order of :attr:`Study.order` (the paper's)."""
     _load()
-    return list(_REGISTRY)
+    return sorted(_REGISTRY, key=lambda name: _REGISTRY[name].order)
 
 
 def describe(name: str) -> Study:
@@ -279,7 +293,7 @@ def describe(name: str) -> Study:
     try:
         return _REGISTRY[name]
     except KeyError:
-        raise ParameterError("study", "one of " + ", ".join(_REGISTRY), name) from None
+        raise ParameterError("study", "one of " + ", ".join(names()), name) from None
 
 
 # ------------------------------------------------------------------- running

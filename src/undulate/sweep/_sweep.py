@@ -185,6 +185,34 @@ def run_sweep(
     identical results.
     """
     t_start = time.monotonic()
+    _check_arguments(fn, grid, workers, scheduler, batch)
+    if scheduler is None and workers != 1:
+        _check_importable(fn)
+
+    with Store.open(out_dir, make_manifest(fn, grid, batched)) as store:
+        _report_stale(store, progress, stream)
+        runs = grid.runs()
+        done = store.done_keys()
+        todo = [r for r in runs if r.key not in done]
+        n_reused = len(runs) - len(todo)
+        counts, timing = _compute(fn, grid, store, runs, todo, workers=workers, scheduler=scheduler,
+                                  progress=progress, batch=batch, batched=batched, stream=stream)
+        check_unchanged(fn)  # the runs above ran the code the manifest names
+        ds = merge(grid, runs, store.runs_dir, store.manifest.get("code"))
+        failures = _failures(runs, store)
+        ds.attrs.update(_sweep_attrs(fn, grid, failures, store.manifest))
+        atomic_write_netcdf(store.merged_path, ds)
+
+    result = SweepResult(dataset=ds, failures=failures, n_computed=counts[OK], n_reused=n_reused + counts[EXISTS],
+                         out_dir=store.root, elapsed_s=time.monotonic() - t_start, grid=grid,
+                         identity=run_provenance(store.manifest), stale=list(store.stale), timing=timing)
+    if progress:
+        _summary(result, stream or sys.stderr)
+    return result
+
+
+def _check_arguments(fn, grid, workers, scheduler, batch) -> None:
+    """:func:`run_sweep`'s arguments, validated (one ParameterError naming the first bad one)."""
     if not callable(fn):
         raise ParameterError("fn", "a callable fn(point, seed) -> xarray.Dataset", fn)
     if not isinstance(grid, Grid):
@@ -196,122 +224,116 @@ def run_sweep(
     if batch is not None and (isinstance(batch, bool) or not isinstance(batch, int) or batch < 1):
         raise ParameterError("batch", "an integer >= 1 (runs per task), or None (automatic)", batch)
 
-    if scheduler is None and workers != 1:
-        _check_importable(fn)
 
-    with Store.open(out_dir, make_manifest(fn, grid, batched)) as store:
-        if store.stale:
-            msg = (f"sweep {store.root}: the stored runs were computed by other code or arguments "
-                   f"({'; '.join(store.stale)}); they were discarded and are recomputed")
-            if progress:
-                print(msg, file=stream or sys.stderr, flush=True)
-            else:
-                log.warning(msg)
-        run_prov = tuple(run_provenance(store.manifest).items())
-        runs = grid.runs()
-        done = store.done_keys()
-        todo = [r for r in runs if r.key not in done]
-        n_reused = len(runs) - len(todo)
-
-        client, own_client = None, False
-        if scheduler is not None and todo:
-            client, own_client = _executors.connect(scheduler)
-        try:
-            if client is not None:
-                _executors.check_shared_dir(client, str(store.runs_dir))
-                threads = _executors.dask_threads(client)
-                n_workers = threads or 8  # workers still starting: assume a few for the chunk size
-                where = f"Dask at {client.scheduler.address} ({threads} worker threads now)"
-            else:
-                n_workers = min(workers or _executors.default_workers(), max(len(todo), 1))
-                where = "this process" if n_workers == 1 else f"{n_workers} local processes"
-            size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
-            chunks = [
-                Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov)
-                for i in range(0, len(todo), size)
-            ]
-
-            bar = Progress(len(runs), n_reused, enabled=progress, stream=stream)
-            if todo:
-                bar.write(
-                    f"sweep {function_id(fn)}: {len(runs)} runs, {n_reused} already in {store.root}, "
-                    f"{len(todo)} to compute on {where} in tasks of {size}"
-                )
-            counts = {OK: 0, FAILED: 0, EXISTS: 0}
-            executor = "dask" if client is not None else ("serial" if n_workers == 1 else "local")
-            timing = {"executor": executor, "runs_wall_s": 0.0, "physics_s": 0.0, "steps": 0}
-
-            def on_done(chunk: Chunk, outcomes: list[Outcome]) -> None:
-                for o in outcomes:
-                    counts[o.status] += 1
-                    timing["runs_wall_s"] += o.seconds
-                    timing["physics_s"] += o.physics_s
-                    timing["steps"] += o.steps
-                    if o.status == FAILED:
-                        log.info("run %s failed: %s", o.key, o.error)
-                bar.update(sum(o.status != FAILED for o in outcomes), sum(o.status == FAILED for o in outcomes))
-
-            def on_lost(chunk: Chunk, why: str) -> None:
-                lost = [r for r in chunk.runs if not (store.runs_dir / f"{r.key}.nc").exists()]
-                for r in lost:
-                    write_failure(store.runs_dir, r, None, f"WorkerLost: {why}")
-                    log.info("run %s lost: %s", r.key, why)
-                counts[FAILED] += len(lost)
-                counts[OK] += len(chunk.runs) - len(lost)  # saved before the worker was lost
-                bar.update(len(chunk.runs) - len(lost), len(lost))
-
-            try:
-                if not chunks:
-                    pass
-                elif client is not None:
-                    _executors.run_dask(chunks, on_done, on_lost, client=client)
-                elif n_workers == 1:
-                    _executors.run_serial(chunks, on_done, on_lost)
-                else:
-                    _executors.run_local(chunks, on_done, on_lost, workers=n_workers)
-            except KeyboardInterrupt:
-                bar.close()
-                n_saved = len(store.done_keys())
-                print(
-                    f"\nsweep interrupted: {n_saved}/{len(runs)} runs are saved in {store.root}; "
-                    "run the same sweep again to resume",
-                    file=stream or sys.stderr,
-                )
-                raise
-            finally:
-                bar.close()
-        finally:
-            if own_client:
-                client.close()
-
-        check_unchanged(fn)  # the runs above ran the code the manifest names
-        ds = merge(grid, runs, store.runs_dir, store.manifest.get("code"))
-        failures = []
-        for r in runs:
-            if (store.runs_dir / f"{r.key}.nc").exists():
-                continue
-            rec = store.failure(r) or {"error": "no result and no failure record"}
-            failures.append(
-                RunFailure(r.key, dict(r.point), r.replicate, r.seed, rec.get("error", ""), rec.get("traceback", ""))
-            )
-        ds.attrs.update(_sweep_attrs(fn, grid, failures, store.manifest))
-        atomic_write_netcdf(store.merged_path, ds)
-
-    result = SweepResult(
-        dataset=ds,
-        failures=failures,
-        n_computed=counts[OK],
-        n_reused=n_reused + counts[EXISTS],
-        out_dir=store.root,
-        elapsed_s=time.monotonic() - t_start,
-        grid=grid,
-        identity=run_provenance(store.manifest),
-        stale=list(store.stale),
-        timing=timing,
-    )
+def _report_stale(store: Store, progress: bool, stream: TextIO | None) -> None:
+    """Say that stored runs of other code or arguments were discarded (on the stream or the log)."""
+    if not store.stale:
+        return
+    msg = (f"sweep {store.root}: the stored runs were computed by other code or arguments "
+           f"({'; '.join(store.stale)}); they were discarded and are recomputed")
     if progress:
-        _summary(result, stream or sys.stderr)
-    return result
+        print(msg, file=stream or sys.stderr, flush=True)
+    else:
+        log.warning(msg)
+
+
+def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, scheduler, progress: bool,
+             batch, batched: bool, stream) -> tuple[dict, dict]:
+    """Run the ``todo`` runs in chunks on the chosen executor, saving each as it finishes.
+
+    Returns the outcome counts (``OK``, ``FAILED``, ``EXISTS``) and the timing
+    (executor, the runs' own wall and physics seconds, scene-steps)."""
+    client, own_client = None, False
+    if scheduler is not None and todo:
+        client, own_client = _executors.connect(scheduler)
+    try:
+        if client is not None:
+            _executors.check_shared_dir(client, str(store.runs_dir))
+            threads = _executors.dask_threads(client)
+            n_workers = threads or 8  # workers still starting: assume a few for the chunk size
+            where = f"Dask at {client.scheduler.address} ({threads} worker threads now)"
+        else:
+            n_workers = min(workers or _executors.default_workers(), max(len(todo), 1))
+            where = "this process" if n_workers == 1 else f"{n_workers} local processes"
+        size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
+        run_prov = tuple(run_provenance(store.manifest).items())
+        chunks = [
+            Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov)
+            for i in range(0, len(todo), size)
+        ]
+        bar = Progress(len(runs), len(runs) - len(todo), enabled=progress, stream=stream)
+        if todo:
+            bar.write(
+                f"sweep {function_id(fn)}: {len(runs)} runs, {len(runs) - len(todo)} already in {store.root}, "
+                f"{len(todo)} to compute on {where} in tasks of {size}"
+            )
+        executor = "dask" if client is not None else ("serial" if n_workers == 1 else "local")
+        tally = _Tally(store, bar, executor)
+        try:
+            if not chunks:
+                pass
+            elif client is not None:
+                _executors.run_dask(chunks, tally.on_done, tally.on_lost, client=client)
+            elif n_workers == 1:
+                _executors.run_serial(chunks, tally.on_done, tally.on_lost)
+            else:
+                _executors.run_local(chunks, tally.on_done, tally.on_lost, workers=n_workers)
+        except KeyboardInterrupt:
+            bar.close()
+            print(
+                f"\nsweep interrupted: {len(store.done_keys())}/{len(runs)} runs are saved in {store.root}; "
+                "run the same sweep again to resume",
+                file=stream or sys.stderr,
+            )
+            raise
+        finally:
+            bar.close()
+    finally:
+        if own_client:
+            client.close()
+    return tally.counts, tally.timing
+
+
+class _Tally:
+    """Counts the runs' outcomes and timing as chunks finish (or their worker is lost)."""
+
+    def __init__(self, store: Store, bar: Progress, executor: str):
+        self.store, self.bar = store, bar
+        self.counts = {OK: 0, FAILED: 0, EXISTS: 0}
+        self.timing = {"executor": executor, "runs_wall_s": 0.0, "physics_s": 0.0, "steps": 0}
+
+    def on_done(self, chunk: Chunk, outcomes: list[Outcome]) -> None:
+        for o in outcomes:
+            self.counts[o.status] += 1
+            self.timing["runs_wall_s"] += o.seconds
+            self.timing["physics_s"] += o.physics_s
+            self.timing["steps"] += o.steps
+            if o.status == FAILED:
+                log.info("run %s failed: %s", o.key, o.error)
+        self.bar.update(sum(o.status != FAILED for o in outcomes), sum(o.status == FAILED for o in outcomes))
+
+    def on_lost(self, chunk: Chunk, why: str) -> None:
+        runs_dir = self.store.runs_dir
+        lost = [r for r in chunk.runs if not (runs_dir / f"{r.key}.nc").exists()]
+        for r in lost:
+            write_failure(runs_dir, r, None, f"WorkerLost: {why}")
+            log.info("run %s lost: %s", r.key, why)
+        self.counts[FAILED] += len(lost)
+        self.counts[OK] += len(chunk.runs) - len(lost)  # saved before the worker was lost
+        self.bar.update(len(chunk.runs) - len(lost), len(lost))
+
+
+def _failures(runs: list, store: Store) -> list[RunFailure]:
+    """A :class:`RunFailure` for every run without a result (its failure record, if any)."""
+    failures = []
+    for r in runs:
+        if (store.runs_dir / f"{r.key}.nc").exists():
+            continue
+        rec = store.failure(r) or {"error": "no result and no failure record"}
+        failures.append(
+            RunFailure(r.key, dict(r.point), r.replicate, r.seed, rec.get("error", ""), rec.get("traceback", ""))
+        )
+    return failures
 
 
 def _check_importable(fn: Callable) -> None:

@@ -5,9 +5,9 @@ so ``import undulate.track`` stays cheap.
 """
 
 from .calibration import (DEFAULT_MARKERS_M, DEFAULT_SIZE_M, DICTIONARY, FIXED_IDS, TrackCalibration,
-                          middle_link_pose, robot_tag_link)
+                          robot_tag_link)
 
-__all__ = ["track_video", "render_video", "marker_sheet", "TrackCalibration", "middle_link_pose", "robot_tag_link",
+__all__ = ["track_video", "render_video", "marker_sheet", "TrackCalibration", "robot_tag_link",
            "DICTIONARY", "FIXED_IDS", "DEFAULT_MARKERS_M", "DEFAULT_SIZE_M"]
 
 

@@ -172,18 +172,3 @@ class TrackCalibration:
         x, y = self.markers_m[int(tag_id)]
         h = self.size_m / 2
         return np.array([[x - h, y + h], [x + h, y + h], [x + h, y - h], [x - h, y - h]])
-
-
-def middle_link_pose(ds) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centre and heading of every swimmer's tagged link (:func:`robot_tag_link`)
-    from a simulated run's centre-line nodes: ``x, y`` (m) and ``heading``
-    (rad, head -> tail direction from +x, unwrapped over time), each (time, swimmer).
-
-    The tracker measures this body point (the robot tag's centre), so
-    experiment and simulation are compared at the same point.
-    """
-    nx, ny = np.asarray(ds["node_x"].values, float), np.asarray(ds["node_y"].values, float)
-    k = robot_tag_link(nx.shape[-1] - 1)
-    x0, y0, x1, y1 = nx[..., k], ny[..., k], nx[..., k + 1], ny[..., k + 1]
-    heading = np.unwrap(np.arctan2(y1 - y0, x1 - x0), axis=0)
-    return 0.5 * (x0 + x1), 0.5 * (y0 + y1), heading

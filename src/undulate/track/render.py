@@ -3,7 +3,7 @@
 Ground truth for the tracker (:func:`undulate.track.track_video`): a run's
 bodies are drawn from above on a textured table with the four fixed
 calibration tags and, on every middle link, its robot tag at the link's true
-pose (:func:`~undulate.track.calibration.middle_link_pose`); a pinhole camera
+pose (:func:`~undulate.observables.middle_link_pose`); a pinhole camera
 with lens distortion films the table plane, then blur, uneven lighting,
 sensor noise and H.264 compression degrade the frames.  Frames can be dropped
 (the video then has gaps in its timestamps) and tags occluded by a passing
@@ -33,7 +33,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
-from .calibration import DICTIONARY, FIXED_IDS, TrackCalibration, middle_link_pose
+from ..observables import middle_link_pose
+from .calibration import DICTIONARY, FIXED_IDS, TrackCalibration
 
 __all__ = ["CameraSetup", "Degradation", "Occluder", "DEGRADATIONS", "render_video", "plane_homography"]
 
@@ -212,15 +213,69 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
     homography and scale (px per m) used.
     """
     import cv2
-    import xarray as xr
 
     from .._io import atomic_output
 
-    aruco = cv2.aruco
     cal = calibration or TrackCalibration()
     camera = camera or CameraSetup()
     deg = degradation or Degradation()
     path = Path(path)
+    _check_arguments(ds, path, stride)
+    rng = np.random.default_rng(seed)
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, DICTIONARY))
+    view = _table_view(cv2, cal, camera, _ds_geometry(ds), placement_m, rng, dictionary)
+    mapx, mapy = _camera_maps(cv2, view)
+    gain = _lighting_gain(deg, view.W, view.H)
+
+    # --- the run ----------------------------------------------------------------------------------------
+    t_all = ds["time"].values
+    idx = np.flatnonzero(t_all >= start_s - 1e-9)[::int(stride)]
+    if idx.size < 2:
+        raise ParameterError("start_s", "a time leaving at least two frames", start_s)
+    fps = Fraction(1.0 / float(t_all[idx[1]] - t_all[idx[0]])).limit_denominator(1001)
+    off = view.off
+    tx, ty, th_ = middle_link_pose(ds)
+    tx, ty, th_ = tx[idx] + off[0], ty[idx] + off[1], th_[idx]
+    nx, ny = ds["node_x"].values[idx] + off[0], ds["node_y"].values[idx] + off[1]
+    n_sw = nx.shape[1]
+    if n_sw > 46:
+        raise ParameterError("ds", "a run of at most 46 swimmers (robot tag ids 0-45)", n_sw)
+    tags = [_marker_image(cv2.aruco, dictionary, j, 16) for j in range(n_sw)]
+    drop = set(int(k) for k in drop_frames)
+    occluded = np.zeros((idx.size, n_sw), bool)
+    cmd = _ffmpeg_command(view.W, view.H, fps, drop, deg)
+    bar = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=idx.size, unit="frame", desc="render")
+    with atomic_output(path) as tmp:
+        proc = subprocess.Popen(cmd + [str(tmp)], stdin=subprocess.PIPE, stderr=subprocess.PIPE)
+        try:
+            for k in range(idx.size):
+                table = _draw_table(cv2, view, nx[k], ny[k], tags, (tx[k], ty[k], th_[k]))
+                occluded[k] = _draw_occluders(cv2, view, table, occluders, float(t_all[idx[k]]), tx[k], ty[k])
+                frame = cv2.remap(table, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
+                proc.stdin.write(_degrade(cv2, frame, deg, gain, rng).tobytes())
+                if bar is not None:
+                    bar.update()
+            proc.stdin.close()
+            err = proc.stderr.read().decode(errors="replace")
+            if proc.wait() != 0:
+                raise RuntimeError(f"ffmpeg failed: {err.strip()[-500:]}")
+        except BaseException:
+            proc.kill()
+            proc.wait()
+            raise
+        finally:
+            if bar is not None:
+                bar.close()
+    dropped = np.zeros(idx.size, bool)
+    dropped[[k for k in drop if 0 <= k < idx.size]] = True
+    return _truth_dataset(view, t_all[idx], tx, ty, th_, occluded, dropped, fps)
+
+
+def _check_arguments(ds, path: Path, stride) -> None:
     if path.suffix.lower() != ".mp4":
         raise ParameterError("path", "a path ending in .mp4", str(path))
     for v in ("node_x", "node_y"):
@@ -228,10 +283,29 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
             raise ParameterError("ds", "a run recorded with node_x and node_y", sorted(ds.data_vars))
     if int(stride) != stride or stride < 1:
         raise ParameterError("stride", "a positive integer", stride)
-    rng = np.random.default_rng(seed)
-    dictionary = aruco.getPredefinedDictionary(getattr(aruco, DICTIONARY))
 
-    # --- the table, its top view and the camera ---------------------------------------------------------
+
+@dataclass
+class _View:
+    """The camera and the supersampled top view of the table it films."""
+
+    K: np.ndarray  # camera matrix, px
+    Hcam: np.ndarray  # table m -> ideal camera pixel
+    dist: np.ndarray  # lens distortion (OpenCV)
+    px_per_m: float  # camera pixels per m on the table
+    ppm: float  # top-view pixels per m
+    T: np.ndarray  # table m -> top-view pixel (column, row), pixel centres at integers
+    background: np.ndarray  # the top view without the bodies: texture, walls, fixed tags
+    off: np.ndarray  # table coordinates of the simulation's origin, m
+    plate: float  # side of a tag's white plate, m
+    geometry: dict  # the run's widths (_ds_geometry)
+    W: int
+    H: int
+
+
+def _table_view(cv2, cal: TrackCalibration, camera: CameraSetup, g: dict, placement_m, rng, dictionary) -> _View:
+    """The camera looking at the tags' layout, and the top view of everything it sees: the
+    table's texture (drawn from ``rng``), the channel walls and the four fixed tags."""
     pts = np.array(list(cal.markers_m.values()))
     lay_lo, lay_hi = pts.min(axis=0), pts.max(axis=0)
     if placement_m is None:
@@ -255,10 +329,8 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
     (x0, y0), (x1, y1) = (np.clip(seen.min(axis=0) - 0.01, region[0] - 0.5, None),
                           np.clip(seen.max(axis=0) + 0.01, None, region[1] + 0.5))
     tw, th = int(math.ceil((x1 - x0) * ppm)), int(math.ceil((y1 - y0) * ppm))
-    # table m -> table-image pixel (column, row), pixel centres at integers
     T = np.array([[ppm, 0.0, -x0 * ppm - 0.5], [0.0, -ppm, y1 * ppm - 0.5], [0.0, 0.0, 1.0]])
     background = _texture(rng, (th, tw), ppm)
-    g = _ds_geometry(ds)
     wall_t = 0.012
     for sgn in (-1, 1):  # channel walls (dark strips just outside the channel)
         yw = off[1] + sgn * (g["channel_width"] / 2 + wall_t / 2)
@@ -266,45 +338,37 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
         _fill(cv2, background, T, poly, (70, 75, 80))
     plate = cal.size_m * 8 / 6
     for i in FIXED_IDS:
-        _put_tag(cv2, background, _marker_image(aruco, dictionary, i, 16), T, cal.markers_m[i], 0.0, plate)
+        _put_tag(cv2, background, _marker_image(cv2.aruco, dictionary, i, 16), T, cal.markers_m[i], 0.0, plate)
+    return _View(K, Hcam, dist, px_per_m, ppm, T, background, off, plate, g, W, H)
 
-    # camera pixel (distorted) -> ideal pixel -> table m -> table-image pixel: one remap per frame
+
+def _camera_maps(cv2, v: _View) -> tuple[np.ndarray, np.ndarray]:
+    """camera pixel (distorted) -> ideal pixel -> table m -> top-view pixel: one remap per frame."""
+    W, H = v.W, v.H
     uu, vv = np.meshgrid(np.arange(W, dtype=np.float64), np.arange(H, dtype=np.float64))
     pix = np.stack([uu.ravel(), vv.ravel()], axis=-1)
-    if np.any(dist != 0):
-        pix = cv2.undistortPoints(pix.reshape(-1, 1, 2), K, dist, R=None, P=K,
+    if np.any(v.dist != 0):
+        pix = cv2.undistortPoints(pix.reshape(-1, 1, 2), v.K, v.dist, R=None, P=v.K,
                                   criteria=(cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-6)).reshape(-1, 2)
-    hom = np.column_stack([pix, np.ones(len(pix))]) @ (T @ np.linalg.inv(Hcam)).T
+    hom = np.column_stack([pix, np.ones(len(pix))]) @ (v.T @ np.linalg.inv(v.Hcam)).T
     mapx = (hom[:, 0] / hom[:, 2]).reshape(H, W).astype(np.float32)
     mapy = (hom[:, 1] / hom[:, 2]).reshape(H, W).astype(np.float32)
-    del uu, vv, pix, hom
-    gain = None
-    if deg.lighting > 0:  # a lamp off to one side: brightest there, falling off smoothly
-        yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
-        r2 = ((xx - 0.3 * W) / W) ** 2 + ((yy - 0.25 * H) / H) ** 2
-        gain = np.exp(-r2 / 0.35)
-        gain = 1.0 - deg.lighting * (gain.max() - gain) / (gain.max() - gain.min())
-        gain = np.repeat(gain[..., None], 3, axis=-1).astype(np.float32)
+    return mapx, mapy
 
-    # --- the run ----------------------------------------------------------------------------------------
-    t_all = ds["time"].values
-    idx = np.flatnonzero(t_all >= start_s - 1e-9)[::int(stride)]
-    if idx.size < 2:
-        raise ParameterError("start_s", "a time leaving at least two frames", start_s)
-    dt = float(t_all[idx[1]] - t_all[idx[0]])
-    fps = Fraction(1.0 / dt).limit_denominator(1001)
-    tx, ty, th_ = middle_link_pose(ds)
-    tx, ty, th_ = tx[idx] + off[0], ty[idx] + off[1], th_[idx]
-    nx, ny = ds["node_x"].values[idx] + off[0], ds["node_y"].values[idx] + off[1]
-    n_sw = nx.shape[1]
-    if n_sw > 46:
-        raise ParameterError("ds", "a run of at most 46 swimmers (robot tag ids 0-45)", n_sw)
-    tags = [_marker_image(aruco, dictionary, j, 16) for j in range(n_sw)]
-    w = g["width"]
-    drop = set(int(k) for k in drop_frames)
-    occluded = np.zeros((idx.size, n_sw), bool)
-    half_diag = plate / math.sqrt(2)
 
+def _lighting_gain(deg: Degradation, W: int, H: int) -> np.ndarray | None:
+    """Uneven lighting: a lamp off to one side, brightest there, falling off smoothly (None: even)."""
+    if not deg.lighting > 0:
+        return None
+    yy, xx = np.mgrid[0:H, 0:W].astype(np.float32)
+    r2 = ((xx - 0.3 * W) / W) ** 2 + ((yy - 0.25 * H) / H) ** 2
+    gain = np.exp(-r2 / 0.35)
+    gain = 1.0 - deg.lighting * (gain.max() - gain) / (gain.max() - gain.min())
+    return np.repeat(gain[..., None], 3, axis=-1).astype(np.float32)
+
+
+def _ffmpeg_command(W: int, H: int, fps: Fraction, drop: set, deg: Degradation) -> list[str]:
+    """FFmpeg reading raw BGR frames on stdin and writing H.264 (the output path follows)."""
     cmd = [_ffmpeg(), "-hide_banner", "-loglevel", "error", "-y", "-f", "rawvideo", "-pix_fmt", "bgr24",
            "-s", f"{W}x{H}", "-r", f"{fps.numerator}/{fps.denominator}", "-i", "-"]
     if drop:  # ffmpeg drops them, keeping every other frame's timestamp: gaps in the file's timeline
@@ -312,59 +376,59 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
         cmd += ["-vf", f"select='not({sel})'", "-fps_mode", "vfr"]
     cmd += ["-c:v", "libx264", "-preset", "veryfast", "-crf", str(int(deg.crf)), "-pix_fmt", "yuv420p",
             "-threads", "2", "-movflags", "+faststart", "-f", "mp4"]
-    bar = None
-    if progress:
-        from tqdm import tqdm
+    return cmd
 
-        bar = tqdm(total=idx.size, unit="frame", desc="render")
-    with atomic_output(path) as tmp:
-        proc = subprocess.Popen(cmd + [str(tmp)], stdin=subprocess.PIPE, stderr=subprocess.PIPE)
-        try:
-            for k in range(idx.size):
-                table = background.copy()
-                t_k = float(t_all[idx[k]])
-                for j in range(n_sw):
-                    for li in range(nx.shape[2] - 1):
-                        p0 = np.array([nx[k, j, li], ny[k, j, li]])
-                        p1 = np.array([nx[k, j, li + 1], ny[k, j, li + 1]])
-                        d = (p1 - p0) / np.linalg.norm(p1 - p0)
-                        nrm = np.array([-d[1], d[0]]) * w / 2
-                        _fill(cv2, table, T, np.array([p0 - nrm, p1 - nrm, p1 + nrm, p0 + nrm]), (85, 60, 45))
-                for j in range(n_sw):  # tags on top of every body
-                    _put_tag(cv2, table, tags[j], T, (tx[k, j], ty[k, j]), th_[k, j], plate)
-                for oc in occluders:
-                    if oc.t_start_s - 1e-9 <= t_k <= oc.t_end_s + 1e-9:
-                        c = T @ np.array([oc.x_m, oc.y_m, 1.0])
-                        cv2.circle(table, (int(round(c[0] * 16)), int(round(c[1] * 16))), int(round(oc.radius_m * ppm * 16)),
-                                   (120, 150, 205), -1, cv2.LINE_AA, 4)
-                        dd = np.hypot(tx[k] - oc.x_m, ty[k] - oc.y_m)
-                        occluded[k] |= dd < oc.radius_m + half_diag
-                frame = cv2.remap(table, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
-                if deg.blur_px > 0:
-                    frame = cv2.GaussianBlur(frame, (0, 0), deg.blur_px)
-                if gain is not None or deg.noise_dn > 0:
-                    f = frame.astype(np.float32)
-                    if gain is not None:
-                        f *= gain
-                    if deg.noise_dn > 0:
-                        f += rng.standard_normal(f.shape, dtype=np.float32) * np.float32(deg.noise_dn)
-                    frame = np.clip(f + 0.5, 0, 255).astype(np.uint8)
-                proc.stdin.write(frame.tobytes())
-                if bar is not None:
-                    bar.update()
-            proc.stdin.close()
-            err = proc.stderr.read().decode(errors="replace")
-            if proc.wait() != 0:
-                raise RuntimeError(f"ffmpeg failed: {err.strip()[-500:]}")
-        except BaseException:
-            proc.kill()
-            proc.wait()
-            raise
-        finally:
-            if bar is not None:
-                bar.close()
-    dropped = np.zeros(idx.size, bool)
-    dropped[[k for k in drop if 0 <= k < idx.size]] = True
+
+def _draw_table(cv2, v: _View, nx: np.ndarray, ny: np.ndarray, tags: list, pose) -> np.ndarray:
+    """The top view at one sample: every body's links, then every robot's tag on top."""
+    table = v.background.copy()
+    w = v.geometry["width"]
+    n_sw = nx.shape[0]
+    for j in range(n_sw):
+        for li in range(nx.shape[1] - 1):
+            p0 = np.array([nx[j, li], ny[j, li]])
+            p1 = np.array([nx[j, li + 1], ny[j, li + 1]])
+            d = (p1 - p0) / np.linalg.norm(p1 - p0)
+            nrm = np.array([-d[1], d[0]]) * w / 2
+            _fill(cv2, table, v.T, np.array([p0 - nrm, p1 - nrm, p1 + nrm, p0 + nrm]), (85, 60, 45))
+    tx, ty, th_ = pose
+    for j in range(n_sw):  # tags on top of every body
+        _put_tag(cv2, table, tags[j], v.T, (tx[j], ty[j]), th_[j], v.plate)
+    return table
+
+
+def _draw_occluders(cv2, v: _View, table: np.ndarray, occluders, t_s: float, tx, ty) -> np.ndarray:
+    """Draw the occluders present at ``t_s``; which robots' tags they (partly) cover."""
+    occluded = np.zeros(len(tx), bool)
+    half_diag = v.plate / math.sqrt(2)
+    for oc in occluders:
+        if oc.t_start_s - 1e-9 <= t_s <= oc.t_end_s + 1e-9:
+            c = v.T @ np.array([oc.x_m, oc.y_m, 1.0])
+            cv2.circle(table, (int(round(c[0] * 16)), int(round(c[1] * 16))), int(round(oc.radius_m * v.ppm * 16)),
+                       (120, 150, 205), -1, cv2.LINE_AA, 4)
+            dd = np.hypot(tx - oc.x_m, ty - oc.y_m)
+            occluded |= dd < oc.radius_m + half_diag
+    return occluded
+
+
+def _degrade(cv2, frame: np.ndarray, deg: Degradation, gain, rng) -> np.ndarray:
+    """Blur, uneven lighting and sensor noise (drawn from ``rng``) on one camera frame."""
+    if deg.blur_px > 0:
+        frame = cv2.GaussianBlur(frame, (0, 0), deg.blur_px)
+    if gain is not None or deg.noise_dn > 0:
+        f = frame.astype(np.float32)
+        if gain is not None:
+            f *= gain
+        if deg.noise_dn > 0:
+            f += rng.standard_normal(f.shape, dtype=np.float32) * np.float32(deg.noise_dn)
+        frame = np.clip(f + 0.5, 0, 255).astype(np.uint8)
+    return frame
+
+
+def _truth_dataset(v: _View, t, tx, ty, th_, occluded, dropped, fps: Fraction):
+    """The ground truth over the video's frames (see :func:`render_video`)."""
+    import xarray as xr
+
     dims = ("time", "swimmer")
     return xr.Dataset(
         {"x": (dims, tx, {"units": "m", "long_name": "true robot-tag centre x (table frame)"}),
@@ -372,11 +436,11 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
          "heading": (dims, th_, {"units": "rad", "long_name": "true middle-link heading (head -> tail from +x)"}),
          "occluded": (dims, occluded, {"units": "1", "long_name": "tag (partly) under an occluder"}),
          "dropped": (("time",), dropped, {"units": "1", "long_name": "frame left out of the video"})},
-        coords={"time": ("time", t_all[idx], {"units": "s", "long_name": "simulation time"}),
-                "swimmer": ("swimmer", np.arange(n_sw))},
-        attrs={"camera_matrix": K.ravel().tolist(), "distortion": dist.tolist(), "homography": Hcam.ravel().tolist(),
-               "px_per_m": px_per_m, "placement_m": off.tolist(), "fps": float(fps), "video_start_time": float(t_all[idx[0]]),
-               "width_px": W, "height_px": H},
+        coords={"time": ("time", t, {"units": "s", "long_name": "simulation time"}),
+                "swimmer": ("swimmer", np.arange(tx.shape[1]))},
+        attrs={"camera_matrix": v.K.ravel().tolist(), "distortion": v.dist.tolist(), "homography": v.Hcam.ravel().tolist(),
+               "px_per_m": v.px_per_m, "placement_m": v.off.tolist(), "fps": float(fps), "video_start_time": float(t[0]),
+               "width_px": v.W, "height_px": v.H},
     )
 
 

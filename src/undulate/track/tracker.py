@@ -96,10 +96,46 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
     seen in the first ``calibration_s`` or robots never found.
     """
     import cv2
-    import xarray as xr
 
     video = Path(video)
     cal = calibration or TrackCalibration()
+    n = _check_arguments(video, n_robots, calibration_s, start_time_s)
+    frames = _read_video(video, n, calibration_s, progress)
+    found = np.isfinite(frames.corners[..., 0, 0])
+    never = [j for j in range(n) if not found[:, j].any()]
+    if never:
+        seen = [j for j in range(n) if found[:, j].any()]
+        raise ParameterError("--robots", f"at most the number of robots whose tags appear in the video "
+                             f"(found tag id(s) {', '.join(map(str, seen)) or 'none'}; never saw "
+                             f"{', '.join(map(str, never))})", n)
+
+    # --- image -> table: all four fixed tags' corners, averaged over the calibration window ---------------
+    img_pts = np.concatenate([_undistort(np.mean(frames.fixed[i], axis=0), cal) for i in FIXED_IDS])
+    tab_pts = np.concatenate([cal.corners_m(i) for i in FIXED_IDS])
+    H, _ = cv2.findHomography(img_pts, tab_pts, 0)
+    if H is None:
+        raise ParameterError("VIDEO", "a video whose four calibration tags give a homography", str(video))
+    cal_resid = np.sqrt(np.mean(np.sum((_apply_h(H, img_pts) - tab_pts) ** 2, axis=-1)))
+
+    poses = _tag_poses(frames.corners, found, H, cal)
+    step, stamps, frame_idx, (cx, cy, heading, side, found) = _fill_missing_frames(
+        frames.stamps, video, poses + (found,), (np.nan, np.nan, np.nan, np.nan, False))
+    attrs = {
+        **_track_attrs(video, frames, cal, step, frame_idx, start_time_s, calibration_s),
+        "homography_image_to_table": json.dumps(H.tolist()),
+        "calibration_residual_rms": float(cal_resid),
+        "calibration_residual_rms_units": "m (fixed-tag corners after the homography)",
+        "ignored_tag_ids": json.dumps(sorted(frames.extra_ids)),
+        "duplicate_detections": int(frames.duplicates),
+        "conventions": "table frame: x along the channel, heads toward -x; heading = head -> tail direction of "
+                       "the middle link from +x; dx = x_upper - x_lower, dphi = phi_upper - phi_lower",
+        **{f"provenance_{k}": v for k, v in _provenance(cv2).items()},
+    }
+    return _tracked_dataset(stamps + start_time_s, n, scene, attrs, cx, cy, heading, side, found, frame_idx)
+
+
+def _check_arguments(video: Path, n_robots, calibration_s: float, start_time_s: float) -> int:
+    """:func:`track_video`'s arguments, validated; the number of robots."""
     try:
         n = int(n_robots)
     except (TypeError, ValueError):
@@ -112,6 +148,51 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
         raise ParameterError("--start-time", "a finite time, s", start_time_s)
     if not video.is_file():
         raise ParameterError("VIDEO", "an existing video file", str(video))
+    return n
+
+
+class _Frames:
+    """What the detector saw, frame by frame: video timestamps (s), robot tag corners
+    (frame, robot, 4, 2; image px, NaN where not found), the fixed tags' corners over the
+    calibration window, ids of other tags, and robot tags seen twice in one frame."""
+
+    def __init__(self, n: int):
+        self.n = n
+        self.stamps: list[float] = []
+        self.corners: list[np.ndarray] | np.ndarray = []
+        self.fixed: dict[int, list[np.ndarray]] = {i: [] for i in FIXED_IDS}
+        self.extra_ids: set[int] = set()
+        self.duplicates = 0
+        self.calibrated = False
+        self.size_px = (0, 0)
+
+    def add(self, t_s: float, cs, ids) -> None:
+        """One frame's detections (``cs``, ``ids`` as OpenCV's ``detectMarkers`` returns them)."""
+        self.stamps.append(t_s)
+        c = np.full((self.n, 4, 2), np.nan)
+        if ids is not None:
+            ids = ids.ravel()
+            counts = np.bincount(ids, minlength=50)
+            for tag_id, quad in zip(ids, cs):
+                quad = quad.reshape(4, 2)
+                if tag_id < self.n:
+                    if counts[tag_id] == 1:
+                        c[tag_id] = quad
+                    else:
+                        self.duplicates += 1
+                elif tag_id in self.fixed:
+                    if not self.calibrated and counts[tag_id] == 1:
+                        self.fixed[int(tag_id)].append(quad.astype(np.float64))
+                else:
+                    self.extra_ids.add(int(tag_id))
+        self.corners.append(c)
+
+
+def _read_video(video: Path, n: int, calibration_s: float, progress: bool | None) -> _Frames:
+    """Detect the tags in every frame of ``video``; the fixed tags are checked once
+    ``calibration_s`` of video has been read (or at its end, if shorter)."""
+    import cv2
+
     # FFmpeg's own messages ("moov atom not found") would add lines to our one-line errors; the user's
     # setting of this variable wins
     os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
@@ -121,7 +202,8 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
         cap.release()
         raise ParameterError("VIDEO", "a video file OpenCV can decode", str(video))
     n_total = int(cap.get(cv2.CAP_PROP_FRAME_COUNT)) or None
-    height, width = img.shape[:2]
+    frames = _Frames(n)
+    frames.size_px = (int(img.shape[1]), int(img.shape[0]))
     if progress is None:
         progress = sys.stderr.isatty()
     bar = None
@@ -130,38 +212,15 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
 
         bar = tqdm(total=n_total, unit="frame", desc=f"track {video.name}", file=sys.stderr)
     det = make_detector()
-    stamps: list[float] = []
-    corners = []  # per frame: (n, 4, 2) image px, NaN where not found
-    fixed: dict[int, list[np.ndarray]] = {i: [] for i in FIXED_IDS}
-    extra_ids: set[int] = set()
-    duplicates = 0
-    calibrated = False
     try:
         while ok:
-            t_ms = cap.get(cv2.CAP_PROP_POS_MSEC)
-            stamps.append(t_ms / 1000.0)
+            t_s = cap.get(cv2.CAP_PROP_POS_MSEC) / 1000.0
             gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY) if img.ndim == 3 else img
             cs, ids, _ = det.detectMarkers(gray)
-            c = np.full((n, 4, 2), np.nan)
-            if ids is not None:
-                ids = ids.ravel()
-                counts = np.bincount(ids, minlength=50)
-                for tag_id, quad in zip(ids, cs):
-                    quad = quad.reshape(4, 2)
-                    if tag_id < n:
-                        if counts[tag_id] == 1:
-                            c[tag_id] = quad
-                        else:
-                            duplicates += 1
-                    elif tag_id in fixed:
-                        if not calibrated and counts[tag_id] == 1:
-                            fixed[int(tag_id)].append(quad.astype(np.float64))
-                    else:
-                        extra_ids.add(int(tag_id))
-            corners.append(c)
-            if not calibrated and stamps[-1] - stamps[0] >= calibration_s:
-                _check_fixed(fixed, calibration_s, video)
-                calibrated = True
+            frames.add(t_s, cs, ids)
+            if not frames.calibrated and frames.stamps[-1] - frames.stamps[0] >= calibration_s:
+                _check_fixed(frames.fixed, calibration_s, video)
+                frames.calibrated = True
             if bar is not None:
                 bar.update()
             ok, img = cap.read()
@@ -169,27 +228,15 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
         cap.release()
         if bar is not None:
             bar.close()
-    if not calibrated:
-        _check_fixed(fixed, calibration_s, video)
-    corners = np.asarray(corners)
-    stamps = np.asarray(stamps)
-    found = np.isfinite(corners[..., 0, 0])
-    never = [j for j in range(n) if not found[:, j].any()]
-    if never:
-        seen = [j for j in range(n) if found[:, j].any()]
-        raise ParameterError("--robots", f"at most the number of robots whose tags appear in the video "
-                             f"(found tag id(s) {', '.join(map(str, seen)) or 'none'}; never saw "
-                             f"{', '.join(map(str, never))})", n)
+    if not frames.calibrated:
+        _check_fixed(frames.fixed, calibration_s, video)
+    frames.corners, frames.stamps = np.asarray(frames.corners), np.asarray(frames.stamps)
+    return frames
 
-    # --- image -> table: all four fixed tags' corners, averaged over the calibration window ---------------
-    img_pts = np.concatenate([_undistort(np.mean(fixed[i], axis=0), cal) for i in FIXED_IDS])
-    tab_pts = np.concatenate([cal.corners_m(i) for i in FIXED_IDS])
-    H, _ = cv2.findHomography(img_pts, tab_pts, 0)
-    if H is None:
-        raise ParameterError("VIDEO", "a video whose four calibration tags give a homography", str(video))
-    cal_resid = np.sqrt(np.mean(np.sum((_apply_h(H, img_pts) - tab_pts) ** 2, axis=-1)))
 
-    # --- robots: tag corners -> table; centre, heading, side ----------------------------------------------
+def _tag_poses(corners: np.ndarray, found: np.ndarray, H: np.ndarray, cal: TrackCalibration):
+    """Robot tags' corners -> table: centre ``cx, cy`` (m), ``heading`` (rad, unwrapped over
+    the tracked samples only: a gap is not a jump) and mean ``side`` (m), each (frame, robot)."""
     flat = corners.reshape(-1, 2)
     good = np.isfinite(flat[:, 0])
     tab = np.full_like(flat, np.nan)
@@ -202,53 +249,61 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
     heading = np.arctan2((q[:, 0] * p[..., 1] - q[:, 1] * p[..., 0]).sum(axis=-1),
                          (q[:, 0] * p[..., 0] + q[:, 1] * p[..., 1]).sum(axis=-1))
     side = np.linalg.norm(np.roll(tab, -1, axis=2) - tab, axis=-1).mean(axis=-1)
-    for j in range(n):  # unwrap over the tracked samples only (a gap is not a jump)
+    for j in range(corners.shape[1]):
         f = found[:, j]
         heading[f, j] = np.unwrap(heading[f, j])
+    return cx, cy, heading, side
 
-    # --- time: the video's timestamps; missing frames get rows of their own -----------------------------
+
+def _fill_missing_frames(stamps: np.ndarray, video: Path, arrays: tuple, fills: tuple):
+    """Time from the video's timestamps, with a row of its own for every frame missing from the
+    video (gaps of whole frame intervals): ``(frame interval s, times s, frame index (-1: missing),
+    arrays spread onto those rows with their fill values)``."""
     frame_idx = np.arange(len(stamps))
-    if len(stamps) > 1:
-        d = np.diff(stamps)
-        step = float(np.median(d))
-        if not step > 0:
-            raise ParameterError("VIDEO", "a video with increasing frame timestamps", str(video))
-        missing = np.maximum(np.round(d / step).astype(int) - 1, 0)
-        if missing.any():
-            rows = np.concatenate([[0], np.cumsum(missing + 1)])
-            t_full = np.empty(rows[-1] + 1)
-            t_full[:] = np.nan
-            t_full[rows] = stamps
-            for i in np.flatnonzero(missing):
-                k = missing[i]
-                t_full[rows[i] + 1:rows[i + 1]] = stamps[i] + step * np.arange(1, k + 1)
-            def spread(a, fill):
-                out = np.full((len(t_full),) + a.shape[1:], fill, dtype=a.dtype)
-                out[rows] = a
-                return out
-            cx, cy, heading, side = (spread(a, np.nan) for a in (cx, cy, heading, side))
-            found = spread(found, False)
-            frame_idx = spread(frame_idx, -1)
-            stamps = t_full
-    else:
-        step = float("nan")
-    t = stamps + start_time_s
+    if len(stamps) <= 1:
+        return float("nan"), stamps, frame_idx, arrays
+    d = np.diff(stamps)
+    step = float(np.median(d))
+    if not step > 0:
+        raise ParameterError("VIDEO", "a video with increasing frame timestamps", str(video))
+    missing = np.maximum(np.round(d / step).astype(int) - 1, 0)
+    if not missing.any():
+        return step, stamps, frame_idx, arrays
+    rows = np.concatenate([[0], np.cumsum(missing + 1)])
+    t_full = np.empty(rows[-1] + 1)
+    t_full[:] = np.nan
+    t_full[rows] = stamps
+    for i in np.flatnonzero(missing):
+        k = missing[i]
+        t_full[rows[i] + 1:rows[i + 1]] = stamps[i] + step * np.arange(1, k + 1)
 
+    def spread(a, fill):
+        out = np.full((len(t_full),) + a.shape[1:], fill, dtype=a.dtype)
+        out[rows] = a
+        return out
+
+    return step, t_full, spread(frame_idx, -1), tuple(spread(a, f) for a, f in zip(arrays, fills))
+
+
+def _provenance(cv2) -> dict:
     from ..provenance import package_version, provenance
 
-    dims = ("time", "swimmer")
-    link_note = "the robot tag's centre (middle link)"
-    config = {"scene": scene.to_dict()} if scene is not None else None
     prov = provenance()
     prov["opencv_version"] = package_version("opencv-python-headless", cv2.__version__)
-    attrs = {
+    return prov
+
+
+def _track_attrs(video: Path, frames: _Frames, cal: TrackCalibration, step: float, frame_idx: np.ndarray,
+                 start_time_s: float, calibration_s: float) -> dict:
+    """The tracked dataset's attributes about the video, the tags and the calibration."""
+    return {
         "title": "undulate tracked experiment",
         "source": "video",
         "video": video.name,
-        "video_size_px": [int(width), int(height)],
+        "video_size_px": list(frames.size_px),
         "frame_interval": step,
         "frame_interval_units": "s",
-        "frames_in_video": int(len(corners)),
+        "frames_in_video": int(len(frames.corners)),
         "frames_missing": int((frame_idx < 0).sum()),
         "start_time": float(start_time_s),
         "start_time_units": "s (time of the video's first frame on the experiment clock)",
@@ -262,27 +317,28 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
         "calibration_source": cal.source,
         "calibration_window": float(calibration_s),
         "calibration_window_units": "s",
-        "homography_image_to_table": json.dumps(H.tolist()),
-        "calibration_residual_rms": float(cal_resid),
-        "calibration_residual_rms_units": "m (fixed-tag corners after the homography)",
-        "ignored_tag_ids": json.dumps(sorted(extra_ids)),
-        "duplicate_detections": int(duplicates),
-        "conventions": "table frame: x along the channel, heads toward -x; heading = head -> tail direction of "
-                       "the middle link from +x; dx = x_upper - x_lower, dphi = phi_upper - phi_lower",
-        **{f"provenance_{k}": v for k, v in prov.items()},
     }
+
+
+def _tracked_dataset(t, n, scene, attrs, cx, cy, heading, side, found, frame_idx):
+    """The tracked ``xarray.Dataset`` (names, dims and units of :mod:`undulate.schema`), with the
+    experiment's scene (for ``undulate compare``) when one is given."""
+    import xarray as xr
+
+    dims = ("time", "swimmer")
+    link_note = "the robot tag's centre (middle link)"
     coords = {"time": ("time", t, {"units": "s", "long_name": "time (video timestamp + start_time)"}),
               "swimmer": ("swimmer", np.arange(n), {"long_name": "robot = tag id"})}
     if scene is not None:
         if scene.n_swimmers != n:
             raise ParameterError("--phases", f"{n} values, one per robot (--robots {n})", len(scene.phases_rad))
-        from ..simulation import scene_attrs
+        from ..schema import scene_attrs
 
         g = scene.geometry
         attrs.update({
             **scene_attrs(scene),
             "controller": scene.controller.kind, "tag_link": robot_tag_link(g.n_links),
-            "config": json.dumps(config),
+            "config": json.dumps({"scene": scene.to_dict()}),
         })
         coords["phase"] = ("swimmer", np.asarray(scene.phases_rad), {"units": "rad", "long_name": "gait phase phi"})
     return xr.Dataset(

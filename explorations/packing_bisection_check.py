@@ -1,6 +1,6 @@
 """Packing thresholds: whole grid against bisection, on the measured full grid (no new runs).
 
-    python benchmarks/packing_bisection_check.py [--csv benchmarks/results/packing_grid_penetration_5draws.csv]
+    python explorations/packing_bisection_check.py [--csv explorations/results/packing_grid_penetration_5draws.csv]
 
 The CSV holds every run of the full packing grid (13 phi_max x 19 rho~ x 5
 draws, 10 s of 50 swimmers at the default model; ``packing_grid_penetration.py``)

@@ -1,6 +1,6 @@
 """Interpenetration and divergence over the full packing grid (measured, never asserted).
 
-    python benchmarks/packing_grid_penetration.py [--draws 1] [--first-draw 0] [--workers 2] [--out grid.csv]
+    python explorations/packing_grid_penetration.py [--draws 1] [--first-draw 0] [--workers 2] [--out grid.csv]
 
 Every (phi_max, rho~) point of the full packing study (13 phase spreads x 19
 densities, :func:`undulate.studies.packing.plan`), ``--draws`` phase draws each

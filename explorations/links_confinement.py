@@ -1,6 +1,6 @@
 """The link-number trend against the channel width (exploratory; measured, never asserted).
 
-    python benchmarks/links_confinement.py
+    python explorations/links_confinement.py
 
 Pairs of N = 3, 5, 7, 9 links with the joint amplitude that holds the free
 swimmer's body amplitude A at the 3-link value (the sensitivity study's

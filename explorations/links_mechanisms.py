@@ -1,15 +1,15 @@
 """Candidate causes of the links claim's failure (exploratory; measured, never asserted).
 
-    python benchmarks/links_mechanisms.py wavelength   # ~1 min on 2 cores
-    python benchmarks/links_mechanisms.py attractor    # ~15 s
-    python benchmarks/links_mechanisms.py recoil       # ~20 s
-    python benchmarks/links_mechanisms.py yaw-guided   # ~20 s
-    python benchmarks/links_mechanisms.py smooth-limit # ~20 s
-    python benchmarks/links_mechanisms.py quasi-static # ~45 s
-    python benchmarks/links_mechanisms.py waves        # ~2 min
-    python benchmarks/links_mechanisms.py inertia      # ~1.5 min
-    python benchmarks/links_mechanisms.py held-force   # ~10 s
-    python benchmarks/links_mechanisms.py recoil-free  # ~1.5 min
+    python explorations/links_mechanisms.py wavelength   # ~1 min on 2 cores
+    python explorations/links_mechanisms.py attractor    # ~15 s
+    python explorations/links_mechanisms.py recoil       # ~20 s
+    python explorations/links_mechanisms.py yaw-guided   # ~20 s
+    python explorations/links_mechanisms.py smooth-limit # ~20 s
+    python explorations/links_mechanisms.py quasi-static # ~45 s
+    python explorations/links_mechanisms.py waves        # ~2 min
+    python explorations/links_mechanisms.py inertia      # ~1.5 min
+    python explorations/links_mechanisms.py held-force   # ~10 s
+    python explorations/links_mechanisms.py recoil-free  # ~1.5 min
 
 Pairs of N = 3, 5, 7, 9 links, xi = 1, d = 0.13 m, the paper's nine dphi, 30 s
 from dx0 = 0 at the simulator's time step (the links study's set-up).
@@ -435,5 +435,5 @@ if __name__ == "__main__":
             "smooth-limit": smooth_limit, "quasi-static": quasi_static, "waves": waves, "inertia": inertia,
             "held-force": held_force, "recoil-free": recoil_free}
     if len(sys.argv) != 2 or sys.argv[1] not in cmds:
-        sys.exit("usage: python benchmarks/links_mechanisms.py {" + ",".join(cmds) + "}")
+        sys.exit("usage: python explorations/links_mechanisms.py {" + ",".join(cmds) + "}")
     cmds[sys.argv[1]]()

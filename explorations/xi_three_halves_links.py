@@ -1,7 +1,7 @@
 """Evidence for the xi = 3/2 claim (measured, never asserted): do pairs follow the compatibility
 line once the body carries a travelling wave at xi = 3/2?
 
-    python benchmarks/xi_three_halves_links.py [--duration 60] [--workers 2]
+    python explorations/xi_three_halves_links.py [--duration 60] [--workers 2]
 
 With N = 3 links the two joints of a xi = 3/2 gait move in exact antiphase (a standing wave;
 tests/test_wave_symmetry.py), so there is no wave phase for a neighbour to match.  This runs the

@@ -1,0 +1,86 @@
+"""One warm pool of worker processes serves the sweeps of a study or a reproduction (the
+same processes), gives the serial results, resumes, and is replaced when one of its
+processes dies; a crash inside it is isolated as without it."""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+HERE = Path(__file__).resolve().parent
+if str(HERE) not in sys.path:
+    sys.path.insert(0, str(HERE))
+
+import sweep_funcs  # noqa: E402
+
+from undulate.sweep import Grid, run_sweep, warm_workers  # noqa: E402
+from undulate.sweep import _executors  # noqa: E402
+
+
+def _data(ds: xr.Dataset) -> xr.Dataset:
+    ds = ds.copy()
+    ds.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("provenance_")}
+    return ds
+
+
+def _pids(res) -> set[int]:
+    return set(int(p) for p in np.ravel(res.dataset["pid"].values))
+
+
+def test_warm_workers_serve_every_sweep_with_the_same_processes(tmp_path):
+    grid_a = Grid(axes={"k": list(range(8))})
+    grid_b = Grid(axes={"k": list(range(8, 16))})
+    with warm_workers():
+        a = run_sweep(sweep_funcs.worker_pid, grid_a, tmp_path / "a", workers=2, batch=1, progress=False)
+        b = run_sweep(sweep_funcs.worker_pid, grid_b, tmp_path / "b", workers=2, batch=1, progress=False)
+        assert a.ok and b.ok and os.getpid() not in _pids(a)
+        assert len(_pids(a) | _pids(b)) <= 2  # one pool of two processes served both
+        pool = _executors._WARM["pool"]
+        assert pool is not None
+    assert _executors._WARM["pool"] is None  # stopped when the context exits
+    # outside the context every sweep starts (and stops) its own processes
+    c = run_sweep(sweep_funcs.worker_pid, grid_a, tmp_path / "c", workers=2, batch=1, progress=False)
+    d = run_sweep(sweep_funcs.worker_pid, grid_b, tmp_path / "d", workers=2, batch=1, progress=False)
+    assert not (_pids(c) & _pids(d)) and not (_pids(c) & (_pids(a) | _pids(b)))
+
+
+def test_warm_pool_gives_the_serial_results_and_resumes(tmp_path):
+    grid = Grid(axes={"damping_Nms": [0.05, 0.1, 0.2], "length_m": [0.3, 0.5]}, replicates=2, seed=7)
+    ref = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "serial", workers=1, progress=False)
+    with warm_workers():
+        warm = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "warm", workers=2, batch=2, progress=False)
+        again = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "warm", workers=2, batch=2, progress=False)
+    xr.testing.assert_identical(_data(warm.dataset), _data(ref.dataset))
+    assert again.n_computed == 0 and again.n_reused == grid.n_runs
+
+
+def test_warm_pool_replaced_when_a_waiting_worker_dies(tmp_path):
+    grid = Grid(axes={"k": list(range(6))})
+    with warm_workers():
+        first = run_sweep(sweep_funcs.worker_pid, grid, tmp_path / "a", workers=2, batch=1, progress=False)
+        victim = min(_pids(first))
+        os.kill(victim, signal.SIGKILL)  # dies while the pool waits between sweeps
+        for _ in range(100):  # the pool's manager thread notices
+            if getattr(_executors._WARM["pool"], "_broken", False):
+                break
+            time.sleep(0.05)
+        second = run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": list(range(6, 12))}), tmp_path / "b",
+                           workers=2, batch=1, progress=False)
+    assert second.ok and second.n_computed == 6 and victim not in _pids(second)
+
+
+def test_a_crash_inside_a_warm_pool_is_isolated_as_without_it(tmp_path):
+    grid = Grid(axes={"damping_Nms": [0.1, 0.2, -1.0, 0.3, 0.4, 0.5], "length_m": [0.5]})
+    with warm_workers():
+        res = run_sweep(sweep_funcs.pendulum_or_crash, grid, tmp_path / "crash", workers=2, batch=2, progress=False)
+        after = run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": [1, 2, 3, 4]}), tmp_path / "after",
+                          workers=2, batch=1, progress=False)
+    (f,) = res.failures
+    assert f.point["damping_Nms"] == -1.0 and f.error.startswith("WorkerLost")
+    assert res.n_computed == 5 and after.ok
