@@ -332,11 +332,11 @@ class _Clock:
     def __init__(self):
         self.seconds, self.steps = 0.0, 0
 
-    def rollout(self, runner, nb: int, nstep: int, *args, **kwargs):
+    def rollout(self, runner, nb: int, n_steps: int, *args, **kwargs):
         t0 = time.perf_counter()
         out = runner.rollout(*args, **kwargs)
         self.seconds += time.perf_counter() - t0
-        self.steps += nb * nstep
+        self.steps += nb * n_steps
         return out
 
 
