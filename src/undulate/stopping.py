@@ -11,7 +11,10 @@ per period or batch only, so its memory does not grow with the run.
   ``dx/scale`` within ``tol`` of their mean) has held for ``extra_periods``
   more periods, for **every** pair of swimmers (so for whichever neighbours
   the analysis picks), with the lateral order of the period-mean ``y``
-  unchanged over those periods.
+  unchanged over those periods, and the offsets' trend over those periods,
+  carried on to the end of the full run, moving them by at most
+  ``drift_frac * tol`` (a slowly creeping offset satisfies the steady rule
+  at every window yet ends elsewhere: it runs on).
 * :class:`ExcessStop` -- packing probes: stop once the mean joint error after
   ``skip_s`` is above or below a level with one-sided confidence
   ``confidence`` (batch means over ``batch_s``, their standard error, Student t).
@@ -62,26 +65,33 @@ class SteadyStop:
 
     ``tol`` (on ``dx/scale``; ``scale`` = lambda, or L for the standing wave)
     and ``window`` (periods) are the steady-state rule's; ``min_periods``:
-    never before this many whole periods (what else the run measures needs them).
+    never before this many whole periods (what else the run measures needs them);
+    ``drift_frac``: the least-squares trend of each offset's last
+    ``window + extra_periods`` period means, times the periods left to the full
+    run's end, must stay within ``drift_frac * tol``.
     """
 
     tol: float = 0.01
     window: int = 3
     extra_periods: int = 2
     min_periods: int = 6
+    drift_frac: float = 0.5
 
     @property
     def rule(self) -> str:
         return (f"SteadyStop(tol={self.tol:g}, window={self.window}, extra_periods={self.extra_periods}, "
-                f"min_periods={self.min_periods}): stop once, for every swimmer pair, the last {self.window} "
-                f"period means of dx/scale lie within {self.tol:g} of their mean in each of "
-                f"{self.extra_periods + 1} consecutive windows, the lateral order unchanged")
+                f"min_periods={self.min_periods}, drift_frac={self.drift_frac:g}): stop once, for every swimmer "
+                f"pair, the last {self.window} period means of dx/scale lie within {self.tol:g} of their mean in "
+                f"each of {self.extra_periods + 1} consecutive windows, the lateral order unchanged, and their "
+                f"trend carried to the end of the run moves them by <= {self.drift_frac * self.tol:g}")
 
-    def monitor(self, period_s: float, scale_m: float) -> "_SteadyMonitor":
-        return _SteadyMonitor(self, period_s, scale_m)
+    def monitor(self, period_s: float, scale_m: float, end_s: float) -> "_SteadyMonitor":
+        """The callable for ``simulate(..., stop=)``: ``end_s`` is the full run's duration."""
+        return _SteadyMonitor(self, period_s, scale_m, end_s)
 
-    def decided(self, x_means: np.ndarray, y_means: np.ndarray) -> bool:
-        """The rule on period means ``(periods, swimmers)`` of x / scale and y (the last ones)."""
+    def decided(self, x_means: np.ndarray, y_means: np.ndarray, periods_left: float = 0.0) -> bool:
+        """The rule on period means ``(periods, swimmers)`` of x / scale and y (the last ones), with
+        ``periods_left`` periods to the end of the full run."""
         n = self.window + self.extra_periods
         if len(x_means) < n:
             return False
@@ -93,12 +103,15 @@ class SteadyStop:
             if (np.abs(w - w.mean(axis=0)) > self.tol).any():
                 return False
         order = np.argsort(y, axis=1, kind="stable")
-        return bool((order == order[-1]).all())
+        if not (order == order[-1]).all():
+            return False
+        slope = np.polyfit(np.arange(n, dtype=float), d, 1)[0]  # per period, each pair
+        return bool((np.abs(slope) * periods_left <= self.drift_frac * self.tol).all())
 
 
 class _SteadyMonitor:
-    def __init__(self, rule: SteadyStop, period_s: float, scale_m: float):
-        self.r, self.scale = rule, float(scale_m)
+    def __init__(self, rule: SteadyStop, period_s: float, scale_m: float, end_s: float):
+        self.r, self.scale, self.end_s = rule, float(scale_m), float(end_s)
         keep = rule.window + rule.extra_periods
         self.x: list[_Periods] = []
         self.y: list[_Periods] = []
@@ -114,7 +127,8 @@ class _SteadyMonitor:
             self.y[b].add(blk["time"], blk["y"])
         if self.x[0].n_done < self.r.min_periods:
             return None
-        if all(self.r.decided(px.means, py.means) for px, py in zip(self.x, self.y)):
+        left = max(0.0, self.end_s / self.period_s - self.x[0].n_done)
+        if all(self.r.decided(px.means, py.means, left) for px, py in zip(self.x, self.y)):
             return f"steady by t = {self.x[0].n_done * self.period_s:g} s ({self.r.extra_periods} extra periods)"
         return None
 

@@ -61,9 +61,10 @@ LONE_PERIODS = 3
 """A is measured over the last LONE_PERIODS whole periods."""
 LONE_SKIP_S = 2.0
 """The free swimmer's joint error is averaged over t >= LONE_SKIP_S (one period), s."""
-PAIR_STOP = SteadyStop(tol=PAIR_STEADY_TOL, window=3, extra_periods=2, min_periods=6)
+PAIR_STOP = SteadyStop(tol=PAIR_STEADY_TOL, window=3, extra_periods=2, min_periods=6, drift_frac=0.5)
 """The pair-type studies' stopping rule (bound as ``stop=`` by the studies that use it; the runners'
-default ``None`` runs the whole duration): the steady rule held for 2 more periods, never before 6 periods."""
+default ``None`` runs the whole duration): the steady rule held for 2 more periods, never before 6
+periods, and no trend that would carry the offsets more than half the tolerance by the run's end."""
 AMPLITUDE_ROUND_M = 1e-5
 """Measured amplitudes are rounded to this (m) before they set channel widths, so a
 resumed sweep finds the same parameters after a bitwise-different re-measurement."""
@@ -98,7 +99,7 @@ def _simulate_stopped(scene: Scene, options: SimOptions, stop: SteadyStop | None
     from ..simulation import resolve_options, simulate
 
     scale = scene.wavelength_m if math.isfinite(scene.wavelength_m) else scene.geometry.length_m
-    monitor = None if stop is None else stop.monitor(scene.gait.period_s, scale)
+    monitor = None if stop is None else stop.monitor(scene.gait.period_s, scale, options.duration_s)
     ds = simulate(scene, options, stop=monitor)
     full = resolve_options(scene, options)
     return ds, full.n_steps // full.steps_per_sample + 1
