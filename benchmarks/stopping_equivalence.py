@@ -61,14 +61,14 @@ def _run(study: str, out: Path, stopped: bool, quick: bool, workers: int | None)
 
 
 def _offsets(a, b) -> dict[str, float]:
+    """Largest |full - stopped| of the dimensionless steady offsets (in wavelengths) and, for packing,
+    of the mean joint errors (rad; the heatmap's runs stop too)."""
     out = {}
     for v in a.data_vars:
-        if v.startswith("dx") and ("steady" in v or "final" in v) and "time" not in a[v].dims \
-                and a[v].dtype.kind == "f" and v in b:
-            x, y = np.asarray(a[v].values, float), np.asarray(b[v].values, float)
-            scale = 1.0 if ("lambda" in v or a[v].attrs.get("units") == "1") else np.nan
-            d = np.abs(x - y)
-            out[v] = float(np.nanmax(d) * scale) if np.isfinite(d).any() else float("nan")
+        offset = v.startswith("dx") and ("steady" in v or "final" in v) and "lambda" in v
+        if (offset or v in ("mean_joint_error", "heatmap_joint_error")) and "time" not in a[v].dims and v in b:
+            d = np.abs(np.asarray(a[v].values, float) - np.asarray(b[v].values, float))
+            out[v] = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
     return out
 
 
