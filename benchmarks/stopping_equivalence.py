@@ -65,10 +65,12 @@ def _offsets(a, b) -> dict[str, float]:
     of the mean joint errors (rad; the heatmap's runs stop too)."""
     out = {}
     for v in a.data_vars:
-        offset = v.startswith("dx") and ("steady" in v or "final" in v) and "lambda" in v
+        offset = "dx" in v and ("steady" in v or "final" in v) and "lambda" in v
         if (offset or v in ("mean_joint_error", "heatmap_joint_error")) and "time" not in a[v].dims and v in b:
             d = np.abs(np.asarray(a[v].values, float) - np.asarray(b[v].values, float))
             out[v] = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
+        elif "steady" in v and a[v].dtype == bool and v in b:  # the steady flags: how many differ
+            out[f"{v} (flags differing)"] = int((a[v].values != b[v].values).sum())
     return out
 
 
