@@ -68,7 +68,10 @@ class SteadyStop:
     never before this many whole periods (what else the run measures needs them);
     ``drift_frac``: the least-squares trend of each offset's last
     ``window + extra_periods`` period means, times the periods left to the full
-    run's end, must stay within ``drift_frac * tol``.
+    run's end, must stay within ``drift_frac * tol``; ``spread_frac``: each of
+    those windows must lie within ``spread_frac * tol`` of its mean (a margin,
+    so that a noisy offset that meets the rule by a hair at the stop, and might
+    not at the full run's end, runs on).
     """
 
     tol: float = 0.01
@@ -76,12 +79,14 @@ class SteadyStop:
     extra_periods: int = 2
     min_periods: int = 6
     drift_frac: float = 0.5
+    spread_frac: float = 0.5
 
     @property
     def rule(self) -> str:
         return (f"SteadyStop(tol={self.tol:g}, window={self.window}, extra_periods={self.extra_periods}, "
-                f"min_periods={self.min_periods}, drift_frac={self.drift_frac:g}): stop once, for every swimmer "
-                f"pair, the last {self.window} period means of dx/scale lie within {self.tol:g} of their mean in "
+                f"min_periods={self.min_periods}, drift_frac={self.drift_frac:g}, spread_frac={self.spread_frac:g}): "
+                f"stop once, for every swimmer pair, the last {self.window} period means of dx/scale lie within "
+                f"{self.spread_frac * self.tol:g} of their mean in "
                 f"each of {self.extra_periods + 1} consecutive windows, the lateral order unchanged, and their "
                 f"trend carried to the end of the run moves them by <= {self.drift_frac * self.tol:g}")
 
@@ -100,7 +105,7 @@ class SteadyStop:
         d = x[:, j] - x[:, i]  # (periods, pairs)
         for s in range(self.extra_periods + 1):
             w = d[s:s + self.window]
-            if (np.abs(w - w.mean(axis=0)) > self.tol).any():
+            if (np.abs(w - w.mean(axis=0)) > self.spread_frac * self.tol).any():
                 return False
         order = np.argsort(y, axis=1, kind="stable")
         if not (order == order[-1]).all():

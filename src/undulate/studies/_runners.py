@@ -61,10 +61,12 @@ LONE_PERIODS = 3
 """A is measured over the last LONE_PERIODS whole periods."""
 LONE_SKIP_S = 2.0
 """The free swimmer's joint error is averaged over t >= LONE_SKIP_S (one period), s."""
-PAIR_STOP = SteadyStop(tol=PAIR_STEADY_TOL, window=3, extra_periods=2, min_periods=6, drift_frac=0.5)
+PAIR_STOP = SteadyStop(tol=PAIR_STEADY_TOL, window=3, extra_periods=2, min_periods=6, drift_frac=0.5,
+                       spread_frac=0.5)
 """The pair-type studies' stopping rule (bound as ``stop=`` by the studies that use it; the runners'
-default ``None`` runs the whole duration): the steady rule held for 2 more periods, never before 6
-periods, and no trend that would carry the offsets more than half the tolerance by the run's end."""
+default ``None`` runs the whole duration): the steady rule, with half its tolerance as a margin, held
+for 2 more periods, never before 6 periods, and no trend that would carry the offsets more than half
+the tolerance by the run's end."""
 AMPLITUDE_ROUND_M = 1e-5
 """Measured amplitudes are rounded to this (m) before they set channel widths, so a
 resumed sweep finds the same parameters after a bitwise-different re-measurement."""
