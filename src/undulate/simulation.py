@@ -8,9 +8,9 @@ large groups.
 
 The constraint solver is warm-started from the previous step's
 accelerations, as in a plain ``mj_step`` loop, and each scene's warm start is
-carried from one ``rollout`` call to the next (:class:`_Stepper`): results are
-bitwise independent of the chunk size and of batching, and equal to a plain
-``mj_step`` loop from a fresh ``MjData`` (``tests/test_simulation.py``).
+carried from one ``rollout`` call to the next (:class:`_WarmRollout`): results
+are bitwise independent of the chunk size and of batching, and equal to a
+plain ``mj_step`` loop from a fresh ``MjData`` (``tests/test_simulation.py``).
 
 Recorded variables: :mod:`undulate.schema` (names, dims, units, long
 names; shared with the robot logger and the tracker).
@@ -28,7 +28,8 @@ import math
 import os
 import shutil
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
 from pathlib import Path
 
 import mujoco
@@ -49,8 +50,9 @@ __all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_o
            "physics_counters"]
 
 # Time spent inside MuJoCo's C stepping (``mujoco.rollout`` calls) by this process, and the
-# scene-steps taken there: the part of a run that is physics.  Read by the sweep workers (each
-# run file records its share) and the reproduction benchmark; never used by the physics itself.
+# scene-steps taken there: the part of a run that is physics.  Each simulate_batch call measures its
+# own (its Datasets' ``physics_time`` attrs) and adds it here once when it ends.  Read by the sweep
+# workers (each run file records its share) and the reproduction benchmark; never by the physics.
 _PHYSICS = {"seconds": 0.0, "steps": 0}
 
 
@@ -309,7 +311,7 @@ def _outs(out, nb: int) -> list[Path] | None:
     return paths
 
 
-class _Stepper:
+class _WarmRollout:
     """Rolls each scene out in C, its solver warm start carried across calls.
 
     ``mujoco.rollout`` starts every call's constraint solver from
@@ -331,27 +333,20 @@ class _Stepper:
             from concurrent.futures import ThreadPoolExecutor
             self.pool = ThreadPoolExecutor(nthread)
         self.runners = [_rollout.Rollout(nthread=0) for _ in (self.models if self.pool else self.models[:1])]
-        self.seconds = 0.0  # wall time inside rollout, s
-        self.steps = 0  # scene-steps taken
 
     def _one(self, b: int, cur, u, st, sd, nstep: int) -> None:
-        self.runners[b if self.pool else 0].rollout(self.models[b], self.datas[b], cur[b:b + 1], u[b:b + 1], nstep=nstep,
-                            initial_warmstart=self.warm[b:b + 1], state=st[b:b + 1], sensordata=sd[b:b + 1])
+        self.runners[b if self.pool else 0].rollout(
+            self.models[b], self.datas[b], cur[b:b + 1], u[b:b + 1], nstep=nstep,
+            initial_warmstart=self.warm[b:b + 1], state=st[b:b + 1], sensordata=sd[b:b + 1])
         self.warm[b] = self.datas[b].qacc_warmstart
 
     def rollout(self, cur: np.ndarray, u: np.ndarray, st: np.ndarray, sd: np.ndarray, nstep: int):
-        """Step every scene ``nstep`` steps from ``cur`` under controls ``u``, into ``st``, ``sd``."""
-        t0 = time.perf_counter()
+        """Step every scene ``nstep`` steps from ``cur`` under controls ``u``, into ``st`` and ``sd``."""
         if self.pool is None:
             for b in range(len(self.models)):
                 self._one(b, cur, u, st, sd, nstep)
         else:
             list(self.pool.map(lambda b: self._one(b, cur, u, st, sd, nstep), range(len(self.models))))
-        dt = time.perf_counter() - t0
-        self.seconds += dt
-        self.steps += len(self.models) * nstep
-        _PHYSICS["seconds"] += dt
-        _PHYSICS["steps"] += len(self.models) * nstep
         return st, sd
 
     def close(self) -> None:
@@ -361,6 +356,213 @@ class _Stepper:
             self.pool.shutdown()
 
 
+class _Clock:
+    """Physics time of one :func:`simulate_batch` call: wall seconds inside ``mujoco.rollout`` and
+    scene-steps taken there (added to the process total, :func:`physics_counters`, when the call ends)."""
+
+    def __init__(self):
+        self.seconds, self.steps = 0.0, 0
+
+    def rollout(self, runner, nb: int, n_steps: int, *args, **kwargs):
+        t0 = time.perf_counter()
+        out = runner.rollout(*args, **kwargs)
+        self.seconds += time.perf_counter() - t0
+        self.steps += nb * n_steps
+        return out
+
+
+@dataclass
+class _Batch:
+    """A batch of compiled scenes and everything resolved about how to step and record them."""
+
+    compiled: list
+    options: SimOptions
+    requested: SimOptions
+    outs: list | None
+    ctl: Controller | None
+    tick: int
+    chunk: int
+    n_samples: int
+
+    @property
+    def m0(self) -> mujoco.MjModel:
+        return self.compiled[0].model
+
+    @property
+    def nb(self) -> int:
+        return len(self.compiled)
+
+    @property
+    def dt(self) -> float:
+        return self.options.timestep_s
+
+    @property
+    def sps(self) -> int:
+        return self.options.steps_per_sample
+
+
+def _plan_batch(scenes: Sequence[Scene], options: SimOptions | None, out, controller) -> _Batch:
+    """Validate a batch, resolve its time step, compile its scenes and choose its chunk length."""
+    options = options or SimOptions()
+    if len(scenes) == 0:
+        raise ParameterError("scenes", "a non-empty sequence of Scene", scenes)
+    requested = options
+    resolved = [resolve_options(s, options) for s in scenes]
+    if len({o.timestep_s for o in resolved}) > 1:
+        raise ParameterError("scenes", "of one time step in a batch (same links and servo, or an "
+                             "explicit SimOptions.timestep_s)", sorted({o.timestep_s for o in resolved}))
+    options = resolved[0]
+    outs = _outs(out, len(scenes))
+    push = any(s.forces_N is not None for s in scenes)  # one structure: all or none carry them
+    closed = controller is not None or scenes[0].controller.closed_loop
+    if closed and any((s.gait, s.controller, s.geometry.n_links) != (scenes[0].gait, scenes[0].controller,
+                                                                   scenes[0].geometry.n_links) for s in scenes):
+        raise ParameterError("scenes", "of one gait, controller and link count in a closed-loop batch", None)
+    compiled = [compile_scene(s, options, push=push, loads=closed) for s in scenes]
+    _check_same_structure(compiled)
+    dt, sps = options.timestep_s, options.steps_per_sample
+    n_samples = options.n_steps // sps
+    if n_samples < 1:
+        raise ParameterError("duration_s", f">= one sample interval ({sps * dt:g} s)", options.duration_s)
+    _check_fits(compiled, options.recorded, n_samples, outs)
+    ctl, tick = None, 0
+    if closed:
+        ctl = controller if controller is not None else make_controller(scenes[0])
+        ctl.reset(np.stack([np.asarray(sc.phases_rad) for sc in scenes]))
+        tick = max(1, int(round(1.0 / (ctl.rate_hz * dt))))  # integrator steps per control period
+        unit = sps * tick // math.gcd(sps, tick)
+        chunk = unit * max(1, options.chunk_steps // unit)
+    else:
+        chunk = sps * max(1, options.chunk_steps // sps)
+    return _Batch(compiled, options, requested, outs, ctl, tick, chunk, n_samples)
+
+
+def _force_mag(sd: np.ndarray, adr: np.ndarray) -> np.ndarray:
+    cols = adr[..., None] + np.arange(3)
+    return np.linalg.norm(sd[..., cols], axis=-1)
+
+
+def _depth_of(sd: np.ndarray, md: np.ndarray) -> np.ndarray:
+    return np.where(sd[..., md] > 0, np.maximum(0.0, -sd[..., md + 1]), 0.0)
+
+
+def _check_divergence(bt: _Batch, st: np.ndarray, depth: np.ndarray, done: int) -> None:
+    """Raise :class:`DivergenceError` for a chunk's states ``st`` (nb, k, nstate) that blew up: huge or
+    non-finite, a MuJoCo reset (it restarts the data after bad accelerations: the state's clock jumps
+    back), or deep interpenetration."""
+    k, dt = st.shape[1], bt.dt
+    t_expected = (done + 1 + np.arange(k)) * dt
+    huge = ~(np.abs(st) < _HUGE).all(axis=2)
+    reset = np.abs(st[..., 0] - t_expected) > 0.5 * dt
+    deep = depth > max(c.scene.contact.max_penetration_m for c in bt.compiled)
+    bad = huge | reset | deep
+    if not bad.any():
+        return
+    b = int(np.flatnonzero(bad.any(axis=1))[0])
+    step = int(np.argmax(bad[b]))
+    if huge[b, step]:
+        what = "non-finite or huge state (NaN, inf or > 1e6)"
+    elif reset[b, step]:
+        what = "MuJoCo found bad accelerations (solver failure) and reset the state"
+    else:
+        what = (f"interpenetration {depth[b, step] * 1e3:.2f} mm exceeds the "
+                f"{bt.compiled[b].scene.contact.max_penetration_m * 1e3:g} mm bound")
+    raise _diagnose(bt.compiled[b], bt.options, float(t_expected[step]), what)
+
+
+class _Stepper:
+    """Steps a batch chunk by chunk in C (open loop: one rollout per chunk; closed loop:
+    :func:`_closed_loop_chunk`) and turns each chunk into recorded sample blocks."""
+
+    def __init__(self, bt: _Batch, nthread: int, clock: _Clock):
+        self.bt, self.clock = bt, clock
+        m0, nb = bt.m0, bt.nb
+        self.q0, self.nstate = _state_layout(m0)
+        ix = bt.compiled[0].index
+        self.pair_adr, self.wall_adr, self.md = ix.sens_pair, ix.sens_wall, ix.sens_mindist
+        self.runner = _WarmRollout([c.model for c in bt.compiled], nthread)
+        state0, sens0 = np.empty((nb, self.nstate)), np.empty((nb, m0.nsensordata))
+        for b, cs in enumerate(bt.compiled):
+            state0[b], sens0[b] = _initial_state(cs.model)
+        self.state0, self.sens0 = state0, sens0
+        self.cur, self.last_sens = state0.copy(), sens0.copy()
+        self.bufs = self._buffers(bt.chunk)
+        self.done = 0  # integrator steps taken
+
+    def _buffers(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        nb, m0 = self.bt.nb, self.bt.m0
+        return np.empty((nb, k, self.nstate)), np.empty((nb, k, m0.nsensordata)), np.empty((nb, k, m0.nu))
+
+    def _forces(self, sd: np.ndarray, ns: int):
+        """Interval means of the pair and wall forces and the interval's deepest penetration."""
+        bt = self.bt
+        nb, sps, npair = bt.nb, bt.sps, len(self.pair_adr)
+        fp = _force_mag(sd, self.pair_adr).reshape(nb, ns, sps, npair).mean(axis=2) if npair \
+            else np.zeros((nb, ns, 0))
+        fw = _force_mag(sd, self.wall_adr)
+        fw = fw.reshape(nb, ns, sps, *fw.shape[2:]).mean(axis=2)
+        return fp, fw
+
+    def initial_blocks(self) -> list[dict]:
+        """The samples at t = 0, one block per scene."""
+        bt, q0 = self.bt, self.q0
+        cmd0 = phase0 = None
+        if bt.ctl is not None:
+            cmd0, _ = bt.ctl.commands(np.zeros(1))
+            phase0 = bt.ctl.gait_phase(np.zeros(1))
+        s0 = self.sens0
+        fp = _force_mag(s0[:, None], self.pair_adr) if len(self.pair_adr) else np.zeros((bt.nb, 1, 0))
+        fw, pn = _force_mag(s0[:, None], self.wall_adr), _depth_of(s0[:, None], self.md)
+        return [self._block(b, 0, self.state0[b:b + 1, q0:q0 + bt.m0.nq], s0[b:b + 1], fp[b], fw[b], pn[b],
+                            None if cmd0 is None else cmd0[:, b], None if phase0 is None else phase0[:, b])
+                for b in range(bt.nb)]
+
+    def _block(self, b, i0, qpos, sens, fp, fw, pn, cmd=None, phase=None) -> dict:
+        bt = self.bt
+        t = np.round((i0 + np.arange(len(qpos))) * (bt.sps * bt.dt), 12)  # s; equal rates, equal clocks
+        return _sample_vars(bt.compiled[b], t, qpos, sens, fp, fw, pn, bt.options.recorded, cmd=cmd, phase=phase)
+
+    def _rollout(self, k: int):
+        """Step ``k`` integrator steps from the current state: states, sensors, commands and phases at
+        the recorded rows (None for the open-loop gait)."""
+        bt, dt, sps = self.bt, self.bt.dt, self.bt.sps
+        if self.bufs[0].shape[1] != k:  # last, shorter chunk: contiguous buffers of its size
+            self.bufs = self._buffers(k)
+        state_buf, sens_buf, ctrl_buf = self.bufs
+        t = (self.done + np.arange(k)) * dt
+        if bt.ctl is None:
+            for b, cs in enumerate(bt.compiled):
+                ctrl_buf[b] = controls(cs, t)
+            st, sd = self.clock.rollout(self.runner, bt.nb, k, self.cur, ctrl_buf, state_buf, sens_buf, k)
+            return st, sd, None, None
+        rows = np.arange(sps - 1, k, sps)
+        t_rows = np.round((self.done // sps + 1 + np.arange(k // sps)) * (sps * dt), 12)  # as _block stamps them
+        st, sd, cmd_rows, phase_rows = _closed_loop_chunk(
+            bt.ctl, bt.compiled, self.runner, self.cur, self.last_sens, t, bt.tick, rows,
+            t_rows, state_buf, sens_buf, ctrl_buf, self.q0, self.clock)
+        self.last_sens = sd[:, k - 1].copy()
+        return st, sd, cmd_rows, phase_rows
+
+    def step_chunk(self, k: int) -> list[dict]:
+        """Step one chunk of ``k`` steps (a multiple of the sample interval); its sample blocks."""
+        bt, q0, sps = self.bt, self.q0, self.bt.sps
+        st, sd, cmd_rows, phase_rows = self._rollout(k)
+        depth = _depth_of(sd, self.md)
+        self.cur = st[:, k - 1].copy()
+        _check_divergence(bt, st, depth, self.done)
+        ns, rows = k // sps, np.arange(sps - 1, k, sps)
+        fp, fw = self._forces(sd, ns)
+        pn = depth.reshape(bt.nb, ns, sps).max(axis=2)
+        blocks = [self._block(b, self.done // sps + 1, st[b, rows, q0:q0 + bt.m0.nq], sd[b, rows], fp[b], fw[b],
+                              pn[b], None if cmd_rows is None else cmd_rows[:, b],
+                              None if phase_rows is None else phase_rows[:, b]) for b in range(bt.nb)]
+        self.done += k
+        return blocks
+
+    def close(self) -> None:
+        self.runner.close()
+
+
 def simulate_batch(
     scenes: Sequence[Scene],
     options: SimOptions | None = None,
@@ -368,11 +570,12 @@ def simulate_batch(
     nthread: int = 0,
     out: str | os.PathLike | Sequence[str | os.PathLike] | None = None,
     controller: Controller | None = None,
+    stop: Callable[[list[dict]], str | None] | None = None,
 ) -> list[xr.Dataset]:
     """Simulate several scenes of one structure together in one rollout.
 
-    ``nthread = 0`` steps them on the calling thread; ``> 0`` steps the
-    scenes on that many threads.  Returns one Dataset per scene, identical to
+    ``nthread = 0`` steps them on the calling thread; ``> 0`` uses MuJoCo's
+    rollout thread pool.  Returns one Dataset per scene, identical to
     :func:`simulate` on each scene alone.
 
     ``out``: one ``.nc`` path per scene (a single path for one scene) to
@@ -388,161 +591,65 @@ def simulate_batch(
     time in C and the controller senses joint angles, speeds and servo
     torques between periods, vectorised over swimmers and the batch; the
     scenes must then share their gait and controller parameters.
+
+    ``stop``: a stopping rule (e.g. :class:`undulate.stopping.SteadyStop`'s
+    monitor), called with the new samples of every scene (a list of dicts of
+    arrays, ``"time"`` and the recorded variables; the t = 0 sample first)
+    after each chunk of ``SimOptions.chunk_steps`` steps; it returns None to go
+    on or a reason to end the run there.  The recording then ends at that
+    chunk: bitwise the first samples of the full-length run (each step depends
+    on the state alone).  The Datasets' attrs ``stop_rule`` (the rule's
+    ``rule`` attribute), ``stop_reason`` ("" when it ran to the end) and
+    ``stopped_at`` (s, the last sample) record it.
+
+    Every Dataset's attrs ``physics_time`` (s, wall time inside
+    ``mujoco.rollout`` for the whole batch) and ``physics_steps`` (scene-steps)
+    record what the call cost; the same is added to :func:`physics_counters`.
     """
-    options = options or SimOptions()
-    if len(scenes) == 0:
-        raise ParameterError("scenes", "a non-empty sequence of Scene", scenes)
-    requested = options
-    resolved = [resolve_options(s, options) for s in scenes]
-    if len({o.timestep_s for o in resolved}) > 1:
-        raise ParameterError("scenes", "of one time step in a batch (same links and servo, or an "
-                             "explicit SimOptions.timestep_s)", sorted({o.timestep_s for o in resolved}))
-    options = resolved[0]
-    record = options.recorded
-    outs = _outs(out, len(scenes))
-    push = any(s.forces_N is not None for s in scenes)  # one structure: all or none carry them
-    closed = controller is not None or scenes[0].controller.closed_loop
-    if closed and any((s.gait, s.controller, s.geometry.n_links) != (scenes[0].gait, scenes[0].controller,
-                                                                   scenes[0].geometry.n_links) for s in scenes):
-        raise ParameterError("scenes", "of one gait, controller and link count in a closed-loop batch", None)
-    compiled = [compile_scene(s, options, push=push, loads=closed) for s in scenes]
-    _check_same_structure(compiled)
-    m0 = compiled[0].model
-    nb = len(compiled)
-    dt = options.timestep_s
-    sps = options.steps_per_sample
-    n_samples = options.n_steps // sps
-    if n_samples < 1:
-        raise ParameterError("duration_s", f">= one sample interval ({sps * dt:g} s)", options.duration_s)
-    _check_fits(compiled, record, n_samples, outs)
-    ctl = None
-    if closed:
-        ctl = controller if controller is not None else make_controller(scenes[0])
-        ctl.reset(np.stack([np.asarray(sc.phases_rad) for sc in scenes]))
-        tick = max(1, int(round(1.0 / (ctl.rate_hz * dt))))  # integrator steps per control period
-        unit = sps * tick // math.gcd(sps, tick)
-        chunk = unit * max(1, options.chunk_steps // unit)
-    else:
-        tick = 0
-        chunk = sps * max(1, options.chunk_steps // sps)
-    q0, nstate = _state_layout(m0)
-    ix = compiled[0].index
-    pair_adr, wall_adr, md = ix.sens_pair, ix.sens_wall, ix.sens_mindist
-    npair = len(pair_adr)
+    bt = _plan_batch(scenes, options, out, controller)
+    clock = _Clock()
+    recorders = [_MemoryRecorder() for _ in range(bt.nb)] if bt.outs is None else \
+        [_NetCDFRecorder(p_) for p_ in bt.outs]
+    builders = [functools.partial(_to_dataset, cs, bt.options, record=bt.options.recorded,
+                                  timestep_auto=bt.requested.timestep_s is None,
+                                  control_rate_hz=None if bt.ctl is None else 1.0 / (bt.tick * bt.dt),
+                                  controller_kind=None if bt.ctl is None else bt.ctl.kind) for cs in bt.compiled]
 
-    def force_mag(sd: np.ndarray, adr: np.ndarray) -> np.ndarray:
-        cols = adr[..., None] + np.arange(3)
-        return np.linalg.norm(sd[..., cols], axis=-1)
+    def record(blocks: list[dict]) -> str | None:
+        for b, block in enumerate(blocks):
+            recorders[b].add(block) if bt.outs is None else recorders[b].add(block, builders[b])
+        return None if stop is None else stop(blocks)
 
-    def depth_of(sd: np.ndarray) -> np.ndarray:
-        return np.where(sd[..., md] > 0, np.maximum(0.0, -sd[..., md + 1]), 0.0)
-
-    state0 = np.empty((nb, nstate))
-    sens0 = np.empty((nb, m0.nsensordata))
-    for b, cs in enumerate(compiled):
-        state0[b], sens0[b] = _initial_state(cs.model)
-
-    recorders = [_MemoryRecorder() for _ in range(nb)] if outs is None else [_NetCDFRecorder(p_) for p_ in outs]
-    builders = [functools.partial(_to_dataset, cs, options, record=record,
-                                  timestep_auto=requested.timestep_s is None,
-                                  control_rate_hz=None if ctl is None else 1.0 / (tick * dt),
-                                  controller_kind=None if ctl is None else ctl.kind) for cs in compiled]
-
-    def emit(b: int, i0: int, qpos, sens, fp, fw, pn, cmd=None, phase=None) -> None:
-        t = np.round((i0 + np.arange(len(qpos))) * (sps * dt), 12)  # s; equal rates, equal clocks
-        block = _sample_vars(compiled[b], t, qpos, sens, fp, fw, pn, record, cmd=cmd, phase=phase)
-        if outs is None:
-            recorders[b].add(block)
-        else:
-            recorders[b].add(block, builders[b])
-
-    stepper = _Stepper([c.model for c in compiled], nthread)
+    stepper = _Stepper(bt, nthread, clock)
     # MuJoCo's own warnings (printed and appended to ./MUJOCO_LOG.TXT by default) go to the
-    # log instead while we step: a divergence is diagnosed below from the state itself.
+    # log instead while we step: a divergence is diagnosed from the state itself.
     previous_handler = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(_log_mujoco_warning)
-    state_buf = np.empty((nb, chunk, nstate))
-    sens_buf = np.empty((nb, chunk, m0.nsensordata))
-    ctrl_buf = np.empty((nb, chunk, m0.nu))
-    cur = state0.copy()
-    max_pen = max(c.scene.contact.max_penetration_m for c in compiled)
-    total = n_samples * sps
-    done = 0
+    total = bt.n_samples * bt.sps
     ok = False
     try:
-        if ctl is not None:
-            cmd0, _ = ctl.commands(np.zeros(1))
-            phase0 = ctl.gait_phase(np.zeros(1))
-        for b in range(nb):  # the initial sample (t = 0)
-            emit(b, 0, state0[b:b + 1, q0:q0 + m0.nq], sens0[b:b + 1],
-                 force_mag(sens0[b:b + 1], pair_adr) if npair else np.zeros((1, 0)),
-                 force_mag(sens0[b:b + 1], wall_adr), depth_of(sens0[b:b + 1]),
-                 None if ctl is None else cmd0[:, b], None if ctl is None else phase0[:, b])
-        last_sens = sens0.copy()
-        while done < total:
-            k = min(chunk, total - done)
-            t = (done + np.arange(k)) * dt
-            if ctrl_buf.shape[1] != k:
-                ctrl_buf = np.empty((nb, k, m0.nu))
-            if state_buf.shape[1] != k:  # last, shorter chunk: contiguous buffers of its size
-                state_buf = np.empty((nb, k, nstate))
-                sens_buf = np.empty((nb, k, m0.nsensordata))
-            ns = k // sps
-            rows = np.arange(sps - 1, k, sps)
-            if ctl is None:
-                for b, cs in enumerate(compiled):
-                    ctrl_buf[b] = controls(cs, t)
-                st, sd = stepper.rollout(cur, ctrl_buf, state_buf, sens_buf, k)
-                cmd_rows = phase_rows = None
-            else:
-                t_rows = np.round((done // sps + 1 + np.arange(ns)) * (sps * dt), 12)  # as emit() stamps them
-                st, sd, cmd_rows, phase_rows = _closed_loop_chunk(
-                    ctl, compiled, stepper, cur, last_sens, t, tick, rows, t_rows,
-                    state_buf, sens_buf, ctrl_buf, q0)
-                last_sens = sd[:, k - 1].copy()
-            depth = depth_of(sd)
-            cur = st[:, k - 1].copy()
-            # divergence: huge or non-finite state, a MuJoCo reset (it restarts the data after
-            # bad accelerations: the state's clock jumps back), or deep interpenetration
-            t_expected = (done + 1 + np.arange(k)) * dt
-            huge = ~(np.abs(st) < _HUGE).all(axis=2)
-            reset = np.abs(st[..., 0] - t_expected) > 0.5 * dt
-            deep = depth > max_pen
-            bad = huge | reset | deep
-            if bad.any():
-                b = int(np.flatnonzero(bad.any(axis=1))[0])
-                step = int(np.argmax(bad[b]))
-                t_bad = float(t_expected[step])
-                if huge[b, step]:
-                    what = "non-finite or huge state (NaN, inf or > 1e6)"
-                elif reset[b, step]:
-                    what = "MuJoCo found bad accelerations (solver failure) and reset the state"
-                else:
-                    what = (f"interpenetration {depth[b, step] * 1e3:.2f} mm exceeds the "
-                            f"{compiled[b].scene.contact.max_penetration_m * 1e3:g} mm bound")
-                raise _diagnose(compiled[b], options, t_bad, what)
-            fp = force_mag(sd, pair_adr).reshape(nb, ns, sps, npair).mean(axis=2) if npair \
-                else np.zeros((nb, ns, 0))
-            fw = force_mag(sd, wall_adr)
-            fw = fw.reshape(nb, ns, sps, *fw.shape[2:]).mean(axis=2)
-            pn = depth.reshape(nb, ns, sps).max(axis=2)
-            for b in range(nb):
-                emit(b, done // sps + 1, st[b, rows, q0:q0 + m0.nq], sd[b, rows], fp[b], fw[b], pn[b],
-                     None if cmd_rows is None else cmd_rows[:, b], None if phase_rows is None else phase_rows[:, b])
-            done += k
-        results = [r.finish(builders[b]) if outs is None else r.finish() for b, r in enumerate(recorders)]
+        reason = record(stepper.initial_blocks())
+        while stepper.done < total and not reason:
+            reason = record(stepper.step_chunk(min(bt.chunk, total - stepper.done)))
+        results = [r.finish(builders[b]) if bt.outs is None else r.finish() for b, r in enumerate(recorders)]
         ok = True
-        return results
     finally:
         stepper.close()
         mujoco.set_mju_user_warning(previous_handler)
-        if not ok and outs is not None:
+        _PHYSICS["seconds"] += clock.seconds
+        _PHYSICS["steps"] += clock.steps
+        if not ok and bt.outs is not None:
             for r in recorders:
                 r.abort()
+    for ds in results:
+        ds.attrs.update(physics_time=clock.seconds, physics_time_units="s", physics_steps=clock.steps,
+                        stop_rule="" if stop is None else str(getattr(stop, "rule", repr(stop))),
+                        stop_reason=reason or "", stopped_at=float(ds["time"].values[-1]), stopped_at_units="s")
+    return results
 
 
-def _closed_loop_chunk(ctl: Controller, compiled, stepper: _Stepper, cur, last_sens, t, tick, rows, t_rows,
-                       state_buf, sens_buf, ctrl_buf, q0):
+def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, last_sens, t, tick, rows, t_rows,
+                       state_buf, sens_buf, ctrl_buf, q0, clock: _Clock):
     """Step one chunk a control period at a time: sense, command, roll out in C.
 
     ``cur`` (the state at the chunk's start) is updated in place.  Returns the
@@ -594,7 +701,7 @@ def _closed_loop_chunk(ctl: Controller, compiled, stepper: _Stepper, cur, last_s
             tr = t_rows[sel]
             cmd_rows[sel] = ctl.commands(tr)[0]
             phase_rows[sel] = ctl.gait_phase(tr)
-        stepper.rollout(cur, u, st, sd, n_t)
+        clock.rollout(runner, nb, n_t, cur, u, st, sd, n_t)
         if not one:
             ctrl_buf[:, a:e], state_buf[:, a:e], sens_buf[:, a:e] = u, st, sd
         cur[:] = st[:, -1]
@@ -604,17 +711,18 @@ def _closed_loop_chunk(ctl: Controller, compiled, stepper: _Stepper, cur, last_s
 
 
 def simulate(scene: Scene, options: SimOptions | None = None, *,
-             out: str | os.PathLike | None = None, controller: Controller | None = None) -> xr.Dataset:
+             out: str | os.PathLike | None = None, controller: Controller | None = None,
+             stop: Callable[[list[dict]], str | None] | None = None) -> xr.Dataset:
     """Simulate one scene; see the module docstring for the recorded variables.
 
     ``out``: a ``.nc`` path to stream the samples to (memory stays flat for
     any duration); the Dataset returned is then opened lazily from it (close
-    it when done).  ``controller``: see :func:`simulate_batch`.
+    it when done).  ``controller``, ``stop``: see :func:`simulate_batch`.
 
     >>> from undulate import Scene, SimOptions, simulate
     >>> ds = simulate(Scene(phases_rad=(0.0, 1.57)), SimOptions(duration_s=4))
     """
-    return simulate_batch([scene], options, out=out, controller=controller)[0]
+    return simulate_batch([scene], options, out=out, controller=controller, stop=stop)[0]
 
 
 def _link_angles(yaw: np.ndarray, joints: np.ndarray, root: int) -> np.ndarray:

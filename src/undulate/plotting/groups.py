@@ -34,7 +34,8 @@ def plot_groups(ds, example_run: int | None = None):
         y = ds["y"].values[k]
         ph = ds["phase"].values[k]
         n = int(ds["run_group_size"].values[k])
-        centre = np.nanmean(x[:, :n], axis=1)
+        with np.errstate(invalid="ignore"):  # a run its stopping rule ended is NaN after the stop
+            centre = np.where(np.isfinite(x[:, :n]).any(axis=1), np.nansum(x[:, :n], axis=1) / n, np.nan)
         for j in range(n):
             line, = ax_x.plot(t, (x[:, j] - centre) / lam, lw=1.0,
                               label=rf"swimmer {j}: $\phi$ = {np.degrees(ph[j]):.0f}$^\circ$")

@@ -34,6 +34,7 @@ __all__ = [
     "STEADY_RULE",
     "paper_phases",
     "phase_grid",
+    "stepped",
     "trajectory",
     "final_neighbours",
     "neighbour_series",
@@ -111,12 +112,22 @@ def impulse_design(quick: bool) -> tuple[np.ndarray, np.ndarray]:
 
 
 # ------------------------------------------------------------------ analysis
+def stepped(run: xr.Dataset) -> xr.Dataset:
+    """A run cut to the samples it stepped: a run its stopping rule ended early
+    (``stopped_at_s``) is NaN after that on the sweep's common time axis."""
+    if "stopped_at_s" not in run or not np.isfinite(float(run["stopped_at_s"])):
+        return run
+    return run.isel(time=np.flatnonzero(run["time"].values <= float(run["stopped_at_s"]) + 1e-9))
+
+
 def trajectory(run: xr.Dataset, wavelength_m: float, period_s: float = PERIOD_S) -> xr.Dataset:
     """One run (a slice of the sweep dataset) as a trajectory the observables accept.
 
     Needs ``x``, ``y`` (time, swimmer) and ``phase`` (swimmer); sets the
     ``phase`` coordinate and the ``wavelength`` and ``period`` attributes.
+    A stopped run is cut to the samples it stepped (:func:`stepped`).
     """
+    run = stepped(run)
     ds = xr.Dataset({"x": run["x"], "y": run["y"]},
                     coords={"time": run["time"], "phase": ("swimmer", np.asarray(run["phase"].values, float))})
     ds.attrs.update(wavelength=float(wavelength_m), period=float(period_s))
@@ -215,6 +226,8 @@ def pair_record(run: xr.Dataset, dphi_rad: float, wavelength_m: float, amplitude
     is ``x_1 - x_0``.  Returns the scalars of :data:`PAIR_FIELDS` (m, s, N,
     rad, flags as floats) and the series ``x_1(t) - x_0(t)`` (m).
     """
+    n_time = run.sizes["time"]
+    run = stepped(run)
     traj = trajectory(run, wavelength_m)
     pairs, stable = final_neighbours(traj)
     (lo, up), = pairs
@@ -234,7 +247,9 @@ def pair_record(run: xr.Dataset, dphi_rad: float, wavelength_m: float, amplitude
         "joint_error_mean": _last_window_mean(run["joint_error"].mean("swimmer")),
         "penetration_max": float(run["penetration_max"]),
     }
-    return rec, dx.values
+    series = np.full(n_time, np.nan)  # on the sweep's common axis (NaN after a stop)
+    series[:dx.sizes["time"]] = dx.values
+    return rec, series
 
 
 PAIR_ATTRS = {

@@ -27,10 +27,11 @@ import xarray as xr
 
 from ..errors import ParameterError
 from ..params import Channel, ContactModel, Gait, Ground, Scene, Servo, SimOptions, SwimmerGeometry
+from ..stopping import SteadyStop
 
 __all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", "PAIR_WIDTH_M",
            "PAIR_DURATION_S", "RECORD_HZ", "PAIR_STEADY_TOL", "LONE_DURATION_S", "LONE_CHANNEL_WIDTH_M",
-           "AMPLITUDE_ROUND_M", "round_amplitude", "group_point", "pair_scene", "pair_point", "lone_swimmer"]
+           "AMPLITUDE_ROUND_M", "PAIR_STOP", "round_amplitude", "group_point", "pair_scene", "pair_point", "lone_swimmer"]
 
 BODY_LENGTH_M = 0.54
 """L, m (the paper's robots; the SwimmerGeometry default)."""
@@ -60,6 +61,12 @@ LONE_PERIODS = 3
 """A is measured over the last LONE_PERIODS whole periods."""
 LONE_SKIP_S = 2.0
 """The free swimmer's joint error is averaged over t >= LONE_SKIP_S (one period), s."""
+PAIR_STOP = SteadyStop(tol=PAIR_STEADY_TOL, window=3, extra_periods=2, min_periods=6, drift_frac=0.5,
+                       spread_frac=0.5)
+"""The pair-type studies' stopping rule (bound as ``stop=`` by the studies that use it; the runners'
+default ``None`` runs the whole duration): the steady rule, with half its tolerance as a margin, held
+for 2 more periods, never before 6 periods, and no trend that would carry the offsets more than half
+the tolerance by the run's end."""
 AMPLITUDE_ROUND_M = 1e-5
 """Measured amplitudes are rounded to this (m) before they set channel widths, so a
 resumed sweep finds the same parameters after a bitwise-different re-measurement."""
@@ -88,6 +95,32 @@ def _model_parts(point: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _simulate_stopped(scene: Scene, options: SimOptions, stop: SteadyStop | None):
+    """``simulate`` with the pair stopping rule (None: the whole duration); also the number of
+    samples the full-length run records (a stopped run's series are padded with NaN to it)."""
+    from ..simulation import resolve_options, simulate
+
+    scale = scene.wavelength_m if math.isfinite(scene.wavelength_m) else scene.geometry.length_m
+    monitor = None if stop is None else stop.monitor(scene.gait.period_s, scale, options.duration_s)
+    ds = simulate(scene, options, stop=monitor)
+    full = resolve_options(scene, options)
+    return ds, full.n_steps // full.steps_per_sample + 1
+
+
+def _padded(values: np.ndarray, n: int) -> np.ndarray:
+    """``values`` (time first) padded with NaN to ``n`` samples."""
+    v = np.asarray(values, float)
+    out = np.full((n, *v.shape[1:]), np.nan)
+    out[:len(v)] = v
+    return out
+
+
+def _stop_vars(ds: xr.Dataset) -> dict:
+    return {"stopped_at_s": ((), float(ds.attrs["stopped_at"]), {
+        "units": "s", "long_name": "last sample (the duration unless the stopping rule ended the run; "
+                                   "the series are NaN after it)", "stop_rule": ds.attrs["stop_rule"] or "none"})}
+
+
 def round_amplitude(a_m: float) -> float:
     """A measured amplitude (m) rounded to :data:`AMPLITUDE_ROUND_M`."""
     return float(round(a_m / AMPLITUDE_ROUND_M) * AMPLITUDE_ROUND_M)
@@ -95,7 +128,7 @@ def round_amplitude(a_m: float) -> float:
 
 def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channel_width_m: float = 0.13,
                    random_phases: bool = False, duration_s: float = DURATION_S,
-                   sample_rate_hz: float = SAMPLE_RATE_HZ) -> xr.Dataset:
+                   sample_rate_hz: float = SAMPLE_RATE_HZ, stop: SteadyStop | None = None) -> xr.Dataset:
     """Simulate one scene of a study grid; a small Dataset for the sweep store.
 
     ``point`` keys (all optional): ``dphi_rad`` (phase step between
@@ -116,9 +149,10 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
     head-to-tail extent along x averaged over the second half of the run (for
     xi waves per body, xi times the wavelength along the channel).
     ``heading_guide`` (bool, default False): :attr:`~undulate.params.Scene.heading_guide`.
+    ``stop``: a stopping rule (e.g. :data:`PAIR_STOP`; None: the whole ``duration_s``): the series
+    then end at ``stopped_at_s`` (NaN after it, on the full run's time axis), and ``extent_x`` and
+    ``penetration_max`` are over the run as stepped.
     """
-    from ..simulation import simulate
-
     xi = float(point.get("waves_per_body", 1.0))
     n_links = int(point.get("n_links", 3))
     beta = float(point.get("amplitude_rad", math.radians(45.0)))
@@ -135,24 +169,27 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
         heading_guide=bool(point.get("heading_guide", False)),
         **_model_parts(point),
     )
-    ds = simulate(scene, SimOptions(duration_s=duration_s, timestep_s=dt, sample_rate_hz=sample_rate_hz))
+    ds, n_full = _simulate_stopped(scene, SimOptions(duration_s=duration_s, timestep_s=dt,
+                                                     sample_rate_hz=sample_rate_hz), stop)
     time = ds["time"].values
     nx = ds["node_x"].values[time >= time[-1] / 2]
     extent = np.abs(nx[..., -1] - nx[..., 0]).mean(axis=0)
+    time = np.round(np.arange(n_full) * float(ds.attrs["sample_interval"]), 12)  # the full run's axis
     return xr.Dataset(
         {
-            "x": (("time", "swimmer"), ds["x"].values, {"units": "m", "long_name": "centre of mass x"}),
-            "y": (("time", "swimmer"), ds["y"].values, {"units": "m", "long_name": "centre of mass y"}),
+            "x": (("time", "swimmer"), _padded(ds["x"].values, n_full), {"units": "m", "long_name": "centre of mass x"}),
+            "y": (("time", "swimmer"), _padded(ds["y"].values, n_full), {"units": "m", "long_name": "centre of mass y"}),
             "phase": ("swimmer", np.asarray(phases, float), {"units": "rad", "long_name": "gait phase phi"}),
-            "joint_error": (("time", "swimmer"), ds["joint_error"].values.mean(axis=-1),
+            "joint_error": (("time", "swimmer"), _padded(ds["joint_error"].values.mean(axis=-1), n_full),
                             {"units": "rad", "long_name": "joint error |alpha - alpha_cmd|, mean over joints"}),
-            "contact_force_pair": (("time", "pair"), ds["contact_force_pair"].values,
+            "contact_force_pair": (("time", "pair"), _padded(ds["contact_force_pair"].values, n_full),
                                    {"units": "N", "long_name": "net contact force between swimmers pair "
                                                                "and pair+1 of the initial stack"}),
             "penetration_max": ((), float(ds["penetration"].max()), {"units": "m"}),
             "wavelength": ((), float(ds.attrs["wavelength"]), {"units": "m"}),
             "extent_x": ("swimmer", extent, {"units": "m", "long_name": "head-to-tail extent along x, "
                                                                         "mean over the second half of the run"}),
+            **_stop_vars(ds),
         },
         coords={"time": ("time", time, {"units": "s"})},
     )
@@ -214,7 +251,7 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
 
 def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
                amplitude_m: float | None = None, force_onset_s: float = 0.0,
-               record_hz: float = RECORD_HZ):
+               record_hz: float = RECORD_HZ, stop: SteadyStop | None = None):
     """One pair run (sweep function): the offsets over time and their summary.
 
     ``point``: see :func:`pair_scene`.  Returns (``dx = x_1 - x_0``, swimmer
@@ -229,14 +266,17 @@ def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
     contact impulse over the first two periods); ``mean_joint_error_rad``
     (t >= one period); ``speed_m_s`` (the pair's mean speed toward -x over
     the last 3 periods); ``max_penetration_m``.  ``seed`` is unused.
+    ``stop``: a stopping rule (e.g. :data:`PAIR_STOP`; None: the whole ``duration_s``, which is
+    also the default).  Every scalar is then computed on the run as stepped, the same way (the
+    last 3 periods are those before ``stopped_at_s``; the joint error and penetration over it);
+    the two series are NaN after it, on the full run's axes.
     """
     import xarray as xr
 
     from ..observables import contact_impulse, neighbour_offsets, period_average, steady_state
-    from ..simulation import simulate
 
     scene = pair_scene(point, amplitude_m=amplitude_m, force_onset_s=force_onset_s)
-    ds = simulate(scene, SimOptions(duration_s=duration_s))
+    ds, n_full = _simulate_stopped(scene, SimOptions(duration_s=duration_s), stop)
     lam = scene.wavelength_m
     T = scene.gait.period_s
     # dx = x_1 - x_0 and dy = y_1 - y_0 in the initial labels (swimmer 1 starts above
@@ -256,10 +296,14 @@ def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
     imp = float(contact_impulse(ds, 0.0, 2 * T)["pair"].isel(pair=0))
     je = float(ds["joint_error"].where(ds["time"] >= T).mean())
     one = {"units": "1"}
+    si = float(ds.attrs["sample_interval"])
+    t_rec = np.round(np.arange(0, n_full, every) * si, 12)
+    t_per = (np.arange(int(np.floor((n_full - 1) * si / T + 1e-9))) + 0.5) * T
     return xr.Dataset(
         {
-            "dx_over_lambda": (("time",), rec.values, {**one, "long_name": "dx / lambda"}),
-            "dx_period_over_lambda": (("period_time",), pa.values, {**one, "long_name": "period mean of dx / lambda"}),
+            "dx_over_lambda": (("time",), _padded(rec.values, len(t_rec)), {**one, "long_name": "dx / lambda"}),
+            "dx_period_over_lambda": (("period_time",), _padded(pa.values, len(t_per)),
+                                      {**one, "long_name": "period mean of dx / lambda"}),
             "dx_final_over_lambda": ((), float(st["value"]), {**one, "long_name": "final dx / lambda (last 3 periods)"}),
             "steady": ((), bool(st["steady"])),
             "settle_time_s": ((), float(st["settle_time"]), {"units": "s"}),
@@ -270,10 +314,11 @@ def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
                           {"units": "m/s", "long_name": "pair speed toward -x, last 3 periods"}),
             "max_penetration_m": ((), float(ds["penetration"].max()), {"units": "m"}),
             "swapped_sides": ((), swapped),
+            **_stop_vars(ds),
         },
         coords={
-            "time": ("time", rec["time"].values, {"units": "s"}),
-            "period_time": ("period_time", pa["time"].values, {"units": "s"}),
+            "time": ("time", t_rec, {"units": "s"}),
+            "period_time": ("period_time", t_per, {"units": "s"}),
         },
     )
 

@@ -32,7 +32,7 @@ import numpy as np
 from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import PAIR_DURATION_S, PAIR_WIDTH_M, pair_point
+from ._runners import PAIR_DURATION_S, PAIR_STOP, PAIR_WIDTH_M, pair_point
 
 __all__ = [
     "RETURN_TOL",
@@ -100,7 +100,7 @@ def plan(quick: bool) -> BasinsPlan:
 def _scan(ctx: StudyContext, part, starts, duration_s):
     from ..sweep import Grid
 
-    fn = functools.partial(pair_point, duration_s=duration_s)
+    fn = functools.partial(pair_point, duration_s=duration_s, stop=PAIR_STOP)
     grid = Grid(axes={"dx0_over_lambda": sorted(set(round(v, 12) for v in starts))}, seed=ctx.config.seed)
     return ctx.sweep(part, fn, grid)
 
@@ -142,7 +142,7 @@ def dataset(ctx: StudyContext, p: BasinsPlan):
         sides[label] = (inner, outer)
 
     # 8b: the (dx0, dphi) grid
-    fn = functools.partial(pair_point, duration_s=p.duration_s)
+    fn = functools.partial(pair_point, duration_s=p.duration_s, stop=PAIR_STOP)
     grid = Grid(axes={"dx0_over_lambda": p.grid_dx0, "dphi_rad": p.grid_dphi}, seed=ctx.config.seed)
     g = ctx.sweep("grid", fn, grid).isel(replicate=0)
     X0, P = np.meshgrid(g["dx0_over_lambda"].values, g["dphi_rad"].values, indexing="ij")

@@ -30,7 +30,7 @@ import numpy as np
 from ..params import Gait, SwimmerGeometry
 from ..theory import neutral_offset_m
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import pair_point
+from ._runners import PAIR_STOP, pair_point
 
 __all__ = ["ConfinementPlan", "plan", "central_state", "dataset", "summary", "CLAIMS", "PAPER_RANGE"]
 
@@ -85,7 +85,7 @@ def dataset(ctx: StudyContext, p: ConfinementPlan):
     geo = SwimmerGeometry()
     lam = Gait().wavelength_m(geo.length_m)
     amp = float(ctx.lone_swimmer()["amplitude_m"])
-    fn = functools.partial(pair_point, duration_s=p.duration_s, amplitude_m=amp)
+    fn = functools.partial(pair_point, duration_s=p.duration_s, amplitude_m=amp, stop=PAIR_STOP)
     grid = Grid(axes={"d_over_2A": p.d_over_2A, "dx0_over_lambda": p.dx0_over_lambda}, seed=ctx.config.seed)
     g = ctx.sweep("grid", fn, grid).isel(replicate=0)
     xf = g["dx_final_over_lambda"].values

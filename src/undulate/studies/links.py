@@ -36,7 +36,7 @@ from .. import stats
 from ..sweep import Grid
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import BODY_LENGTH_M, DURATION_S, group_point
+from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
 
 N_LINKS = (3, 5, 7, 9)
 RULES = ("fixed", "curvature")
@@ -80,7 +80,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     dphis = np.asarray(p.dphi_rad, float)
     gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]
     sim_points = [{**g, "dphi_rad": float(d)} for g in gaits for d in dphis]
-    fn = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M)
+    fn = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M, stop=PAIR_STOP)
     sim = ctx.sweep("sim", fn, Grid(points=sim_points, seed=ctx.config.seed))
     amp = np.array([float(ctx.lone_swimmer(amplitude_rad=g["amplitude_rad"], n_links=g["n_links"],
                                            waves_per_body=XI)["amplitude_m"]) for g in gaits])

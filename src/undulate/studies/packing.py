@@ -50,6 +50,7 @@ import numpy as np
 
 from .. import stats, theory
 from ..params import Channel, Scene, SimOptions, SwimmerGeometry
+from ..stopping import ExcessStop
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = [
@@ -73,6 +74,11 @@ DURATION_S = 10.0
 SKIP_S = 2.0
 """Joint error is averaged over t >= SKIP_S (one gait period), s."""
 SAMPLE_RATE_HZ = 10.0
+PACKING_STOP = ExcessStop(confidence=0.99, batch_s=1.0, min_batches=3)
+"""The probes' stopping rule: a run ends once its mean joint error after SKIP_S is decided above or
+below the lone swimmer's + THRESHOLD_RAD at one-sided 99 % (batch means over 1 s, at least 3).  The
+two runs that bracket a threshold are then run again at full length (:func:`_full_brackets`), so the
+interpolated threshold uses the same values as without stopping."""
 
 
 # --------------------------------------------------------------------- the study
@@ -143,7 +149,7 @@ def bisection_probes(known: dict[int, bool | None], m: int) -> list[int]:
 
 def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
                   n_swimmers: int = N_SWIMMERS, duration_s: float = DURATION_S,
-                  skip_s: float = SKIP_S):
+                  skip_s: float = SKIP_S, stop: ExcessStop | None = None, lone_error_rad: float = 0.0):
     """One packing run (sweep function).
 
     ``point``: ``phi_max_rad`` (phase spread, rad), ``rho_tilde`` (normalised
@@ -153,7 +159,9 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
     docstring).  ``amplitude_m``: A, m.  A run that blows up
     (:class:`~undulate.errors.DivergenceError`: dense, jammed packs do) is a
     result, not a failure: ``diverged`` is True and the measurements are NaN,
-    so a resumed sweep does not redo it.
+    so a resumed sweep does not redo it.  ``stop``: a stopping rule (e.g. :data:`PACKING_STOP`;
+    None: the whole duration) at the level ``lone_error_rad + THRESHOLD_RAD``; the means are then over
+    the run as stepped (``stopped_at_s``).
     """
     import xarray as xr
 
@@ -171,11 +179,12 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
         lateral_gap_m=width / n - geo.width_m,
     )
     nan = float("nan")
-    je_mean = je_max = wall_f = pen = nan
+    je_mean = je_max = wall_f = pen = stopped_at = nan
     diverged = False
+    monitor = None if stop is None else stop.monitor(float(lone_error_rad) + THRESHOLD_RAD, skip_s)
     try:  # only what is measured here: no swimmer-swimmer force sensors (49 of them scan every contact)
         ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=SAMPLE_RATE_HZ,
-                                        record=("joint_error", "contact_force_wall", "penetration")))
+                                        record=("joint_error", "contact_force_wall", "penetration")), stop=monitor)
     except DivergenceError:
         diverged = True
     else:
@@ -185,6 +194,7 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
         je_mean, je_max = float(je.mean()), float(je.mean(("swimmer", "joint")).max())
         wall_f = float(ds["contact_force_wall"].values[sel].mean(axis=0).sum())
         pen = float(ds["penetration"].max())
+        stopped_at = float(ds.attrs["stopped_at"])
     return xr.Dataset(
         {
             "mean_joint_error_rad": ((), je_mean, {
@@ -196,6 +206,9 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
                 "units": "N", "long_name": "time-mean contact force on all walls"}),
             "max_penetration_m": ((), pen, {"units": "m", "long_name": "deepest interpenetration"}),
             "diverged": ((), diverged, {"long_name": "the simulation blew up (DivergenceError)"}),
+            "stopped_at_s": ((), stopped_at, {"units": "s", "long_name": "last sample (the duration unless the "
+                                              "stopping rule ended the run)",
+                                              "stop_rule": "none" if monitor is None else monitor.rule}),
         }
     )
 
@@ -235,6 +248,28 @@ def density_threshold(rho_tilde, excess, failed=None) -> tuple[float, float, flo
     return float(t), float(lo), float(hi)
 
 
+def _thresholds(p: PackingPlan, excess: np.ndarray, failed: np.ndarray):
+    """:func:`density_threshold` for every (phi_max, draw): ``(threshold, lo, hi)`` arrays."""
+    nphi, ndraw = excess.shape[0], excess.shape[2]
+    thr, lo, hi = (np.full((nphi, ndraw), np.nan) for _ in range(3))
+    for i in range(nphi):
+        for k in range(ndraw):
+            thr[i, k], lo[i, k], hi[i, k] = density_threshold(p.rho_tilde, excess[i, :, k], failed[i, :, k])
+    return thr, lo, hi
+
+
+def _stopped_brackets(p: PackingPlan, thr, lo, hi, stopped_at) -> list[tuple[int, int, int]]:
+    """(phi_max, rho, draw) indices of the runs an interpolated threshold uses that stopped early."""
+    col = {round(r, 9): j for j, r in enumerate(p.rho_tilde)}
+    out = []
+    for i, k in zip(*np.nonzero(np.isfinite(thr))):
+        for r in (lo[i, k], hi[i, k]):
+            j = col[round(float(r), 9)]
+            if stopped_at[i, j, k] < p.duration_s - 1e-9:
+                out.append((int(i), j, int(k)))
+    return out
+
+
 def walled_packing_density(phi_max_rad, w_over_2A, n_swimmers: int = N_SWIMMERS):
     """Closed-form density with the side walls' room (:func:`undulate.theory.walled_packing_density`)."""
     return theory.walled_packing_density(phi_max_rad, w_over_2A, n_swimmers)
@@ -252,15 +287,16 @@ def dataset(ctx: StudyContext, p: PackingPlan):
     amp = float(lone["amplitude_m"])
     base_err = float(lone["mean_joint_error_rad"])
 
-    fn = functools.partial(packing_point, amplitude_m=amp, base_seed=int(config.seed),
-                           n_swimmers=p.n_swimmers, duration_s=p.duration_s)
+    full = functools.partial(packing_point, amplitude_m=amp, base_seed=int(config.seed),
+                             n_swimmers=p.n_swimmers, duration_s=p.duration_s)
+    fn = full if PACKING_STOP is None else functools.partial(full, stop=PACKING_STOP, lone_error_rad=base_err)
     # the heatmap: every phi_max at the heatmap densities, the first heatmap_draws draws (the
     # whole threshold grid by default, then this is the only sweep)
     grid = Grid(axes={"phi_max_rad": p.phi_max_rad, "rho_tilde": p.heatmap_rho,
                       "draw": list(range(p.heatmap_draws))}, seed=config.seed)
     heat = ctx.sweep("groups", fn, grid).isel(replicate=0)
     nphi, nrho, ndraw = len(p.phi_max_rad), len(p.rho_tilde), p.draws
-    names = ("mean_joint_error_rad", "channel_width_m", "max_penetration_m")
+    names = ("mean_joint_error_rad", "channel_width_m", "max_penetration_m", "stopped_at_s")
     vals = {k: np.full((nphi, nrho, ndraw), np.nan) for k in names}
     evaluated = np.zeros((nphi, nrho, ndraw), bool)
     diverged = np.zeros_like(evaluated)
@@ -295,15 +331,18 @@ def dataset(ctx: StudyContext, p: PackingPlan):
         got = ctx.sweep(f"bisection-{rounds}", fn, Grid(points=pts, seed=config.seed)).isel(replicate=0)
         for n, (i, j, k) in enumerate(probes):
             take(i, j, k, got.isel(point=n))
+    reruns = 0
+    while True:  # the runs that bracket a threshold, stopped early: again at full length
+        thr, lo, hi = _thresholds(p, vals["mean_joint_error_rad"] - base_err - THRESHOLD_RAD, failed)
+        todo = _stopped_brackets(p, thr, lo, hi, vals["stopped_at_s"])
+        if not todo:
+            break
+        reruns += 1
+        pts = [{"phi_max_rad": p.phi_max_rad[i], "rho_tilde": p.rho_tilde[j], "draw": k} for i, j, k in todo]
+        got = ctx.sweep(f"brackets-{reruns}", full, Grid(points=pts, seed=config.seed)).isel(replicate=0)
+        for n, (i, j, k) in enumerate(todo):
+            take(i, j, k, got.isel(point=n))
     err = vals["mean_joint_error_rad"]
-    excess = err - base_err - THRESHOLD_RAD
-
-    thr = np.full((nphi, ndraw), np.nan)
-    lo = np.full_like(thr, np.nan)
-    hi = np.full_like(thr, np.nan)
-    for i in range(nphi):
-        for k in range(ndraw):
-            thr[i, k], lo[i, k], hi[i, k] = density_threshold(p.rho_tilde, excess[i, :, k], failed[i, :, k])
 
     w2a = geo.width_m / (2 * amp)
     phi_fine = np.linspace(0.0, 2 * np.pi, 181)
@@ -360,6 +399,9 @@ def dataset(ctx: StudyContext, p: PackingPlan):
             "w_over_2A": w2a,
             "duration_s": p.duration_s,
             "bisection_rounds": rounds,
+            "stop_rule": "none" if PACKING_STOP is None else PACKING_STOP.rule,
+            "runs_stopped_early": int((vals["stopped_at_s"] < p.duration_s - 1e-9).sum()),
+            "bracket_reruns": reruns,
             "threshold_search": "whole grid" if bool(evaluated.all()) else
                                 "bisection over rho_tilde (heatmap runs reused; a failed run or a non-monotone "
                                 "column: the whole column)",

@@ -32,7 +32,7 @@ from .. import stats
 from ..sweep import Grid
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import BODY_LENGTH_M, DURATION_S, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
+from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
 CHANNEL_WIDTH_M = 0.13
@@ -56,7 +56,8 @@ def plan(quick: bool) -> Plan:
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset."""
     grid = Grid(axes={"waves_per_body": list(p.xi), "dphi_rad": list(p.dphi_rad)}, seed=ctx.config.seed)
-    sim = ctx.sweep("sim", functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M), grid)
+    sim = ctx.sweep("sim", functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M,
+                                                stop=PAIR_STOP), grid)
     amp = [float(ctx.lone_swimmer(waves_per_body=x)["amplitude_m"]) for x in p.xi]
     return pairs_dataset(sim, np.array(amp))
 

@@ -30,7 +30,7 @@ from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
 from ._analysis import SLOPE_METHOD, compatibility_fit, rms
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import pair_point
+from ._runners import PAIR_STOP, pair_point
 
 __all__ = ["SwimmingPlan", "plan", "slope_and_rms", "dataset", "summary", "CLAIMS", "MODES"]
 
@@ -72,7 +72,7 @@ def dataset(ctx: StudyContext, p: SwimmingPlan):
     lone_v = ctx.lone_swimmer(ground="viscous")
     speed_v = float(lone_v["speed_m_s"])
 
-    fn = functools.partial(pair_point, duration_s=p.duration_s)
+    fn = functools.partial(pair_point, duration_s=p.duration_s, stop=PAIR_STOP)
     grid = Grid(axes={"ground": list(MODES), "dphi_rad": p.dphi}, seed=ctx.config.seed)
     g = ctx.sweep("pairs", fn, grid).isel(replicate=0)
     failed = g["run_failed"].values.astype(bool)

@@ -1,0 +1,199 @@
+"""Stopping rules: end a run once its answer is decided (``simulate(..., stop=...)``).
+
+A rule is a frozen dataclass (a stable ``repr``: bound to a sweep function it
+is part of the sweep's identity, so changing it recomputes the runs).  Its
+:meth:`monitor` makes the callable :func:`undulate.simulation.simulate_batch`
+calls between chunks with the new samples; the monitor keeps running sums
+per period or batch only, so its memory does not grow with the run.
+
+* :class:`SteadyStop` -- pair-type runs: stop once the steady-state rule
+  (``observables.steady_state``: the last ``window`` period means of
+  ``dx/scale`` within ``tol`` of their mean) has held for ``extra_periods``
+  more periods, for **every** pair of swimmers (so for whichever neighbours
+  the analysis picks), with the lateral order of the period-mean ``y``
+  unchanged over those periods, and the offsets' trend over those periods,
+  carried on to the end of the full run, moving them by at most
+  ``drift_frac * tol`` (a slowly creeping offset satisfies the steady rule
+  at every window yet ends elsewhere: it runs on).
+* :class:`ExcessStop` -- packing probes: stop once the mean joint error after
+  ``skip_s`` is above or below a level with one-sided confidence
+  ``confidence`` (batch means over ``batch_s``, their standard error, Student t).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats as _st
+
+__all__ = ["SteadyStop", "ExcessStop"]
+
+
+class _Periods:
+    """Running period sums of one scene's per-swimmer series (the half-open periods of
+    ``observables.period_average``: period k holds t in (kT, (k+1)T]; t = 0 starts the clock)."""
+
+    def __init__(self, period_s: float, keep: int):
+        self.T, self.keep = float(period_s), int(keep)
+        self.sums: dict[int, np.ndarray] = {}
+        self.counts: dict[int, int] = {}
+        self.means: list[np.ndarray] = []  # completed periods, the last ``keep`` only
+        self.n_done = 0
+        self.t_last = 0.0
+
+    def add(self, t: np.ndarray, values: np.ndarray) -> None:
+        k = np.ceil(t / self.T - 1e-9).astype(int) - 1
+        for kk in np.unique(k[k >= self.n_done]):
+            sel = k == kk
+            self.sums[kk] = self.sums.get(kk, 0.0) + values[sel].sum(axis=0)
+            self.counts[kk] = self.counts.get(kk, 0) + int(sel.sum())
+        if len(t):
+            self.t_last = float(t[-1])
+        n_full = int(math.floor(self.t_last / self.T + 1e-9))
+        while self.n_done < n_full:
+            kk = self.n_done
+            self.means.append(self.sums.pop(kk) / self.counts.pop(kk))
+            self.means = self.means[-self.keep:]
+            self.n_done += 1
+
+
+@dataclass(frozen=True)
+class SteadyStop:
+    """Stop a pair-type run once the steady rule has held ``extra_periods`` more periods.
+
+    ``tol`` (on ``dx/scale``; ``scale`` = lambda, or L for the standing wave)
+    and ``window`` (periods) are the steady-state rule's; ``min_periods``:
+    never before this many whole periods (what else the run measures needs them);
+    ``drift_frac``: the least-squares trend of each offset's last
+    ``window + extra_periods`` period means, times the periods left to the full
+    run's end, must stay within ``drift_frac * tol``; ``spread_frac``: each of
+    those windows must lie within ``spread_frac * tol`` of its mean (a margin,
+    so that a noisy offset that meets the rule by a hair at the stop, and might
+    not at the full run's end, runs on).
+    """
+
+    tol: float = 0.01
+    window: int = 3
+    extra_periods: int = 2
+    min_periods: int = 6
+    drift_frac: float = 0.5
+    spread_frac: float = 0.5
+
+    @property
+    def rule(self) -> str:
+        return (f"SteadyStop(tol={self.tol:g}, window={self.window}, extra_periods={self.extra_periods}, "
+                f"min_periods={self.min_periods}, drift_frac={self.drift_frac:g}, spread_frac={self.spread_frac:g}): "
+                f"stop once, for every swimmer pair, the last {self.window} period means of dx/scale lie within "
+                f"{self.spread_frac * self.tol:g} of their mean in "
+                f"each of {self.extra_periods + 1} consecutive windows, the lateral order unchanged, and their "
+                f"trend carried to the end of the run moves them by <= {self.drift_frac * self.tol:g}")
+
+    def monitor(self, period_s: float, scale_m: float, end_s: float) -> "_SteadyMonitor":
+        """The callable for ``simulate(..., stop=)``: ``end_s`` is the full run's duration."""
+        return _SteadyMonitor(self, period_s, scale_m, end_s)
+
+    def decided(self, x_means: np.ndarray, y_means: np.ndarray, periods_left: float = 0.0) -> bool:
+        """The rule on period means ``(periods, swimmers)`` of x / scale and y (the last ones), with
+        ``periods_left`` periods to the end of the full run."""
+        n = self.window + self.extra_periods
+        if len(x_means) < n:
+            return False
+        x, y = np.asarray(x_means)[-n:], np.asarray(y_means)[-n:]
+        i, j = np.triu_indices(x.shape[1], 1)
+        d = x[:, j] - x[:, i]  # (periods, pairs)
+        for s in range(self.extra_periods + 1):
+            w = d[s:s + self.window]
+            if (np.abs(w - w.mean(axis=0)) > self.spread_frac * self.tol).any():
+                return False
+        order = np.argsort(y, axis=1, kind="stable")
+        if not (order == order[-1]).all():
+            return False
+        slope = np.polyfit(np.arange(n, dtype=float), d, 1)[0]  # per period, each pair
+        return bool((np.abs(slope) * periods_left <= self.drift_frac * self.tol).all())
+
+
+class _SteadyMonitor:
+    def __init__(self, rule: SteadyStop, period_s: float, scale_m: float, end_s: float):
+        self.r, self.scale, self.end_s = rule, float(scale_m), float(end_s)
+        keep = rule.window + rule.extra_periods
+        self.x: list[_Periods] = []
+        self.y: list[_Periods] = []
+        self.period_s, self.keep = period_s, keep
+        self.rule = rule.rule
+
+    def __call__(self, blocks: list[dict]) -> str | None:
+        if not self.x:
+            self.x = [_Periods(self.period_s, self.keep) for _ in blocks]
+            self.y = [_Periods(self.period_s, self.keep) for _ in blocks]
+        for b, blk in enumerate(blocks):
+            self.x[b].add(blk["time"], blk["x"] / self.scale)
+            self.y[b].add(blk["time"], blk["y"])
+        if self.x[0].n_done < self.r.min_periods:
+            return None
+        left = max(0.0, self.end_s / self.period_s - self.x[0].n_done)
+        if all(self.r.decided(px.means, py.means, left) for px, py in zip(self.x, self.y)):
+            return f"steady by t = {self.x[0].n_done * self.period_s:g} s ({self.r.extra_periods} extra periods)"
+        return None
+
+
+@dataclass(frozen=True)
+class ExcessStop:
+    """Stop a packing probe once its mean joint error is decided above or below a level.
+
+    The mean over swimmers, joints and samples after ``skip_s`` is cut into
+    batches of ``batch_s``; after at least ``min_batches`` the run stops when
+    the batch means' mean lies above (or below) the level by more than
+    ``t_{confidence, n-1}`` standard errors (one-sided).  Batch means are
+    treated as independent (the pack's error over one half gait period).
+    """
+
+    confidence: float = 0.99
+    batch_s: float = 1.0
+    min_batches: int = 3
+
+    @property
+    def rule(self) -> str:
+        return (f"ExcessStop(confidence={self.confidence:g}, batch_s={self.batch_s:g}, "
+                f"min_batches={self.min_batches}): stop once the mean joint error after the skip is above "
+                f"or below the level at one-sided confidence {self.confidence:g} (batch means, Student t)")
+
+    def monitor(self, level_rad: float, skip_s: float) -> "_ExcessMonitor":
+        return _ExcessMonitor(self, level_rad, skip_s)
+
+    def side(self, batch_means) -> int:
+        """+1 decided above the level (batch means minus it), -1 below, 0 undecided."""
+        e = np.asarray(batch_means, float)
+        n = len(e)
+        if n < max(2, self.min_batches):
+            return 0
+        half = _st.t.ppf(self.confidence, n - 1) * e.std(ddof=1) / math.sqrt(n)
+        return 1 if e.mean() - half > 0 else (-1 if e.mean() + half < 0 else 0)
+
+
+class _ExcessMonitor:
+    def __init__(self, rule: ExcessStop, level_rad: float, skip_s: float):
+        self.r, self.level, self.skip = rule, float(level_rad), float(skip_s)
+        self.sums: dict[int, float] = {}
+        self.counts: dict[int, int] = {}
+        self.excess: list[float] = []
+        self.rule = f"{rule.rule}; level {self.level:.6g} rad, skip {self.skip:g} s"
+
+    def __call__(self, blocks: list[dict]) -> str | None:
+        blk = blocks[0]
+        t = blk["time"]
+        je = blk["joint_error"].reshape(len(t), -1).mean(axis=1)
+        k = np.ceil((t - self.skip) / self.r.batch_s - 1e-9).astype(int) - 1
+        for kk in np.unique(k[k >= len(self.excess)]):
+            sel = k == kk
+            self.sums[kk] = self.sums.get(kk, 0.0) + float(je[sel].sum())
+            self.counts[kk] = self.counts.get(kk, 0) + int(sel.sum())
+        n_full = int(math.floor((float(t[-1]) - self.skip) / self.r.batch_s + 1e-9)) if len(t) else 0
+        while len(self.excess) < n_full:
+            kk = len(self.excess)
+            self.excess.append(self.sums.pop(kk) / self.counts.pop(kk) - self.level)
+        s = self.r.side(self.excess)
+        if s:
+            return f"{'above' if s > 0 else 'below'} the level after {len(self.excess)} batches"
+        return None

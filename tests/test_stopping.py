@@ -1,0 +1,114 @@
+"""Stopping rules (undulate.stopping): runs that end once their answer is decided give the same
+answer as the full-length run, are bitwise its prefix, and carry the rule in their identity."""
+
+import functools
+import math
+
+import numpy as np
+import pytest
+
+from undulate import Scene, SimOptions, simulate
+from undulate.params import Channel
+from undulate.simulation import physics_counters
+from undulate.stopping import ExcessStop, SteadyStop
+from undulate.studies import _analysis as C
+from undulate.studies._runners import PAIR_STEADY_TOL, PAIR_STOP, group_point, lone_swimmer, pair_point
+from undulate.studies.packing import PACKING_STOP, THRESHOLD_RAD, packing_point
+from undulate.sweep._store import function_id
+
+
+def _finite_len(a) -> int:
+    v = np.asarray(a, float).reshape(len(a), -1)[:, 0]
+    return int(np.isfinite(v).sum())
+
+
+def test_stopped_pair_run_is_the_full_runs_prefix_and_gives_its_offset():
+    point = {"dphi_rad": math.pi / 2, "dx0_over_lambda": 0.0}
+    full = pair_point(point, 0)
+    short = pair_point(point, 0, stop=PAIR_STOP)
+    assert float(short["stopped_at_s"]) < float(full["stopped_at_s"]) == 30.0
+    assert bool(short["steady"]) and bool(full["steady"])
+    assert abs(float(short["dx_final_over_lambda"]) - float(full["dx_final_over_lambda"])) <= PAIR_STEADY_TOL
+    assert float(short["impulse_2T_Ns"]) == float(full["impulse_2T_Ns"])  # the first two periods: bitwise
+    np.testing.assert_array_equal(short["time"].values, full["time"].values)  # one axis, NaN after the stop
+    n = _finite_len(short["dx_over_lambda"].values)
+    assert 0 < n < full.sizes["time"]
+    np.testing.assert_array_equal(short["dx_over_lambda"].values[:n], full["dx_over_lambda"].values[:n])
+    assert "SteadyStop(tol=0.01, window=3, extra_periods=2" in short["stopped_at_s"].attrs["stop_rule"]
+    assert full["stopped_at_s"].attrs["stop_rule"] == "none"
+
+
+def test_stopped_group_run_is_bitwise_the_prefix_and_the_analysis_agrees():
+    point = {"dphi_rad": math.pi / 2}
+    full = group_point(point, 0)
+    short = group_point(point, 0, stop=PAIR_STOP)
+    assert float(short["stopped_at_s"]) < 30.0
+    n = _finite_len(short["x"].values)
+    assert n == int(round(float(short["stopped_at_s"]) * 10)) + 1
+    for v in ("x", "y", "joint_error", "contact_force_pair"):
+        np.testing.assert_array_equal(short[v].values[:n], full[v].values[:n], err_msg=v)
+        assert np.isnan(short[v].values[n:]).all()
+    lam = float(full["wavelength"])
+    a, _ = C.pair_record(full, math.pi / 2, lam, 0.052)
+    b, series = C.pair_record(short, math.pi / 2, lam, 0.052)
+    assert a["steady"] == b["steady"] == 1.0
+    assert abs(a["dx_steady"] - b["dx_steady"]) / lam <= C.STEADY_TOL
+    assert len(series) == full.sizes["time"] and np.isnan(series[n:]).all()
+
+
+def test_a_different_rule_is_a_different_sweep():
+    base = functools.partial(pair_point, duration_s=30.0)
+    ids = {function_id(base), function_id(functools.partial(base, stop=PAIR_STOP)),
+           function_id(functools.partial(base, stop=SteadyStop(extra_periods=3)))}
+    assert len(ids) == 3
+
+
+def test_simulate_records_its_stop_and_its_physics_time():
+    calls = []
+
+    def stop(blocks):
+        calls.append(float(blocks[0]["time"][-1]))
+        return "enough" if calls[-1] >= 3.0 else None
+
+    sc = Scene(phases_rad=(0.0, 1.0), channel=Channel(width_m=0.13))
+    opt = SimOptions(duration_s=10.0, timestep_s=0.002, chunk_steps=500)
+    p0 = physics_counters()
+    ds = simulate(sc, opt, stop=stop)
+    p1 = physics_counters()
+    assert calls[0] == 0.0 and ds.attrs["stop_reason"] == "enough"
+    assert ds.attrs["stopped_at"] == pytest.approx(3.0)
+    assert ds.attrs["physics_steps"] == 1500 == p1[1] - p0[1]  # one scene, 3 s of 2 ms steps
+    assert 0 < ds.attrs["physics_time"] == pytest.approx(p1[0] - p0[0])
+    ref = simulate(sc, SimOptions(duration_s=10.0, timestep_s=0.002))
+    for v in ds.data_vars:
+        np.testing.assert_array_equal(ds[v].values, ref[v].values[:ds.sizes["time"]], err_msg=v)
+    assert ref.attrs["stop_reason"] == "" and ref.attrs["stopped_at"] == pytest.approx(10.0)
+
+
+@pytest.fixture(scope="module")
+def lone():
+    ds = lone_swimmer({}, 0)
+    return float(ds["amplitude_m"]), float(ds["mean_joint_error_rad"])
+
+
+@pytest.mark.parametrize("rho, early", [(1.0, True), (6.0, True), (2.35, False)])
+def test_packing_probe_stops_only_when_decided(lone, rho, early):
+    """Eight swimmers, phi_max = pi: far below (1.0) and far above (6.0) the contact threshold the
+    probe stops after its three batches; at 2.35 (excess ~ +0.003 rad) it is not decided and runs on."""
+    amp, err = lone
+    kw = dict(amplitude_m=amp, base_seed=1, n_swimmers=8, duration_s=8.0)
+    point = {"phi_max_rad": math.pi, "rho_tilde": rho, "draw": 0}
+    short = packing_point(point, 0, stop=PACKING_STOP, lone_error_rad=err, **kw)
+    assert (float(short["stopped_at_s"]) < 8.0 - 1e-9) is early
+    full = packing_point(point, 0, **kw)
+    side = np.sign(float(full["mean_joint_error_rad"]) - err - THRESHOLD_RAD)
+    assert np.sign(float(short["mean_joint_error_rad"]) - err - THRESHOLD_RAD) == side
+    assert "ExcessStop(confidence=0.99" in short["stopped_at_s"].attrs["stop_rule"]
+
+
+def test_excess_rule_needs_its_batches_and_its_confidence():
+    rule = ExcessStop(confidence=0.99, min_batches=3)
+    assert rule.side([0.1, 0.1]) == 0  # too few batches
+    assert rule.side([0.10, 0.11, 0.12]) == 1
+    assert rule.side([-0.01, -0.0101, -0.0099]) == -1
+    assert rule.side([0.01, -0.01, 0.012]) == 0  # scatter straddles the level
