@@ -28,6 +28,7 @@ import xarray as xr
 from ..errors import ParameterError
 from ..params import Channel, ContactModel, Gait, Ground, Scene, Servo, SimOptions, SwimmerGeometry
 from ..stopping import SteadyStop
+from ._points import MODEL_KEYS, GroupPoint, LonePoint, PairPoint
 
 __all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", "PAIR_WIDTH_M",
            "PAIR_DURATION_S", "RECORD_HZ", "PAIR_STEADY_TOL", "LONE_DURATION_S", "LONE_CHANNEL_WIDTH_M",
@@ -70,29 +71,6 @@ the tolerance by the run's end."""
 AMPLITUDE_ROUND_M = 1e-5
 """Measured amplitudes are rounded to this (m) before they set channel widths, so a
 resumed sweep finds the same parameters after a bitwise-different re-measurement."""
-
-
-_PAIR_KEYS = ("dx0_over_lambda", "dphi_rad", "phi0_rad", "channel_width_m", "d_over_2A", "amplitude_m",
-              "amplitude_rad", "force_N", "ground", "waves_per_body", "body_width_m",
-              "fluid_density_kg_m3", "swim_drag_N_s_per_m", "drag_N_s_per_m")
-
-MODEL_KEYS = ("kp_Nm_per_rad", "torque_limit_Nm", "max_speed_rad_s", "contact_timeconst_s", "drag_N_s_per_m")
-"""Optional point keys of :func:`group_point` that change one model choice (the sensitivity
-study): servo gain, torque limit, top speed (slew limit), contact time constant (s; 0 = the
-default, two time steps), linear drag."""
-
-
-def _model_parts(point: dict[str, Any]) -> dict[str, Any]:
-    """Scene keyword arguments for the :data:`MODEL_KEYS` present in ``point`` (others: defaults)."""
-    servo = {k: float(point[k]) for k in ("kp_Nm_per_rad", "torque_limit_Nm", "max_speed_rad_s") if k in point}
-    out: dict[str, Any] = {}
-    if servo:
-        out["servo"] = Servo(**servo)
-    if float(point.get("contact_timeconst_s", 0.0)) > 0:
-        out["contact"] = ContactModel(timeconst_s=float(point["contact_timeconst_s"]))
-    if "drag_N_s_per_m" in point:
-        out["ground"] = Ground(drag_N_s_per_m=float(point["drag_N_s_per_m"]))
-    return out
 
 
 def _simulate_stopped(scene: Scene, options: SimOptions, stop: SteadyStop | None):
@@ -153,21 +131,20 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
     then end at ``stopped_at_s`` (NaN after it, on the full run's time axis), and ``extent_x`` and
     ``penetration_max`` are over the run as stepped.
     """
-    xi = float(point.get("waves_per_body", 1.0))
-    n_links = int(point.get("n_links", 3))
-    beta = float(point.get("amplitude_rad", math.radians(45.0)))
-    dt = float(point.get("timestep_s", TIMESTEP_S))
+    pt = GroupPoint.of(point)
+    n_links = pt.n_links
+    dt = TIMESTEP_S if pt.timestep_s is None else pt.timestep_s
     if random_phases:
         phases = tuple(np.random.default_rng(seed).uniform(0.0, 2.0 * np.pi, n_swimmers))
     else:
-        phases = tuple(j * float(point.get("dphi_rad", 0.0)) for j in range(n_swimmers))
+        phases = tuple(j * pt.dphi_rad for j in range(n_swimmers))
     scene = Scene(
         phases_rad=phases,
-        gait=Gait(amplitude_rad=beta, waves_per_body=xi),
+        gait=pt.gait(),
         geometry=SwimmerGeometry(n_links=n_links, length_m=BODY_LENGTH_M),
         channel=Channel(width_m=channel_width_m),
-        heading_guide=bool(point.get("heading_guide", False)),
-        **_model_parts(point),
+        heading_guide=pt.heading_guide,
+        **pt.model_parts(),
     )
     ds, n_full = _simulate_stopped(scene, SimOptions(duration_s=duration_s, timestep_s=dt,
                                                      sample_rate_hz=sample_rate_hz), stop)
@@ -213,37 +190,25 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     :meth:`Ground.swimming`'s default), ``drag_N_s_per_m`` (the viscous
     ground's linear drag per link, N s/m; :class:`Ground`'s default).
     """
-    unknown = set(point) - set(_PAIR_KEYS)
-    if unknown:
-        raise ParameterError("point", f"keys among {_PAIR_KEYS}", sorted(unknown))
-    gait = Gait(amplitude_rad=float(point.get("amplitude_rad", Gait().amplitude_rad)),
-                waves_per_body=float(point.get("waves_per_body", 1.0)))
-    geo = SwimmerGeometry(width_m=float(point.get("body_width_m", SwimmerGeometry().width_m)))
+    pt = PairPoint.of(point)
+    gait, geo = pt.gait(), pt.geometry()
     lam = gait.wavelength_m(geo.length_m)
-    if "d_over_2A" in point:
-        amp = point.get("amplitude_m", amplitude_m)
+    if pt.d_over_2A is not None:
+        amp = pt.amplitude_m if pt.amplitude_m is not None else amplitude_m
         if amp is None:
-            raise ValueError("d_over_2A needs amplitude_m")
-        width = float(point["d_over_2A"]) * 2.0 * float(amp)
+            raise ParameterError("d_over_2A", "given with an amplitude (the point's amplitude_m or the "
+                                 "keyword amplitude_m)", pt.d_over_2A)
+        width = pt.d_over_2A * 2.0 * float(amp)
     else:
-        width = float(point.get("channel_width_m", PAIR_WIDTH_M))
-    if point.get("ground", "viscous") == "swimming":
-        if "drag_N_s_per_m" in point:
-            raise ParameterError("drag_N_s_per_m", "the viscous ground's drag (use swim_drag_N_s_per_m for the "
-                                 "swimming ground)", point["drag_N_s_per_m"])
-        names = {"fluid_density_kg_m3": "fluid_density_kg_m3", "swim_drag_N_s_per_m": "drag_N_s_per_m"}
-        ground = Ground.swimming(**{arg: float(point[key]) for key, arg in names.items() if key in point})
-    else:
-        ground = _model_parts(point).get("ground", Ground())  # the viscous ground, drag_N_s_per_m if given
-    f = float(point.get("force_N", 0.0))
+        width = PAIR_WIDTH_M if pt.channel_width_m is None else pt.channel_width_m
+    f = pt.force_N
     return Scene(
-        phases_rad=(float(point.get("phi0_rad", 0.0)),
-                    float(point.get("phi0_rad", 0.0)) + float(point.get("dphi_rad", 0.0))),
+        phases_rad=(pt.phi0_rad, pt.phi0_rad + pt.dphi_rad),
         gait=gait,
         geometry=geo,
-        ground=ground,
+        ground=pt.ground_model(),
         channel=Channel(width_m=width),
-        dx0_m=float(point.get("dx0_over_lambda", 0.0)) * lam,
+        dx0_m=pt.dx0_over_lambda * lam,
         forces_N=(-f, f) if f else None,
         force_onset_s=float(force_onset_s) if f else 0.0,
     )
@@ -340,12 +305,12 @@ def lone_swimmer(point: dict, seed: int, *, duration_s: float = LONE_DURATION_S)
     from ..observables import gait_amplitude, period_average
     from ..simulation import simulate
 
-    gait = Gait(amplitude_rad=float(point.get("amplitude_rad", Gait().amplitude_rad)),
-                waves_per_body=float(point.get("waves_per_body", 1.0)))
-    g = Ground.swimming() if point.get("ground", "viscous") == "swimming" else Ground()
+    pt = LonePoint.of(point)
+    gait = pt.gait()
+    g = Ground.swimming() if pt.ground == "swimming" else Ground()
     scene = Scene(phases_rad=(0.0,), gait=gait, ground=g,
-                  geometry=SwimmerGeometry(n_links=int(point.get("n_links", 3)), length_m=BODY_LENGTH_M),
-                  channel=Channel(width_m=LONE_CHANNEL_WIDTH_M), heading_guide=bool(point.get("heading_guide", False)))
+                  geometry=SwimmerGeometry(n_links=pt.n_links, length_m=BODY_LENGTH_M),
+                  channel=Channel(width_m=LONE_CHANNEL_WIDTH_M), heading_guide=pt.heading_guide)
     ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=50.0))
     period = scene.gait.period_s
     amp = round_amplitude(gait_amplitude(ds, periods=LONE_PERIODS))

@@ -51,6 +51,7 @@ import numpy as np
 from .. import stats, theory
 from ..params import Channel, Scene, SimOptions, SwimmerGeometry
 from ..stopping import ExcessStop
+from ._points import PackingPoint
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = [
@@ -170,9 +171,10 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
 
     geo = SwimmerGeometry()
     n = int(n_swimmers)
-    u = np.random.default_rng([int(base_seed), int(point["draw"])]).random(n)
-    phases = float(point["phi_max_rad"]) * u
-    width = 2.0 * amplitude_m * n / float(point["rho_tilde"])
+    pt = PackingPoint.of(point)
+    u = np.random.default_rng([int(base_seed), pt.draw]).random(n)
+    phases = pt.phi_max_rad * u
+    width = 2.0 * amplitude_m * n / pt.rho_tilde
     scene = Scene(
         phases_rad=tuple(phases),
         channel=Channel(width_m=width, end_walls_m=SHORT_CHANNEL_OVER_L * geo.length_m),

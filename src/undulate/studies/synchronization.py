@@ -41,6 +41,7 @@ import numpy as np
 
 from .. import stats, theory
 from ..params import Channel, ControllerParams, Scene, SimOptions
+from ._points import SyncPoint
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = ["pair_run", "group_run", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
@@ -85,8 +86,9 @@ def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
     from ..phases import neighbour_phase_differences, time_to_lock
     from ..simulation import simulate
 
-    sc = Scene(phases_rad=(0.0, float(point["dphi0_rad"])), channel=Channel(width_m=PAIR_CHANNEL_M),
-               hold_x=bool(point["hold_x"]), controller=CONTROLLERS[str(point["controller"])])
+    pt = SyncPoint.of(point)
+    sc = Scene(phases_rad=(0.0, pt.dphi0_rad), channel=Channel(width_m=PAIR_CHANNEL_M),
+               hold_x=pt.hold_x, controller=CONTROLLERS[pt.controller])
     ds = simulate(sc, SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD))
     t = ds["time"].values
     d = neighbour_phase_differences(ds)
@@ -113,10 +115,11 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
     from ..phases import gait_frequency, gait_phase, neighbour_phase_differences, order_parameter
     from ..simulation import simulate
 
-    n = int(point["n_swimmers"])
+    pt = SyncPoint.of(point)
+    n = pt.n_swimmers
     phases = tuple(np.random.default_rng(seed).uniform(0, 2 * np.pi, n))
-    sc = Scene(phases_rad=phases, channel=Channel(width_m=n * float(point["spacing_m"])),
-               controller=CONTROLLERS[str(point["controller"])])
+    sc = Scene(phases_rad=phases, channel=Channel(width_m=n * pt.spacing_m),
+               controller=CONTROLLERS[pt.controller])
     ds = simulate(sc, SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD))
     t = ds["time"].values
     psi = gait_phase(ds)
@@ -155,7 +158,7 @@ def free_frequency(point: dict, seed: int, *, duration_s: float = 30.0):
     from ..phases import gait_frequency, gait_phase
     from ..simulation import simulate
 
-    sc = Scene(phases_rad=(0.0,), channel=Channel(width_m=2.0), controller=CONTROLLERS[str(point["controller"])])
+    sc = Scene(phases_rad=(0.0,), channel=Channel(width_m=2.0), controller=CONTROLLERS[SyncPoint.of(point).controller])
     ds = simulate(sc, SimOptions(duration_s=duration_s, record=("gait_phase",)))
     f = float(gait_frequency(gait_phase(ds), t_from=duration_s - TAIL_S)[0])
     return xr.Dataset({"frequency": ((), f, {"units": "Hz", "long_name": "free gait frequency"})})
