@@ -77,12 +77,13 @@ def plan(quick: bool) -> Plan:
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Groups of three and four, and pairs at the same dphi (the scatter they are compared with)."""
     seed = ctx.config.seed
-    three = ctx.sweep("three", functools.partial(group_point, stop=PAIR_STOP, n_swimmers=3, channel_width_m=CHANNEL_WIDTH_M[3]),
+    run = functools.partial(group_point, stop=PAIR_STOP)
+    three = ctx.sweep("three", functools.partial(run, n_swimmers=3, channel_width_m=CHANNEL_WIDTH_M[3]),
                       Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
-    four = ctx.sweep("four", functools.partial(group_point, stop=PAIR_STOP, n_swimmers=4, channel_width_m=CHANNEL_WIDTH_M[4],
+    four = ctx.sweep("four", functools.partial(run, n_swimmers=4, channel_width_m=CHANNEL_WIDTH_M[4],
                                                 random_phases=True),
                      Grid(axes={"waves_per_body": [XI]}, replicates=p.draws, seed=seed))
-    two = ctx.sweep("pairs", functools.partial(group_point, stop=PAIR_STOP, n_swimmers=2, channel_width_m=PAIR_CHANNEL_WIDTH_M),
+    two = ctx.sweep("pairs", functools.partial(run, n_swimmers=2, channel_width_m=PAIR_CHANNEL_WIDTH_M),
                     Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
     A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
     return groups_dataset({2: two, 3: three, 4: four}, A)
