@@ -43,6 +43,7 @@ import json
 import math
 import os
 import pkgutil
+import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -273,8 +274,7 @@ def _load() -> None:
     global _loaded
     if _loaded:
         return
-    from . import __path__ as package_path
-
+    package_path = sys.modules[__package__].__path__  # this package's folder(s), without an import edge to it
     for info in sorted(pkgutil.iter_modules(package_path), key=lambda m: m.name):
         if not info.name.startswith("_"):
             importlib.import_module(f"{__package__}.{info.name}")
