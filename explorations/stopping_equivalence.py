@@ -15,8 +15,8 @@ Per study it prints and writes (``--json``, ``--markdown``):
 
 Timings mean something only on an otherwise idle machine (the load average is printed).
 
-    python benchmarks/stopping_equivalence.py                          # quick grids
-    python benchmarks/stopping_equivalence.py --only pairs,packing --json /tmp/eq.json
+    python explorations/stopping_equivalence.py                          # quick grids
+    python explorations/stopping_equivalence.py --only pairs,packing --json /tmp/eq.json
 """
 
 from __future__ import annotations
