@@ -68,6 +68,23 @@ Families (equations, units, references)
     motion speeds it up.  ``sigma = 0`` is the open-loop gait.  Integrated
     by explicit Euler at the control rate.
 
+``relay``
+    The closest model we could build to the oscillator of Zhou, Hao &
+    Gravish (PRX 2021) from every sentence they published (their equations
+    were not found: see ``docs/controllers.md`` for what was searched).  A
+    switching (relay) oscillator: each joint is driven towards its turning
+    point ``+-beta`` along the travelling wave at the gait's speed, and its
+    drive **reverses at the sensed angle where contact obstructs it**: when
+    any joint's measured angle lags its command, against the commanded
+    motion, by more than ``reverse_error_rad`` (the joint is blocked), the
+    swimmer's phase runs ahead at ``reverse_rate_factor * 2 pi f`` to that
+    joint's next turning point -- the blocked half-stroke ends where the
+    obstacle stopped it, and the drive turns.  Nothing waits and nothing
+    is timed: the command depends only on the sensed angles and the
+    internal phase (the drive's position along its stroke).  An
+    unobstructed servo tracks within about a milliradian, so a free
+    swimmer never reverses early and keeps ``f`` and ``beta`` exactly.
+
 Set-points within a control period: closed-loop controllers give the target
 angle and velocity at the update; the servo's position set-point then moves
 on at that velocity until the next update (a goal position with a moving
@@ -80,7 +97,7 @@ import numpy as np
 
 from .params import ControllerParams, Gait, Scene
 
-__all__ = ["Controller", "OpenLoop", "SelfOscillating", "PhaseOscillator", "make_controller"]
+__all__ = ["Controller", "OpenLoop", "SelfOscillating", "PhaseOscillator", "RelayOscillator", "make_controller"]
 
 
 class Controller:
@@ -249,6 +266,63 @@ class SelfOscillating(Controller):
         return self._wave(psi, rate)
 
 
+class RelayOscillator(Controller):
+    """Relay oscillator whose drive reverses where contact blocks a joint: see the module docstring.
+
+    ``reverse_error_rad``: lag (rad) of a joint behind its command, against the commanded motion,
+    that counts as blocked; ``reverse_rate_factor``: how much faster than ``2 pi f`` the phase
+    runs to the blocked joint's turning point (the drive's reversal, > 1).
+    """
+
+    kind = "relay"
+
+    def __init__(self, gait: Gait, n_links: int, rate_hz: float = 100.0, reverse_error_rad: float = 0.1,
+                 reverse_rate_factor: float = 4.0):
+        super().__init__(gait, n_links, rate_hz)
+        self.reverse_error_rad = float(reverse_error_rad)
+        self.reverse_rate_factor = float(reverse_rate_factor)
+
+    def reset(self, phases_rad, t_s: float = 0.0) -> None:
+        super().reset(phases_rad, t_s)
+        self.target = np.full(self.psi.shape, -np.inf)  # reversing: running to this phase
+        self.reversals = np.zeros(self.psi.shape, dtype=int)
+
+    def _next_turn(self, psi: np.ndarray) -> np.ndarray:
+        """Each joint's next turning point strictly after ``psi`` (rad)."""
+        arg = self.offsets_rad - psi[..., None]
+        m = np.ceil((arg - np.pi / 2) / np.pi - 1e-9) - 1  # offset - psi_turn = pi/2 + m pi, psi_turn > psi
+        return self.offsets_rad - np.pi / 2 - m * np.pi
+
+    def gait_phase(self, t_s) -> np.ndarray:
+        free = super().gait_phase(t_s)
+        fast = self.target > self.psi
+        return np.where(fast[None], np.minimum(free, self.target[None]), free)
+
+    def update(self, t_s, angle_rad, velocity_rad_s=None, load_Nm=None) -> None:
+        dt = float(t_s) - self.t_s
+        psi = self.gait_phase(np.array([float(t_s)]))[0]
+        arg = self.offsets_rad - psi[..., None]
+        command, direction = self.gait.amplitude_rad * np.sin(arg), -np.cos(arg)  # d alpha / d psi sign
+        lag = np.sign(direction) * (command - np.asarray(angle_rad))
+        blocked = (lag > self.reverse_error_rad) & (np.abs(direction) > 0.05)
+        turn = np.where(blocked, self._next_turn(psi), np.inf).min(axis=-1)
+        start = np.isfinite(turn) & ~(self.target > psi)
+        self.target = np.where(start, turn, self.target)
+        self.reversals = self.reversals + start
+        self.psi, self.t_s = psi, float(t_s)
+        self.psi_rate = np.where(self.target > psi, self.reverse_rate_factor * self._omega, self._omega)
+        del dt
+
+    def commands(self, t_steps_s, angle_rad=None, velocity_rad_s=None, load_Nm=None):
+        t = np.asarray(t_steps_s, dtype=float)
+        if angle_rad is not None:
+            self.update(float(t[0]), angle_rad, velocity_rad_s, load_Nm)
+        psi = self.gait_phase(t)
+        fast = (self.target[None] > psi)
+        rate = np.where(fast, self.reverse_rate_factor * self._omega, self._omega)
+        return self._wave(psi, rate)
+
+
 def make_controller(scene: Scene, params: ControllerParams | None = None) -> Controller:
     """The runtime controller for ``scene`` (its ``controller`` parameters by default), reset to
     the scene's initial phases at t = 0."""
@@ -261,6 +335,9 @@ def make_controller(scene: Scene, params: ControllerParams | None = None) -> Con
     elif p.kind == "self-oscillating":
         c = SelfOscillating(g, n, p.control_rate_hz, arrival_fraction=p.arrival_fraction,
                             max_hold_s=p.max_hold_s, stall_speed_rad_s=p.stall_speed_rad_s)
+    elif p.kind == "relay":
+        c = RelayOscillator(g, n, p.control_rate_hz, reverse_error_rad=p.reverse_error_rad,
+                            reverse_rate_factor=p.reverse_rate_factor)
     else:  # pragma: no cover - ControllerParams validates the kind
         raise ValueError(p.kind)
     c.reset(np.asarray(scene.phases_rad))

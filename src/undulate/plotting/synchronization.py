@@ -6,7 +6,7 @@ import numpy as np
 
 from . import new_figure, phase_axis
 
-__all__ = ["plot_sync_pairs", "plot_sync_groups"]
+__all__ = ["plot_sync_pairs", "plot_sync_groups", "plot_phase_interaction"]
 
 _HOLD = {True: ("tab:red", "o", "positions held"), False: ("tab:blue", "s", "positions free")}
 
@@ -64,4 +64,34 @@ def plot_sync_groups(ds):
         ax.set_ylabel("order parameter R")
         ax.set_title(f"{c}: phases and positions free", fontsize=10)
         ax.legend(fontsize=8)
+    return fig
+
+
+def plot_phase_interaction(ds, summary):
+    """Per controller: H(dphi) per bin (mean, 95 % t interval; held and free), its stable zeros
+    (intervals shaded) and the closed-loop runs' final dphi (ticks on the zero line)."""
+    ctrls = [str(c) for c in ds["controller"].values]
+    fig = new_figure(5.2 * len(ctrls), 4.4)
+    for j, c in enumerate(ctrls):
+        ax = fig.add_subplot(1, len(ctrls), j + 1)
+        for cond, held in (("held", True), ("free", False)):
+            col, mk, label = _HOLD[held]
+            v = summary["per_controller"][c][cond]
+            x = np.array([b["centre"] for b in v["bins"]])
+            h = np.array([np.nan if b["H"]["value"] is None else b["H"]["value"] for b in v["bins"]])
+            lo = np.array([np.nan if b["H"]["ci95"][0] is None else b["H"]["ci95"][0] for b in v["bins"]])
+            hi = np.array([np.nan if b["H"]["ci95"][1] is None else b["H"]["ci95"][1] for b in v["bins"]])
+            ax.errorbar(x, h, yerr=[h - lo, hi - h], fmt=mk + "-", color=col, ms=4, lw=1, capsize=2,
+                        label=f"H, {label}")
+            for z in v["stable_zeros"]:
+                ax.axvspan(z["ci95"][0], z["ci95"][1], color=col, alpha=0.15)
+            off = 0.02 if held else -0.02
+            ax.plot(v["finals_rad"], np.full(len(v["finals_rad"]), off), "|", color=col, ms=14, mew=2,
+                    label=f"final states, {label}")
+        ax.axhline(0, color="k", lw=0.6)
+        phase_axis(ax.xaxis)
+        ax.set_xlabel(r"$\Delta\phi$ (rad)")
+        ax.set_ylabel(r"$H = \langle d\Delta\phi/dt \rangle$ (rad/s)")
+        ax.set_title(c, fontsize=10)
+        ax.legend(fontsize=7)
     return fig

@@ -87,6 +87,7 @@ STUDY_MODULES: tuple[str, ...] = (
     "potential",
     "swimming",
     "synchronization",
+    "phase_interaction",
     "sensitivity",
 )
 

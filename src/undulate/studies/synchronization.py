@@ -50,7 +50,8 @@ PAIR_CHANNEL_M = 0.13
 PAIR_COUPLING = 2.0
 """phase-oscillator load feedback sigma in these studies, rad/s per N m."""
 CONTROLLERS = {"self-oscillating": ControllerParams(kind="self-oscillating"),
-               "phase-oscillator": ControllerParams(kind="phase-oscillator", coupling=PAIR_COUPLING)}
+               "phase-oscillator": ControllerParams(kind="phase-oscillator", coupling=PAIR_COUPLING),
+               "relay": ControllerParams(kind="relay")}
 PAIR_DURATION_S = 60.0
 TAIL_S = 10.0
 LOCK_TOL_RAD = 0.15
