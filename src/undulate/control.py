@@ -97,7 +97,7 @@ import numpy as np
 
 from .params import ControllerParams, Gait, Scene
 
-__all__ = ["Controller", "OpenLoop", "SelfOscillating", "PhaseOscillator", "RelayOscillator", "make_controller"]
+__all__ = ["Controller", "OpenLoop", "SelfOscillating", "PhaseOscillator", "RelayOscillator", "SensingOpenLoop", "make_controller"]
 
 
 class Controller:
@@ -194,6 +194,22 @@ class OpenLoop(Controller):
         return angle, velocity
 
 
+class SensingOpenLoop(OpenLoop):
+    """The open-loop gait (phases held) that also keeps what the servos sensed at every control
+    update: ``sensed`` is a list of ``(t_s, psi, angle_rad, velocity_rad_s, load_Nm)``."""
+
+    def reset(self, phases_rad, t_s: float = 0.0) -> None:
+        super().reset(phases_rad, t_s)
+        self.sensed: list = []
+
+    def commands(self, t_steps_s, angle_rad=None, velocity_rad_s=None, load_Nm=None):
+        out = super().commands(t_steps_s)
+        if angle_rad is not None:
+            self.sensed.append((self.t_s, self.psi.copy(), np.array(angle_rad), np.array(velocity_rad_s),
+                                np.array(load_Nm)))
+        return out
+
+
 class PhaseOscillator(Controller):
     """Phase oscillator with load feedback (Tegotae): see the module docstring.
 
@@ -212,6 +228,17 @@ class PhaseOscillator(Controller):
         self.t_s = float(t_s)
         cos = np.cos(self.offsets_rad - self.psi[..., None])
         self.psi_rate = self._omega + self.coupling * (np.asarray(load_Nm) * cos).sum(axis=-1)
+
+    def phase_velocity(self, psi, angle_rad, velocity_rad_s, load_Nm) -> np.ndarray:
+        """The law above at phase ``psi`` (no state change), rad/s."""
+        cos = np.cos(self.offsets_rad - np.asarray(psi)[..., None])
+        return self._omega + self.coupling * (np.asarray(load_Nm) * cos).sum(axis=-1)
+
+
+def _phase_velocity_doc():  # pragma: no cover - documentation anchor
+    """``phase_velocity(psi, angle, velocity, load)``: the phase velocity (rad/s) the controller's law
+    would command at phase ``psi`` (shape ``(..., n)``) given the sensed joints (``(..., n, n_joints)``),
+    without changing its state: the phase-reduction probe of :mod:`undulate.studies.phase_interaction`."""
 
 
 class SelfOscillating(Controller):
@@ -257,6 +284,15 @@ class SelfOscillating(Controller):
         self.psi, self.t_s = psi, float(t_s)
         self.psi_rate = np.where(psi >= self.limit, 0.0, self._omega)
 
+    def phase_velocity(self, psi, angle_rad, velocity_rad_s, load_Nm) -> np.ndarray:
+        """0 where a joint's gate would hold the phase (its turning point within one control period
+        ahead of ``psi`` and its measured angle short of ``a beta``), else ``2 pi f``; rad/s."""
+        psi = np.asarray(psi, dtype=float)
+        turn, side = self._next_turn(psi)
+        near = turn - psi[..., None] < self._omega / self.rate_hz
+        short = side * np.asarray(angle_rad) < self.arrival_fraction * self.gait.amplitude_rad
+        return np.where((near & short).any(axis=-1), 0.0, self._omega)
+
     def commands(self, t_steps_s, angle_rad=None, velocity_rad_s=None, load_Nm=None):
         t = np.asarray(t_steps_s, dtype=float)
         if angle_rad is not None:
@@ -298,20 +334,27 @@ class RelayOscillator(Controller):
         fast = self.target > self.psi
         return np.where(fast[None], np.minimum(free, self.target[None]), free)
 
-    def update(self, t_s, angle_rad, velocity_rad_s=None, load_Nm=None) -> None:
-        dt = float(t_s) - self.t_s
-        psi = self.gait_phase(np.array([float(t_s)]))[0]
+    def _blocked(self, psi: np.ndarray, angle_rad) -> np.ndarray:
+        """Joints lagging their command against the commanded motion by more than the threshold."""
         arg = self.offsets_rad - psi[..., None]
         command, direction = self.gait.amplitude_rad * np.sin(arg), -np.cos(arg)  # d alpha / d psi sign
         lag = np.sign(direction) * (command - np.asarray(angle_rad))
-        blocked = (lag > self.reverse_error_rad) & (np.abs(direction) > 0.05)
+        return (lag > self.reverse_error_rad) & (np.abs(direction) > 0.05)
+
+    def phase_velocity(self, psi, angle_rad, velocity_rad_s, load_Nm) -> np.ndarray:
+        """``reverse_rate_factor * 2 pi f`` where a joint is blocked (the drive reverses), else ``2 pi f``."""
+        blocked = self._blocked(np.asarray(psi, dtype=float), angle_rad).any(axis=-1)
+        return np.where(blocked, self.reverse_rate_factor * self._omega, self._omega)
+
+    def update(self, t_s, angle_rad, velocity_rad_s=None, load_Nm=None) -> None:
+        psi = self.gait_phase(np.array([float(t_s)]))[0]
+        blocked = self._blocked(psi, angle_rad)
         turn = np.where(blocked, self._next_turn(psi), np.inf).min(axis=-1)
         start = np.isfinite(turn) & ~(self.target > psi)
         self.target = np.where(start, turn, self.target)
         self.reversals = self.reversals + start
         self.psi, self.t_s = psi, float(t_s)
         self.psi_rate = np.where(self.target > psi, self.reverse_rate_factor * self._omega, self._omega)
-        del dt
 
     def commands(self, t_steps_s, angle_rad=None, velocity_rad_s=None, load_Nm=None):
         t = np.asarray(t_steps_s, dtype=float)

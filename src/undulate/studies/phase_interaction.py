@@ -18,7 +18,7 @@ separately; with positions free ``H`` is the marginal over the ``dx`` the
 runs visit.
 
 Prediction against observation: the predicted final states are the stable
-zeros (a + to - sign change between neighbouring bins whose intervals
+zeros (a + to - sign change between neighbouring grid points whose intervals
 exclude zero, located by a straight-line fit through the bins either side,
 zero = -a/b with the fit's t interval propagated) and the neutral bins.
 Each run's observed final ``dphi`` (circular mean over the last :data:`TAIL_S`)
@@ -28,6 +28,7 @@ interval or inside a neutral bin.
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import math
 from typing import Any
@@ -39,11 +40,13 @@ from ..params import Channel, Scene, SimOptions
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from .synchronization import CONTROLLERS, PAIR_CHANNEL_M, _label
 
-__all__ = ["phase_run", "plan", "dataset", "summary", "binned_h", "stable_zeros", "predicted", "CLAIMS"]
+__all__ = ["phase_run", "probe_run", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]
 
-WINDOW_PERIODS = 1
-N_BINS = 24
+PROBE_S = 10.0
+"""Duration of a phase-reduction probe run, s (the first period is left out)."""
 TAIL_S = 4.0
+DRIFT_RAD_S = 0.02
+"""A run whose dphi moves less than this over the last TAIL_S has locked, rad/s."""
 MATCH_TOL_RAD = math.radians(15.0)
 """An observed final dphi this close to a predicted stable zero's interval counts as predicted."""
 NEUTRAL_RATE_RAD_S = 0.01
@@ -71,24 +74,33 @@ def phase_run(point: dict, seed: int, *, duration_s: float):
     }, coords={"time": ("time", ds["time"].values, {"units": "s"})}, attrs={"period_s": sc.gait.period_s})
 
 
-def window_samples(t: np.ndarray, dphi: np.ndarray, window_s: float) -> tuple[np.ndarray, np.ndarray]:
-    """Pure: per whole window of ``window_s``, (circular mean of dphi, rad; its mean rate, rad/s)."""
-    u = np.unwrap(dphi)
-    edges = np.arange(t[0], t[-1] + 1e-9, window_s)
-    idx = np.searchsorted(t, edges - 1e-9)
-    at, rate = [], []
-    for a, b in zip(idx[:-1], idx[1:]):
-        at.append(np.angle(np.exp(1j * dphi[a:b + 1]).mean()))
-        rate.append((u[b] - u[a]) / (t[b] - t[a]))
-    return np.asarray(at), np.asarray(rate)
+def probe_run(point: dict, seed: int, *, duration_s: float = PROBE_S):
+    """Phase reduction at a held phase difference (sweep function): the pair runs the open-loop gait
+    at ``point["dphi_rad"]`` (``hold_x`` as given); at every control update each closed-loop law of
+    :data:`CONTROLLERS` is evaluated on what the servos sensed (``phase_velocity``); per gait period
+    after the first, ``H = -(<dpsi_1/dt> - <dpsi_0/dt>)`` (rad/s; dphi = phi_1 - phi_0, phi = 2 pi f t - psi)."""
+    import xarray as xr
 
+    from ..control import SensingOpenLoop, make_controller
+    from ..simulation import simulate
 
-def binned_h(at: np.ndarray, rate: np.ndarray, n_bins: int = N_BINS) -> list[dict[str, Any]]:
-    """Pure: H per bin of dphi over [-pi, pi): centre (rad) and the mean rate (t interval)."""
-    edges = np.linspace(-np.pi, np.pi, n_bins + 1)
-    k = np.clip(np.searchsorted(edges, np.angle(np.exp(1j * at)), side="right") - 1, 0, n_bins - 1)
-    return [{"centre": float((edges[i] + edges[i + 1]) / 2), "H": stats.mean(rate[k == i]).to_dict()}
-            for i in range(n_bins)]
+    sc = Scene(phases_rad=(0.0, float(point["dphi_rad"])), channel=Channel(width_m=PAIR_CHANNEL_M),
+               hold_x=bool(point["hold_x"]))
+    probe = SensingOpenLoop(sc.gait, sc.geometry.n_links, CONTROLLERS["relay"].control_rate_hz)
+    simulate(sc, SimOptions(duration_s=duration_s, record=("x",)), controller=probe)
+    t, psi, angle, vel, load = (np.array([s[k] for s in probe.sensed]) for k in range(5))
+    psi, angle, vel, load = psi[:, 0], angle[:, 0], vel[:, 0], load[:, 0]  # the batch of one scene
+    period = sc.gait.period_s
+    k = np.floor(t / period + 1e-9).astype(int)
+    periods = np.arange(1, int(duration_s / period + 1e-9))
+    h = np.full((len(CONTROLLERS), periods.size), np.nan)
+    for i, p in enumerate(CONTROLLERS.values()):
+        w = make_controller(dataclasses.replace(sc, controller=p)).phase_velocity(psi, angle, vel, load)
+        dh = -(w[:, 1] - w[:, 0])
+        h[i] = [dh[k == j].mean() for j in periods]
+    return xr.Dataset({"H": (("law", "period"), h, {"units": "rad/s",
+                                                    "long_name": "period-mean d dphi/dt the law would command"})},
+                      coords={"law": ("law", list(CONTROLLERS)), "period": ("period", periods, {"units": "1"})})
 
 
 def _sign(h: stats.Estimate) -> int:
@@ -144,9 +156,10 @@ def predicted(final: float, zeros: list[dict[str, Any]], bins: list[dict[str, An
 
 
 def plan(quick: bool) -> dict[str, Any]:
-    n = 8 if quick else 24
+    n, m = (8, 16) if quick else (24, 36)
     return {"dphi0_rad": list(np.linspace(-np.pi, np.pi, n, endpoint=False) + np.pi / n),
-            "duration_s": 20.0 if quick else 40.0}
+            "dphi_rad": list(np.linspace(-np.pi, np.pi, m, endpoint=False) + np.pi / m),
+            "duration_s": 30.0 if quick else 60.0}
 
 
 def dataset(ctx: StudyContext, p: dict[str, Any]):
@@ -156,43 +169,58 @@ def dataset(ctx: StudyContext, p: dict[str, Any]):
                 seed=ctx.config.seed)
     ds = _label(ctx.sweep("runs", functools.partial(phase_run, duration_s=p["duration_s"]), grid))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
+    probe = ctx.sweep("probe", probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": p["dphi_rad"]},
+                                               seed=ctx.config.seed))
+    ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")
+    ds["dphi_rad"].attrs.update(units="rad", long_name="held phase difference of the probe runs")
     ds.attrs.update(title="phase-interaction function H(dphi) of closed-loop pairs", channel_width_m=PAIR_CHANNEL_M,
-                    duration_s=p["duration_s"], window_periods=WINDOW_PERIODS,
-                    period_s=Scene().gait.period_s)
+                    duration_s=p["duration_s"], probe_s=PROBE_S)
     return ds
 
 
-def _one(v, period_s: float) -> dict[str, Any]:
-    """H, its stable zeros and the observed finals for one controller and hold condition."""
+def _one(v, h) -> dict[str, Any]:
+    """H (per held dphi, t interval over periods), its stable zeros and the closed-loop finals."""
+    bins = [{"centre": float(d), "H": stats.mean(h.sel(dphi_rad=d).values).to_dict()} for d in h["dphi_rad"].values]
     t = v["time"].values
-    ats, rates, finals = [], [], []
-    for k in range(v.sizes["dphi0_rad"]):
-        d = v["dphi"].isel(dphi0_rad=k).values
-        if not np.isfinite(d).all():
-            continue
-        a, r = window_samples(t, d, WINDOW_PERIODS * period_s)
-        ats.append(a)
-        rates.append(r)
-        tail = t >= t[-1] - TAIL_S
-        finals.append(float(np.angle(np.exp(1j * d[tail]).mean())))
-    bins = binned_h(np.concatenate(ats), np.concatenate(rates)) if ats else []
-    zeros = stable_zeros(bins) if bins else []
-    ok = [predicted(f, zeros, bins) for f in finals]
-    return {"bins": bins, "stable_zeros": zeros, "neutral_bins": _neutral(bins) if bins else [],
-            "finals_rad": finals, "predicted": [bool(o) for o in ok], "n_predicted": int(sum(ok)),
-            "n_runs": len(finals)}
+    tail = t >= t[-1] - TAIL_S
+    runs = [d for d in v["dphi"].values if np.isfinite(d).all()]
+    finals = [float(np.angle(np.exp(1j * d[tail]).mean())) for d in runs]
+    drift = [float(np.angle(np.exp(1j * (d[-1] - d[tail][0])))) / TAIL_S for d in runs]
+    zeros = stable_zeros(bins)
+    ok = [predicted(f, zeros, bins) if abs(r) < DRIFT_RAD_S else _drifts_as_h(f, r, bins)
+          for f, r in zip(finals, drift)]
+    return {"bins": bins, "stable_zeros": zeros, "neutral_bins": _neutral(bins), "finals_rad": finals,
+            "predicted": [bool(o) for o in ok], "n_predicted": int(sum(ok)), "n_runs": len(finals),
+            "drift_rad_s": drift, "n_locked": int(sum(abs(r) < DRIFT_RAD_S for r in drift)),
+            "all_neutral": len(_neutral(bins)) == len(bins),
+            "antisymmetry_rad_s": _antisymmetry(bins)}
+
+
+def _drifts_as_h(final: float, rate: float, bins) -> bool:
+    """Pure: a run still drifting is predicted when it drifts the way H points at its dphi (the
+    nearest grid point's interval excluding 0)."""
+    c = np.array([b["centre"] for b in bins])
+    i = int(np.argmin(np.abs(np.angle(np.exp(1j * (c - final))))))
+    return _sign(stats.Estimate.from_dict(bins[i]["H"])) == np.sign(rate) != 0
+
+
+def _antisymmetry(bins) -> dict[str, Any]:
+    """max over the grid of |H(d) + H(-d)| and the largest |H| (rad/s), for the symmetry check."""
+    c = np.array([b["centre"] for b in bins])
+    h = np.array([stats.Estimate.from_dict(b["H"]).value for b in bins])
+    pairs = [(i, int(np.argmin(np.abs(c + c[i])))) for i in range(c.size)]
+    return {"max_sum": float(max(abs(h[i] + h[j]) for i, j in pairs)), "max_abs": float(np.nanmax(np.abs(h)))}
 
 
 def summary(ds) -> dict[str, Any]:
-    """Pure: per controller and hold condition, binned H with intervals, stable zeros, and how
-    many closed-loop runs end where H predicts; the antisymmetry residual of H."""
-    period = float(ds.attrs["period_s"])
+    """Pure: per controller and hold condition, H with intervals, stable zeros, and how many
+    closed-loop runs end where H predicts."""
     out: dict[str, Any] = {"per_controller": {}, "n_failed": int(ds["run_failed"].values.sum())}
     for c in ds["controller"].values:
         per = {}
-        for h in ds["hold_x"].values:
-            v = ds.sel(controller=c, hold_x=h).isel(replicate=0)
-            per["held" if bool(h) else "free"] = _one(v, period)
+        for held in (True, False):
+            v = ds.sel(controller=c, hold_x=held).isel(replicate=0)
+            per["held" if held else "free"] = _one(v, ds["H"].sel(law=c, probe_hold_x=held))
         out["per_controller"][str(c)] = per
     return out
 
@@ -203,10 +231,14 @@ def _predicts(c: str, cond: str):
         n, k = v["n_runs"], v["n_predicted"]
         if n == 0:
             return Verdict.none("no run has a result")
+        if v["all_neutral"]:
+            return Verdict.none("H is zero within its interval at every dphi (no contact once the held-phase "
+                                "pair has settled): nothing to predict")
         zs = ", ".join(f"{math.degrees(z['zero_rad']):.0f} deg [{math.degrees(z['ci95'][0]):.0f}, "
                        f"{math.degrees(z['ci95'][1]):.0f}]" for z in v["stable_zeros"]) or "none"
         return Verdict.judged(k >= PREDICTED_FRACTION * n,
-                              f"{k}/{n} runs end at a state H predicts (stable zeros {zs}; "
+                              f"{k}/{n} runs end at a state H predicts ({v['n_locked']} locked, the rest judged by the "
+                              f"direction of their drift; stable zeros {zs}; "
                               f"{len(v['neutral_bins'])} neutral bins)", {"predicted": k, "n_runs": n})
     return judge
 
@@ -215,7 +247,8 @@ CLAIMS = tuple(
     Claim(f"{c}: H(dphi) measured from contact predicts where {cond} pairs lock",
           "PRX 2021: a phase-oscillator model describes the stability of the in-phase and anti-phase modes",
           f"at least {PREDICTED_FRACTION:.0%} of closed-loop runs end within {math.degrees(MATCH_TOL_RAD):.0f} deg "
-          "of a stable zero's 95 % interval (H falling through 0) or in a neutral bin", _predicts(c, cond))
+          "of a stable zero's 95 % interval (H falling through 0) or in a neutral bin, or, still drifting, "
+          "drift the way H's interval points", _predicts(c, cond))
     for c in CONTROLLERS for cond in ("held", "free"))
 
 
