@@ -159,7 +159,7 @@ def plan(quick: bool) -> dict[str, Any]:
     n, m = (8, 16) if quick else (24, 36)
     return {"dphi0_rad": list(np.linspace(-np.pi, np.pi, n, endpoint=False) + np.pi / n),
             "dphi_rad": list(np.linspace(-np.pi, np.pi, m, endpoint=False) + np.pi / m),
-            "duration_s": 30.0 if quick else 60.0}
+            "duration_s": 20.0 if quick else 60.0}
 
 
 def dataset(ctx: StudyContext, p: dict[str, Any]):
