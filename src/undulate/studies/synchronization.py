@@ -10,9 +10,10 @@ report, for pairs of robots in contact:
    position;
 3. synchronization **sharply reduces interaction forces**.
 
-``synchronization-pairs`` checks each claim with both closed-loop families
+``synchronization-pairs`` checks each claim with the three closed-loop families
 of :mod:`undulate.control` (``self-oscillating``; ``phase-oscillator`` with
-load feedback ``sigma`` = :data:`PAIR_COUPLING`): two swimmers in the paper's
+load feedback ``sigma`` = :data:`PAIR_COUPLING`; ``relay``, the closest model to
+the PRX robots' oscillator we could build): two swimmers in the paper's
 ``d = 0.13 m`` channel, initial phase differences spread over ``[-pi, pi)``,
 longitudinal positions held (``Scene.hold_x``) or free, run for
 :data:`PAIR_DURATION_S`.  Per run: the final phase difference (circular mean
@@ -28,7 +29,11 @@ final configuration -- **phase-locked** (every neighbour phase difference
 drifts less than :data:`DRIFT_TOL_RAD_S` over the last :data:`TAIL_S`),
 **position-compatible** (RMS distance of the neighbours' ``dx`` from the
 nearest compatible branch for their current ``dphi`` below
-:data:`COMPAT_TOL` wavelengths), both, or neither.
+:data:`COMPAT_TOL` wavelengths), both, or neither; and each neighbour pair's
+final ``(dphi, dx / lambda)``, judged against the two measured landscapes: the
+cohesion potential (its minimum: the compatible branch) and the
+phase-interaction function ``H`` of :mod:`.phase_interaction` (measured here
+too, a pair in the 0.13 m channel, positions free and held).
 """
 
 from __future__ import annotations
@@ -402,11 +407,12 @@ def _plot_groups(ds):
 register(Study(
     name="synchronization-pairs", plan=pair_plan, dataset=pair_dataset, summary=pair_summary, claims=PAIR_CLAIMS,
     figure=_plot_pairs,
-    description="Closed-loop pairs (self-oscillating; phase oscillator with load feedback) in the "
+    description="Closed-loop pairs (self-oscillating; phase oscillator with load feedback; relay) in the "
                 "d = 0.13 m channel, positions held vs free: final phase difference, time to lock, "
                 "contact force before and after (PRX 2021's three claims)."))
 register(Study(
     name="synchronization-groups", plan=group_plan, dataset=group_dataset, summary=group_summary,
     claims=GROUP_CLAIMS, figure=_plot_groups,
     description="3-10 closed-loop swimmers, phases and positions free: order parameter R(t), time to "
-                "lock, and whether the final state is phase-locked, position-compatible, or both."))
+                "lock, whether the final state is phase-locked, position-compatible, or both, and where the "
+                "neighbour pairs end in the (dphi, dx) plane against the compatible branches and H(dphi)."))
