@@ -82,3 +82,11 @@ def test_held_pairs_lock_where_the_measured_h_predicts_on_the_full_grid(controll
     p = P.plan(quick=False)
     s = _grid_summary(controller, p["dphi0_rad"], p["dphi_rad"], p["duration_s"])
     assert s["n_predicted"] >= P.PREDICTED_FRACTION * s["n_runs"], s
+
+
+def test_relay_parameters_are_validated():
+    from undulate.errors import ParameterError
+
+    for bad in ({"reverse_error_rad": 0.0}, {"reverse_rate_factor": 1.0}, {"reverse_rate_factor": float("nan")}):
+        with pytest.raises(ParameterError):
+            ControllerParams(kind="relay", **bad)
