@@ -45,18 +45,13 @@ from typing import Any
 import numpy as np
 
 from .. import stats, theory
-from ..params import Channel, ControllerParams, Scene, SimOptions
+from ..params import Channel, Scene, SimOptions
+from ._phase import CONTROLLERS, PAIR_CHANNEL_M, PAIR_COUPLING, _label
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = ["pair_run", "group_run", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
            "CONTROLLERS", "PAIR_COUPLING"]
 
-PAIR_CHANNEL_M = 0.13
-PAIR_COUPLING = 2.0
-"""phase-oscillator load feedback sigma in these studies, rad/s per N m."""
-CONTROLLERS = {"self-oscillating": ControllerParams(kind="self-oscillating"),
-               "phase-oscillator": ControllerParams(kind="phase-oscillator", coupling=PAIR_COUPLING),
-               "relay": ControllerParams(kind="relay")}
 PAIR_DURATION_S = 60.0
 TAIL_S = 10.0
 LOCK_TOL_RAD = 0.15
@@ -70,14 +65,6 @@ COMPAT_TOL = 0.1
 NEIGHBOURS = 9
 """Slots for the neighbour pairs' final (dx, dphi) of a group (up to 10 swimmers; NaN-padded)."""
 RECORD = ("x", "y", "joint_angle", "joint_command", "joint_error", "contact_force_pair", "gait_phase")
-
-
-def _label(ds):
-    """Units on the sweep's bookkeeping variables (run index and seed: dimensionless)."""
-    for v in ("replicate", "seed", "run_failed"):
-        if v in ds.variables:
-            ds[v].attrs.setdefault("units", "1")
-    return ds
 
 
 def _tail_circmean(a: np.ndarray, sel: np.ndarray) -> np.ndarray:
@@ -337,7 +324,7 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
     free = ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed))
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})
-    from .phase_interaction import probe_run
+    from ._phase import probe_run
 
     probe = ctx.sweep("probe", probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": p["dphi_rad"]},
                                                seed=ctx.config.seed))
@@ -373,7 +360,7 @@ def _landscapes(v, h) -> dict[str, Any]:
     """Pure: where the neighbour pairs end in the (dphi, dx) plane against the two measured landscapes:
     the cohesion potential (compatible branch dx = lambda dphi / 2 pi + n lambda) and H(dphi) with
     positions free and held (stable zeros or neutral bands: :func:`.phase_interaction.predicted`)."""
-    from .phase_interaction import _neutral, predicted, stable_zeros
+    from ._phase import _neutral, predicted, stable_zeros
 
     dx, dp = v["dx_final"].values.ravel(), v["dphi_final"].values.ravel()
     ok = np.isfinite(dx) & np.isfinite(dp)
