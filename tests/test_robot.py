@@ -431,6 +431,21 @@ def test_closed_loop_controller_runs_on_the_bus():
     assert np.isclose(ctl.psi, ds["gait_phase"].values[-1], atol=0.2).all()
 
 
+def test_relay_oscillator_runs_unchanged_on_the_bus():
+    """The relay senses only servo angles: on the emulated bus it drives the servos, and its phase
+    never falls behind the open-loop phase (a blocked or lagging joint only brings the turn forward)."""
+    bus = ServoBus(1, {i: "AX-12A" for i in (1, 2, 3, 4)})
+    with bus:
+        cfg = _cfg(bus, ids=(1, 2, 3, 4), duration=1.5, scene=_scene(phases=(0, 1), kind="relay"))
+        ctl = make_controller(cfg.scene)
+        ds = run_robot(cfg, controller=ctl, log=lambda m: None)
+    assert ds.attrs["controller"] == "relay"
+    free = 2 * np.pi * 0.5 * ds["time"].values[:, None] - np.array([0, 1])[None]
+    psi = ds["gait_phase"].values
+    assert np.isfinite(psi).all() and (psi >= free - 0.05).all()
+    assert np.isclose(ctl.psi, psi[-1], atol=0.2).all()
+
+
 def test_setup_checks_refuse_a_servo_in_the_wrong_mode_without_torque():
     bus = ServoBus(2, {1: "XL430-W250", 2: "XL430-W250"})
     with bus:

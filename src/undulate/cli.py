@@ -51,7 +51,7 @@ def simulate(
     sample_rate: float = typer.Option(_SIM.sample_rate_hz, help="Recording rate, Hz."),
     body_length: float = typer.Option(_GEO.length_m, help="Total body length L, m."),
     width: float = typer.Option(_GEO.width_m, help="Link width w, m."),
-    controller: str = typer.Option(_CTRL.kind, help="Gait controller: open-loop (the paper's travelling wave), self-oscillating (joints gated by their sensed turning points) or phase-oscillator (load feedback); see undulate.control."),
+    controller: str = typer.Option(_CTRL.kind, help="Gait controller: open-loop (the paper's travelling wave), self-oscillating (joints gated by their sensed turning points) phase-oscillator (load feedback) or relay (drive reverses where contact blocks a joint); see undulate.control."),
     coupling: float = typer.Option(_CTRL.coupling, help="phase-oscillator load-feedback strength sigma, rad/s per N m (>= 0)."),
     control_rate: float = typer.Option(_CTRL.control_rate_hz, help="Closed-loop control (servo-bus) rate, Hz."),
     hold_x: bool = typer.Option(False, "--hold-x", help="Lock each swimmer's longitudinal position (lateral motion and rotation stay free)."),

@@ -68,6 +68,23 @@ Families (equations, units, references)
     motion speeds it up.  ``sigma = 0`` is the open-loop gait.  Integrated
     by explicit Euler at the control rate.
 
+``relay``
+    The closest model we could build to the oscillator of Zhou, Hao &
+    Gravish (PRX 2021) from every sentence they published (their equations
+    were not found: see ``docs/controllers.md`` for what was searched).  A
+    switching (relay) oscillator: each joint is driven towards its turning
+    point ``+-beta`` along the travelling wave at the gait's speed, and its
+    drive **reverses at the sensed angle where contact obstructs it**: when
+    any joint's measured angle lags its command, against the commanded
+    motion, by more than ``reverse_error_rad`` (the joint is blocked), the
+    swimmer's phase runs ahead at ``reverse_rate_factor * 2 pi f`` to that
+    joint's next turning point -- the blocked half-stroke ends where the
+    obstacle stopped it, and the drive turns.  Nothing waits and nothing
+    is timed: the command depends only on the sensed angles and the
+    internal phase (the drive's position along its stroke).  An
+    unobstructed servo tracks within about a milliradian, so a free
+    swimmer never reverses early and keeps ``f`` and ``beta`` exactly.
+
 Set-points within a control period: closed-loop controllers give the target
 angle and velocity at the update; the servo's position set-point then moves
 on at that velocity until the next update (a goal position with a moving
@@ -80,7 +97,7 @@ import numpy as np
 
 from .params import ControllerParams, Gait, Scene
 
-__all__ = ["Controller", "OpenLoop", "SelfOscillating", "PhaseOscillator", "make_controller"]
+__all__ = ["Controller", "OpenLoop", "SelfOscillating", "PhaseOscillator", "RelayOscillator", "SensingOpenLoop", "make_controller"]
 
 
 class Controller:
@@ -177,6 +194,22 @@ class OpenLoop(Controller):
         return angle, velocity
 
 
+class SensingOpenLoop(OpenLoop):
+    """The open-loop gait (phases held) that also keeps what the servos sensed at every control
+    update: ``sensed`` is a list of ``(t_s, psi, angle_rad, velocity_rad_s, load_Nm)``."""
+
+    def reset(self, phases_rad, t_s: float = 0.0) -> None:
+        super().reset(phases_rad, t_s)
+        self.sensed: list = []
+
+    def commands(self, t_steps_s, angle_rad=None, velocity_rad_s=None, load_Nm=None):
+        out = super().commands(t_steps_s)
+        if angle_rad is not None:
+            self.sensed.append((self.t_s, self.psi.copy(), np.array(angle_rad), np.array(velocity_rad_s),
+                                np.array(load_Nm)))
+        return out
+
+
 class PhaseOscillator(Controller):
     """Phase oscillator with load feedback (Tegotae): see the module docstring.
 
@@ -195,6 +228,17 @@ class PhaseOscillator(Controller):
         self.t_s = float(t_s)
         cos = np.cos(self.offsets_rad - self.psi[..., None])
         self.psi_rate = self._omega + self.coupling * (np.asarray(load_Nm) * cos).sum(axis=-1)
+
+    def phase_velocity(self, psi, angle_rad, velocity_rad_s, load_Nm) -> np.ndarray:
+        """The law above at phase ``psi`` (no state change), rad/s."""
+        cos = np.cos(self.offsets_rad - np.asarray(psi)[..., None])
+        return self._omega + self.coupling * (np.asarray(load_Nm) * cos).sum(axis=-1)
+
+
+def _phase_velocity_doc():  # pragma: no cover - documentation anchor
+    """``phase_velocity(psi, angle, velocity, load)``: the phase velocity (rad/s) the controller's law
+    would command at phase ``psi`` (shape ``(..., n)``) given the sensed joints (``(..., n, n_joints)``),
+    without changing its state: the phase-reduction probe of :mod:`undulate.studies.phase_interaction`."""
 
 
 class SelfOscillating(Controller):
@@ -240,12 +284,85 @@ class SelfOscillating(Controller):
         self.psi, self.t_s = psi, float(t_s)
         self.psi_rate = np.where(psi >= self.limit, 0.0, self._omega)
 
+    def phase_velocity(self, psi, angle_rad, velocity_rad_s, load_Nm) -> np.ndarray:
+        """0 where a joint's gate would hold the phase (its turning point within one control period
+        ahead of ``psi`` and its measured angle short of ``a beta``), else ``2 pi f``; rad/s."""
+        psi = np.asarray(psi, dtype=float)
+        turn, side = self._next_turn(psi)
+        near = turn - psi[..., None] < self._omega / self.rate_hz
+        short = side * np.asarray(angle_rad) < self.arrival_fraction * self.gait.amplitude_rad
+        return np.where((near & short).any(axis=-1), 0.0, self._omega)
+
     def commands(self, t_steps_s, angle_rad=None, velocity_rad_s=None, load_Nm=None):
         t = np.asarray(t_steps_s, dtype=float)
         if angle_rad is not None:
             self.update(float(t[0]), angle_rad, velocity_rad_s, load_Nm)
         psi = self.gait_phase(t)
         rate = np.where(psi < self.limit[None], self._omega, 0.0)
+        return self._wave(psi, rate)
+
+
+class RelayOscillator(Controller):
+    """Relay oscillator whose drive reverses where contact blocks a joint: see the module docstring.
+
+    ``reverse_error_rad``: lag (rad) of a joint behind its command, against the commanded motion,
+    that counts as blocked; ``reverse_rate_factor``: how much faster than ``2 pi f`` the phase
+    runs to the blocked joint's turning point (the drive's reversal, > 1).
+    """
+
+    kind = "relay"
+
+    def __init__(self, gait: Gait, n_links: int, rate_hz: float = 100.0, reverse_error_rad: float = 0.1,
+                 reverse_rate_factor: float = 4.0):
+        super().__init__(gait, n_links, rate_hz)
+        self.reverse_error_rad = float(reverse_error_rad)
+        self.reverse_rate_factor = float(reverse_rate_factor)
+
+    def reset(self, phases_rad, t_s: float = 0.0) -> None:
+        super().reset(phases_rad, t_s)
+        self.target = np.full(self.psi.shape, -np.inf)  # reversing: running to this phase
+        self.reversals = np.zeros(self.psi.shape, dtype=int)
+
+    def _next_turn(self, psi: np.ndarray) -> np.ndarray:
+        """Each joint's next turning point strictly after ``psi`` (rad)."""
+        arg = self.offsets_rad - psi[..., None]
+        m = np.ceil((arg - np.pi / 2) / np.pi - 1e-9) - 1  # offset - psi_turn = pi/2 + m pi, psi_turn > psi
+        return self.offsets_rad - np.pi / 2 - m * np.pi
+
+    def gait_phase(self, t_s) -> np.ndarray:
+        free = super().gait_phase(t_s)
+        fast = self.target > self.psi
+        return np.where(fast[None], np.minimum(free, self.target[None]), free)
+
+    def _blocked(self, psi: np.ndarray, angle_rad) -> np.ndarray:
+        """Joints lagging their command against the commanded motion by more than the threshold."""
+        arg = self.offsets_rad - psi[..., None]
+        command, direction = self.gait.amplitude_rad * np.sin(arg), -np.cos(arg)  # d alpha / d psi sign
+        lag = np.sign(direction) * (command - np.asarray(angle_rad))
+        return (lag > self.reverse_error_rad) & (np.abs(direction) > 0.05)
+
+    def phase_velocity(self, psi, angle_rad, velocity_rad_s, load_Nm) -> np.ndarray:
+        """``reverse_rate_factor * 2 pi f`` where a joint is blocked (the drive reverses), else ``2 pi f``."""
+        blocked = self._blocked(np.asarray(psi, dtype=float), angle_rad).any(axis=-1)
+        return np.where(blocked, self.reverse_rate_factor * self._omega, self._omega)
+
+    def update(self, t_s, angle_rad, velocity_rad_s=None, load_Nm=None) -> None:
+        psi = self.gait_phase(np.array([float(t_s)]))[0]
+        blocked = self._blocked(psi, angle_rad)
+        turn = np.where(blocked, self._next_turn(psi), np.inf).min(axis=-1)
+        start = np.isfinite(turn) & ~(self.target > psi)
+        self.target = np.where(start, turn, self.target)
+        self.reversals = self.reversals + start
+        self.psi, self.t_s = psi, float(t_s)
+        self.psi_rate = np.where(self.target > psi, self.reverse_rate_factor * self._omega, self._omega)
+
+    def commands(self, t_steps_s, angle_rad=None, velocity_rad_s=None, load_Nm=None):
+        t = np.asarray(t_steps_s, dtype=float)
+        if angle_rad is not None:
+            self.update(float(t[0]), angle_rad, velocity_rad_s, load_Nm)
+        psi = self.gait_phase(t)
+        fast = (self.target[None] > psi)
+        rate = np.where(fast, self.reverse_rate_factor * self._omega, self._omega)
         return self._wave(psi, rate)
 
 
@@ -261,6 +378,9 @@ def make_controller(scene: Scene, params: ControllerParams | None = None) -> Con
     elif p.kind == "self-oscillating":
         c = SelfOscillating(g, n, p.control_rate_hz, arrival_fraction=p.arrival_fraction,
                             max_hold_s=p.max_hold_s, stall_speed_rad_s=p.stall_speed_rad_s)
+    elif p.kind == "relay":
+        c = RelayOscillator(g, n, p.control_rate_hz, reverse_error_rad=p.reverse_error_rad,
+                            reverse_rate_factor=p.reverse_rate_factor)
     else:  # pragma: no cover - ControllerParams validates the kind
         raise ValueError(p.kind)
     c.reset(np.asarray(scene.phases_rad))

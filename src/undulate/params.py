@@ -400,7 +400,7 @@ class ContactModel(_Params):
         _positive("target_penetration_m", self.target_penetration_m, "m")
 
 
-CONTROLLER_KINDS = ("open-loop", "self-oscillating", "phase-oscillator")
+CONTROLLER_KINDS = ("open-loop", "self-oscillating", "phase-oscillator", "relay")
 
 
 @dataclass(frozen=True)
@@ -415,7 +415,7 @@ class ControllerParams(_Params):
     """
 
     kind: str = "open-loop"
-    """``"open-loop"``, ``"self-oscillating"`` or ``"phase-oscillator"``."""
+    """``"open-loop"``, ``"self-oscillating"``, ``"phase-oscillator"`` or ``"relay"``."""
     control_rate_hz: float = 100.0
     """Control (servo-bus) rate, Hz: sensing and new targets this often.  The
     control period is rounded to a whole number of integrator steps; the
@@ -430,6 +430,11 @@ class ControllerParams(_Params):
     this long, s (None: a quarter period)."""
     stall_speed_rad_s: float = 0.2
     """``self-oscillating``: below this measured speed a held joint counts as stalled, rad/s."""
+    reverse_error_rad: float = 0.1
+    """``relay``: a joint lagging its command by more than this, against the commanded motion,
+    is blocked and its drive reverses, rad (> 0)."""
+    reverse_rate_factor: float = 4.0
+    """``relay``: the phase runs this many times faster than 2 pi f while the drive reverses (> 1)."""
 
     def __post_init__(self):
         if self.kind not in CONTROLLER_KINDS:
@@ -445,6 +450,9 @@ class ControllerParams(_Params):
         if self.max_hold_s is not None:
             _positive("max_hold_s", self.max_hold_s, "s")
         _positive("stall_speed_rad_s", self.stall_speed_rad_s, "rad/s")
+        _positive("reverse_error_rad", self.reverse_error_rad, "rad")
+        if not _finite("reverse_rate_factor", self.reverse_rate_factor) > 1:
+            raise ParameterError("reverse_rate_factor", "a number > 1", self.reverse_rate_factor)
 
     @property
     def closed_loop(self) -> bool:

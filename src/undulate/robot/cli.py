@@ -77,7 +77,7 @@ def run(
     waves_per_body: float = typer.Option(1.0, help="xi = L/lambda, body waves per body length (0 = standing wave)."),
     amplitude: float = typer.Option(45.0, help="Joint amplitude beta, DEGREES (0, 90]."),
     frequency: float = typer.Option(0.5, help="Gait frequency f, Hz."),
-    controller: str = typer.Option("open-loop", help="Gait controller: open-loop, self-oscillating or phase-oscillator (undulate.control)."),
+    controller: str = typer.Option("open-loop", help="Gait controller: open-loop, self-oscillating, phase-oscillator or relay (undulate.control)."),
     coupling: float = typer.Option(0.0, help="phase-oscillator load-feedback strength sigma, rad/s per N m (>= 0)."),
     control_rate: float = typer.Option(50.0, help="Control rate: one sync write of goals (and one round of reads) per tick, Hz."),
     calibration: Optional[Path] = typer.Option(None, help="Calibration TOML (offsets, signs, limits, maximum speed): see docs/robots.md."),

@@ -10,9 +10,10 @@ report, for pairs of robots in contact:
    position;
 3. synchronization **sharply reduces interaction forces**.
 
-``synchronization-pairs`` checks each claim with both closed-loop families
+``synchronization-pairs`` checks each claim with the three closed-loop families
 of :mod:`undulate.control` (``self-oscillating``; ``phase-oscillator`` with
-load feedback ``sigma`` = :data:`PAIR_COUPLING`): two swimmers in the paper's
+load feedback ``sigma`` = :data:`PAIR_COUPLING`; ``relay``, the closest model to
+the PRX robots' oscillator we could build): two swimmers in the paper's
 ``d = 0.13 m`` channel, initial phase differences spread over ``[-pi, pi)``,
 longitudinal positions held (``Scene.hold_x``) or free, run for
 :data:`PAIR_DURATION_S`.  Per run: the final phase difference (circular mean
@@ -28,7 +29,11 @@ final configuration -- **phase-locked** (every neighbour phase difference
 drifts less than :data:`DRIFT_TOL_RAD_S` over the last :data:`TAIL_S`),
 **position-compatible** (RMS distance of the neighbours' ``dx`` from the
 nearest compatible branch for their current ``dphi`` below
-:data:`COMPAT_TOL` wavelengths), both, or neither.
+:data:`COMPAT_TOL` wavelengths), both, or neither; and each neighbour pair's
+final ``(dphi, dx / lambda)``, judged against the two measured landscapes: the
+cohesion potential (its minimum: the compatible branch) and the
+phase-interaction function ``H`` of :mod:`.phase_interaction` (measured here
+too, a pair in the 0.13 m channel, positions free and held).
 """
 
 from __future__ import annotations
@@ -40,18 +45,14 @@ from typing import Any
 import numpy as np
 
 from .. import stats, theory
-from ..params import Channel, ControllerParams, Scene, SimOptions
+from ..params import Channel, Scene, SimOptions
+from ._phase import CONTROLLERS, PAIR_CHANNEL_M, PAIR_COUPLING, _label
 from ._points import SyncPoint
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = ["pair_run", "group_run", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
            "CONTROLLERS", "PAIR_COUPLING"]
 
-PAIR_CHANNEL_M = 0.13
-PAIR_COUPLING = 2.0
-"""phase-oscillator load feedback sigma in these studies, rad/s per N m."""
-CONTROLLERS = {"self-oscillating": ControllerParams(kind="self-oscillating"),
-               "phase-oscillator": ControllerParams(kind="phase-oscillator", coupling=PAIR_COUPLING)}
 PAIR_DURATION_S = 60.0
 TAIL_S = 10.0
 LOCK_TOL_RAD = 0.15
@@ -62,15 +63,9 @@ COLLIDING_N = 0.05
 R_LOCKED = 0.9
 DRIFT_TOL_RAD_S = 0.02
 COMPAT_TOL = 0.1
+NEIGHBOURS = 9
+"""Slots for the neighbour pairs' final (dx, dphi) of a group (up to 10 swimmers; NaN-padded)."""
 RECORD = ("x", "y", "joint_angle", "joint_command", "joint_error", "contact_force_pair", "gait_phase")
-
-
-def _label(ds):
-    """Units on the sweep's bookkeeping variables (run index and seed: dimensionless)."""
-    for v in ("replicate", "seed", "run_failed"):
-        if v in ds.variables:
-            ds[v].attrs.setdefault("units", "1")
-    return ds
 
 
 def _tail_circmean(a: np.ndarray, sel: np.ndarray) -> np.ndarray:
@@ -136,8 +131,10 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
     off = neighbour_offsets(ds)
     lam = sc.wavelength_m
     dx = off["dx"].values[tail].mean(axis=0)
-    res = theory.compatibility_residual(dx, _tail_circmean(d, tail), lam) / lam
+    dphi_end = _tail_circmean(d, tail)
+    res = theory.compatibility_residual(dx, dphi_end, lam) / lam
     compat_rms = float(np.sqrt(np.mean(res ** 2)))
+    pad = np.full(NEIGHBOURS, np.nan)
     return xr.Dataset({
         "R": (("time",), r, {"units": "1", "long_name": "order parameter R(t)"}),
         "R_final": ((), float(r[tail].mean()), {"units": "1", "long_name": "mean R over the last TAIL_S"}),
@@ -145,6 +142,10 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
         "phase_locked": ((), int(locked), {"units": "1", "long_name": "1 if every neighbour dphi drifts < DRIFT_TOL_RAD_S"}),
         "compat_rms": ((), compat_rms, {"units": "1", "long_name": "RMS compatibility residual / lambda, last TAIL_S"}),
         "max_drift": ((), float(drift.max()), {"units": "rad/s", "long_name": "fastest neighbour dphi drift, last TAIL_S"}),
+        "dx_final": (("neighbour",), np.concatenate([dx / lam, pad])[:NEIGHBOURS],
+                     {"units": "1", "long_name": "neighbour dx / lambda, mean over the last TAIL_S (NaN: no pair)"}),
+        "dphi_final": (("neighbour",), np.concatenate([dphi_end, pad])[:NEIGHBOURS],
+                       {"units": "rad", "long_name": "neighbour dphi, circular mean over the last TAIL_S"}),
         "frequency": ((), float(gait_frequency(psi, t_from=t[-1] - TAIL_S).mean()),
                       {"units": "Hz", "long_name": "collective gait frequency (mean over swimmers), last TAIL_S"}),
     }, coords={"time": ("time", t, {"units": "s"})})
@@ -171,7 +172,9 @@ def pair_plan(quick: bool) -> dict[str, Any]:
 
 
 def group_plan(quick: bool) -> dict[str, Any]:
+    m = 16 if quick else 36
     return {"n_swimmers": [3, 5] if quick else [3, 5, 10], "spacing_m": [0.055, 0.065],
+            "dphi_rad": list(np.linspace(-np.pi, np.pi, m, endpoint=False) + np.pi / m),
             "replicates": 2 if quick else 4, "duration_s": PAIR_DURATION_S if quick else 2 * PAIR_DURATION_S}
 
 
@@ -243,11 +246,31 @@ def _groups_end_both(c: str):
     return judge
 
 
-GROUP_CLAIMS = tuple(
+def _groups_as_predicted(c: str):
+    def judge(s: dict) -> Verdict:
+        v = s["per_controller"][c]
+        n, hf = v["n_neighbour_pairs"], v["H_free"]
+        if n == 0:
+            return Verdict.none("no group run has a result")
+        k = hf["neighbour_predicted_and_compatible"]
+        zs = ", ".join(f"{math.degrees(z['zero_rad']):.0f} deg" for z in hf["stable_zeros"]) or "none"
+        return Verdict.judged(k >= 0.8 * n, (
+            f"{k}/{n} neighbour pairs end where both landscapes predict (H with positions free: stable zeros {zs}, "
+            f"{len(hf['neutral_bins'])}/{len(hf['bins'])} grid points neutral; {hf['neighbour_predicted']}/{n} at a "
+            f"state H predicts, {v['neighbour_compatible']}/{n} on a compatible branch within {COMPAT_TOL} lambda)"),
+            {"predicted_and_compatible": k, "n_neighbour_pairs": n})
+    return judge
+
+
+GROUP_CLAIMS = tuple(claim for c in CONTROLLERS for claim in (
     Claim(f"{c}: groups with phase and position free end phase-locked and position-compatible",
           "open (paper's conclusion): phase dynamics together with position dynamics",
-          "most runs end both phase-locked and position-compatible", _groups_end_both(c))
-    for c in CONTROLLERS)
+          "most runs end both phase-locked and position-compatible", _groups_end_both(c)),
+    Claim(f"{c}: groups synchronize as the measured phase interaction predicts",
+          "PRX 2021: collectives synchronize their movements through contact as predicted by the theory",
+          "at least 80 % of neighbour pairs end at a state H (positions free) predicts -- a stable zero or a "
+          "neutral band -- and on a compatible branch (the cohesion potential's minimum)", _groups_as_predicted(c)),
+))
 
 
 def _median(a):
@@ -304,6 +327,12 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
     free = ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed))
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})
+    from ._phase import probe_run
+
+    probe = ctx.sweep("probe", probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": p["dphi_rad"]},
+                                               seed=ctx.config.seed))
+    ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")
+    ds["dphi_rad"].attrs.update(units="rad", long_name="held phase difference of the H probe (pair, 0.13 m)")
     ds["spacing_m"].attrs.update(units="m", long_name="channel width per swimmer")
     ds["n_swimmers"].attrs.update(units="1")
     ds.attrs.update(title="closed-loop groups: phase and position free", duration_s=p["duration_s"],
@@ -325,8 +354,32 @@ def group_summary(ds) -> dict[str, Any]:
                        "both": int((locked & compat).sum()),
                        "median_R_final": float(np.nanmedian(v["R_final"].values)),
                        "median_lock_time_s": float(np.nanmedian(v["lock_time"].values))
-                       if np.isfinite(v["lock_time"].values).any() else float("nan")}
+                       if np.isfinite(v["lock_time"].values).any() else float("nan"),
+                       **_landscapes(v, ds["H"].sel(law=c))}
     return {"per_controller": per, "n_failed": int(ds["run_failed"].values.sum())}
+
+
+def _landscapes(v, h) -> dict[str, Any]:
+    """Pure: where the neighbour pairs end in the (dphi, dx) plane against the two measured landscapes:
+    the cohesion potential (compatible branch dx = lambda dphi / 2 pi + n lambda) and H(dphi) with
+    positions free and held (stable zeros or neutral bands: :func:`.phase_interaction.predicted`)."""
+    from ._phase import _neutral, predicted, stable_zeros
+
+    dx, dp = v["dx_final"].values.ravel(), v["dphi_final"].values.ravel()
+    ok = np.isfinite(dx) & np.isfinite(dp)
+    dx, dp = dx[ok], dp[ok]
+    compat = np.abs(theory.compatibility_residual(dx, dp, 1.0)) < COMPAT_TOL
+    out: dict[str, Any] = {"n_neighbour_pairs": int(ok.sum()), "neighbour_compatible": int(compat.sum()),
+                           "neighbour_dphi_rad": dp.tolist(), "neighbour_dx_lambda": dx.tolist()}
+    for cond, held in (("free", False), ("held", True)):
+        hh = h.sel(probe_hold_x=held)
+        bins = [{"centre": float(d), "H": stats.mean(hh.sel(dphi_rad=d).values).to_dict()} for d in hh["dphi_rad"].values]
+        zeros = stable_zeros(bins)
+        on = np.array([predicted(f, zeros, bins) for f in dp], dtype=bool)
+        out[f"H_{cond}"] = {"stable_zeros": zeros, "neutral_bins": _neutral(bins), "bins": bins,
+                            "all_neutral": len(_neutral(bins)) == len(bins), "neighbour_predicted": int(on.sum()),
+                            "neighbour_predicted_and_compatible": int((on & compat).sum())}
+    return out
 
 
 def _plot_pairs(ds):
@@ -338,17 +391,18 @@ def _plot_pairs(ds):
 def _plot_groups(ds):
     from ..plotting.synchronization import plot_sync_groups
 
-    return plot_sync_groups(ds)
+    return plot_sync_groups(ds, group_summary(ds))
 
 
 register(Study(
     name="synchronization-pairs", plan=pair_plan, dataset=pair_dataset, summary=pair_summary, claims=PAIR_CLAIMS,
     figure=_plot_pairs,
-    description="Closed-loop pairs (self-oscillating; phase oscillator with load feedback) in the "
+    description="Closed-loop pairs (self-oscillating; phase oscillator with load feedback; relay) in the "
                 "d = 0.13 m channel, positions held vs free: final phase difference, time to lock, "
                 "contact force before and after (PRX 2021's three claims)."))
 register(Study(
     name="synchronization-groups", plan=group_plan, dataset=group_dataset, summary=group_summary,
     claims=GROUP_CLAIMS, figure=_plot_groups,
     description="3-10 closed-loop swimmers, phases and positions free: order parameter R(t), time to "
-                "lock, and whether the final state is phase-locked, position-compatible, or both."))
+                "lock, whether the final state is phase-locked, position-compatible, or both, and where the "
+                "neighbour pairs end in the (dphi, dx) plane against the compatible branches and H(dphi)."))

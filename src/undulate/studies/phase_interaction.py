@@ -1,0 +1,177 @@
+r"""Study ``phase-interaction``: the phase analogue of ``potential`` -- H(dphi) measured from contact.
+
+For a closed-loop pair in the 0.13 m channel, the **phase-interaction
+function** ``H(dphi)`` is the phase velocity ``d dphi / dt`` averaged over a
+gait period, as a function of the phase difference ``dphi = phi_1 - phi_0``
+(the paper's offsets, :mod:`undulate.phases`).  Its zeros are the locked
+states; a zero where ``H`` falls (``dH/d dphi < 0``) is stable; a band where
+``H`` is zero within its interval (no contact: no interaction) is neutral.
+
+Method (direct measurement; why not the phase-reduction projection is in
+``docs/controllers.md``): pairs start from a grid of ``dphi0`` over
+``[-pi, pi)`` and run closed loop; the record is cut into whole gait periods
+(:data:`WINDOW_PERIODS`); each window gives one sample ``(circular mean of
+dphi, (dphi_end - dphi_start) / window)``.  The samples of all runs are
+binned in ``dphi`` (:data:`N_BINS` bins); each bin's mean carries a t 95 %
+interval.  Positions held (``Scene.hold_x``) and free are measured
+separately; with positions free ``H`` is the marginal over the ``dx`` the
+runs visit.
+
+Prediction against observation: the predicted final states are the stable
+zeros (a + to - sign change between neighbouring grid points whose intervals
+exclude zero, located by a straight-line fit through the bins either side,
+zero = -a/b with the fit's t interval propagated) and the neutral bins.
+Each run's observed final ``dphi`` (circular mean over the last :data:`TAIL_S`)
+is predicted when it lies within :data:`MATCH_TOL_RAD` of a stable zero's
+interval or inside a neutral bin.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from typing import Any
+
+import numpy as np
+
+from .. import stats
+from ..params import Channel, Scene, SimOptions
+from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PAIR_CHANNEL_M, PROBE_S, _label, _neutral,  # noqa: F401
+                     _sign, predicted, probe_run, stable_zeros)
+
+__all__ = ["phase_run", "probe_run", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]
+
+TAIL_S = 4.0
+DRIFT_RAD_S = 0.02
+"""A run whose dphi moves less than this over the last TAIL_S has locked, rad/s."""
+PREDICTED_FRACTION = 0.8
+"""Claim: at least this fraction of runs end where H predicts."""
+
+
+def phase_run(point: dict, seed: int, *, duration_s: float):
+    """One closed-loop pair from ``point["dphi0_rad"]`` (sweep function): ``dphi(t)`` at 20 Hz and
+    the contact force.  ``controller``, ``hold_x`` as in :func:`~.synchronization.pair_run`."""
+    import xarray as xr
+
+    from ..phases import neighbour_phase_differences
+    from ..simulation import simulate
+
+    sc = Scene(phases_rad=(0.0, float(point["dphi0_rad"])), channel=Channel(width_m=PAIR_CHANNEL_M),
+               hold_x=bool(point["hold_x"]), controller=CONTROLLERS[str(point["controller"])])
+    ds = simulate(sc, SimOptions(duration_s=duration_s, sample_rate_hz=20.0,
+                                 record=("x", "y", "gait_phase", "contact_force_pair")))
+    d = neighbour_phase_differences(ds)
+    return xr.Dataset({
+        "dphi": (("time",), d.values[:, 0], {"units": "rad", "long_name": "phase difference phi_1 - phi_0"}),
+        "force": (("time",), ds["contact_force_pair"].values[:, 0], {"units": "N", "long_name": "contact force"}),
+    }, coords={"time": ("time", ds["time"].values, {"units": "s"})}, attrs={"period_s": sc.gait.period_s})
+
+
+def plan(quick: bool) -> dict[str, Any]:
+    n, m = (8, 16) if quick else (24, 36)
+    return {"dphi0_rad": list(np.linspace(-np.pi, np.pi, n, endpoint=False) + np.pi / n),
+            "dphi_rad": list(np.linspace(-np.pi, np.pi, m, endpoint=False) + np.pi / m),
+            "duration_s": 20.0 if quick else 60.0}
+
+
+def dataset(ctx: StudyContext, p: dict[str, Any]):
+    from ..sweep import Grid
+
+    grid = Grid(axes={"controller": list(CONTROLLERS), "hold_x": [True, False], "dphi0_rad": p["dphi0_rad"]},
+                seed=ctx.config.seed)
+    ds = _label(ctx.sweep("runs", functools.partial(phase_run, duration_s=p["duration_s"]), grid))
+    ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
+    probe = ctx.sweep("probe", probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": p["dphi_rad"]},
+                                               seed=ctx.config.seed))
+    ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")
+    ds["dphi_rad"].attrs.update(units="rad", long_name="held phase difference of the probe runs")
+    ds.attrs.update(title="phase-interaction function H(dphi) of closed-loop pairs", channel_width_m=PAIR_CHANNEL_M,
+                    duration_s=p["duration_s"], probe_s=PROBE_S)
+    return ds
+
+
+def _one(v, h) -> dict[str, Any]:
+    """H (per held dphi, t interval over periods), its stable zeros and the closed-loop finals."""
+    bins = [{"centre": float(d), "H": stats.mean(h.sel(dphi_rad=d).values).to_dict()} for d in h["dphi_rad"].values]
+    t = v["time"].values
+    tail = t >= t[-1] - TAIL_S
+    runs = [d for d in v["dphi"].values if np.isfinite(d).all()]
+    finals = [float(np.angle(np.exp(1j * d[tail]).mean())) for d in runs]
+    drift = [float(np.angle(np.exp(1j * (d[-1] - d[tail][0])))) / TAIL_S for d in runs]
+    zeros = stable_zeros(bins)
+    ok = [predicted(f, zeros, bins) if abs(r) < DRIFT_RAD_S else _drifts_as_h(f, r, bins)
+          for f, r in zip(finals, drift)]
+    return {"bins": bins, "stable_zeros": zeros, "neutral_bins": _neutral(bins), "finals_rad": finals,
+            "predicted": [bool(o) for o in ok], "n_predicted": int(sum(ok)), "n_runs": len(finals),
+            "drift_rad_s": drift, "n_locked": int(sum(abs(r) < DRIFT_RAD_S for r in drift)),
+            "all_neutral": len(_neutral(bins)) == len(bins),
+            "antisymmetry_rad_s": _antisymmetry(bins)}
+
+
+def _drifts_as_h(final: float, rate: float, bins) -> bool:
+    """Pure: a run still drifting is predicted when it drifts the way H points at its dphi (the
+    nearest grid point's interval excluding 0)."""
+    c = np.array([b["centre"] for b in bins])
+    i = int(np.argmin(np.abs(np.angle(np.exp(1j * (c - final))))))
+    return _sign(stats.Estimate.from_dict(bins[i]["H"])) == np.sign(rate) != 0
+
+
+def _antisymmetry(bins) -> dict[str, Any]:
+    """max over the grid of |H(d) + H(-d)| and the largest |H| (rad/s), for the symmetry check."""
+    c = np.array([b["centre"] for b in bins])
+    h = np.array([stats.Estimate.from_dict(b["H"]).value for b in bins])
+    pairs = [(i, int(np.argmin(np.abs(c + c[i])))) for i in range(c.size)]
+    return {"max_sum": float(max(abs(h[i] + h[j]) for i, j in pairs)), "max_abs": float(np.nanmax(np.abs(h)))}
+
+
+def summary(ds) -> dict[str, Any]:
+    """Pure: per controller and hold condition, H with intervals, stable zeros, and how many
+    closed-loop runs end where H predicts."""
+    out: dict[str, Any] = {"per_controller": {}, "n_failed": int(ds["run_failed"].values.sum())}
+    for c in ds["controller"].values:
+        per = {}
+        for held in (True, False):
+            v = ds.sel(controller=c, hold_x=held).isel(replicate=0)
+            per["held" if held else "free"] = _one(v, ds["H"].sel(law=c, probe_hold_x=held))
+        out["per_controller"][str(c)] = per
+    return out
+
+
+def _predicts(c: str, cond: str):
+    def judge(s: dict) -> Verdict:
+        v = s["per_controller"][c][cond]
+        n, k = v["n_runs"], v["n_predicted"]
+        if n == 0:
+            return Verdict.none("no run has a result")
+        if v["all_neutral"]:
+            return Verdict.none("H is zero within its interval at every dphi (no contact once the held-phase "
+                                "pair has settled): nothing to predict")
+        zs = ", ".join(f"{math.degrees(z['zero_rad']):.0f} deg [{math.degrees(z['ci95'][0]):.0f}, "
+                       f"{math.degrees(z['ci95'][1]):.0f}]" for z in v["stable_zeros"]) or "none"
+        return Verdict.judged(k >= PREDICTED_FRACTION * n,
+                              f"{k}/{n} runs end at a state H predicts ({v['n_locked']} locked, the rest judged by the "
+                              f"direction of their drift; stable zeros {zs}; "
+                              f"{len(v['neutral_bins'])} neutral bins)", {"predicted": k, "n_runs": n})
+    return judge
+
+
+CLAIMS = tuple(
+    Claim(f"{c}: H(dphi) measured from contact predicts where {cond} pairs lock",
+          "PRX 2021: a phase-oscillator model describes the stability of the in-phase and anti-phase modes",
+          f"at least {PREDICTED_FRACTION:.0%} of closed-loop runs end within {math.degrees(MATCH_TOL_RAD):.0f} deg "
+          "of a stable zero's 95 % interval (H falling through 0) or in a neutral bin, or, still drifting, "
+          "drift the way H's interval points", _predicts(c, cond))
+    for c in CONTROLLERS for cond in ("held", "free"))
+
+
+def _plot(ds):
+    from ..plotting.synchronization import plot_phase_interaction
+
+    return plot_phase_interaction(ds, summary(ds))
+
+
+register(Study(
+    name="phase-interaction", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=_plot,
+    description="Phase-interaction function H(dphi) = <d dphi/dt> of closed-loop pairs measured from contact "
+                "(held and free positions, each controller), its stable zeros against the runs' final states."))
