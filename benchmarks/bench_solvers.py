@@ -24,11 +24,9 @@ from __future__ import annotations
 import argparse
 import copy
 import math
-import time
 
 import mujoco
 import numpy as np
-from mujoco import rollout
 
 from undulate import SimOptions, SwimmerGeometry
 from undulate.scene import build
@@ -57,25 +55,18 @@ def pack(rho: float, phi_max: float, amplitude_m: float):
 
 
 def run(cs, dt: float, duration_s: float, solver, jacobian) -> dict:
-    m = copy.copy(cs.model)
+    """``bench_packing.run_once`` (one rollout of the whole run) under one solver configuration."""
+    from bench_packing import run_once
+
+    m = cs.model
+    saved = m.opt.solver, m.opt.jacobian
     m.opt.solver, m.opt.jacobian = solver, jacobian
-    d = mujoco.MjData(m)
-    mujoco.mj_forward(m, d)
-    s0 = np.empty(mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS))
-    mujoco.mj_getState(m, d, s0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-    n = int(round(duration_s / dt))
-    u = cs.controls(np.arange(n) * dt)[None]
-    t0 = time.perf_counter()
-    st, sd = rollout.rollout(m, d, s0, u)
-    wall = time.perf_counter() - t0
-    md = cs.index.sens_mindist
-    depth = np.where(sd[0, :, md] > 0, np.maximum(0.0, -sd[0, :, md + 1]), 0.0)
-    t = np.arange(1, n + 1) * dt
-    reset = np.abs(st[0, :, 0] - t) > 0.5 * dt
-    return dict(s_per_sim_s=wall / duration_s, us_per_step=wall / n * 1e6,
-                pen_start_mm=float(depth[t < 2.0].max()) * 1e3,
-                pen_steady_mm=float(depth[t >= 2.0].max()) * 1e3 if (t >= 2.0).any() else float("nan"),
-                diverged=bool(reset.any() or not np.isfinite(st).all()))
+    try:
+        r = run_once(cs, dt, duration_s)
+    finally:
+        m.opt.solver, m.opt.jacobian = saved
+    return dict(s_per_sim_s=r["wall_s_per_sim_s"], us_per_step=r["us_per_step"], pen_start_mm=r["pen_startup_mm"],
+                pen_steady_mm=r["pen_steady_mm"], diverged=r["diverged"])
 
 
 def first_disagreement(cs, dt: float, steps: int) -> str:

@@ -97,3 +97,10 @@ def pendulum_or_crash(point: dict, seed: int) -> xr.Dataset:
 def worker_pid(point: dict, seed: int) -> xr.Dataset:
     """The id of the process that ran the point (tests of the warm worker pool)."""
     return xr.Dataset({"pid": ((), np.int64(os.getpid()))})
+
+
+def result_data(ds: xr.Dataset) -> xr.Dataset:
+    """A sweep's dataset without its provenance attrs (timing and host differ between runs)."""
+    ds = ds.copy()
+    ds.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("provenance_")}
+    return ds

@@ -20,12 +20,6 @@ from undulate.sweep import Grid, run_sweep  # noqa: E402
 from undulate.sweep._store import read_run_file  # noqa: E402
 
 
-def _data(ds: xr.Dataset) -> xr.Dataset:
-    ds = ds.copy()
-    ds.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("provenance_")}
-    return ds
-
-
 def test_physics_time_is_recorded_per_run_and_summed(tmp_path):
     from undulate.params import Scene, SimOptions
     from undulate.simulation import resolve_options
@@ -44,4 +38,4 @@ def test_physics_time_is_recorded_per_run_and_summed(tmp_path):
     # in this process (serial) the same counts
     ser = run_sweep(sweep_funcs.swimmer_pair, grid, tmp_path / "ser", workers=1, progress=False)
     assert ser.timing["executor"] == "serial" and ser.timing["steps"] == 3 * n_steps
-    xr.testing.assert_identical(_data(ser.dataset), _data(res.dataset))  # timing is not part of the result
+    xr.testing.assert_identical(sweep_funcs.result_data(ser.dataset), sweep_funcs.result_data(res.dataset))  # timing is not part of the result

@@ -23,12 +23,6 @@ from undulate.sweep import Grid, run_sweep, warm_workers  # noqa: E402
 from undulate.sweep import _executors  # noqa: E402
 
 
-def _data(ds: xr.Dataset) -> xr.Dataset:
-    ds = ds.copy()
-    ds.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("provenance_")}
-    return ds
-
-
 def _pids(res) -> set[int]:
     return set(int(p) for p in np.ravel(res.dataset["pid"].values))
 
@@ -56,7 +50,7 @@ def test_warm_pool_gives_the_serial_results_and_resumes(tmp_path):
     with warm_workers():
         warm = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "warm", workers=2, batch=2, progress=False)
         again = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "warm", workers=2, batch=2, progress=False)
-    xr.testing.assert_identical(_data(warm.dataset), _data(ref.dataset))
+    xr.testing.assert_identical(sweep_funcs.result_data(warm.dataset), sweep_funcs.result_data(ref.dataset))
     assert again.n_computed == 0 and again.n_reused == grid.n_runs
 
 

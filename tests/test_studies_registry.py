@@ -24,7 +24,7 @@ def test_studies_come_in_the_papers_order():
     """The order of ``undulate studies``, the reproduction and the report: paper figures
     3-10, then the Methods, the studies beyond the paper, and last the explanations."""
     assert studies.names() == ["pairs", "compatibility", "links", "groups", "packing", "basins", "confinement",
-                               "potential", "swimming", "synchronization-pairs", "synchronization-groups",
+                               "potential", "swimming", "phase-interaction", "synchronization-pairs", "synchronization-groups",
                                "sensitivity"]
 
 
