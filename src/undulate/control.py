@@ -84,6 +84,9 @@ Families (equations, units, references)
     internal phase (the drive's position along its stroke).  An
     unobstructed servo tracks within about a milliradian, so a free
     swimmer never reverses early and keeps ``f`` and ``beta`` exactly.
+    A reversal that reaches its turning point within a control period
+    dwells there until the next update (at most one period, 10 ms at
+    100 Hz), as a servo that reached its goal waits for the next command.
 
 Set-points within a control period: closed-loop controllers give the target
 angle and velocity at the update; the servo's position set-point then moves
