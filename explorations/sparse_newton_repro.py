@@ -1,8 +1,11 @@
-"""Reproduction: MuJoCo's sparse Newton solver returns wrong accelerations on a jammed pack.
+"""Reproduction: MuJoCo 4.0.0's sparse Newton solver returns wrong accelerations on a jammed pack.
 
-    python benchmarks/sparse_newton_repro.py
+    python explorations/sparse_newton_repro.py
 
-Why ``SimOptions.solver = "auto"`` never picks Newton for scenes with a
+Why ``pyproject.toml`` pins MuJoCo to 3.17.0 (where this script finds no
+disagreement in 1500 steps; run it under a candidate release before lifting
+the pin; ``benchmarks/bench_solvers.py`` checks today's model the same way).
+Before the pin, it was why ``SimOptions.solver = "auto"`` never picked Newton for scenes with a
 sparse constraint Jacobian (>= 60 degrees of freedom), and why the time-step
 rule cannot rely on it to make dense scenes cheap.
 
