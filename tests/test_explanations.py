@@ -64,15 +64,10 @@ def test_report_and_claims_json_show_the_cause_with_a_link_to_the_evidence(tmp_p
     assert [r["verdict"] for r in collect(tmp_path, ["pairs"])] == ["fails"]
 
 
-def test_sensitivity_uses_the_claims_own_criteria_and_the_model_defaults():
-    import undulate.studies.confinement as conf
-    import undulate.studies.pairs as pairs
-
-    assert (S.SLOPE_TOL, S.RMS_TOL) == (pairs.SLOPE_TOL, pairs.RMS_TOL)
-    assert (S.WIDTH_TOL, S.CENTRAL) == (conf.WIDTH_TOL, conf.CENTRAL)
+def test_sensitivity_uses_the_model_defaults():
     import undulate.studies.potential as pot
 
-    assert (S.R2_MIN, S.IMPULSE_S) == (pot.R2_MIN, pot.IMPULSE_DURATION_S)
+    assert S.IMPULSE_S == pot.IMPULSE_DURATION_S
     assert S.MODEL_DEFAULTS["kp_Nm_per_rad"] == Servo().kp_Nm_per_rad
     assert S.MODEL_DEFAULTS["torque_limit_Nm"] == Servo().torque_limit_Nm
     assert S.MODEL_DEFAULTS["max_speed_rad_s"] == Servo().max_speed_rad_s
@@ -178,7 +173,7 @@ def test_impulse_cases_rerun_the_potential_studys_own_design(quick):
 
 
 def test_spaced_channel_adds_the_pairs_spacing_per_extra_swimmer():
-    assert S.spaced_channel_m(2) == S.CHANNEL_WIDTH_M
+    assert S.spaced_channel_m(2) == S.PAIR_CHANNEL_M
     assert S.spaced_channel_m(3) == pytest.approx(0.162) and S.spaced_channel_m(4) == pytest.approx(0.194)
 
 

@@ -12,7 +12,8 @@ from undulate.params import Channel
 from undulate.simulation import physics_counters
 from undulate.stopping import ExcessStop, SteadyStop
 from undulate.studies import _analysis as C
-from undulate.studies._runners import PAIR_STEADY_TOL, PAIR_STOP, group_point, lone_swimmer, pair_point
+from undulate.studies._criteria import STEADY_TOL
+from undulate.studies._runners import PAIR_STOP, group_point, lone_swimmer, pair_point
 from undulate.studies.packing import PACKING_STOP, THRESHOLD_RAD, packing_point
 from undulate.sweep._store import function_id
 
@@ -28,7 +29,7 @@ def test_stopped_pair_run_is_the_full_runs_prefix_and_gives_its_offset():
     short = pair_point(point, 0, stop=PAIR_STOP)
     assert float(short["stopped_at_s"]) < float(full["stopped_at_s"]) == 30.0
     assert bool(short["steady"]) and bool(full["steady"])
-    assert abs(float(short["dx_final_over_lambda"]) - float(full["dx_final_over_lambda"])) <= PAIR_STEADY_TOL
+    assert abs(float(short["dx_final_over_lambda"]) - float(full["dx_final_over_lambda"])) <= STEADY_TOL
     assert float(short["impulse_2T_Ns"]) == float(full["impulse_2T_Ns"])  # the first two periods: bitwise
     np.testing.assert_array_equal(short["time"].values, full["time"].values)  # one axis, NaN after the stop
     n = _finite_len(short["dx_over_lambda"].values)

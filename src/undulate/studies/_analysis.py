@@ -24,6 +24,7 @@ import xarray as xr
 
 from .. import stats, theory
 from ..observables import lateral_ranks, period_average, steady_state, wrap_angle
+from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, STEADY_TOL, STEADY_WINDOW  # noqa: F401 - re-exported
 from ._runners import BODY_LENGTH_M, PERIOD_S
 
 __all__ = [
@@ -58,8 +59,6 @@ __all__ = [
     "group_follows_line",
 ]
 
-GROUP_CHANNEL_M = {3: 0.19, 4: 0.22}
-"""Channels of the groups of three and four (the paper's), m."""
 GROUP_DRAWS = {True: 8, False: 40}
 """Random phase draws of the groups of four: quick mode (True) and full mode (False)."""
 GROUP_FULL_PHASES = 33
@@ -68,14 +67,7 @@ IMPULSE_PHASES = {True: 9, False: 37}
 """dphi of the two-period contact-impulse runs over [-pi, pi] (both ends): quick mode (True), full (False)."""
 IMPULSE_COMMON_PHASES = {True: 4, False: 8}
 """Common phases phi0 (swimmer 0's phase, equally spaced over [0, 2 pi)) the impulse is averaged over."""
-GROUP_SLOPE_TOL = 0.2
-GROUP_RMS_TOL = 0.2
-"""RMS residual allowed for groups, in wavelengths (twice the pairs' tolerance: more scatter)."""
 
-STEADY_TOL = 0.01
-"""Steady-state tolerance on dx/lambda (dx/L for the standing wave), dimensionless."""
-STEADY_WINDOW = 3
-"""Periods in the steady-state window."""
 STEADY_RULE = (
     f"observables.steady_state on period averages (period {PERIOD_S:g} s) of dx/lambda "
     f"(dx/L for the standing wave xi = 0, lambda = inf): steady when the last {STEADY_WINDOW} "

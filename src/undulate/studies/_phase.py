@@ -15,8 +15,8 @@ import numpy as np
 
 from .. import stats
 from ..params import Channel, ControllerParams, Scene, SimOptions
+from ._criteria import PAIR_CHANNEL_M
 
-PAIR_CHANNEL_M = 0.13
 PAIR_COUPLING = 2.0
 """phase-oscillator load feedback sigma in these studies, rad/s per N m."""
 CONTROLLERS = {"self-oscillating": ControllerParams(kind="self-oscillating"),

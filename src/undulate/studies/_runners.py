@@ -28,10 +28,11 @@ import xarray as xr
 from ..errors import ParameterError
 from ..params import Channel, ContactModel, Gait, Ground, Scene, Servo, SimOptions, SwimmerGeometry
 from ..stopping import SteadyStop
+from ._criteria import PAIR_CHANNEL_M, STEADY_TOL
 from ._points import MODEL_KEYS, GroupPoint, LonePoint, PairPoint
 
-__all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", "PAIR_WIDTH_M",
-           "PAIR_DURATION_S", "RECORD_HZ", "PAIR_STEADY_TOL", "LONE_DURATION_S", "LONE_CHANNEL_WIDTH_M",
+__all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", 
+           "PAIR_DURATION_S", "RECORD_HZ", "LONE_DURATION_S", "LONE_CHANNEL_WIDTH_M",
            "AMPLITUDE_ROUND_M", "PAIR_STOP", "round_amplitude", "group_point", "pair_scene", "pair_point", "lone_swimmer"]
 
 BODY_LENGTH_M = 0.54
@@ -45,14 +46,10 @@ SAMPLE_RATE_HZ = 10.0
 TIMESTEP_S = 0.002
 """Integrator step of the 3-link group runs, s (other link numbers give ``timestep_s`` in the point)."""
 
-PAIR_WIDTH_M = 0.13
-"""Channel width of the pair studies, m (paper: 13 cm)."""
 PAIR_DURATION_S = 30.0
 """Pair runs last 15 gait periods, s (the paper's experiments)."""
 RECORD_HZ = 5.0
 """Rate at which a pair run keeps dx(t), Hz."""
-PAIR_STEADY_TOL = 0.01
-"""Steady-state rule of a pair run for dx/lambda (observables.steady_state): last 3 period means within this."""
 
 LONE_DURATION_S = 30.0
 """Length of a free swimmer's run, s (15 periods: its speed is fitted over the second half)."""
@@ -62,7 +59,7 @@ LONE_PERIODS = 3
 """A is measured over the last LONE_PERIODS whole periods."""
 LONE_SKIP_S = 2.0
 """The free swimmer's joint error is averaged over t >= LONE_SKIP_S (one period), s."""
-PAIR_STOP = SteadyStop(tol=PAIR_STEADY_TOL, window=3, extra_periods=2, min_periods=6, drift_frac=0.5,
+PAIR_STOP = SteadyStop(tol=STEADY_TOL, window=3, extra_periods=2, min_periods=6, drift_frac=0.5,
                        spread_frac=0.5)
 """The pair-type studies' stopping rule (bound as ``stop=`` by the studies that use it; the runners'
 default ``None`` runs the whole duration): the steady rule, with half its tolerance as a margin, held
@@ -104,7 +101,7 @@ def round_amplitude(a_m: float) -> float:
     return float(round(a_m / AMPLITUDE_ROUND_M) * AMPLITUDE_ROUND_M)
 
 
-def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channel_width_m: float = 0.13,
+def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channel_width_m: float = PAIR_CHANNEL_M,
                    random_phases: bool = False, duration_s: float = DURATION_S,
                    sample_rate_hz: float = SAMPLE_RATE_HZ, stop: SteadyStop | None = None) -> xr.Dataset:
     """Simulate one scene of a study grid; a small Dataset for the sweep store.
@@ -200,7 +197,7 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
                                  "keyword amplitude_m)", pt.d_over_2A)
         width = pt.d_over_2A * 2.0 * float(amp)
     else:
-        width = PAIR_WIDTH_M if pt.channel_width_m is None else pt.channel_width_m
+        width = PAIR_CHANNEL_M if pt.channel_width_m is None else pt.channel_width_m
     f = pt.force_N
     return Scene(
         phases_rad=(pt.phi0_rad, pt.phi0_rad + pt.dphi_rad),
@@ -226,7 +223,7 @@ def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
     ``dx_over_lambda(time)`` at ``record_hz``;
     ``dx_period_over_lambda(period_time)`` (whole-period means);
     ``dx_final_over_lambda`` (mean of the last 3 periods), ``steady``
-    (``observables.steady_state``, tolerance :data:`PAIR_STEADY_TOL`),
+    (``observables.steady_state``, tolerance :data:`STEADY_TOL`),
     ``settle_time_s``; ``dy_final_m``; ``impulse_2T_Ns`` (swimmer-swimmer
     contact impulse over the first two periods); ``mean_joint_error_rad``
     (t >= one period); ``speed_m_s`` (the pair's mean speed toward -x over
@@ -253,7 +250,7 @@ def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
     off = off.assign(dx=off["dx"] * sign, dy=off["dy"] * sign)
     dxl = off["dx"] / lam
     pa = period_average(dxl, T)
-    st = steady_state(dxl, T, tol=PAIR_STEADY_TOL)
+    st = steady_state(dxl, T, tol=STEADY_TOL)
     dy = period_average(off["dy"], T)
     xc = period_average(ds["x"].mean("swimmer"), T).values
     every = max(1, int(round(1.0 / (record_hz * float(ds.attrs["sample_interval"])))))

@@ -31,8 +31,9 @@ import numpy as np
 
 from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
+from ._criteria import PAIR_CHANNEL_M, RETURN_TOL
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import PAIR_DURATION_S, PAIR_STOP, PAIR_WIDTH_M, pair_point
+from ._runners import PAIR_DURATION_S, PAIR_STOP, pair_point
 
 __all__ = [
     "RETURN_TOL",
@@ -46,8 +47,6 @@ __all__ = [
 ]
 
 DURATION_S = PAIR_DURATION_S
-RETURN_TOL = 0.05
-"""A dphi = 0 start 'returns to the compatible state' when its final |dx/lambda| < RETURN_TOL."""
 
 
 # ----------------------------------------------------------------- thresholds
@@ -146,7 +145,7 @@ def dataset(ctx: StudyContext, p: BasinsPlan):
     grid = Grid(axes={"dx0_over_lambda": p.grid_dx0, "dphi_rad": p.grid_dphi}, seed=ctx.config.seed)
     g = ctx.sweep("grid", fn, grid).isel(replicate=0)
     X0, P = np.meshgrid(g["dx0_over_lambda"].values, g["dphi_rad"].values, indexing="ij")
-    clearance = theory.lateral_clearance_m(PAIR_WIDTH_M, amp, geo.width_m)
+    clearance = theory.lateral_clearance_m(PAIR_CHANNEL_M, amp, geo.width_m)
     th = theory.sinusoid_basin_displacement(X0 * lam, P, amp, lam, dy_m=clearance) / lam
     sim = g["dx_final_over_lambda"].values - X0
 
@@ -176,7 +175,7 @@ def dataset(ctx: StudyContext, p: BasinsPlan):
         },
         attrs={
             "title": "basins of attraction of a pair, d = 0.13 m (paper Fig. 8)",
-            "channel_width_m": PAIR_WIDTH_M,
+            "channel_width_m": PAIR_CHANNEL_M,
             "duration_s": p.duration_s,
             "return_tol": RETURN_TOL,
             "theory_dy_m": clearance,

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..params import Gait, SwimmerGeometry
 from ..theory import neutral_offset_m
+from ._criteria import CENTRAL, WIDTH_TOL
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import PAIR_STOP, pair_point
 
@@ -36,8 +37,6 @@ __all__ = ["ConfinementPlan", "plan", "central_state", "dataset", "summary", "CL
 
 DURATION_S = 40.0
 """20 gait periods, s: long enough for the widest channels' central state to settle."""
-CENTRAL = 0.5
-"""A start ends in the central state when its final |dx / lambda| < CENTRAL."""
 PAPER_RANGE = (0.6, 1.2)
 
 
@@ -156,7 +155,6 @@ def summary(ds) -> dict[str, Any]:
     }
 
 
-WIDTH_TOL = 0.01
 """Width (lambda) below which the central state counts as a point; and the allowed shrink per step."""
 
 

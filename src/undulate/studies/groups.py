@@ -26,13 +26,13 @@ import xarray as xr
 
 from .. import stats
 from ..sweep import Grid
+from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as C
 from ._analysis import group_records
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
 
 XI = 1.0
-CHANNEL_WIDTH_M = C.GROUP_CHANNEL_M
 
 NEIGHBOUR_FIELDS = {
     "group_size": ("1", "swimmers in the group"),
@@ -57,7 +57,6 @@ NEIGHBOUR_FLAGS = {
 }
 
 
-PAIR_CHANNEL_WIDTH_M = 0.13
 """The reference pairs (same xi, same dphi as the groups of three) run in the pair channel, m."""
 
 
@@ -78,12 +77,12 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Groups of three and four, and pairs at the same dphi (the scatter they are compared with)."""
     seed = ctx.config.seed
     run = functools.partial(group_point, stop=PAIR_STOP)
-    three = ctx.sweep("three", functools.partial(run, n_swimmers=3, channel_width_m=CHANNEL_WIDTH_M[3]),
+    three = ctx.sweep("three", functools.partial(run, n_swimmers=3, channel_width_m=GROUP_CHANNEL_M[3]),
                       Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
-    four = ctx.sweep("four", functools.partial(run, n_swimmers=4, channel_width_m=CHANNEL_WIDTH_M[4],
+    four = ctx.sweep("four", functools.partial(run, n_swimmers=4, channel_width_m=GROUP_CHANNEL_M[4],
                                                 random_phases=True),
                      Grid(axes={"waves_per_body": [XI]}, replicates=p.draws, seed=seed))
-    two = ctx.sweep("pairs", functools.partial(run, n_swimmers=2, channel_width_m=PAIR_CHANNEL_WIDTH_M),
+    two = ctx.sweep("pairs", functools.partial(run, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M),
                     Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
     A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
     return groups_dataset({2: two, 3: three, 4: four}, A)
@@ -147,8 +146,8 @@ def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Data
             "waves_per_body": XI,
             "wavelength_m": lam,
             "amplitude_m": amplitude_m,
-            "channel_width_3_m": CHANNEL_WIDTH_M[3],
-            "channel_width_4_m": CHANNEL_WIDTH_M[4],
+            "channel_width_3_m": GROUP_CHANNEL_M[3],
+            "channel_width_4_m": GROUP_CHANNEL_M[4],
             "phases_3": "(0, dphi, 2 dphi) bottom to top",
             "phases_4": "each uniform in [0, 2 pi), numpy default_rng(run seed)",
             "duration_s": DURATION_S,
@@ -171,7 +170,7 @@ def summary(ds: xr.Dataset) -> dict:
         changed = [bool(ds["order_changed"].values[sel][run_of == r][0]) for r in np.unique(run_of)]
         per[str(n)] = {
             "group_size": n,
-            "channel_width_m": CHANNEL_WIDTH_M.get(n, PAIR_CHANNEL_WIDTH_M),
+            "channel_width_m": GROUP_CHANNEL_M.get(n, PAIR_CHANNEL_M),
             "n_runs": int(runs.sum()),
             "n_failed": int(ds["run_failed"].values[runs].sum()),
             "n_neighbour_pairs": int(sel.sum()),
@@ -197,8 +196,6 @@ def summary(ds: xr.Dataset) -> dict:
     }
 
 
-SLOPE_TOL = C.GROUP_SLOPE_TOL
-RMS_TOL = C.GROUP_RMS_TOL
 E = stats.Estimate.from_dict
 
 
@@ -220,8 +217,8 @@ def _group_follows(size: str) -> Callable[[dict], Verdict]:
 CLAIMS = tuple(
     Claim(f"groups of {size} follow the compatibility line with more scatter than pairs",
           "nearest-neighbour dx agrees with compatibility; the variation is larger than in pair experiments",
-          f"the 95 % interval of the slope lies within 1 +- {SLOPE_TOL}, that of the RMS residual below "
-          f"{RMS_TOL} lambda and wholly above the pairs' (same xi and dphi, d = {PAIR_CHANNEL_WIDTH_M} m)",
+          f"the 95 % interval of the slope lies within 1 +- {GROUP_SLOPE_TOL}, that of the RMS residual below "
+          f"{GROUP_RMS_TOL} lambda and wholly above the pairs' (same xi and dphi, d = {PAIR_CHANNEL_M} m)",
           _group_follows(size))
     for size in ("3", "4"))
 

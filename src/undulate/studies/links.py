@@ -34,6 +34,7 @@ import xarray as xr
 
 from .. import stats
 from ..sweep import Grid
+from ._criteria import PAIR_CHANNEL_M
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
@@ -41,7 +42,6 @@ from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
 N_LINKS = (3, 5, 7, 9)
 RULES = ("fixed", "curvature")
 BETA_3_LINKS_RAD = math.radians(45.0)
-CHANNEL_WIDTH_M = 0.13
 XI = 1.0
 FULL_PHASES = 33  # step pi/16; contains the paper's nine values
 
@@ -80,7 +80,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     dphis = np.asarray(p.dphi_rad, float)
     gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]
     sim_points = [{**g, "dphi_rad": float(d)} for g in gaits for d in dphis]
-    fn = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M, stop=PAIR_STOP)
+    fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
     sim = ctx.sweep("sim", fn, Grid(points=sim_points, seed=ctx.config.seed))
     amp = np.array([float(ctx.lone_swimmer(amplitude_rad=g["amplitude_rad"], n_links=g["n_links"],
                                            waves_per_body=XI)["amplitude_m"]) for g in gaits])
@@ -132,7 +132,7 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray) -
                            "dx = lambda (dphi/2pi + n)",
             "waves_per_body": XI,
             "wavelength_m": lam,
-            "channel_width_m": CHANNEL_WIDTH_M,
+            "channel_width_m": PAIR_CHANNEL_M,
             "body_length_m": BODY_LENGTH_M,
             "duration_s": DURATION_S,
             "steady_rule": C.STEADY_RULE,

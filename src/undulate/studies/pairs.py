@@ -30,12 +30,12 @@ import xarray as xr
 
 from .. import stats
 from ..sweep import Grid
+from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
-CHANNEL_WIDTH_M = 0.13
 FULL_PHASES = 49  # step pi/24; contains the paper's nine values
 
 
@@ -56,7 +56,7 @@ def plan(quick: bool) -> Plan:
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset."""
     grid = Grid(axes={"waves_per_body": list(p.xi), "dphi_rad": list(p.dphi_rad)}, seed=ctx.config.seed)
-    sim = ctx.sweep("sim", functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M,
+    sim = ctx.sweep("sim", functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M,
                                                 stop=PAIR_STOP), grid)
     amp = [float(ctx.lone_swimmer(waves_per_body=x)["amplitude_m"]) for x in p.xi]
     return pairs_dataset(sim, np.array(amp))
@@ -100,7 +100,7 @@ def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray) -> xr.Dataset:
             "title": "robot pairs: steady longitudinal offset vs phase difference (paper Fig. 3)",
             "conventions": "heads toward -x; body wave travels +x; dx = x_upper - x_lower, dphi = phi_upper - "
                            "phi_lower; compatibility dx = lambda (dphi/2pi + n)",
-            "channel_width_m": CHANNEL_WIDTH_M,
+            "channel_width_m": PAIR_CHANNEL_M,
             "body_length_m": BODY_LENGTH_M,
             "n_links": 3,
             "duration_s": DURATION_S,
@@ -180,10 +180,6 @@ def summary(ds: xr.Dataset) -> dict:
 
 
 # ------------------------------------------------------------------ claims
-SLOPE_TOL = 0.2
-"""|slope - 1| allowed for "follows the compatibility line"."""
-RMS_TOL = 0.1
-"""RMS distance from the nearest branch allowed, in wavelengths."""
 E = stats.Estimate.from_dict
 
 
@@ -197,7 +193,7 @@ def _follows_line(key: str) -> Callable[[dict], Verdict]:
         if not (slope.has_interval and rms.has_interval):
             return Verdict.none(f"no interval for the slope or the RMS at xi = {key} "
                                 f"({v['n_runs'] - v['n_failed']} runs with a result)", value=value)
-        ok = slope.inside(1 - SLOPE_TOL, 1 + SLOPE_TOL) is True and rms.high < RMS_TOL
+        ok = slope.inside(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL) is True and rms.high < LINE_RMS_TOL
         return Verdict.judged(ok, measured, value)
     return judge
 
@@ -211,8 +207,8 @@ def _standing_wave_scatter(s: dict) -> Verdict:
                           f"std of steady dx at xi = 0: {std0:.3f} m; RMS residual at xi = 1: {rms1:.3f} m", value)
 
 
-_CRITERION = (f"the 95 % interval of the slope lies within 1 +- {SLOPE_TOL} and that of the RMS residual "
-              f"below {RMS_TOL} lambda")
+_CRITERION = (f"the 95 % interval of the slope lies within 1 +- {LINE_SLOPE_TOL} and that of the RMS residual "
+              f"below {LINE_RMS_TOL} lambda")
 CLAIMS = tuple(
     Claim(f"xi = {label}: contact drives pairs to a steady dx that follows the compatibility line",
           "steady dx is approximately linear in dphi and agrees with dx = lambda dphi / 2 pi",

@@ -37,7 +37,8 @@ import numpy as np
 from .. import stats
 from ..params import Channel, Scene, SimOptions
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PAIR_CHANNEL_M, PROBE_S, _label, _neutral,  # noqa: F401
+from ._criteria import PAIR_CHANNEL_M
+from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
                      _sign, predicted, probe_run, stable_zeros)
 
 __all__ = ["phase_run", "probe_run", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]

@@ -53,9 +53,10 @@ import numpy as np
 
 from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
+from ._criteria import PAIR_CHANNEL_M, R2_MIN
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import PAIR_WIDTH_M, pair_point
+from ._runners import pair_point
 
 __all__ = [
     "lateral_clearance_m",
@@ -264,7 +265,7 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
         },
         attrs={
             "title": "contact force against detuning; cohesion stiffness of the compatible state (paper Fig. 10)",
-            "impulse_channel_width_m": PAIR_WIDTH_M,
+            "impulse_channel_width_m": PAIR_CHANNEL_M,
             "settle_s": SETTLE_S,
             "duration_s": p.duration_s,
             "impulse_fit_abs": list(fit_a),
@@ -354,7 +355,6 @@ def summary(ds) -> dict[str, Any]:
 
 
 E = stats.Estimate.from_dict
-R2_MIN = 0.9
 
 
 def _impulse_linear(s: dict) -> Verdict:

@@ -83,26 +83,17 @@ from ..observables import steady_state
 from ..params import SwimmerGeometry
 from ..sweep import Grid
 from . import _analysis as C
+from ._criteria import CENTRAL, LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M, R2_MIN, WIDTH_TOL
 from ._registry import Explanation, Study, StudyContext, register
 from ._runners import BODY_LENGTH_M, PERIOD_S, group_point, pair_point
 
-SLOPE_TOL = 0.2
-RMS_TOL = 0.1
-"""The pairs study's criterion ("follows the compatibility line"): the slope's 95 % interval within
-1 +- SLOPE_TOL and the RMS residual's upper bound below RMS_TOL lambda (tests check they agree)."""
-WIDTH_TOL = 0.01
-"""The confinement study's criterion: width (lambda) above which the central state is open."""
-CENTRAL = 0.5
 PAPER_RANGE_HIGH = 1.2
-CHANNEL_WIDTH_M = 0.13
 LONG_S = 60.0
 """Length of the default xi = 1 runs and the N = 8 xi = 3/2 runs, s (cut short for 20 and 30 s)."""
 DEFAULT_S = 30.0
 CONFINEMENT_S = 40.0
 THIN_BODY_M = 0.003
 BETA_DEG = 45.0
-R2_MIN = 0.9
-"""The potential study's criterion for "linear": the lower 95 % bound of R^2 at least this."""
 IMPULSE_S = 6.0
 """Length of the impulse runs (the impulse is taken over the first 2 periods), s: the potential study's."""
 IMPULSE_DRAGS_N_S_PER_M = (1.0, 4.0, 8.0, 16.0)
@@ -165,7 +156,7 @@ class Plan:
 def spaced_channel_m(n_swimmers: int) -> float:
     """Channel width (m) that gives ``n_swimmers`` neighbours the reference pairs' lateral spacing:
     ``0.13 m + (n - 2)`` :data:`PAIR_SPACING_M`."""
-    return round(CHANNEL_WIDTH_M + (int(n_swimmers) - 2) * PAIR_SPACING_M, 6)
+    return round(PAIR_CHANNEL_M + (int(n_swimmers) - 2) * PAIR_SPACING_M, 6)
 
 
 def plan(quick: bool) -> Plan:
@@ -246,8 +237,8 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                       "wavelength": BODY_LENGTH_M / xi if lam is None else lam})
 
     # --- xi = 1: model levels (30 s) and the default (60 s, cut short) ---------------------------
-    fn30 = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M, duration_s=DEFAULT_S)
-    fn60 = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M, duration_s=LONG_S)
+    fn30 = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=DEFAULT_S)
+    fn60 = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=LONG_S)
     pts = [{**MODEL_DEFAULTS, **over, "dphi_rad": float(d)} for _, _, over in MODEL_LEVELS for d in dphis]
     sim = ctx.sweep("xi1-model", fn30, Grid(points=pts, seed=ctx.config.seed)).isel(replicate=0)
     base = ctx.sweep("xi1-default", fn60, Grid(axes={"dphi_rad": list(dphis)}, seed=ctx.config.seed)
@@ -292,7 +283,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     lam32 = BODY_LENGTH_M / 1.5
     for n in p.xi32_links:
         dur = LONG_S if n > 3 else DEFAULT_S
-        fn = functools.partial(group_point, n_swimmers=2, channel_width_m=CHANNEL_WIDTH_M, duration_s=dur)
+        fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=dur)
         g = Grid(points=[{"waves_per_body": 1.5, "n_links": n, "timestep_s": _timestep(n), "dphi_rad": float(d)}
                          for d in dphis], seed=ctx.config.seed)
         sw = ctx.sweep(f"xi32-N{n}", fn, g).isel(replicate=0)
@@ -350,7 +341,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     # --- groups: lateral spacing of neighbours (the same phases and draws in two channels) -------------
     gdphis = list(p.group_dphi_rad)
     ref = ctx.sweep("groups2-d0.13", fn30, Grid(axes={"dphi_rad": gdphis}, seed=ctx.config.seed))
-    group_cases = [(2, CHANNEL_WIDTH_M, True, [r for r in C.sweep_runs(ref) if r is not None])]
+    group_cases = [(2, PAIR_CHANNEL_M, True, [r for r in C.sweep_runs(ref) if r is not None])]
     for n in (3, 4):
         for w in (C.GROUP_CHANNEL_M[n], spaced_channel_m(n)):
             if n == 3:
@@ -484,7 +475,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                 "long_name": "the groups study's channel (2: the reference pairs)"}),
         },
         attrs={"title": "model sensitivity: claims against the model choices the paper leaves open",
-               "channel_width_m": CHANNEL_WIDTH_M, "n_dphi": n_d, "steady_rule": C.STEADY_RULE,
+               "channel_width_m": PAIR_CHANNEL_M, "n_dphi": n_d, "steady_rule": C.STEADY_RULE,
                "slope_method": C.SLOPE_METHOD},
     )
     return ds
@@ -501,7 +492,7 @@ def follows_line(slope: stats.Estimate, rms: stats.Estimate) -> bool | None:
     """The pairs study's criterion on the intervals (None without intervals)."""
     if not (slope.has_interval and rms.has_interval):
         return None
-    return slope.inside(1 - SLOPE_TOL, 1 + SLOPE_TOL) is True and rms.high < RMS_TOL
+    return slope.inside(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL) is True and rms.high < LINE_RMS_TOL
 
 
 LINK_SETS = {
@@ -664,7 +655,7 @@ def summary(ds: xr.Dataset) -> dict:
             "swim_drag_pair_speed_m_s": _finite_mean(ds["swim_drag_pair_speed"].values),
             "impulse_Ns": imp,
             "amplitude_3_links_m": A,
-            "criteria": {"pairs": f"slope 95 % interval within 1 +- {SLOPE_TOL}, RMS upper bound < {RMS_TOL} "
+            "criteria": {"pairs": f"slope 95 % interval within 1 +- {LINE_SLOPE_TOL}, RMS upper bound < {LINE_RMS_TOL} "
                                   "lambda (the pairs study's)",
                          "links": "RMS falls at every step in N and the largest N's interval lies below N = 3's",
                          "confinement": f"central width > {WIDTH_TOL} lambda within d/2A <= 1.2, never "

@@ -28,6 +28,7 @@ import numpy as np
 
 from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
+from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from ._analysis import SLOPE_METHOD, compatibility_fit, rms
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import PAIR_STOP, pair_point
@@ -100,7 +101,7 @@ def dataset(ctx: StudyContext, p: SwimmingPlan):
             "time": ("time", g["time"].values, {"units": "s"}),
             "period_time": ("period_time", lone["period_time"].values, {"units": "s"}),
         },
-        attrs={"title": "pairs swimming vs not (paper Methods remark)", "channel_width_m": 0.13,
+        attrs={"title": "pairs swimming vs not (paper Methods remark)", "channel_width_m": PAIR_CHANNEL_M,
                "duration_s": p.duration_s, "wavelength_m": lam},
     )
     fits = {m: [e.value for e in slope_and_rms(ds["dphi"].values, ds["dx_final_over_lambda"].sel(mode=m).values)]
@@ -136,8 +137,6 @@ def summary(ds) -> dict[str, Any]:
     }
 
 
-SLOPE_TOL = 0.2
-RMS_TOL = 0.1
 E = stats.Estimate.from_dict
 
 
@@ -150,14 +149,14 @@ def _like_viscous(s: dict) -> Verdict:
              "viscous": {"slope": v["slope"], "rms": v["rms_residual_over_lambda"]}}
     if not (sw.has_interval and rw.has_interval):
         return Verdict.none("no interval for the swimming pairs' slope or RMS", measured, value)
-    return Verdict.judged(sw.inside(1 - SLOPE_TOL, 1 + SLOPE_TOL) is True and rw.high < RMS_TOL, measured, value)
+    return Verdict.judged(sw.inside(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL) is True and rw.high < LINE_RMS_TOL, measured, value)
 
 
 CLAIMS = (
     Claim("swimming (anisotropic drag) pairs behave like non-swimming ones",
           "we found no qualitative difference in spatial dynamics between locomoting and non-locomoting simulations",
-          f"swimming pairs also follow the line: the 95 % interval of their slope lies within 1 +- {SLOPE_TOL} "
-          f"and that of their RMS residual below {RMS_TOL} lambda", _like_viscous),
+          f"swimming pairs also follow the line: the 95 % interval of their slope lies within 1 +- {LINE_SLOPE_TOL} "
+          f"and that of their RMS residual below {LINE_RMS_TOL} lambda", _like_viscous),
 )
 
 

@@ -46,7 +46,8 @@ import numpy as np
 
 from .. import stats, theory
 from ..params import Channel, Scene, SimOptions
-from ._phase import CONTROLLERS, PAIR_CHANNEL_M, PAIR_COUPLING, _label
+from ._criteria import PAIR_CHANNEL_M
+from ._phase import CONTROLLERS, PAIR_COUPLING, _label
 from ._points import SyncPoint
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
