@@ -65,9 +65,6 @@ def test_report_and_claims_json_show_the_cause_with_a_link_to_the_evidence(tmp_p
 
 
 def test_sensitivity_uses_the_model_defaults():
-    import undulate.studies.potential as pot
-
-    assert S.IMPULSE_S == pot.IMPULSE_DURATION_S
     assert S.MODEL_DEFAULTS["kp_Nm_per_rad"] == Servo().kp_Nm_per_rad
     assert S.MODEL_DEFAULTS["torque_limit_Nm"] == Servo().torque_limit_Nm
     assert S.MODEL_DEFAULTS["max_speed_rad_s"] == Servo().max_speed_rad_s

@@ -17,7 +17,6 @@ n)``.
 
 from __future__ import annotations
 
-import functools
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -25,12 +24,12 @@ import numpy as np
 import xarray as xr
 
 from .. import stats
-from ..sweep import Grid
 from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as C
 from ._analysis import group_records
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
+from ._runners import BODY_LENGTH_M, DURATION_S
+from ._shared import group_part, group_sweep
 
 XI = 1.0
 
@@ -76,14 +75,7 @@ def plan(quick: bool) -> Plan:
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Groups of three and four, and pairs at the same dphi (the scatter they are compared with)."""
     seed = ctx.config.seed
-    run = functools.partial(group_point, stop=PAIR_STOP)
-    three = ctx.sweep("three", functools.partial(run, n_swimmers=3, channel_width_m=GROUP_CHANNEL_M[3]),
-                      Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
-    four = ctx.sweep("four", functools.partial(run, n_swimmers=4, channel_width_m=GROUP_CHANNEL_M[4],
-                                                random_phases=True),
-                     Grid(axes={"waves_per_body": [XI]}, replicates=p.draws, seed=seed))
-    two = ctx.sweep("pairs", functools.partial(run, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M),
-                    Grid(axes={"dphi_rad": list(p.dphi_rad)}, seed=seed))
+    two, three, four = (ctx.shared_sweep(group_part(n), *group_sweep(n, p.dphi_rad, p.draws, seed)) for n in (2, 3, 4))
     A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
     return groups_dataset({2: two, 3: three, 4: four}, A)
 

@@ -57,6 +57,7 @@ from ._criteria import PAIR_CHANNEL_M, R2_MIN
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._runners import pair_point
+from ._shared import impulse_sweep
 
 __all__ = [
     "lateral_clearance_m",
@@ -82,8 +83,6 @@ SLIDING_FROM = 1.0
 """d/2A from which the collapse of k is also measured on its own: in narrower channels
 the two bodies are wedged between the walls (large joint errors; the pair barely moves
 under any force) and k is large but erratic."""
-IMPULSE_DURATION_S = 6.0
-"""Length of the impulse runs, s (the impulse is taken over the first 2 periods)."""
 
 
 lateral_clearance_m = theory.lateral_clearance_m
@@ -185,9 +184,8 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
     betas = [math.radians(b) for b in p.betas_deg]
 
     # (a) contact impulse over the first two periods against dphi, for several common phases
-    fa = functools.partial(pair_point, duration_s=IMPULSE_DURATION_S)
-    ga = Grid(axes={"dphi_rad": p.impulse_dphi, "phi0_rad": p.impulse_phi0}, seed=config.seed)
-    imp_all = ctx.sweep("impulse", fa, ga).isel(replicate=0)["impulse_2T_Ns"].values  # (dphi, phi0)
+    imp_all = ctx.shared_sweep("impulse", *impulse_sweep(p.impulse_dphi, p.impulse_phi0, config.seed)
+                               ).isel(replicate=0)["impulse_2T_Ns"].values  # (dphi, phi0)
     impulse = np.nanmean(imp_all, axis=1)
     dphi = np.asarray(p.impulse_dphi)
     fit_a = fit_abs_linear(dphi, impulse)

@@ -1,7 +1,11 @@
 """Study ``sensitivity``: which claims hold under which of the model choices the paper leaves open.
 
-One factor at a time, around the defaults, each with its own runs (nothing
-is borrowed from another study's files):
+One factor at a time, around the defaults.  The default-model rows that are
+another study's runs (the groups study's three sweeps, the potential study's
+impulse sweep) are those very runs, defined once in :mod:`._shared` and
+reused by identity; every other case has its own runs.  Pair-type runs stop
+by :data:`._runners.PAIR_STOP` (as the studies they vary do), except the
+60 s runs that are cut short at 20 / 30 / 60 s, which run whole:
 
 * **xi = 1 pairs** (the claim "pairs follow the compatibility line", the
   pairs study's criterion, 9 paper phases, 3-link pairs from dx0 = 0 in
@@ -85,7 +89,8 @@ from ..sweep import Grid
 from . import _analysis as C
 from ._criteria import CENTRAL, LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M, R2_MIN, WIDTH_TOL
 from ._registry import Explanation, Study, StudyContext, register
-from ._runners import BODY_LENGTH_M, PERIOD_S, group_point, pair_point
+from ._runners import BODY_LENGTH_M, PAIR_STOP, PERIOD_S, group_point, pair_point
+from ._shared import group_part, group_sweep, impulse_sweep
 
 PAPER_RANGE_HIGH = 1.2
 LONG_S = 60.0
@@ -94,8 +99,6 @@ DEFAULT_S = 30.0
 CONFINEMENT_S = 40.0
 THIN_BODY_M = 0.003
 BETA_DEG = 45.0
-IMPULSE_S = 6.0
-"""Length of the impulse runs (the impulse is taken over the first 2 periods), s: the potential study's."""
 IMPULSE_DRAGS_N_S_PER_M = (1.0, 4.0, 8.0, 16.0)
 """The viscous ground's linear drag per link for the impulse runs besides the default 2 N s/m: the drag sets
 how fast contact pushes the pair apart along x (overdamped: speed = force / drag), and so how much of the
@@ -237,7 +240,8 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                       "wavelength": BODY_LENGTH_M / xi if lam is None else lam})
 
     # --- xi = 1: model levels (30 s) and the default (60 s, cut short) ---------------------------
-    fn30 = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=DEFAULT_S)
+    fn30 = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=DEFAULT_S,
+                             stop=PAIR_STOP)
     fn60 = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=LONG_S)
     pts = [{**MODEL_DEFAULTS, **over, "dphi_rad": float(d)} for _, _, over in MODEL_LEVELS for d in dphis]
     sim = ctx.sweep("xi1-model", fn30, Grid(points=pts, seed=ctx.config.seed)).isel(replicate=0)
@@ -283,7 +287,8 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     lam32 = BODY_LENGTH_M / 1.5
     for n in p.xi32_links:
         dur = LONG_S if n > 3 else DEFAULT_S
-        fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=dur)
+        fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=dur,
+                               stop=None if dur == LONG_S else PAIR_STOP)  # N > 3: cut at 30 and 60 s
         g = Grid(points=[{"waves_per_body": 1.5, "n_links": n, "timestep_s": _timestep(n), "dphi_rad": float(d)}
                          for d in dphis], seed=ctx.config.seed)
         sw = ctx.sweep(f"xi32-N{n}", fn, g).isel(replicate=0)
@@ -332,7 +337,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     w0 = SwimmerGeometry().width_m
     r_edge = round(PAPER_RANGE_HIGH * (A3 + w0 / 2) / A3, 6)
     ratios = tuple(p.confinement_d_over_2A) + (r_edge,)
-    fnc = functools.partial(pair_point, duration_s=CONFINEMENT_S, amplitude_m=A3)
+    fnc = functools.partial(pair_point, duration_s=CONFINEMENT_S, amplitude_m=A3, stop=PAIR_STOP)
     gc = Grid(axes={"body_width_m": [w0, THIN_BODY_M], "d_over_2A": list(ratios),
                     "dx0_over_lambda": list(p.confinement_starts)}, seed=ctx.config.seed)
     conf = ctx.sweep("confinement", fnc, gc).isel(replicate=0)
@@ -340,19 +345,16 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
 
     # --- groups: lateral spacing of neighbours (the same phases and draws in two channels) -------------
     gdphis = list(p.group_dphi_rad)
-    ref = ctx.sweep("groups2-d0.13", fn30, Grid(axes={"dphi_rad": gdphis}, seed=ctx.config.seed))
-    group_cases = [(2, PAIR_CHANNEL_M, True, [r for r in C.sweep_runs(ref) if r is not None])]
-    for n in (3, 4):
+    def group_runs(n: int, w: float) -> list[xr.Dataset]:
+        fn, grid = group_sweep(n, gdphis, p.group_draws, ctx.config.seed, channel_width_m=w)
+        shared = w == {2: PAIR_CHANNEL_M, **C.GROUP_CHANNEL_M}[n]  # the groups study's own runs
+        sw = (ctx.shared_sweep if shared else ctx.sweep)(group_part(n, w), fn, grid)
+        return [r for r in C.sweep_runs(sw) if r is not None]
+
+    group_cases = [(2, PAIR_CHANNEL_M, True, group_runs(2, PAIR_CHANNEL_M))]
+    for n in (3, 4):  # the groups study's grid: the same per-run seeds, hence the same phase draws, in both
         for w in (C.GROUP_CHANNEL_M[n], spaced_channel_m(n)):
-            if n == 3:
-                fng = functools.partial(group_point, n_swimmers=3, channel_width_m=w, duration_s=DEFAULT_S)
-                gg = Grid(axes={"dphi_rad": gdphis}, seed=ctx.config.seed)
-            else:  # the groups study's grid: the same per-run seeds, hence the same phase draws, in both channels
-                fng = functools.partial(group_point, n_swimmers=4, channel_width_m=w, random_phases=True,
-                                        duration_s=DEFAULT_S)
-                gg = Grid(axes={"waves_per_body": [1.0]}, replicates=p.group_draws, seed=ctx.config.seed)
-            runs = [r for r in C.sweep_runs(ctx.sweep(f"groups{n}-d{w:g}", fng, gg)) if r is not None]
-            group_cases.append((n, w, w == C.GROUP_CHANNEL_M[n], runs))
+            group_cases.append((n, w, w == C.GROUP_CHANNEL_M[n], group_runs(n, w)))
     g_fields = ("dphi", "dx_steady_over_lambda", "residual_over_lambda", "dy_steady", "band_excess")
     g_recs = [[rec for r in runs for rec in C.group_records(C.trajectory(r, lam1), A3)]
               for _, _, _, runs in group_cases]
@@ -364,7 +366,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                 g_vals[f][i, k] = rec[f]
 
     # --- swimming: strength of the anisotropic drag --------------------------------------------------
-    fns = functools.partial(pair_point, duration_s=DEFAULT_S)
+    fns = functools.partial(pair_point, duration_s=DEFAULT_S, stop=PAIR_STOP)
     gs = Grid(axes={"ground": ["swimming"], "fluid_density_kg_m3": list(FLUID_DENSITIES), "dphi_rad": list(dphis)},
               seed=ctx.config.seed)
     swim = ctx.sweep("swimming", fns, gs).isel(replicate=0, ground=0)
@@ -391,14 +393,11 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     swim_speed = np.where(swd["run_failed"].values, np.nan, swd["speed_m_s"].values)
 
     # --- potential: contact impulse over the first two periods, dphi = +-pi in or out -----------------
-    fni = functools.partial(pair_point, duration_s=IMPULSE_S)
     idphis, iphi0 = list(p.impulse_dphi_rad), list(p.impulse_phi0_rad)
-    gi = Grid(axes={"dphi_rad": idphis, "phi0_rad": iphi0}, seed=ctx.config.seed)
-    imp = ctx.sweep("impulse", fni, gi).isel(replicate=0)
+    imp = ctx.shared_sweep("impulse", *impulse_sweep(idphis, iphi0, ctx.config.seed)).isel(replicate=0)
     impulse = np.nanmean(np.where(imp["run_failed"].values, np.nan, imp["impulse_2T_Ns"].values), axis=1)
-    gid = Grid(axes={"drag_N_s_per_m": list(IMPULSE_DRAGS_N_S_PER_M), "dphi_rad": idphis, "phi0_rad": iphi0},
-               seed=ctx.config.seed)
-    impd = ctx.sweep("impulse-drag", fni, gid).isel(replicate=0)
+    impd = ctx.sweep("impulse-drag", *impulse_sweep(idphis, iphi0, ctx.config.seed,
+                                                    drag_N_s_per_m=IMPULSE_DRAGS_N_S_PER_M)).isel(replicate=0)
     drags = sorted((IMPULSE_DRAG_DEFAULT, *IMPULSE_DRAGS_N_S_PER_M))
     imp_by_drag = np.full((len(drags), len(idphis), len(iphi0)), np.nan)
     escape_by_drag = np.full_like(imp_by_drag, np.nan)
