@@ -91,8 +91,8 @@ def test_page_loads_every_image_in_headless_chromium(report_dir, tmp_path):
 LONG_CAUSE = (
     "the compatibility model assumes each body is a travelling sinusoid in the lab frame. "
     + "Free bodies are not, in two ways that do not shrink with the number of links: "
-    + " ".join(["on isotropic drag a free body turns back and forth as it bends, which adds a standing wave "
-                "to its shape, and its wavelength along the channel is shorter than its length."] * 4)
+    + " ".join([("on isotropic drag a free body turns back and forth as it bends, which adds a standing wave "
+                "to its shape, and its wavelength along the channel is shorter than its length.")] * 4)
     + " Shown only if, with the amplitude held and the recoil removed by a heading guide, the error falls "
     + "with N by the claim's own criterion, while the runs with only one of the two changes do not. "
     + "The other candidate causes were each tested and did not show it.")
