@@ -169,12 +169,14 @@ def claim_section(c: dict[str, Any], anchor: str, out_dir: Path) -> list[str]:
     for e in c.get("explanations_not_shown") or []:
         out += _evidence(e, "cause tested, not shown by the runs")
     out.append("</dl>")
-    if verdict != "holds":
-        for fig, study in _figures(c):
-            if (out_dir / fig).is_file():
-                cap = f"the <a href='#{esc(study)}'>{esc(study)}</a> study's figure" if study else esc(fig)
-                out.append(f"<figure><a href='{esc(fig)}'><img class='fig' src='{esc(fig)}' "
-                           f"alt='{esc(fig)}'></a><figcaption>Evidence: {cap}</figcaption></figure>")
+    figs = [(f, s) for f, s in _figures(c) if (out_dir / f).is_file()] if verdict != "holds" else []
+    if figs:
+        out.append("<div class='figs'>")
+        for fig, study in figs:
+            cap = f"the <a href='#{esc(study)}'>{esc(study)}</a> study's figure" if study else esc(fig)
+            out.append(f"<figure><a href='{esc(fig)}'><img class='fig' src='{esc(fig)}' "
+                       f"alt='{esc(fig)}'></a><figcaption>Evidence: {cap}</figcaption></figure>")
+        out.append("</div>")
     out.append("</div><p class='back'><a href='#claims'>back to the claims table</a></p></section>")
     return out
 

@@ -70,7 +70,7 @@ a.more{white-space:nowrap}
 section.claim{border-top:1px solid #eee;padding-top:.2em}section.claim h3{font-size:1.05em}
 .claim-body{display:flex;flex-wrap:wrap;gap:1em;align-items:flex-start}.claim-body dl{flex:1 1 420px;margin:0}
 .claim-body dt{font-weight:600;margin-top:.3em}.claim-body dd{margin:0 0 0 1em}
-.claim-body figure{flex:1 1 420px;max-width:560px;margin:0}p.back{font-size:.85em;margin:.3em 0 1em}
+.claim-body .figs{flex:1 1 420px;max-width:560px}.claim-body figure{margin:0 0 .8em}p.back{font-size:.85em;margin:.3em 0 1em}
 img.fig{max-width:100%;border:1px solid #eee}.anims{display:flex;flex-wrap:wrap;gap:1em}.anims figure{margin:0;max-width:520px}
 .anims img{max-width:100%;border:1px solid #eee}.failed{background:#fde8ea;border:1px solid #f3b5bc;padding:.6em}
 code{background:#f6f6f6;padding:0 .2em}
