@@ -1,4 +1,5 @@
-"""The reproduction page in a real headless Chromium; resuming a reproduction."""
+"""The reproduction page in a real headless Chromium (the claims table fits the screen and links
+every claim's section); the report leaves ``claims.json`` alone; resuming a reproduction."""
 
 from __future__ import annotations
 
@@ -15,7 +16,15 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from undulate._report_claims import claim_anchor, first_sentence
+from undulate.claims import collect, write_claims_json
+from undulate.report import write_report
 from undulate.reproduce import reproduce
+
+VIEWPORT = {"width": 1366, "height": 768}
+CHROMIUM_ARGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+                 "--disable-sync", "--no-first-run"]
+
 
 def ensure_chromium() -> str:
     """Debian's headless Chromium, installed by this test setup when missing (root + apt only)."""
@@ -44,6 +53,9 @@ def test_page_is_self_contained_with_relative_links(report_dir):
     page = (report_dir / "index.html").read_text()
     refs = re.findall(r"(?:src|href)='([^']+)'", page)
     assert refs, "the page links nothing"
+    ids = set(re.findall(r"id='([^']+)'", page))
+    assert [r for r in refs if r.startswith("#") and r[1:] not in ids] == []  # in-page links land somewhere
+    refs = [r for r in refs if not r.startswith("#")]
     for ref in refs:
         assert not re.match(r"^[a-z]+://", ref) and not ref.startswith("/"), ref
         assert (report_dir / ref).is_file(), ref
@@ -57,9 +69,7 @@ def test_page_loads_every_image_in_headless_chromium(report_dir, tmp_path):
 
     failed, shot = [], tmp_path / "shot.png"
     with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=chromium, headless=True, args=[
-            "--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
-            "--disable-sync", "--no-first-run"])
+        browser = p.chromium.launch(executable_path=chromium, headless=True, args=CHROMIUM_ARGS)
         page = browser.new_page(viewport={"width": 1200, "height": 1600})
         page.on("requestfailed", lambda r: failed.append(r.url))
         page.on("response", lambda r: failed.append(r.url) if r.status >= 400 else None)
@@ -75,6 +85,140 @@ def test_page_loads_every_image_in_headless_chromium(report_dir, tmp_path):
 
     px = np.asarray(Image.open(shot).convert("L"), dtype=float)
     assert px.std() > 10, "the screenshot is blank"
+
+
+# A long, multi-sentence explanation (about 200 words), shown by its runs for two claims at once.
+LONG_CAUSE = (
+    "the compatibility model assumes each body is a travelling sinusoid in the lab frame. "
+    + "Free bodies are not, in two ways that do not shrink with the number of links: "
+    + " ".join([("on isotropic drag a free body turns back and forth as it bends, which adds a standing wave "
+                "to its shape, and its wavelength along the channel is shorter than its length.")] * 4)
+    + " Shown only if, with the amplitude held and the recoil removed by a heading guide, the error falls "
+    + "with N by the claim's own criterion, while the runs with only one of the two changes do not. "
+    + "The other candidate causes were each tested and did not show it.")
+LONG_EVIDENCE = "; ".join(f"case {i}: RMS / lambda 0.0{i}46 [0.0{i}30, 0.0{i}41] at N = 3, 5, 7, 9" for i in range(1, 7))
+TESTED_CAUSE = ("in the groups' channels neighbour centre lines settle farther apart than the pairs'; at that "
+                "spacing the contact-free band is wider. Shown only if the narrower channel meets the criterion.")
+
+
+def _claim(study, claim, verdict, measured="slope 1.01 [0.95, 1.07]", reason=""):
+    return {"study": study, "claim": claim, "paper": f"the paper says: {claim}", "measured": measured,
+            "value": None, "verdict": verdict, "reason": reason, "criterion": "the 95 % interval lies within 1 +- 0.2"}
+
+
+def _explanation(study, claim, cause, shown):
+    return {"study": study, "claim": claim, "cause": cause, "shown": shown, "measured": LONG_EVIDENCE,
+            "value": None, "evidence_study": "beta", "evidence_figure": "beta.png"}
+
+
+@pytest.fixture(scope="module")
+def claims_report(tmp_path_factory):
+    """A report from hand-written study files: every verdict, a long explanation shown for two claims,
+    a failing claim with no cause, one whose tested cause was not shown, and a failed study."""
+    from PIL import Image
+
+    out = tmp_path_factory.mktemp("claims_report")
+    a = ["xi = 1: pairs follow dx < lambda & \"the line\"", "links A: error falls with N",
+         "links B: error falls with N", "xi = 3/4: pairs follow the line", "free pairs lock where H predicts"]
+    alpha = [_claim("alpha", a[0], "holds"), _claim("alpha", a[1], "fails"), _claim("alpha", a[2], "fails"),
+             _claim("alpha", a[3], "fails"),
+             _claim("alpha", a[4], "no result", "no result: H is zero", "H is zero within its interval at every dphi")]
+    beta = [_claim("beta", "groups follow the line with more scatter", "fails")]
+    expl = [_explanation("alpha", a[1], LONG_CAUSE, True), _explanation("alpha", a[2], LONG_CAUSE, True),
+            _explanation("beta", beta[0]["claim"], TESTED_CAUSE, False)]
+    (out / "alpha.json").write_text(json.dumps({"claims": alpha, "files": ["alpha.png"]}))
+    (out / "beta.json").write_text(json.dumps({"claims": beta, "explanations": expl, "files": ["beta.png"]}))
+    for i, name in enumerate(("alpha", "beta")):
+        Image.new("RGB", (400, 240), (60 + 90 * i, 120, 200)).save(out / f"{name}.png")
+    statuses = [{"name": "alpha", "ok": True, "wall_s": 1.0}, {"name": "beta", "ok": True, "wall_s": 2.0},
+                {"name": "gamma", "ok": False, "wall_s": 0.5, "error": "RuntimeError: " + "boom " * 80}]
+    write_report(out, statuses, mode="quick")
+    return out, collect(out, ["alpha", "beta"])
+
+
+_MEASURE_CLAIMS = """() => {
+  const table = document.querySelector('h2#claims ~ table');
+  const cells = Array.from(table.querySelectorAll('td, th'), c => ({
+      h: c.getBoundingClientRect().height, words: c.innerText.split(/\\s+/).filter(Boolean).length}));
+  const links = Array.from(table.querySelectorAll('a[href^="#"]'), a => a.getAttribute('href').slice(1));
+  const rows = Array.from(table.querySelectorAll('tr'), tr => ({
+      text: tr.innerText, links: Array.from(tr.querySelectorAll('a[href^="#"]'), a => a.getAttribute('href').slice(1))}));
+  const targets = {};
+  for (const id of links) {
+    const el = document.getElementById(id);
+    targets[id] = el && {inTable: table.contains(el), text: el.innerText,
+                         images: Array.from(el.querySelectorAll('img'), i => i.complete && i.naturalWidth > 0)};
+  }
+  return {cells, rows, targets, tableText: table.innerText};
+}"""
+
+
+def test_claims_table_fits_the_screen_and_links_each_claims_own_section(claims_report):
+    """At 1366 x 768 no cell of the claims table is taller than the screen (nor than a quarter of it:
+    a screen shows at least four rows) or holds long text; every
+    in-page link of the table lands on an element; every explained or failing claim has its own section
+    (outside the table) with its whole explanation and a loaded evidence figure, linked from its row."""
+    out, rows = claims_report
+    chromium = ensure_chromium()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium, headless=True, args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport=VIEWPORT)
+        page.goto((out / "index.html").as_uri(), wait_until="load")
+        m = page.evaluate(_MEASURE_CLAIMS)
+        browser.close()
+    tallest = max(c["h"] for c in m["cells"])
+    assert tallest <= VIEWPORT["height"], f"a claims-table cell is {tallest:.0f} px tall"
+    assert tallest <= VIEWPORT["height"] / 4, f"a {tallest:.0f} px cell: fewer than four rows fit the screen"
+    assert max(c["words"] for c in m["cells"]) <= 60, "long text in the claims table"
+    assert [i for i, t in m["targets"].items() if t is None] == [], "table links to missing ids"
+    assert LONG_CAUSE[:200] not in m["tableText"] and LONG_EVIDENCE not in m["tableText"]
+    assert m["tableText"].count(first_sentence(LONG_CAUSE)) <= 1  # a shared cause is not repeated
+    assert "boom boom" in m["tableText"] and ("boom " * 40) not in m["tableText"]  # the failed study: clipped
+    judged = [r for r in rows if r["verdict"] in ("explained", "fails")]
+    assert len(judged) == 4
+    for r in judged:
+        (row,) = [x for x in m["rows"] if r["claim"] in x["text"]]
+        own = [m["targets"][i] for i in row["links"] if not m["targets"][i]["inTable"]
+               and r["claim"] in m["targets"][i]["text"]]
+        assert own, f"no section of its own for {r['claim']!r}"
+        section = own[0]
+        assert r["measured"] in section["text"] and r["criterion"] in section["text"]
+        for e in [r.get("explanation")] + r.get("explanations_not_shown", []):
+            if e:
+                assert e["cause"] in section["text"] and e["measured"] in section["text"]
+        assert section["images"] and all(section["images"]), f"no evidence figure for {r['claim']!r}"
+
+
+def test_claim_sections_have_stable_ids_and_the_cause_is_a_first_sentence():
+    assert claim_anchor("pairs", "xi = 1: contact drives pairs to a steady dx that follows the compatibility line") \
+        == "claim-pairs-xi-1-contact-drives-pairs-to-a-steady-dx-505964"
+    assert claim_anchor("links", "a") != claim_anchor("links", "b") != claim_anchor("groups", "b")
+    assert first_sentence("One short sentence. Another one.") == "One short sentence."
+    assert first_sentence("e.g. not a sentence end. Next.") == "e.g. not a sentence end."
+    long = "word " * 40 + "end."
+    assert first_sentence(long) == " ".join(["word"] * 25) + " …"
+    clause = "with N = 3 links and " + "more words " * 8 + "in antiphase (a test): a standing wave " + "x " * 20
+    assert first_sentence(clause).endswith("in antiphase (a test) …")
+    assert first_sentence(LONG_CAUSE) == "the compatibility model assumes each body is a travelling sinusoid in the lab frame."
+    assert first_sentence("") == ""
+
+
+def test_the_report_writer_leaves_the_claims_data_unchanged(claims_report):
+    """``claims.json`` is written from the same rows before the page; writing the page changes neither."""
+    out, _ = claims_report
+    names = ["alpha", "beta"]
+    path = write_claims_json(out, collect(out, names))
+    before = path.read_bytes()
+    rows = collect(out, names)
+    statuses = [{"name": n, "ok": True, "wall_s": 1.0} for n in names]
+    write_report(out, statuses, mode="quick")
+    assert path.read_bytes() == before
+    assert collect(out, names) == rows
+    assert write_claims_json(out, collect(out, names)).read_bytes() == before
+    counts = json.loads(before)["counts"]
+    assert counts == {"holds": 1, "explained": 2, "fails": 2, "no result": 1}
 
 
 def test_interrupted_reproduction_resumes_without_redoing_finished_studies(tmp_path):

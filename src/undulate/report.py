@@ -1,9 +1,11 @@
 """One self-contained HTML page for a reproduction run (``DIR/index.html``).
 
 The page uses relative links only, so the folder can be moved, zipped or
-opened offline.  It shows every study's figure, the table of the paper's
-claims (the claim, the paper's statement, the measured number and whether it holds: see
-:mod:`undulate.claims`), provenance,
+opened offline.  It shows the table of the paper's claims, one short line
+each (study, claim, measured value with its 95 % interval, verdict, the cause
+in one sentence: see :mod:`undulate.claims`) with every claim's own section
+below it (the paper's statement, criterion, whole explanation and evidence
+figure: :mod:`undulate._report_claims`), every study's figure, provenance,
 wall times, animations and links to every data file.  A failed study is
 shown as failed, with its error.
 """
@@ -18,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from ._io import atomic_output
+from ._report_claims import claims_part
 from .provenance import provenance
 from .stats import Estimate
 
@@ -54,14 +57,127 @@ def _summary_rows(summary: dict[str, Any], prefix: str = "") -> list[tuple[str, 
 
 
 _CSS = """
-body{font-family:system-ui,-apple-system,Segoe UI,sans-serif;max-width:1100px;margin:2em auto;padding:0 1em;color:#222}
-h1{font-size:1.6em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
+body{font-family:system-ui,-apple-system,Segoe UI,sans-serif;max-width:1200px;margin:1.5em auto;padding:0 1em;color:#222;line-height:1.4}
+h1{font-size:1.5em}h2{border-bottom:1px solid #ccc;padding-bottom:.2em;margin-top:1.6em}
 table{border-collapse:collapse;margin:.6em 0;font-size:.92em}td,th{border:1px solid #ddd;padding:.3em .6em;text-align:left;vertical-align:top}
-th{background:#f4f4f4}.ok{color:#176b2c;font-weight:600}.ex{color:#8a5a00;font-weight:600}.why{font-weight:400;color:#444;font-size:.9em}.no{color:#b3141f;font-weight:600}.na{color:#777}
+th{background:#f4f4f4}.ok{color:#176b2c;font-weight:600}.no{color:#b3141f;font-weight:600}.na{color:#666}
+table.claims{width:100%;font-size:.88em}table.claims td,table.claims th{padding:.25em .5em}
+table.claims th{position:sticky;top:0}table.claims tbody tr:nth-child(even){background:#fafafa}
+.badge{display:inline-block;padding:0 .55em;border-radius:.8em;font-size:.9em;font-weight:600;white-space:nowrap}
+.badge.ok{background:#dcf2e1;color:#125523}.badge.ex{background:#fdf0d0;color:#7a4d00}
+.badge.no{background:#fadadd;color:#9b111b}.badge.na{background:#ececec;color:#555}
+a.more{white-space:nowrap}
+section.claim{border-top:1px solid #eee;padding-top:.2em}section.claim h3{font-size:1.05em}
+.claim-body{display:flex;flex-wrap:wrap;gap:1em;align-items:flex-start}.claim-body dl{flex:1 1 420px;margin:0}
+.claim-body dt{font-weight:600;margin-top:.3em}.claim-body dd{margin:0 0 0 1em}
+.claim-body .figs{flex:1 1 420px;max-width:560px}.claim-body figure{margin:0 0 .8em}p.back{font-size:.85em;margin:.3em 0 1em}
 img.fig{max-width:100%;border:1px solid #eee}.anims{display:flex;flex-wrap:wrap;gap:1em}.anims figure{margin:0;max-width:520px}
 .anims img{max-width:100%;border:1px solid #eee}.failed{background:#fde8ea;border:1px solid #f3b5bc;padding:.6em}
 code{background:#f6f6f6;padding:0 .2em}
 """
+
+
+def _load_docs(out: Path, statuses: list[dict[str, Any]]) -> dict[str, dict]:
+    """The JSON of every study that completed, by name."""
+    docs: dict[str, dict] = {}
+    for st in statuses:
+        p = out / f"{st['name']}.json"
+        if st.get("ok") and p.is_file():
+            docs[st["name"]] = json.loads(p.read_text())
+    return docs
+
+
+def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None) -> list[str]:
+    """The document head, the title and the one-line status of the run."""
+    n_ok = sum(1 for s in statuses if s.get("ok"))
+    failed = [s["name"] for s in statuses if not s.get("ok")]
+    return ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
+            "<meta name='viewport' content='width=device-width, initial-scale=1'>",
+            f"<title>undulate reproduction ({_esc(mode)})</title><style>{_CSS}</style></head><body>",
+            "<h1>Lateral contact yields longitudinal cohesion in active undulatory systems — reproduction</h1>",
+            f"<p>Mode: <b>{_esc(mode)}</b>. Studies: {n_ok} of {len(statuses)} completed"
+            + (f"; <span class='no'>failed: {_esc(', '.join(failed))}</span>" if failed else "")
+            + (f". Total wall time {total_wall_s:.0f} s." if total_wall_s is not None else ".")
+            + " Contents: <a href='#claims'>claims</a> · <a href='#claim-details'>the claims one by one</a>"
+            + " · <a href='#studies'>studies</a> · <a href='#provenance'>provenance</a>.</p>"]
+
+
+def _animations(out: Path, animations: list[dict[str, str]] | None) -> list[str]:
+    """The animations that exist, side by side, each with its file and data."""
+    if not animations:
+        return []
+    parts = ["<h2 id='animations'>Animations</h2><div class='anims'>"]
+    for a in animations:
+        if (out / a["file"]).is_file():
+            parts.append(f"<figure><img src='{_esc(a['file'])}' alt='{_esc(a['caption'])}'>"
+                         f"<figcaption>{_esc(a['caption'])} (<a href='{_esc(a['file'])}'>file</a>"
+                         + (f", <a href='{_esc(a['data'])}'>data</a>" if a.get("data") else "")
+                         + ")</figcaption></figure>")
+    parts.append("</div>")
+    return parts
+
+
+def _study_provenance(doc: dict[str, Any]) -> list[str]:
+    """A study's own provenance, identity and sweeps, folded."""
+    parts = ["<details><summary>provenance of this study's files</summary><table>"]
+    for k, v in {**doc.get("provenance", {}), **{f"identity.{k}": v for k, v in doc.get("identity", {}).items()}}.items():
+        parts.append(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>")
+    for sw in doc.get("sweeps", []):
+        parts.append(f"<tr><th>sweep {_esc(sw.get('part'))}</th><td><code>{_esc(sw.get('function'))}</code> code "
+                     f"{_esc(sw.get('code'))}, undulate {_esc(sw.get('undulate_version'))}: {_esc(sw.get('n_runs'))} "
+                     f"runs ({_esc(sw.get('n_computed'))} computed, {_esc(sw.get('n_reused'))} reused, "
+                     f"{_esc(sw.get('n_failed'))} failed)</td></tr>")
+    parts.append("</table></details>")
+    return parts
+
+
+def _study_numbers(doc: dict[str, Any]) -> list[str]:
+    """A study's failed runs, its summary table and its other summary numbers (folded)."""
+    parts = []
+    if doc.get("failures"):
+        parts.append("<div class='failed'>Failed runs:<br>" + "<br>".join(_esc(f) for f in doc["failures"][:20])
+                     + "</div>")
+    table = doc.get("summary", {}).get("table")
+    if isinstance(table, list) and table and all(isinstance(t, dict) for t in table):
+        cols = list(table[0])
+        parts.append("<table><tr>" + "".join(f"<th>{_esc(k)}</th>" for k in cols) + "</tr>")
+        for t in table:
+            parts.append("<tr>" + "".join(f"<td>{_esc(_fmt(t.get(k, '')))}</td>" for k in cols) + "</tr>")
+        parts.append("</table>")
+    rows = _summary_rows({k: v for k, v in doc.get("summary", {}).items() if k != "table"})
+    if rows:
+        parts.append("<details><summary>summary numbers</summary><table>")
+        parts += [f"<tr><td>{_esc(k)}</td><td>{_esc(v)}</td></tr>" for k, v in rows]
+        parts.append("</table></details>")
+    return parts
+
+
+def _study(st: dict[str, Any], doc: dict[str, Any]) -> list[str]:
+    """One study: its figure, files, wall time, provenance and numbers, or its error."""
+    name, wall = st["name"], st.get("wall_s")
+    parts = [f"<h3 id='{_esc(name)}'>{_esc(name)}</h3>"]
+    if not st.get("ok"):
+        return parts + [f"<div class='failed'>This study <b>failed</b>: <code>{_esc(st.get('error'))}</code></div>"]
+    parts.append(f"<img class='fig' src='{_esc(name)}.png' alt='{_esc(name)} figure'>")
+    links = [f"<a href='{_esc(f)}'>{_esc(f)}</a>" for f in doc.get("files", []) + [f"{name}.json"]]
+    parts.append("<p>Files: " + " · ".join(links) + (f" — wall time {wall:.1f} s" if wall is not None else "") + "</p>")
+    return parts + _study_provenance(doc) + _study_numbers(doc)
+
+
+def _provenance(mode: str, statuses: list[dict[str, Any]]) -> list[str]:
+    """The page's own provenance and every study's status and wall time."""
+    parts = [("<h2 id='provenance'>Provenance</h2><p>Of this page (each study's own, recorded when its files "
+             "were written, is under the study).</p><table>")]
+    info = {**provenance(), "report_written_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
+            "machine": f"{platform.machine()} {platform.system()} {platform.release()}", "mode": mode}
+    parts += [f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>" for k, v in info.items()]
+    parts.append("</table><table><tr><th>study</th><th>status</th><th>wall time (s)</th></tr>")
+    for st in statuses:
+        w = st.get("wall_s")
+        parts.append(f"<tr><td>{_esc(st['name'])}</td><td class='{'ok' if st.get('ok') else 'no'}'>"
+                     f"{'ok' if st.get('ok') else 'failed'}</td><td>{'' if w is None else f'{w:.1f}'}</td></tr>")
+    parts.append("</table>")
+    return parts
 
 
 def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: str,
@@ -70,131 +186,22 @@ def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: s
 
     ``statuses``: one dict per study, in order, with ``name``, ``ok``,
     ``wall_s`` and ``error``; ``animations``: dicts with ``file`` (relative
-    to ``out_dir``) and ``caption``.
+    to ``out_dir``) and ``caption``.  Reads the claim rows as
+    :func:`undulate.claims.collect` gives them and writes nothing but the page.
     """
-    out = Path(out_dir)
-    prov = provenance()
-    docs: dict[str, dict] = {}
-    for st in statuses:
-        p = out / f"{st['name']}.json"
-        if st.get("ok") and p.is_file():
-            docs[st["name"]] = json.loads(p.read_text())
-
-    parts: list[str] = []
-    add = parts.append
-    add("<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>")
-    add("<meta name='viewport' content='width=device-width, initial-scale=1'>")
-    add(f"<title>undulate reproduction ({_esc(mode)})</title><style>{_CSS}</style></head><body>")
-    add("<h1>Lateral contact yields longitudinal cohesion in active undulatory systems — reproduction</h1>")
-    n_ok = sum(1 for s in statuses if s.get("ok"))
-    failed = [s["name"] for s in statuses if not s.get("ok")]
-    add(f"<p>Mode: <b>{_esc(mode)}</b>. Studies: {n_ok} of {len(statuses)} completed"
-        + (f"; <span class='no'>failed: {_esc(', '.join(failed))}</span>" if failed else "")
-        + (f". Total wall time {total_wall_s:.0f} s." if total_wall_s is not None else ".") + "</p>")
-
-    # claims (rows with the studies' demonstrated explanations applied: undulate.claims)
     from .claims import collect
 
+    out = Path(out_dir)
+    docs = _load_docs(out, statuses)
     rows = collect(out, [st["name"] for st in statuses if st.get("ok")])
-    counts = {v: sum(r["verdict"] == v for r in rows) for v in ("holds", "explained", "fails", "no result")}
-    add("<h2 id='claims'>The paper's claims</h2>")
-    add("<p>Measured values carry 95 % intervals in brackets; every criterion is stated on them. "
-        "<b>explained</b>: the claim fails under the default model and a study's own runs show the cause "
-        "(the evidence and its figure are linked); a failing claim without a demonstrated cause stays "
-        "<b>fails</b>. Counts: " + ", ".join(f"{_esc(k)} {n}" for k, n in counts.items())
-        + ". Also in <a href='claims.json'>claims.json</a>.</p>")
-    add("<table><tr><th>study</th><th>claim</th><th>paper</th><th>measured</th><th>criterion</th>"
-        "<th>verdict</th></tr>")
-    by_study: dict[str, list[dict]] = {}
-    for r in rows:
-        by_study.setdefault(r["study"], []).append(r)
+    parts = _head(mode, statuses, total_wall_s)
+    parts += claims_part(rows, statuses, out)
+    parts += _animations(out, animations)
+    parts.append("<h2 id='studies'>Studies</h2>")
     for st in statuses:
-        name = st["name"]
-        if not st.get("ok"):
-            add(f"<tr><td>{_esc(name)}</td><td colspan='4' class='no'>study failed: {_esc(st.get('error'))}</td>"
-                "<td class='no'>—</td></tr>")
-            continue
-        for c in by_study.get(name, []):
-            verdict = c.get("verdict")
-            cls = {"holds": "ok", "fails": "no", "explained": "ex"}.get(verdict, "na")
-            reason = f" ({c['reason']})" if c.get("reason") else ""
-            why = ""
-            ex = c.get("explanation")
-            if ex:
-                ev = ex.get("evidence_study", "")
-                why = (f"<br><span class='why'>cause: {_esc(ex.get('cause'))} Evidence: {_esc(ex.get('measured'))} "
-                       f"(<a href='#{_esc(ev)}'>{_esc(ev)}</a>, <a href='{_esc(ex.get('evidence_figure'))}'>"
-                       "figure</a>)</span>")
-            elif c.get("explanations_not_shown"):
-                why = "".join(f"<br><span class='why'>cause tested, not shown by the runs: {_esc(e.get('cause'))} "
-                              f"({_esc(e.get('measured'))})</span>" for e in c["explanations_not_shown"])
-            add(f"<tr><td>{_esc(name)}</td><td>{_esc(c.get('claim', ''))}</td><td>{_esc(c.get('paper', ''))}</td>"
-                f"<td>{_esc(c.get('measured', ''))}</td><td>{_esc(c.get('criterion', ''))}</td>"
-                f"<td class='{cls}'>{_esc(verdict)}{_esc(reason)}{why}</td></tr>")
-    add("</table>")
-
-    # animations
-    if animations:
-        add("<h2 id='animations'>Animations</h2><div class='anims'>")
-        for a in animations:
-            if (out / a["file"]).is_file():
-                add(f"<figure><img src='{_esc(a['file'])}' alt='{_esc(a['caption'])}'>"
-                    f"<figcaption>{_esc(a['caption'])} (<a href='{_esc(a['file'])}'>file</a>"
-                    + (f", <a href='{_esc(a['data'])}'>data</a>" if a.get("data") else "") + ")</figcaption></figure>")
-        add("</div>")
-
-    # studies
-    add("<h2 id='studies'>Studies</h2>")
-    for st in statuses:
-        name = st["name"]
-        wall = st.get("wall_s")
-        add(f"<h3 id='{_esc(name)}'>{_esc(name)}</h3>")
-        if not st.get("ok"):
-            add(f"<div class='failed'>This study <b>failed</b>: <code>{_esc(st.get('error'))}</code></div>")
-            continue
-        doc = docs.get(name, {})
-        add(f"<img class='fig' src='{_esc(name)}.png' alt='{_esc(name)} figure'>")
-        links = [f"<a href='{_esc(f)}'>{_esc(f)}</a>" for f in doc.get("files", []) + [f"{name}.json"]]
-        add("<p>Files: " + " · ".join(links) + (f" — wall time {wall:.1f} s" if wall is not None else "") + "</p>")
-        add("<details><summary>provenance of this study's files</summary><table>")
-        for k, v in {**doc.get("provenance", {}), **{f"identity.{k}": v for k, v in doc.get("identity", {}).items()}}.items():
-            add(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>")
-        for sw in doc.get("sweeps", []):
-            add(f"<tr><th>sweep {_esc(sw.get('part'))}</th><td><code>{_esc(sw.get('function'))}</code> code "
-                f"{_esc(sw.get('code'))}, undulate {_esc(sw.get('undulate_version'))}: {_esc(sw.get('n_runs'))} runs "
-                f"({_esc(sw.get('n_computed'))} computed, {_esc(sw.get('n_reused'))} reused, "
-                f"{_esc(sw.get('n_failed'))} failed)</td></tr>")
-        add("</table></details>")
-        if doc.get("failures"):
-            add("<div class='failed'>Failed runs:<br>" + "<br>".join(_esc(f) for f in doc["failures"][:20]) + "</div>")
-        table = doc.get("summary", {}).get("table")
-        if isinstance(table, list) and table and all(isinstance(t, dict) for t in table):
-            cols = list(table[0])
-            add("<table><tr>" + "".join(f"<th>{_esc(k)}</th>" for k in cols) + "</tr>")
-            for t in table:
-                add("<tr>" + "".join(f"<td>{_esc(_fmt(t.get(k, '')))}</td>" for k in cols) + "</tr>")
-            add("</table>")
-        rows = _summary_rows({k: v for k, v in doc.get("summary", {}).items() if k != "table"})
-        if rows:
-            add("<details><summary>summary numbers</summary><table>")
-            for k, v in rows:
-                add(f"<tr><td>{_esc(k)}</td><td>{_esc(v)}</td></tr>")
-            add("</table></details>")
-
-    # provenance
-    add("<h2 id='provenance'>Provenance</h2><p>Of this page (each study's own, recorded when its files "
-        "were written, is under the study).</p><table>")
-    info = {**prov, "report_written_utc": datetime.now(timezone.utc).isoformat(timespec="seconds"),
-            "machine": f"{platform.machine()} {platform.system()} {platform.release()}", "mode": mode}
-    for k, v in info.items():
-        add(f"<tr><th>{_esc(k)}</th><td>{_esc(v)}</td></tr>")
-    add("</table><table><tr><th>study</th><th>status</th><th>wall time (s)</th></tr>")
-    for st in statuses:
-        w = st.get("wall_s")
-        add(f"<tr><td>{_esc(st['name'])}</td><td class='{'ok' if st.get('ok') else 'no'}'>"
-            f"{'ok' if st.get('ok') else 'failed'}</td><td>{'' if w is None else f'{w:.1f}'}</td></tr>")
-    add("</table></body></html>")
-
+        parts += _study(st, docs.get(st["name"], {}))
+    parts += _provenance(mode, statuses)
+    parts.append("</body></html>")
     path = out / "index.html"
     with atomic_output(path) as tmp:
         tmp.write_text("\n".join(parts), encoding="utf-8")
