@@ -218,7 +218,7 @@ def _check_workers(workers: int | None, scheduler: str | None) -> None:
 def study(
     name: str = typer.Argument(..., help="Study name (see `undulate studies`)."),
     out: Path = typer.Option(Path("results"), "--out", "-o", help="Output folder (created if missing)."),
-    quick: bool = typer.Option(False, "--quick", help="Reduced resolution that runs in minutes."),
+    quick: bool = typer.Option(True, "--quick/--full", help="Quick mode (reduced resolution, minutes) or the paper's full resolution."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
     seed: int = typer.Option(0, help="Base random seed."),
     workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
