@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+import os
 import sys
 import tempfile
 import time
@@ -24,7 +25,7 @@ ANNOUNCE_S = 60.0
 """Runs estimated to take longer than this (wall s) print the estimate."""
 BAR_S = 20.0
 """Runs estimated to take longer than this (wall s) show a progress bar."""
-CALIBRATION_SAMPLES = 100_000
+CALIBRATION_SAMPLES = 20_000
 """:func:`estimate_compute_time` simulates at most this many samples (bounds its file)."""
 
 
@@ -139,10 +140,12 @@ class RunMonitor:
         self.close()
 
 
-def estimate_compute_time(scene, options, *, calibrate_s: float | None = None) -> Estimate:
+def estimate_compute_time(scene, options, *, calibrate_s: float | None = None,
+                          dir: str | os.PathLike | None = None) -> Estimate:
     """Estimate the compute time of ``simulate(scene, options, out=...)`` from its first chunks.
 
-    Steps the run itself (streamed to a temporary file, which is removed)
+    Steps the run itself (streamed to a temporary file in ``dir``, default
+    the system's temporary folder, which is removed)
     for about ``calibrate_s`` wall seconds (default :data:`CALIBRATE_S`), at least one chunk, and at most
     :data:`CALIBRATION_SAMPLES` samples, and extrapolates linearly to
     ``options.duration_s``.  Raises what :func:`~undulate.simulation.simulate`
@@ -155,7 +158,7 @@ def estimate_compute_time(scene, options, *, calibrate_s: float | None = None) -
     first = options if options.duration_s <= cap else dataclasses.replace(options, duration_s=cap)
     mon = RunMonitor(calibrate_s=calibrate_s, bar=False)
     mon.stop_when_calibrated = True
-    with tempfile.TemporaryDirectory(prefix="undulate-estimate-") as d:
+    with tempfile.TemporaryDirectory(prefix=".undulate-estimate-", dir=dir) as d:
         try:
             simulate(scene, first, out=Path(d) / "calibration.nc", progress=mon).close()
         except _Calibrated:

@@ -76,8 +76,12 @@ def simulate(
             raise ParameterError("--out", "a path ending in .nc (netCDF)", str(out))
     except ParameterError as e:
         _fail(str(e), 2)
+    import signal
+
+    # a terminated run unwinds like Ctrl-C, so its half-written temporary file is removed
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     if estimate:
-        _print_estimate(scene, options)
+        _print_estimate(scene, options, out)
         return
     ds = _run_streamed(scene, options, out, bar=not quiet)
     with ds:
@@ -145,12 +149,13 @@ def _sim_options(*, duration: float, timestep: float | None, sample_rate: float)
                             "sample_rate_hz": "--sample-rate (Hz)"}) from None
 
 
-def _print_estimate(scene, options) -> None:
-    """``--estimate``: time the run's first chunks (a temporary file), print the extrapolation."""
+def _print_estimate(scene, options, out: Path) -> None:
+    """``--estimate``: time the run's first chunks (to a temporary file beside ``out``, on the run's
+    disk), print the extrapolation."""
     from ._progress import estimate_compute_time
 
     try:
-        typer.echo(estimate_compute_time(scene, options).line())
+        typer.echo(estimate_compute_time(scene, options, dir=out.resolve().parent).line())
     except DivergenceError as e:
         _fail(str(e), 1)
     except ParameterError as e:
@@ -160,13 +165,9 @@ def _print_estimate(scene, options) -> None:
 def _run_streamed(scene, options, out: Path, *, bar: bool):
     """Simulate to ``out`` chunk by chunk (memory stays flat for any duration), announcing a long
     run's compute time and showing its progress on stderr; the Dataset opened lazily from ``out``."""
-    import signal
-
     from ._progress import RunMonitor
     from .simulation import simulate as run
 
-    # a terminated run unwinds like Ctrl-C, so its half-written temporary file is removed
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     with RunMonitor(bar=bar) as monitor:
         try:
             return run(scene, options, out=out, progress=monitor)
