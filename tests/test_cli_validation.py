@@ -1,6 +1,7 @@
 """User-facing inputs are validated: one line naming the parameter and what is allowed,
 exit code 2, no traceback, no partial output (``--workers`` of ``study`` and
-``reproduce``; :class:`undulate.studies.StudyConfig`)."""
+``reproduce``; :class:`undulate.studies.StudyConfig`), and the options are consistent across
+commands (every quick mode is the same ``--quick/--full`` pair, quick by default)."""
 
 from __future__ import annotations
 
@@ -34,3 +35,33 @@ def test_study_config_rejects_bad_workers(tmp_path):
     with pytest.raises(ParameterError, match="workers"):
         StudyConfig(out_dir=tmp_path, workers=2, scheduler="tcp://x:1")
     assert StudyConfig(out_dir=tmp_path, workers=3).workers == 3
+
+
+def _commands(cmd, path=()):
+    """Every leaf command of the click tree, with its path (``("robot", "run")``).  Duck-typed:
+    typer >= 0.20 builds on its own copy of click."""
+    if hasattr(cmd, "commands"):
+        for name, sub in cmd.commands.items():
+            yield from _commands(sub, (*path, name))
+    else:
+        yield path, cmd
+
+
+def test_every_quick_mode_option_is_the_same_quick_full_pair_defaulting_to_quick():
+    import typer
+
+    from undulate.cli import app
+
+    commands = dict(_commands(typer.main.get_command(app)))
+    assert ("study",) in commands and ("reproduce",) in commands and ("robot", "run") in commands
+    found = []
+    for path, cmd in commands.items():
+        for p in cmd.params:
+            names = {o.lstrip("-") for o in (*p.opts, *p.secondary_opts)} | {p.name}
+            if not names & {"quick", "full"}:
+                continue
+            found.append(path)
+            assert p.param_type_name == "option" and p.name == "quick", (path, p.name)
+            assert p.opts == ["--quick"] and p.secondary_opts == ["--full"], (path, p.opts, p.secondary_opts)
+            assert p.default is True, (path, p.default)
+    assert sorted(found) == [("reproduce",), ("study",)]

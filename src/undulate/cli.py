@@ -57,78 +57,124 @@ def simulate(
     hold_x: bool = typer.Option(False, "--hold-x", help="Lock each swimmer's longitudinal position (lateral motion and rotation stay free)."),
     heading_guide: bool = typer.Option(False, "--heading-guide", help="Remove the yaw recoil: a stiff actuator holds each swimmer's commanded head-to-tail chord along the channel (open-loop controller only; see Scene.heading_guide)."),
     out: Path = typer.Option(Path("run.nc"), "--out", "-o", help="Output netCDF file."),
-    quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary."),
+    estimate: bool = typer.Option(False, "--estimate", help="Only print the estimated compute time (measured on about a second of this run's first steps, extrapolated to --duration) and exit; writes nothing."),
+    quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary or the progress bar."),
 ) -> None:
-    """Simulate swimmers side by side in a channel and write a netCDF trajectory."""
+    """Simulate swimmers side by side in a channel and write a netCDF trajectory.
+
+    A run estimated to take over a minute first prints its estimated compute
+    time on stderr (about a second into it), and one over 20 s shows a progress bar there.
+    """
     try:
-        phases_deg = _parse_floats("--phases", phases)
-        from .params import Channel, Gait, Scene, SimOptions, SwimmerGeometry
-
-        if links < 2:
-            raise ParameterError("--links", "an integer >= 2", links)
-        try:
-            gait = Gait(amplitude_rad=math.radians(amplitude), waves_per_body=waves_per_body, frequency_hz=frequency)
-        except ParameterError as e:
-            raise _cli_name(e, {"amplitude_rad": "--amplitude (degrees, (0, 90])", "waves_per_body": "--waves-per-body",
-                                "frequency_hz": "--frequency (Hz)"}) from None
-        try:
-            geometry = SwimmerGeometry(n_links=links, length_m=body_length, width_m=width)
-        except ParameterError as e:
-            raise _cli_name(e, {"n_links": "--links", "length_m": "--body-length (m)", "width_m": "--width (m)"}) from None
-        try:
-            channel = Channel(width_m=channel_width)
-        except ParameterError as e:
-            raise _cli_name(e, {"width_m": "--channel-width (m)"}) from None
-        n = len(phases_deg)
-        if not math.isfinite(separating_force):
-            raise ParameterError("--separating-force", "a finite number (N)", separating_force)
-        forces = None
-        if separating_force != 0.0:
-            if n < 2:
-                raise ParameterError("--separating-force", "0 unless there are at least 2 swimmers", separating_force)
-            forces = (-separating_force, separating_force) + (0.0,) * (n - 2)
-        from .params import ControllerParams
-
-        try:
-            ctl = ControllerParams(kind=controller, coupling=coupling, control_rate_hz=control_rate)
-        except ParameterError as e:
-            raise _cli_name(e, {"controller": "--controller", "coupling": "--coupling (rad/s per N m)",
-                                "control_rate_hz": "--control-rate (Hz)"}) from None
-        if coupling != 0.0 and controller != "phase-oscillator":
-            raise ParameterError("--coupling", "0 unless --controller phase-oscillator", coupling)
-        try:
-            scene = Scene(phases_rad=tuple(math.radians(p) for p in phases_deg), gait=gait, geometry=geometry,
-                          channel=channel, dx0_m=dx0, forces_N=forces, controller=ctl, hold_x=hold_x,
-                          heading_guide=heading_guide)
-        except ParameterError as e:
-            raise _cli_name(e, {"channel width": "--channel-width (m)", "dx0_m": "--dx0 (m)",
-                                "phases_rad": "--phases (degrees)", "heading_guide": "--heading-guide"}) from None
-        try:
-            options = SimOptions(duration_s=duration, timestep_s=timestep, sample_rate_hz=sample_rate)
-        except ParameterError as e:
-            raise _cli_name(e, {"duration_s": "--duration (s)", "timestep_s": "--timestep (s)",
-                                "sample_rate_hz": "--sample-rate (Hz)"}) from None
+        scene = _scene(phases=phases, links=links, waves_per_body=waves_per_body, amplitude=amplitude,
+                       frequency=frequency, channel_width=channel_width, dx0=dx0, separating_force=separating_force,
+                       body_length=body_length, width=width, controller=controller, coupling=coupling,
+                       control_rate=control_rate, hold_x=hold_x, heading_guide=heading_guide)
+        options = _sim_options(duration=duration, timestep=timestep, sample_rate=sample_rate)
         check_writable("--out", out)
         if out.suffix.lower() != ".nc":
             raise ParameterError("--out", "a path ending in .nc (netCDF)", str(out))
     except ParameterError as e:
         _fail(str(e), 2)
-
-    from .simulation import simulate as run
-
     import signal
 
     # a terminated run unwinds like Ctrl-C, so its half-written temporary file is removed
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
-    try:  # streamed to --out chunk by chunk: memory stays flat for any duration
-        ds = run(scene, options, out=out)
-    except DivergenceError as e:
-        _fail(str(e), 1)
-    except ParameterError as e:  # a recording that cannot fit on disk: refused before any step
-        _fail(str(e), 2)
+    if estimate:
+        _print_estimate(scene, options, out)
+        return
+    ds = _run_streamed(scene, options, out, bar=not quiet)
     with ds:
         if not quiet:
             typer.echo(_summary(ds, out))
+
+
+def _scene(*, phases: str, links: int, waves_per_body: float, amplitude: float, frequency: float,
+           channel_width: float, dx0: float, separating_force: float, body_length: float, width: float,
+           controller: str, coupling: float, control_rate: float, hold_x: bool, heading_guide: bool):
+    """``simulate``'s scene from its options (ParameterError naming the option)."""
+    from .params import Channel, ControllerParams, Gait, Scene, SwimmerGeometry
+
+    phases_deg = _parse_floats("--phases", phases)
+    if links < 2:
+        raise ParameterError("--links", "an integer >= 2", links)
+    try:
+        gait = Gait(amplitude_rad=math.radians(amplitude), waves_per_body=waves_per_body, frequency_hz=frequency)
+    except ParameterError as e:
+        raise _cli_name(e, {"amplitude_rad": "--amplitude (degrees, (0, 90])", "waves_per_body": "--waves-per-body",
+                            "frequency_hz": "--frequency (Hz)"}) from None
+    try:
+        geometry = SwimmerGeometry(n_links=links, length_m=body_length, width_m=width)
+    except ParameterError as e:
+        raise _cli_name(e, {"n_links": "--links", "length_m": "--body-length (m)", "width_m": "--width (m)"}) from None
+    try:
+        channel = Channel(width_m=channel_width)
+    except ParameterError as e:
+        raise _cli_name(e, {"width_m": "--channel-width (m)"}) from None
+    forces = _separating_forces(separating_force, len(phases_deg))
+    try:
+        ctl = ControllerParams(kind=controller, coupling=coupling, control_rate_hz=control_rate)
+    except ParameterError as e:
+        raise _cli_name(e, {"controller": "--controller", "coupling": "--coupling (rad/s per N m)",
+                            "control_rate_hz": "--control-rate (Hz)"}) from None
+    if coupling != 0.0 and controller != "phase-oscillator":
+        raise ParameterError("--coupling", "0 unless --controller phase-oscillator", coupling)
+    try:
+        return Scene(phases_rad=tuple(math.radians(p) for p in phases_deg), gait=gait, geometry=geometry,
+                     channel=channel, dx0_m=dx0, forces_N=forces, controller=ctl, hold_x=hold_x,
+                     heading_guide=heading_guide)
+    except ParameterError as e:
+        raise _cli_name(e, {"channel width": "--channel-width (m)", "dx0_m": "--dx0 (m)",
+                            "phases_rad": "--phases (degrees)", "heading_guide": "--heading-guide"}) from None
+
+
+def _separating_forces(separating_force: float, n: int) -> tuple[float, ...] | None:
+    """``--separating-force``: -F on the first swimmer, +F on the second, none on the others."""
+    if not math.isfinite(separating_force):
+        raise ParameterError("--separating-force", "a finite number (N)", separating_force)
+    if separating_force == 0.0:
+        return None
+    if n < 2:
+        raise ParameterError("--separating-force", "0 unless there are at least 2 swimmers", separating_force)
+    return (-separating_force, separating_force) + (0.0,) * (n - 2)
+
+
+def _sim_options(*, duration: float, timestep: float | None, sample_rate: float):
+    from .params import SimOptions
+
+    try:
+        return SimOptions(duration_s=duration, timestep_s=timestep, sample_rate_hz=sample_rate)
+    except ParameterError as e:
+        raise _cli_name(e, {"duration_s": "--duration (s)", "timestep_s": "--timestep (s)",
+                            "sample_rate_hz": "--sample-rate (Hz)"}) from None
+
+
+def _print_estimate(scene, options, out: Path) -> None:
+    """``--estimate``: time the run's first chunks (to a temporary file beside ``out``, on the run's
+    disk), print the extrapolation."""
+    from ._progress import estimate_compute_time
+
+    try:
+        typer.echo(estimate_compute_time(scene, options, dir=out.resolve().parent).line())
+    except DivergenceError as e:
+        _fail(str(e), 1)
+    except ParameterError as e:
+        _fail(str(e), 2)
+
+
+def _run_streamed(scene, options, out: Path, *, bar: bool):
+    """Simulate to ``out`` chunk by chunk (memory stays flat for any duration), announcing a long
+    run's compute time and showing its progress on stderr; the Dataset opened lazily from ``out``."""
+    from ._progress import RunMonitor
+    from .simulation import simulate as run
+
+    with RunMonitor(bar=bar) as monitor:
+        try:
+            return run(scene, options, out=out, progress=monitor)
+        except DivergenceError as e:
+            _fail(str(e), 1)
+        except ParameterError as e:  # a recording that cannot fit on disk: refused before any step
+            _fail(str(e), 2)
 
 
 def _summary(ds, out: Path) -> str:
@@ -218,7 +264,7 @@ def _check_workers(workers: int | None, scheduler: str | None) -> None:
 def study(
     name: str = typer.Argument(..., help="Study name (see `undulate studies`)."),
     out: Path = typer.Option(Path("results"), "--out", "-o", help="Output folder (created if missing)."),
-    quick: bool = typer.Option(False, "--quick", help="Reduced resolution that runs in minutes."),
+    quick: bool = typer.Option(True, "--quick/--full", help="Quick mode (reduced resolution, minutes) or the paper's full resolution."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
     seed: int = typer.Option(0, help="Base random seed."),
     workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),

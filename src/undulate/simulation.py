@@ -571,6 +571,7 @@ def simulate_batch(
     out: str | os.PathLike | Sequence[str | os.PathLike] | None = None,
     controller: Controller | None = None,
     stop: Callable[[list[dict]], str | None] | None = None,
+    progress: Callable[[float, float], None] | None = None,
 ) -> list[xr.Dataset]:
     """Simulate several scenes of one structure together in one rollout.
 
@@ -602,6 +603,11 @@ def simulate_batch(
     ``rule`` attribute), ``stop_reason`` ("" when it ran to the end) and
     ``stopped_at`` (s, the last sample) record it.
 
+    ``progress``: called as ``progress(done_s, total_s)`` (simulated seconds
+    stepped so far and in all) once the t = 0 samples are recorded and after
+    every chunk, between calls into C, never inside the step loop; it cannot
+    change the results (e.g. :class:`undulate._progress.RunMonitor`).
+
     Every Dataset's attrs ``physics_time`` (s, wall time inside
     ``mujoco.rollout`` for the whole batch) and ``physics_steps`` (scene-steps)
     record what the call cost; the same is added to :func:`physics_counters`.
@@ -629,8 +635,12 @@ def simulate_batch(
     ok = False
     try:
         reason = record(stepper.initial_blocks())
+        if progress is not None:
+            progress(0.0, total * bt.dt)
         while stepper.done < total and not reason:
             reason = record(stepper.step_chunk(min(bt.chunk, total - stepper.done)))
+            if progress is not None:
+                progress(stepper.done * bt.dt, total * bt.dt)
         results = [r.finish(builders[b]) if bt.outs is None else r.finish() for b, r in enumerate(recorders)]
         ok = True
     finally:
@@ -712,17 +722,18 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, las
 
 def simulate(scene: Scene, options: SimOptions | None = None, *,
              out: str | os.PathLike | None = None, controller: Controller | None = None,
-             stop: Callable[[list[dict]], str | None] | None = None) -> xr.Dataset:
+             stop: Callable[[list[dict]], str | None] | None = None,
+             progress: Callable[[float, float], None] | None = None) -> xr.Dataset:
     """Simulate one scene; see the module docstring for the recorded variables.
 
     ``out``: a ``.nc`` path to stream the samples to (memory stays flat for
     any duration); the Dataset returned is then opened lazily from it (close
-    it when done).  ``controller``, ``stop``: see :func:`simulate_batch`.
+    it when done).  ``controller``, ``stop``, ``progress``: see :func:`simulate_batch`.
 
     >>> from undulate import Scene, SimOptions, simulate
     >>> ds = simulate(Scene(phases_rad=(0.0, 1.57)), SimOptions(duration_s=4))
     """
-    return simulate_batch([scene], options, out=out, controller=controller, stop=stop)[0]
+    return simulate_batch([scene], options, out=out, controller=controller, stop=stop, progress=progress)[0]
 
 
 def _link_angles(yaw: np.ndarray, joints: np.ndarray, root: int) -> np.ndarray:
