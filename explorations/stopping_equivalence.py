@@ -2,13 +2,15 @@
 grid run both ways.
 
 For every study whose runners take a stopping rule (pairs, links, groups, basins, confinement,
-swimming: ``studies._runners.PAIR_STOP``; packing: ``studies.packing.PACKING_STOP``) the study is
+swimming, sensitivity: ``studies._runners.PAIR_STOP``; packing: ``studies.packing.PACKING_STOP``;
+synchronization-pairs: ``studies.synchronization.PAIR_SYNC_STOP``) the study is
 run twice through the ordinary machinery (``run_study``, sweeps and all) into two fresh folders:
 once with the rule set to None in the study's module (every run full length) and once as shipped.
 Per study it prints and writes (``--json``, ``--markdown``):
 
 * the largest |difference| of every steady-offset variable (``dx_*steady*`` / ``dx_final*``, in
-  wavelengths) against the steady rule's tolerance (0.01);
+  wavelengths) against the steady rule's tolerance (0.01); for closed-loop pairs, of the final
+  phase difference (rad, wrapped; lock tolerance 0.15), the time to lock (s) and the final force (N);
 * the summary's thresholds (and their intervals) both ways;
 * every claim's verdict both ways;
 * wall time and physics time (inside ``mujoco.rollout``) both ways, and the runs stopped early.
@@ -31,12 +33,20 @@ from pathlib import Path
 
 import numpy as np
 
-STUDIES = ("swimming", "pairs", "confinement", "links", "basins", "groups", "packing")
+STUDIES = ("swimming", "pairs", "confinement", "links", "basins", "groups", "packing", "sensitivity",
+           "synchronization-pairs")
 TOL = 0.01
 
 
-def _rule_names(study: str) -> tuple[str, str]:
-    return ("PACKING_STOP", "packing") if study == "packing" else ("PAIR_STOP", study)
+def _rule_names(study: str) -> list[tuple[str, str]]:
+    """(module, name) of every binding of the study's stopping rule."""
+    if study == "packing":
+        return [("packing", "PACKING_STOP")]
+    if study == "synchronization-pairs":
+        return [("synchronization", "PAIR_SYNC_STOP")]
+    if study in ("groups", "sensitivity"):  # the groups sweeps are defined in _shared
+        return [(study, "PAIR_STOP")] * (study == "sensitivity") + [("_shared", "PAIR_STOP")]
+    return [(study, "PAIR_STOP")]
 
 
 def _run(study: str, out: Path, stopped: bool, quick: bool, workers: int | None) -> tuple:
@@ -44,16 +54,18 @@ def _run(study: str, out: Path, stopped: bool, quick: bool, workers: int | None)
 
     from undulate.studies import run_study
 
-    name, module = _rule_names(study)
-    mod = importlib.import_module(f"undulate.studies.{module}")
-    shipped = getattr(mod, name)
-    setattr(mod, name, shipped if stopped else None)
+    bindings = [(importlib.import_module(f"undulate.studies.{m}"), n) for m, n in _rule_names(study)]
+    shipped = [getattr(mod, n) for mod, n in bindings]
+    for mod, n in bindings:
+        if not stopped:
+            setattr(mod, n, None)
     try:
         t0 = time.perf_counter()
         path = run_study(study, out, quick=quick, progress=False, workers=workers)
         wall = time.perf_counter() - t0
     finally:
-        setattr(mod, name, shipped)
+        for (mod, n), rule in zip(bindings, shipped):
+            setattr(mod, n, rule)
     doc = json.loads(path.with_suffix(".json").read_text())
     with xr.open_dataset(path) as ds:
         ds = ds.load()
@@ -69,6 +81,12 @@ def _offsets(a, b) -> dict[str, float]:
         if (offset or v in ("mean_joint_error", "heatmap_joint_error")) and "time" not in a[v].dims and v in b:
             d = np.abs(np.asarray(a[v].values, float) - np.asarray(b[v].values, float))
             out[v] = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
+        elif v in ("dphi_final", "lock_time", "force_end") and v in b:  # closed-loop pairs
+            d = np.asarray(a[v].values, float) - np.asarray(b[v].values, float)
+            d = np.abs(np.angle(np.exp(1j * d))) if v == "dphi_final" else np.abs(d)
+            out[v] = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
+            if v == "lock_time":
+                out["lock_time (NaN differing)"] = int((np.isnan(a[v].values) != np.isnan(b[v].values)).sum())
         elif "steady" in v and a[v].dtype == bool and v in b:  # the steady flags: how many differ
             out[f"{v} (flags differing)"] = int((a[v].values != b[v].values).sum())
     return out

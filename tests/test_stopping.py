@@ -113,3 +113,44 @@ def test_excess_rule_needs_its_batches_and_its_confidence():
     assert rule.side([0.10, 0.11, 0.12]) == 1
     assert rule.side([-0.01, -0.0101, -0.0099]) == -1
     assert rule.side([0.01, -0.01, 0.012]) == 0  # scatter straddles the level
+
+
+# ---- closed-loop pairs: the phase-lock rule --------------------------------------------------------------
+def test_phase_rule_on_closed_forms():
+    """Locked: a constant phase difference with jitter inside the tolerance; not locked: one that
+    drifts (each sample within the tolerance of the mean, the halves apart), one that jumps, or a
+    window shorter than hold_s + extra_s."""
+    from undulate.stopping import PhaseStop
+
+    rule = PhaseStop(tol_rad=0.15, hold_s=10.0, extra_s=10.0)
+    t = np.arange(0.0, 20.0 + 1e-9, 0.05)
+    rng = np.random.default_rng(0)
+    jitter = 0.1 * np.sin(7 * t)[:, None]
+    assert rule.locked(t, np.pi - 0.02 + jitter)  # across the +-pi cut: wrapped
+    assert rule.locked(t, np.angle(np.exp(1j * (np.pi + jitter + 0.01 * rng.standard_normal((len(t), 1))))))
+    ramp = (0.12 / 10.0) * (t - 10.0)[:, None]  # within 0.12 of the mean, halves 0.12 apart
+    assert not rule.locked(t, ramp)
+    assert not rule.locked(t, np.where(t[:, None] < 15.0, 0.0, 0.5))
+    assert not rule.locked(t[t <= 19.0], np.zeros((int((t <= 19.0).sum()), 1)))
+
+
+def test_stopped_sync_pair_is_the_full_runs_prefix_and_gives_its_lock():
+    """A held relay-controlled pair that locks: the stopped run ends between 2 TAIL_S and the end, its
+    phase series is bitwise the full run's prefix, and its final phase difference, lock time and
+    final force agree with the full run's within the lock tolerance / one sample / 10 %."""
+    from undulate.studies.synchronization import LOCK_TOL_RAD, PAIR_SYNC_STOP, TAIL_S, pair_run
+
+    point = {"controller": "relay", "hold_x": True, "dphi0_rad": math.pi / 2}
+    full = pair_run(point, 0, duration_s=40.0)
+    short = pair_run(point, 0, duration_s=40.0, stop=PAIR_SYNC_STOP)
+    stop_s = float(short["stopped_at_s"])
+    assert 2 * TAIL_S <= stop_s < 40.0 == float(full["stopped_at_s"])
+    n = _finite_len(short["dphi"].values)
+    np.testing.assert_array_equal(short["time"].values, full["time"].values)
+    np.testing.assert_array_equal(short["dphi"].values[:n], full["dphi"].values[:n])
+    assert np.isnan(short["dphi"].values[n:]).all()
+    assert abs(np.angle(np.exp(1j * (float(short["dphi_final"]) - float(full["dphi_final"]))))) <= LOCK_TOL_RAD
+    assert abs(float(short["lock_time"]) - float(full["lock_time"])) <= 0.05 + 1e-9
+    assert float(short["force_start"]) == float(full["force_start"])
+    assert abs(float(short["force_end"]) - float(full["force_end"])) <= 0.1 * abs(float(full["force_end"])) + 1e-3
+    assert "PhaseStop(tol_rad=0.15" in short["stopped_at_s"].attrs["stop_rule"]

@@ -15,6 +15,12 @@ per period or batch only, so its memory does not grow with the run.
   carried on to the end of the full run, moving them by at most
   ``drift_frac * tol`` (a slowly creeping offset satisfies the steady rule
   at every window yet ends elsewhere: it runs on).
+* :class:`PhaseStop` -- closed-loop pairs: stop once every swimmer pair's
+  phase difference has stayed within ``tol_rad`` of its circular mean for
+  ``hold_s + extra_s`` (the lock the run measures, held ``extra_s`` longer),
+  with no drift between the two halves of that window, the lateral order
+  unchanged and, where positions are free, the offsets steady by
+  :class:`SteadyStop`'s rule.
 * :class:`ExcessStop` -- packing probes: stop once the mean joint error after
   ``skip_s`` is above or below a level with one-sided confidence
   ``confidence`` (batch means over ``batch_s``, their standard error, Student t).
@@ -28,7 +34,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as _st
 
-__all__ = ["SteadyStop", "ExcessStop"]
+__all__ = ["SteadyStop", "PhaseStop", "ExcessStop"]
 
 
 class _Periods:
@@ -136,6 +142,87 @@ class _SteadyMonitor:
         if all(self.r.decided(px.means, py.means, left) for px, py in zip(self.x, self.y)):
             return f"steady by t = {self.x[0].n_done * self.period_s:g} s ({self.r.extra_periods} extra periods)"
         return None
+
+
+@dataclass(frozen=True)
+class PhaseStop:
+    """Stop a closed-loop pair-type run once its phase lock is decided.
+
+    ``tol_rad`` and ``hold_s`` are the lock rule's (:func:`undulate.phases.time_to_lock`:
+    every sample of the last ``hold_s`` within ``tol_rad`` of their circular mean).  The run
+    stops once, for every swimmer pair, the wrapped phase difference has stayed within
+    ``tol_rad`` of its circular mean over the last ``hold_s + extra_s`` (locked at least
+    ``extra_s`` before the window the run's final value is taken over), the circular means
+    of the two halves of that window differ by at most ``drift_frac * tol_rad``, the
+    lateral order of the swimmers is unchanged over it, and the offsets along the channel
+    meet ``steady`` (period means; held positions meet it trivially); never before
+    ``min_s``.  Memory: the last ``hold_s + extra_s`` of samples only.
+    """
+
+    tol_rad: float = 0.15
+    hold_s: float = 10.0
+    extra_s: float = 10.0
+    min_s: float = 20.0
+    drift_frac: float = 0.5
+    steady: SteadyStop = SteadyStop()
+
+    @property
+    def rule(self) -> str:
+        return (f"PhaseStop(tol_rad={self.tol_rad:g}, hold_s={self.hold_s:g}, extra_s={self.extra_s:g}, "
+                f"min_s={self.min_s:g}, drift_frac={self.drift_frac:g}): stop once every pair's phase difference "
+                f"stayed within {self.tol_rad:g} rad of its circular mean for {self.hold_s + self.extra_s:g} s "
+                f"(halves within {self.drift_frac * self.tol_rad:g} rad), the lateral order unchanged and the "
+                f"offsets steady by {self.steady.rule}")
+
+    def monitor(self, period_s: float, scale_m: float, end_s: float) -> "_PhaseMonitor":
+        """The callable for ``simulate(..., stop=)`` (the run must record ``gait_phase``, ``x``
+        and ``y``): ``end_s`` is the full run's duration."""
+        return _PhaseMonitor(self, period_s, scale_m, end_s)
+
+    def locked(self, t: np.ndarray, dphi: np.ndarray) -> bool:
+        """The lock part of the rule on samples ``t`` (s) and wrapped pair phase differences
+        ``dphi`` (samples, pairs) covering the last ``hold_s + extra_s``."""
+        if len(t) < 2 or t[-1] - t[0] < self.hold_s + self.extra_s - 1e-9:
+            return False
+        z = np.exp(1j * np.asarray(dphi, float))
+        mean = np.angle(z.mean(axis=0))
+        if (np.abs(np.angle(z * np.exp(-1j * mean))) > self.tol_rad).any():
+            return False
+        half = len(t) // 2
+        shift = np.angle(z[half:].mean(axis=0) * np.conj(z[:half].mean(axis=0)))
+        return bool((np.abs(shift) <= self.drift_frac * self.tol_rad).all())
+
+
+class _PhaseMonitor:
+    def __init__(self, rule: PhaseStop, period_s: float, scale_m: float, end_s: float):
+        self.r, self.end_s = rule, float(end_s)
+        self.window_s = rule.hold_s + rule.extra_s
+        self.t = np.empty(0)
+        self.d = self.o = None
+        self.steady = _SteadyMonitor(rule.steady, period_s, scale_m, end_s)
+        self.rule = rule.rule
+
+    def __call__(self, blocks: list[dict]) -> str | None:
+        steady = self.steady(blocks) is not None
+        t = blocks[0]["time"]
+        parts = []
+        for blk in blocks:
+            psi = np.asarray(blk["gait_phase"], float)
+            i, j = np.triu_indices(psi.shape[1], 1)
+            parts.append(np.angle(np.exp(1j * (psi[:, j] - psi[:, i]))))
+        d = np.concatenate(parts, axis=1)
+        order = np.concatenate([np.argsort(np.asarray(b["y"]), axis=1, kind="stable") for b in blocks], axis=1)
+        self.t = np.concatenate([self.t, t])
+        self.d = d if self.d is None else np.concatenate([self.d, d])
+        self.o = order if self.o is None else np.concatenate([self.o, order])
+        keep = self.t >= self.t[-1] - self.window_s - 1e-9
+        first = max(0, int(np.argmax(keep)) - 1)  # one sample before the window: it spans window_s
+        self.t, self.d, self.o = self.t[first:], self.d[first:], self.o[first:]
+        if not len(self.t) or self.t[-1] < self.r.min_s - 1e-9 or not steady:
+            return None
+        if not (self.o == self.o[-1]).all() or not self.r.locked(self.t, self.d):
+            return None
+        return f"phase locked and steady by t = {self.t[-1]:g} s"
 
 
 @dataclass(frozen=True)

@@ -46,9 +46,11 @@ import numpy as np
 
 from .. import stats, theory
 from ..params import Channel, Scene, SimOptions
+from ..stopping import PhaseStop
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS, PAIR_COUPLING, _label
 from ._points import SyncPoint
+from ._runners import _padded, _stop_vars
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = ["pair_run", "group_run", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
@@ -62,6 +64,10 @@ SYNC_TOL_RAD = math.radians(30.0)
 COLLIDING_N = 0.05
 """Runs whose mean contact force over the first TAIL_S exceeds this (N) collided."""
 R_LOCKED = 0.9
+PAIR_SYNC_STOP = PhaseStop(tol_rad=LOCK_TOL_RAD, hold_s=TAIL_S, extra_s=TAIL_S, min_s=2 * TAIL_S)
+"""The closed-loop pairs' stopping rule: the lock rule (:data:`LOCK_TOL_RAD` over :data:`TAIL_S`) held
+:data:`TAIL_S` longer, no drift, and the offsets steady (:data:`._runners.PAIR_STOP`'s rule); never
+before 2 :data:`TAIL_S`.  A pair that is still drifting runs the whole :data:`PAIR_DURATION_S`."""
 DRIFT_TOL_RAD_S = 0.02
 COMPAT_TOL = 0.1
 NEIGHBOURS = 9
@@ -73,23 +79,30 @@ def _tail_circmean(a: np.ndarray, sel: np.ndarray) -> np.ndarray:
     return np.angle(np.exp(1j * a[sel]).mean(axis=0))
 
 
-def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
+def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, stop: PhaseStop | None = None):
     """One closed-loop pair (sweep function).  ``point``: ``controller`` (a key of
     :data:`CONTROLLERS`), ``hold_x`` (bool), ``dphi0_rad`` (initial phi_1 - phi_0).
-    Deterministic (``seed`` unused)."""
+    ``stop``: a stopping rule (:data:`PAIR_SYNC_STOP`; None: the whole ``duration_s``); the
+    final values are then taken over the last :data:`TAIL_S` before the stop and ``dphi`` is
+    NaN after it.  Deterministic (``seed`` unused)."""
     import xarray as xr
 
     from ..phases import neighbour_phase_differences, time_to_lock
-    from ..simulation import simulate
+    from ..simulation import resolve_options, simulate
 
     pt = SyncPoint.of(point)
     sc = Scene(phases_rad=(0.0, pt.dphi0_rad), channel=Channel(width_m=PAIR_CHANNEL_M),
                hold_x=pt.hold_x, controller=CONTROLLERS[pt.controller])
-    ds = simulate(sc, SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD))
+    opts = SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD)
+    monitor = None if stop is None else stop.monitor(sc.gait.period_s, sc.wavelength_m, duration_s)
+    ds = simulate(sc, opts, stop=monitor)
+    full = resolve_options(sc, opts)
+    n_full = full.n_steps // full.steps_per_sample + 1
     t = ds["time"].values
     d = neighbour_phase_differences(ds)
     f = ds["contact_force_pair"].values[:, 0]
     head, tail = t <= t[0] + TAIL_S, t >= t[-1] - TAIL_S
+    t_full = np.round(np.arange(n_full) * float(ds.attrs["sample_interval"]), 12)  # the full run's axis
     return xr.Dataset({
         "dphi_final": ((), float(_tail_circmean(d.values[:, 0], tail)),
                        {"units": "rad", "long_name": "final phase difference (circular mean, last TAIL_S)"}),
@@ -97,8 +110,10 @@ def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
                       {"units": "s", "long_name": "time to lock (NaN: still drifting)"}),
         "force_start": ((), float(f[head].mean()), {"units": "N", "long_name": "mean contact force, first TAIL_S"}),
         "force_end": ((), float(f[tail].mean()), {"units": "N", "long_name": "mean contact force, last TAIL_S"}),
-        "dphi": (("time",), d.values[:, 0], {"units": "rad", "long_name": "phase difference over time"}),
-    }, coords={"time": ("time", t, {"units": "s"})})
+        "dphi": (("time",), _padded(d.values[:, 0], n_full), {
+            "units": "rad", "long_name": "phase difference over time (NaN after a stop)"}),
+        **_stop_vars(ds),
+    }, coords={"time": ("time", t_full, {"units": "s"})})
 
 
 def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
@@ -312,7 +327,8 @@ def pair_dataset(ctx: StudyContext, p: dict[str, Any]):
 
     grid = Grid(axes={"controller": list(CONTROLLERS), "hold_x": [True, False], "dphi0_rad": p["dphi0_rad"]},
                 seed=ctx.config.seed)
-    ds = _label(ctx.sweep("runs", functools.partial(pair_run, duration_s=p["duration_s"]), grid))
+    ds = _label(ctx.sweep("runs", functools.partial(pair_run, duration_s=p["duration_s"], stop=PAIR_SYNC_STOP),
+                             grid))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     ds.attrs.update(title="closed-loop pairs: phase locking", channel_width_m=PAIR_CHANNEL_M,
                     duration_s=p["duration_s"], phase_oscillator_coupling=PAIR_COUPLING)
