@@ -87,6 +87,9 @@ def _offsets(a, b) -> dict[str, float]:
             out[v] = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
             if v == "lock_time":
                 out["lock_time (NaN differing)"] = int((np.isnan(a[v].values) != np.isnan(b[v].values)).sum())
+                if np.isfinite(d).any():  # the run with the largest difference: full vs stopped lock time
+                    k = np.unravel_index(int(np.nanargmax(d)), d.shape)
+                    out["lock_time worst (full, stopped)"] = [float(a[v].values[k]), float(b[v].values[k])]
         elif "steady" in v and a[v].dtype == bool and v in b:  # the steady flags: how many differ
             out[f"{v} (flags differing)"] = int((a[v].values != b[v].values).sum())
     return out

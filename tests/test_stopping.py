@@ -117,9 +117,9 @@ def test_excess_rule_needs_its_batches_and_its_confidence():
 
 # ---- closed-loop pairs: the phase-lock rule --------------------------------------------------------------
 def test_phase_rule_on_closed_forms():
-    """Locked: a constant phase difference with jitter inside the tolerance; not locked: one that
-    drifts (each sample within the tolerance of the mean, the halves apart), one that jumps, or a
-    window shorter than hold_s + extra_s."""
+    """Locked: a constant phase difference with jitter inside the tolerance; not locked: one whose
+    trend, carried to the end of the run, moves it by more than half the tolerance (each sample
+    within the tolerance of the mean), one that jumps, or a window shorter than hold_s + extra_s."""
     from undulate.stopping import PhaseStop
 
     rule = PhaseStop(tol_rad=0.15, hold_s=10.0, extra_s=10.0)
@@ -128,8 +128,10 @@ def test_phase_rule_on_closed_forms():
     jitter = 0.1 * np.sin(7 * t)[:, None]
     assert rule.locked(t, np.pi - 0.02 + jitter)  # across the +-pi cut: wrapped
     assert rule.locked(t, np.angle(np.exp(1j * (np.pi + jitter + 0.01 * rng.standard_normal((len(t), 1))))))
-    ramp = (0.12 / 10.0) * (t - 10.0)[:, None]  # within 0.12 of the mean, halves 0.12 apart
-    assert not rule.locked(t, ramp)
+    ramp = (0.12 / 10.0) * (t - 10.0)[:, None]  # within 0.12 of the mean, 0.012 rad/s
+    assert rule.locked(t, ramp, time_left_s=0.0) and not rule.locked(t, ramp, time_left_s=10.0)
+    creep = 0.002 * (t - 10.0)[:, None]  # 0.002 rad/s: 0.08 rad more in 40 s, > 0.075
+    assert rule.locked(t, creep, time_left_s=30.0) and not rule.locked(t, creep, time_left_s=40.0)
     assert not rule.locked(t, np.where(t[:, None] < 15.0, 0.0, 0.5))
     assert not rule.locked(t[t <= 19.0], np.zeros((int((t <= 19.0).sum()), 1)))
 

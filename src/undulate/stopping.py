@@ -18,7 +18,7 @@ per period or batch only, so its memory does not grow with the run.
 * :class:`PhaseStop` -- closed-loop pairs: stop once every swimmer pair's
   phase difference has stayed within ``tol_rad`` of its circular mean for
   ``hold_s + extra_s`` (the lock the run measures, held ``extra_s`` longer),
-  with no drift between the two halves of that window, the lateral order
+  with no trend that would move it by the run's end, the lateral order
   unchanged and, where positions are free, the offsets steady by
   :class:`SteadyStop`'s rule.
 * :class:`ExcessStop` -- packing probes: stop once the mean joint error after
@@ -152,8 +152,9 @@ class PhaseStop:
     every sample of the last ``hold_s`` within ``tol_rad`` of their circular mean).  The run
     stops once, for every swimmer pair, the wrapped phase difference has stayed within
     ``tol_rad`` of its circular mean over the last ``hold_s + extra_s`` (locked at least
-    ``extra_s`` before the window the run's final value is taken over), the circular means
-    of the two halves of that window differ by at most ``drift_frac * tol_rad``, the
+    ``extra_s`` before the window the run's final value is taken over), its least-squares
+    trend over that window, carried to the end of the full run, moves it by at most
+    ``drift_frac * tol_rad`` (a slowly creeping lock runs on), the
     lateral order of the swimmers is unchanged over it, and the offsets along the channel
     meet ``steady`` (period means; held positions meet it trivially); never before
     ``min_s``.  Memory: the last ``hold_s + extra_s`` of samples only.
@@ -170,8 +171,9 @@ class PhaseStop:
     def rule(self) -> str:
         return (f"PhaseStop(tol_rad={self.tol_rad:g}, hold_s={self.hold_s:g}, extra_s={self.extra_s:g}, "
                 f"min_s={self.min_s:g}, drift_frac={self.drift_frac:g}): stop once every pair's phase difference "
-                f"stayed within {self.tol_rad:g} rad of its circular mean for {self.hold_s + self.extra_s:g} s "
-                f"(halves within {self.drift_frac * self.tol_rad:g} rad), the lateral order unchanged and the "
+                f"stayed within {self.tol_rad:g} rad of its circular mean for {self.hold_s + self.extra_s:g} s, "
+                f"its trend carried to the end moving it by <= {self.drift_frac * self.tol_rad:g} rad, the lateral "
+                f"order unchanged and the "
                 f"offsets steady by {self.steady.rule}")
 
     def monitor(self, period_s: float, scale_m: float, end_s: float) -> "_PhaseMonitor":
@@ -179,18 +181,19 @@ class PhaseStop:
         and ``y``): ``end_s`` is the full run's duration."""
         return _PhaseMonitor(self, period_s, scale_m, end_s)
 
-    def locked(self, t: np.ndarray, dphi: np.ndarray) -> bool:
+    def locked(self, t: np.ndarray, dphi: np.ndarray, time_left_s: float = 0.0) -> bool:
         """The lock part of the rule on samples ``t`` (s) and wrapped pair phase differences
-        ``dphi`` (samples, pairs) covering the last ``hold_s + extra_s``."""
+        ``dphi`` (samples, pairs) covering the last ``hold_s + extra_s``, with ``time_left_s``
+        to the end of the full run."""
         if len(t) < 2 or t[-1] - t[0] < self.hold_s + self.extra_s - 1e-9:
             return False
         z = np.exp(1j * np.asarray(dphi, float))
         mean = np.angle(z.mean(axis=0))
         if (np.abs(np.angle(z * np.exp(-1j * mean))) > self.tol_rad).any():
             return False
-        half = len(t) // 2
-        shift = np.angle(z[half:].mean(axis=0) * np.conj(z[:half].mean(axis=0)))
-        return bool((np.abs(shift) <= self.drift_frac * self.tol_rad).all())
+        dev = np.angle(z * np.exp(-1j * mean))  # continuous inside the window: all within tol_rad
+        slope = np.polyfit(np.asarray(t, float) - t[0], dev, 1)[0]  # rad/s, each pair
+        return bool((np.abs(slope) * max(time_left_s, 0.0) <= self.drift_frac * self.tol_rad).all())
 
 
 class _PhaseMonitor:
@@ -220,7 +223,7 @@ class _PhaseMonitor:
         self.t, self.d, self.o = self.t[first:], self.d[first:], self.o[first:]
         if not len(self.t) or self.t[-1] < self.r.min_s - 1e-9 or not steady:
             return None
-        if not (self.o == self.o[-1]).all() or not self.r.locked(self.t, self.d):
+        if not (self.o == self.o[-1]).all() or not self.r.locked(self.t, self.d, self.end_s - self.t[-1]):
             return None
         return f"phase locked and steady by t = {self.t[-1]:g} s"
 
