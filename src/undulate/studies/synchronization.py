@@ -16,7 +16,7 @@ load feedback ``sigma`` = :data:`PAIR_COUPLING`; ``relay``, the closest model to
 the PRX robots' oscillator we could build): two swimmers in the paper's
 ``d = 0.13 m`` channel, initial phase differences spread over ``[-pi, pi)``,
 longitudinal positions held (``Scene.hold_x``) or free, run for
-:data:`PAIR_DURATION_S`.  Per run: the final phase difference (circular mean
+:data:`PAIR_DURATION_S` or until :data:`PAIR_SYNC_STOP` finds the lock decided.  Per run: the final phase difference (circular mean
 over the last :data:`TAIL_S`), the time to lock (:func:`undulate.phases.time_to_lock`,
 tolerance :data:`LOCK_TOL_RAD`), and the mean swimmer-swimmer contact force over
 the first and the last :data:`TAIL_S`.
