@@ -128,7 +128,8 @@ def _markdown(rows: list[dict]) -> str:
     lines = ["| study | max abs offset diff / lambda (tol 0.01) | claims (full -> stopped) | wall s full / stopped "
              "| physics s full / stopped |", "|---|---|---|---|---|"]
     for r in rows:
-        off = ", ".join(f"{k} {v:.2g}" for k, v in r["offsets_max_abs_over_lambda"].items()) or "-"
+        off = ", ".join(f"{k} {v:.2g}" if isinstance(v, (int, float)) else f"{k} {v}"
+                        for k, v in r["offsets_max_abs_over_lambda"].items()) or "-"
         ver = "; ".join(f"{a} -> {b}" for _, a, b in r["verdicts"])
         lines.append(f"| {r['study']} | {off} | {ver} | {r['wall_s'][0]:.0f} / {r['wall_s'][1]:.0f} | "
                      f"{r['physics_s'][0]:.0f} / {r['physics_s'][1]:.0f} |")

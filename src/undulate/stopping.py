@@ -151,7 +151,9 @@ class PhaseStop:
     ``tol_rad`` and ``hold_s`` are the lock rule's (:func:`undulate.phases.time_to_lock`:
     every sample of the last ``hold_s`` within ``tol_rad`` of their circular mean).  The run
     stops once, for every swimmer pair, the wrapped phase difference has stayed within
-    ``tol_rad`` of its circular mean over the last ``hold_s + extra_s`` (locked at least
+    ``spread_frac * tol_rad`` of its circular mean over the last ``hold_s + extra_s`` (a
+    margin: the lock time the run reports is measured against its final value at
+    ``tol_rad``, and a final value that moves a little later must not move it; locked at least
     ``extra_s`` before the window the run's final value is taken over), its least-squares
     trend over that window, carried to the end of the full run, moves it by at most
     ``drift_frac * tol_rad`` (a slowly creeping lock runs on), the
@@ -165,13 +167,14 @@ class PhaseStop:
     extra_s: float = 10.0
     min_s: float = 20.0
     drift_frac: float = 0.5
+    spread_frac: float = 0.5
     steady: SteadyStop = SteadyStop()
 
     @property
     def rule(self) -> str:
         return (f"PhaseStop(tol_rad={self.tol_rad:g}, hold_s={self.hold_s:g}, extra_s={self.extra_s:g}, "
-                f"min_s={self.min_s:g}, drift_frac={self.drift_frac:g}): stop once every pair's phase difference "
-                f"stayed within {self.tol_rad:g} rad of its circular mean for {self.hold_s + self.extra_s:g} s, "
+                f"min_s={self.min_s:g}, drift_frac={self.drift_frac:g}, spread_frac={self.spread_frac:g}): stop once "
+                f"every pair's phase difference stayed within {self.spread_frac * self.tol_rad:g} rad of its circular mean for {self.hold_s + self.extra_s:g} s, "
                 f"its trend carried to the end moving it by <= {self.drift_frac * self.tol_rad:g} rad, the lateral "
                 f"order unchanged and the "
                 f"offsets steady by {self.steady.rule}")
@@ -189,9 +192,9 @@ class PhaseStop:
             return False
         z = np.exp(1j * np.asarray(dphi, float))
         mean = np.angle(z.mean(axis=0))
-        if (np.abs(np.angle(z * np.exp(-1j * mean))) > self.tol_rad).any():
+        if (np.abs(np.angle(z * np.exp(-1j * mean))) > self.spread_frac * self.tol_rad).any():
             return False
-        dev = np.angle(z * np.exp(-1j * mean))  # continuous inside the window: all within tol_rad
+        dev = np.angle(z * np.exp(-1j * mean))  # continuous inside the window: all near the mean
         slope = np.polyfit(np.asarray(t, float) - t[0], dev, 1)[0]  # rad/s, each pair
         return bool((np.abs(slope) * max(time_left_s, 0.0) <= self.drift_frac * self.tol_rad).all())
 
