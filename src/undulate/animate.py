@@ -49,11 +49,26 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
     import matplotlib
 
     matplotlib.use("Agg", force=False)
-    from matplotlib import animation
-    from matplotlib.collections import PolyCollection
-    from matplotlib.figure import Figure
 
     out = Path(out)
+    _check_request(ds, out, stride)
+    run = _Recording(ds, stride)
+    fps = float(fps) if fps is not None else 1.0 / (run.sample * stride)
+    if not np.isfinite(fps) or fps <= 0:
+        raise ParameterError("--fps", "> 0 frames per second", fps)
+    fig, ax, wall_lines = _stage(ds, run, dpi, title)
+    frame = _Frame(ax, run, wall_lines)
+    writer = _writer(out, fps)
+    with atomic_output(out, keep_suffix=True) as tmp:  # the writer picks its format by extension
+        with writer.saving(fig, str(tmp), dpi):
+            for i in range(len(run.times)):
+                frame.draw(i)
+                writer.grab_frame()
+    return len(run.times)
+
+
+def _check_request(ds, out: Path, stride: int) -> None:
+    """Refuse an output format, a run file or a stride that cannot be animated."""
     if out.suffix.lower() not in FORMATS:
         raise ParameterError("output file", "a path ending in .gif or .mp4", str(out))
     missing = [v for v in _REQUIRED if v not in ds]
@@ -61,21 +76,30 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
         raise ParameterError("run file", f"an `undulate simulate` output (missing {', '.join(missing)})", None)
     if int(stride) != stride or stride < 1:
         raise ParameterError("--stride", "a positive integer", stride)
-    times = ds["time"].values[::stride]
-    nx_all = ds["node_x"].values[::stride]
-    ny_all = ds["node_y"].values[::stride]
-    fpair = ds["contact_force_pair"].values[::stride]
-    fwall = ds["contact_force_wall"].values[::stride]
-    walls = [str(w) for w in ds["wall"].values]
-    w = float(ds.attrs.get("link_width", 0.015))
-    d = float(ds.attrs.get("channel_width", 2 * np.abs(ny_all).max() + w))
-    sample = float(ds.attrs.get("sample_interval", times[1] - times[0] if len(times) > 1 else 0.05))
-    fps = float(fps) if fps is not None else 1.0 / (sample * stride)
-    if not np.isfinite(fps) or fps <= 0:
-        raise ParameterError("--fps", "> 0 frames per second", fps)
-    n_sw = nx_all.shape[1]
 
-    x_lo, x_hi = float(nx_all.min()), float(nx_all.max())
+
+class _Recording:
+    """The samples drawn (every ``stride``-th) and the run's sizes: link width, channel width, interval."""
+
+    def __init__(self, ds, stride: int):
+        self.times = ds["time"].values[::stride]
+        self.nx = ds["node_x"].values[::stride]
+        self.ny = ds["node_y"].values[::stride]
+        self.fpair = ds["contact_force_pair"].values[::stride]
+        self.fwall = ds["contact_force_wall"].values[::stride]
+        self.walls = [str(w) for w in ds["wall"].values]
+        self.w = float(ds.attrs.get("link_width", 0.015))
+        self.d = float(ds.attrs.get("channel_width", 2 * np.abs(self.ny).max() + self.w))
+        times = self.times
+        self.sample = float(ds.attrs.get("sample_interval", times[1] - times[0] if len(times) > 1 else 0.05))
+
+
+def _stage(ds, run: _Recording, dpi: int, title: str | None):
+    """The figure, its axes (to scale, even pixel sizes) and the wall lines by wall name."""
+    from matplotlib.figure import Figure
+
+    d = run.d
+    x_lo, x_hi = float(run.nx.min()), float(run.nx.max())
     pad = 0.05
     # even pixel sizes: H.264 (yuv420p) needs them
     w_px = 2 * round(8 * dpi / 2)
@@ -92,7 +116,7 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
     wall_lines = {}
     for name, y in (("wall_lo", -d / 2), ("wall_hi", d / 2)):
         (wall_lines[name],) = ax.plot([x_lo - pad, x_hi + pad], [y, y], color=_WALL, lw=3)
-    end_walls = [nm for nm in walls if nm.startswith("wall_end")]
+    end_walls = [nm for nm in run.walls if nm.startswith("wall_end")]
     if end_walls and "config" in ds.attrs:
         import json
 
@@ -101,45 +125,54 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
             ax.set_xlim(min(x_lo - pad, -e / 2 - pad / 2), max(x_hi + pad, e / 2 + pad / 2))
             for nm, x in (("wall_end_lo", -e / 2), ("wall_end_hi", e / 2)):
                 (wall_lines[nm],) = ax.plot([x, x], [-d / 2, d / 2], color=_WALL, lw=3)
-    bodies = PolyCollection([], closed=True, edgecolors="k", linewidths=0.4)
-    ax.add_collection(bodies)
-    heads = ax.scatter(nx_all[0, :, 0], ny_all[0, :, 0], s=10, c="k", zorder=3)
-    clock = ax.text(0.995, 1.015, "", transform=ax.transAxes, fontsize=9, family="monospace", ha="right")
+    return fig, ax, wall_lines
 
-    def draw(i: int):
+
+class _Frame:
+    """The moving artists (bodies, heads, clock) and how sample ``i`` sets them and the walls' colours."""
+
+    def __init__(self, ax, run: _Recording, wall_lines: dict):
+        from matplotlib.collections import PolyCollection
+
+        self.run, self.wall_lines = run, wall_lines
+        self.bodies = PolyCollection([], closed=True, edgecolors="k", linewidths=0.4)
+        ax.add_collection(self.bodies)
+        self.heads = ax.scatter(run.nx[0, :, 0], run.ny[0, :, 0], s=10, c="k", zorder=3)
+        self.clock = ax.text(0.995, 1.015, "", transform=ax.transAxes, fontsize=9, family="monospace", ha="right")
+
+    def draw(self, i: int):
+        run, n_sw = self.run, self.run.nx.shape[1]
         polys, colours = [], []
         touching = np.zeros(n_sw, bool)
-        if fpair.shape[1]:
-            on = fpair[i] > 0
+        if run.fpair.shape[1]:
+            on = run.fpair[i] > 0
             touching[:-1] |= on
             touching[1:] |= on
         for j in range(n_sw):
-            pj = _link_polygons(nx_all[i, j], ny_all[i, j], w)
+            pj = _link_polygons(run.nx[i, j], run.ny[i, j], run.w)
             polys.extend(pj)
             colours.extend([_CONTACT if touching[j] else _BODY] * len(pj))
-        bodies.set_verts(polys)
-        heads.set_offsets(np.stack([nx_all[i, :, 0], ny_all[i, :, 0]], axis=-1))
-        bodies.set_facecolors(colours)
-        for k, nm in enumerate(walls):
-            if nm in wall_lines:
-                wall_lines[nm].set_color(_CONTACT if fwall[i, k] > 0 else _WALL)
-        clock.set_text(f"t = {times[i]:6.2f} s")
-        return [bodies, heads, clock, *wall_lines.values()]
+        self.bodies.set_verts(polys)
+        self.heads.set_offsets(np.stack([run.nx[i, :, 0], run.ny[i, :, 0]], axis=-1))
+        self.bodies.set_facecolors(colours)
+        for k, nm in enumerate(run.walls):
+            if nm in self.wall_lines:
+                self.wall_lines[nm].set_color(_CONTACT if run.fwall[i, k] > 0 else _WALL)
+        self.clock.set_text(f"t = {run.times[i]:6.2f} s")
+        return [self.bodies, self.heads, self.clock, *self.wall_lines.values()]
+
+
+def _writer(out: Path, fps: float):
+    """Pillow for ``.gif``; ffmpeg (the ``imageio-ffmpeg`` binary) with H.264 for ``.mp4``."""
+    from matplotlib import animation
 
     if out.suffix.lower() == ".gif":
-        writer = animation.PillowWriter(fps=fps)
-    else:
-        import imageio_ffmpeg
-        import matplotlib as mpl
+        return animation.PillowWriter(fps=fps)
+    import imageio_ffmpeg
+    import matplotlib as mpl
 
-        mpl.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
-        writer = animation.FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"])
-    with atomic_output(out, keep_suffix=True) as tmp:  # the writer picks its format by extension
-        with writer.saving(fig, str(tmp), dpi):
-            for i in range(len(times)):
-                draw(i)
-                writer.grab_frame()
-    return len(times)
+    mpl.rcParams["animation.ffmpeg_path"] = imageio_ffmpeg.get_ffmpeg_exe()
+    return animation.FFMpegWriter(fps=fps, codec="libx264", extra_args=["-pix_fmt", "yuv420p"])
 
 
 def count_frames(path: str | os.PathLike) -> int:

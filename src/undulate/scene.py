@@ -178,66 +178,95 @@ def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None) -
     world x at each link's centre of mass (sites ``c0..``), so it
     translates the body without turning it.
     """
-    g, sv = scene.geometry, scene.servo
-    n, l, w = g.n_links, g.link_length_m, g.width_m
-    rl = root_link(n)
-    r = w / 2
-    swimming = scene.ground.mode == "swimming"
     spec = mujoco.MjSpec()
+    _build_links(spec.worldbody, scene, timestep_s)
+    _add_servos(spec, scene)
+    # the perturbation force, spread equally over the links: F/N along world x at each link's centre
+    if not (scene.forces_N is not None if push is None else push):
+        return spec
+    spec.worldbody.add_site(name="ref")
+    for k in range(scene.geometry.n_links):
+        push = spec.add_actuator(name=f"push{k}", target=f"c{k}", trntype=mujoco.mjtTrn.mjTRN_SITE, refsite="ref")
+        push.set_to_motor()
+    return spec
 
-    def add_link(parent, k: int, pos: float, sign: float, joint: str | None, axis_z: float):
-        """Link ``k`` spanning ``[0, sign * l]`` from its frame (``+1``: toward the tail)."""
-        body = parent.add_body(name=f"link{k}", pos=[pos, 0, 0])
-        body.explicitinertial = True  # inertia of the box link, centred on the link's midpoint
-        body.mass = g.link_mass_kg
-        lo = 0.0 if sign > 0 else -l  # the link spans [lo, lo + l] along the body frame's x
-        if joint is None:  # the root link: frame at the body's midpoint
-            lo = -a_mid
-        body.ipos = [lo + l / 2, 0, 0]
-        body.add_site(name=f"c{k}", pos=[lo + l / 2, 0, 0])  # where the perturbation force acts
-        body.inertia = _box_inertia(g.link_mass_kg, l, w, g.height_m)
-        if joint is None:
-            if not scene.hold_x:  # Scene.hold_x: no longitudinal degree of freedom
-                body.add_joint(name="x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
-            body.add_joint(name="y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
-            body.add_joint(name="yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
-        else:
-            # the motor's back-EMF: a damping outside the servo's saturation (Servo.back_emf)
-            body.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, axis_z],
-                           damping=sv.back_emf_Nms_per_rad)
-        if g.collision_shape == "capsule":
-            # capsules whose segments tile [lo + r, lo + l - r]: their union is the one capsule
-            ends = np.linspace(lo + r, lo + l - r, g.collision_segments + 1)
-            shapes = [dict(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[a, 0, 0, b, 0, 0], size=[r, 0, 0])
-                      for a, b in zip(ends[:-1], ends[1:])]
-        else:
-            shapes = [dict(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[lo + l / 2, 0, 0], size=[l / 2, r, g.height_m / 2])]
-        for s_i, shape in enumerate(shapes):
-            body.add_geom(
-                name=f"g{k}" if s_i == 0 else f"g{k}_{s_i}",
-                **shape,
-                **_contact_attrs(scene, timestep_s),
-                contype=1,
-                conaffinity=1,
-                rgba=list(_SWIMMER_RGBA),
-                mass=0,  # inertia is explicit
-                fluid_ellipsoid=1 if (swimming and len(shapes) == 1) else 0,
-            )
-        if swimming and len(shapes) > 1:  # the fluid model sees the whole link: one non-colliding capsule
-            body.add_geom(name=f"g{k}_fluid", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
-                          fromto=[lo + r, 0, 0, lo + l - r, 0, 0], size=[r, 0, 0], contype=0, conaffinity=0,
-                          group=3, mass=0, fluid_ellipsoid=1)
-        return body
 
+def _build_links(world, scene: Scene, timestep_s: float) -> None:
+    """The root link under ``world``, then the chains toward the tail and toward the head."""
+    g = scene.geometry
+    n, l = g.n_links, g.link_length_m
+    rl = root_link(n)
     a_mid = _root_frame_in_link(n, l)
-    root = add_link(spec.worldbody, rl, 0.0, +1, None, 1.0)
+    root = _add_link(world, scene, timestep_s, a_mid, rl, 0.0, +1, None, 1.0)
     parent, pos = root, l - a_mid
     for k in range(rl + 1, n):  # toward the tail: joint k-1 in link k, alpha_{k-1} about +z
-        parent, pos = add_link(parent, k, pos, +1, f"j{k - 1}", 1.0), l
+        parent, pos = _add_link(parent, scene, timestep_s, a_mid, k, pos, +1, f"j{k - 1}", 1.0), l
     parent, pos = root, -a_mid
     for k in range(rl - 1, -1, -1):  # toward the head: joint k in link k, link k turns by -alpha_k
-        parent, pos = add_link(parent, k, pos, -1, f"j{k}", -1.0), -l
-    for i in range(n - 1):
+        parent, pos = _add_link(parent, scene, timestep_s, a_mid, k, pos, -1, f"j{k}", -1.0), -l
+
+
+def _add_link(parent, scene: Scene, timestep_s: float, a_mid: float, k: int, pos: float, sign: float,
+              joint: str | None, axis_z: float):
+    """Link ``k`` spanning ``[0, sign * l]`` from its frame (``+1``: toward the tail); the root link
+    (``joint`` None) has its frame at the body's midpoint, ``a_mid`` behind its head end."""
+    g, sv = scene.geometry, scene.servo
+    l = g.link_length_m
+    body = parent.add_body(name=f"link{k}", pos=[pos, 0, 0])
+    body.explicitinertial = True  # inertia of the box link, centred on the link's midpoint
+    body.mass = g.link_mass_kg
+    lo = 0.0 if sign > 0 else -l  # the link spans [lo, lo + l] along the body frame's x
+    if joint is None:  # the root link: frame at the body's midpoint
+        lo = -a_mid
+    body.ipos = [lo + l / 2, 0, 0]
+    body.add_site(name=f"c{k}", pos=[lo + l / 2, 0, 0])  # where the perturbation force acts
+    body.inertia = _box_inertia(g.link_mass_kg, l, g.width_m, g.height_m)
+    if joint is None:
+        if not scene.hold_x:  # Scene.hold_x: no longitudinal degree of freedom
+            body.add_joint(name="x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])
+        body.add_joint(name="y", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[0, 1, 0])
+        body.add_joint(name="yaw", type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, 1])
+    else:
+        # the motor's back-EMF: a damping outside the servo's saturation (Servo.back_emf)
+        body.add_joint(name=joint, type=mujoco.mjtJoint.mjJNT_HINGE, axis=[0, 0, axis_z],
+                       damping=sv.back_emf_Nms_per_rad)
+    _add_link_geoms(body, scene, timestep_s, k, lo)
+    return body
+
+
+def _add_link_geoms(body, scene: Scene, timestep_s: float, k: int, lo: float) -> None:
+    """The collision geoms of link ``k`` (spanning ``[lo, lo + l]``), and its fluid geom when needed."""
+    g = scene.geometry
+    l, r = g.link_length_m, g.width_m / 2
+    swimming = scene.ground.mode == "swimming"
+    if g.collision_shape == "capsule":
+        # capsules whose segments tile [lo + r, lo + l - r]: their union is the one capsule
+        ends = np.linspace(lo + r, lo + l - r, g.collision_segments + 1)
+        shapes = [dict(type=mujoco.mjtGeom.mjGEOM_CAPSULE, fromto=[a, 0, 0, b, 0, 0], size=[r, 0, 0])
+                  for a, b in zip(ends[:-1], ends[1:])]
+    else:
+        shapes = [dict(type=mujoco.mjtGeom.mjGEOM_BOX, pos=[lo + l / 2, 0, 0], size=[l / 2, r, g.height_m / 2])]
+    for s_i, shape in enumerate(shapes):
+        body.add_geom(
+            name=f"g{k}" if s_i == 0 else f"g{k}_{s_i}",
+            **shape,
+            **_contact_attrs(scene, timestep_s),
+            contype=1,
+            conaffinity=1,
+            rgba=list(_SWIMMER_RGBA),
+            mass=0,  # inertia is explicit
+            fluid_ellipsoid=1 if (swimming and len(shapes) == 1) else 0,
+        )
+    if swimming and len(shapes) > 1:  # the fluid model sees the whole link: one non-colliding capsule
+        body.add_geom(name=f"g{k}_fluid", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
+                      fromto=[lo + r, 0, 0, lo + l - r, 0, 0], size=[r, 0, 0], contype=0, conaffinity=0,
+                      group=3, mass=0, fluid_ellipsoid=1)
+
+
+def _add_servos(spec: mujoco.MjSpec, scene: Scene) -> None:
+    """A PID position servo on every body joint, and the heading guide's actuator if the scene has one."""
+    sv = scene.servo
+    for i in range(scene.geometry.n_links - 1):
         a = spec.add_actuator(name=f"servo{i}", target=f"j{i}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.set_to_pid(kp=sv.kp_Nm_per_rad, kv=sv.kd_Nms_per_rad,
                      ki=sv.ki_Nm_per_rad_s if sv.ki_Nm_per_rad_s > 0 else -1,
@@ -248,14 +277,6 @@ def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None) -
     if scene.heading_guide:  # Scene.heading_guide: a stiff PD actuator on the root yaw (set-point, rate)
         a = spec.add_actuator(name="headguide", target="yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT)
         a.set_to_pid(kp=HEADING_GUIDE_KP_NM_PER_RAD, kv=HEADING_GUIDE_KV_NMS_PER_RAD, ki=-1, imax=-1, slewmax=-1)
-    # the perturbation force, spread equally over the links: F/N along world x at each link's centre
-    if not (scene.forces_N is not None if push is None else push):
-        return spec
-    spec.worldbody.add_site(name="ref")
-    for k in range(n):
-        push = spec.add_actuator(name=f"push{k}", target=f"c{k}", trntype=mujoco.mjtTrn.mjTRN_SITE, refsite="ref")
-        push.set_to_motor()
-    return spec
 
 
 MAX_AUTO_TIMESTEP_S = 0.002

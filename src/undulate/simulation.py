@@ -37,6 +37,7 @@ import numpy as np
 import xarray as xr
 from mujoco import rollout as _rollout
 
+from . import _physics
 from .errors import DivergenceError, ParameterError
 from .params import Scene, SimOptions
 from .control import Controller, make_controller
@@ -49,21 +50,15 @@ _lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
 __all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE",
            "physics_counters"]
 
-# Time spent inside MuJoCo's C stepping (``mujoco.rollout`` calls) by this process, and the
-# scene-steps taken there: the part of a run that is physics.  Each simulate_batch call measures its
-# own (its Datasets' ``physics_time`` attrs) and adds it here once when it ends.  Read by the sweep
-# workers (each run file records its share) and the reproduction benchmark; never by the physics.
-_PHYSICS = {"seconds": 0.0, "steps": 0}
-
-
 def physics_counters() -> tuple[float, int]:
     """``(seconds, scene_steps)`` this process has spent inside ``mujoco.rollout`` so far.
 
     ``seconds`` is wall time of the rollout calls (a batch stepped on several
     threads counts once); ``scene_steps`` counts every scene's steps (a batch
     of 4 scenes stepped 1000 times adds 4000).  Monotone: take differences.
+    To measure a piece of code, :func:`undulate._physics.meter` says it directly.
     """
-    return _PHYSICS["seconds"], _PHYSICS["steps"]
+    return _physics.process_total()
 
 
 RK4_DAMPING_STEP = 1.0
@@ -358,7 +353,8 @@ class _WarmRollout:
 
 class _Clock:
     """Physics time of one :func:`simulate_batch` call: wall seconds inside ``mujoco.rollout`` and
-    scene-steps taken there (added to the process total, :func:`physics_counters`, when the call ends)."""
+    scene-steps taken there (reported to the open meters, :func:`undulate._physics.report`, when the
+    call ends)."""
 
     def __init__(self):
         self.seconds, self.steps = 0.0, 0
@@ -610,52 +606,80 @@ def simulate_batch(
 
     Every Dataset's attrs ``physics_time`` (s, wall time inside
     ``mujoco.rollout`` for the whole batch) and ``physics_steps`` (scene-steps)
-    record what the call cost; the same is added to :func:`physics_counters`.
+    record what the call cost; the same is reported to the open physics meters
+    (:func:`undulate._physics.meter`) and the process total (:func:`physics_counters`).
     """
     bt = _plan_batch(scenes, options, out, controller)
     clock = _Clock()
-    recorders = [_MemoryRecorder() for _ in range(bt.nb)] if bt.outs is None else \
-        [_NetCDFRecorder(p_) for p_ in bt.outs]
-    builders = [functools.partial(_to_dataset, cs, bt.options, record=bt.options.recorded,
-                                  timestep_auto=bt.requested.timestep_s is None,
-                                  control_rate_hz=None if bt.ctl is None else 1.0 / (bt.tick * bt.dt),
-                                  controller_kind=None if bt.ctl is None else bt.ctl.kind) for cs in bt.compiled]
-
-    def record(blocks: list[dict]) -> str | None:
-        for b, block in enumerate(blocks):
-            recorders[b].add(block) if bt.outs is None else recorders[b].add(block, builders[b])
-        return None if stop is None else stop(blocks)
-
+    recorders = _Recorders(bt, stop)
     stepper = _Stepper(bt, nthread, clock)
     # MuJoCo's own warnings (printed and appended to ./MUJOCO_LOG.TXT by default) go to the
     # log instead while we step: a divergence is diagnosed from the state itself.
     previous_handler = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(_log_mujoco_warning)
-    total = bt.n_samples * bt.sps
     ok = False
     try:
-        reason = record(stepper.initial_blocks())
-        if progress is not None:
-            progress(0.0, total * bt.dt)
-        while stepper.done < total and not reason:
-            reason = record(stepper.step_chunk(min(bt.chunk, total - stepper.done)))
-            if progress is not None:
-                progress(stepper.done * bt.dt, total * bt.dt)
-        results = [r.finish(builders[b]) if bt.outs is None else r.finish() for b, r in enumerate(recorders)]
+        reason = _step_all(bt, stepper, recorders.record, progress)
+        results = recorders.finish()
         ok = True
     finally:
         stepper.close()
         mujoco.set_mju_user_warning(previous_handler)
-        _PHYSICS["seconds"] += clock.seconds
-        _PHYSICS["steps"] += clock.steps
-        if not ok and bt.outs is not None:
-            for r in recorders:
-                r.abort()
+        _physics.report(clock.seconds, clock.steps)
+        if not ok:
+            recorders.abort()
     for ds in results:
         ds.attrs.update(physics_time=clock.seconds, physics_time_units="s", physics_steps=clock.steps,
                         stop_rule="" if stop is None else str(getattr(stop, "rule", repr(stop))),
                         stop_reason=reason or "", stopped_at=float(ds["time"].values[-1]), stopped_at_units="s")
     return results
+
+
+class _Recorders:
+    """One recorder per scene of a batch (in memory, or streamed to its ``out`` file) and the stopping
+    rule that sees every block recorded."""
+
+    def __init__(self, bt: _Batch, stop: Callable[[list[dict]], str | None] | None):
+        self.bt, self.stop = bt, stop
+        self.recorders = [_MemoryRecorder() for _ in range(bt.nb)] if bt.outs is None else \
+            [_NetCDFRecorder(p_) for p_ in bt.outs]
+        self.builders = [functools.partial(_to_dataset, cs, bt.options, record=bt.options.recorded,
+                                           timestep_auto=bt.requested.timestep_s is None,
+                                           control_rate_hz=None if bt.ctl is None else 1.0 / (bt.tick * bt.dt),
+                                           controller_kind=None if bt.ctl is None else bt.ctl.kind)
+                         for cs in bt.compiled]
+
+    def record(self, blocks: list[dict]) -> str | None:
+        """Record one block per scene; the stopping rule's reason to end the run there, or None."""
+        for b, block in enumerate(blocks):
+            self.recorders[b].add(block) if self.bt.outs is None else self.recorders[b].add(block, self.builders[b])
+        return None if self.stop is None else self.stop(blocks)
+
+    def finish(self) -> list[xr.Dataset]:
+        """One Dataset per scene (built in memory, or opened from its file)."""
+        return [r.finish(self.builders[b]) if self.bt.outs is None else r.finish()
+                for b, r in enumerate(self.recorders)]
+
+    def abort(self) -> None:
+        """After a failure: remove the files being streamed (nothing to do in memory)."""
+        if self.bt.outs is not None:
+            for r in self.recorders:
+                r.abort()
+
+
+def _step_all(bt: _Batch, stepper: _Stepper, record: Callable[[list[dict]], str | None],
+              progress: Callable[[float, float], None] | None) -> str | None:
+    """Record the t = 0 samples, then step and record chunk by chunk to the end or until ``record``
+    returns a reason to stop (returned; None: ran to the end)."""
+    total = bt.n_samples * bt.sps
+    reason = record(stepper.initial_blocks())
+    if progress is not None:
+        progress(0.0, total * bt.dt)
+    while stepper.done < total and not reason:
+        reason = record(stepper.step_chunk(min(bt.chunk, total - stepper.done)))
+        if progress is not None:
+            progress(stepper.done * bt.dt, total * bt.dt)
+    return reason
 
 
 def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, last_sens, t, tick, rows, t_rows,

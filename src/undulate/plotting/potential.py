@@ -25,9 +25,17 @@ def plot_potential(ds):
     """
     fig = new_figure(14.0, 8.0)
     gs = fig.add_gridspec(2, 3)
-    lam = float(ds.attrs["wavelength_m"])
+    ib = ds.sizes["beta"] // 2
+    ir = int(np.argmin(np.abs(ds["d_over_2A"].values - 1.2)))  # a confinement with a visible response
+    _impulse_panel(fig.add_subplot(gs[0, 0]), ds)
+    _response_panel(fig.add_subplot(gs[0, 1]), ds, ib, ir)
+    _force_panel(fig.add_subplot(gs[0, 2]), ds, ib)
+    _stiffness_panels(fig.add_subplot(gs[1, 0]), fig.add_subplot(gs[1, 1]), fig.add_subplot(gs[1, 2]), ds)
+    return fig
 
-    ax = fig.add_subplot(gs[0, 0])
+
+def _impulse_panel(ax, ds) -> None:
+    """(a) contact impulse over the first two periods against dphi, with the ``a |dphi| + b`` fit."""
     dphi = ds["dphi"].values
     if "impulse_all" in ds:
         for series in ds["impulse_all"].values.T:
@@ -44,17 +52,13 @@ def plot_potential(ds):
     ax.set_ylabel("contact impulse, first 2 periods (N s)")
     ax.set_title(r"(a) $\Delta x_0 = 0$", fontsize=10)
 
-    nb, nr = ds.sizes["beta"], ds.sizes["d_over_2A"]
-    ib = nb // 2
-    ir = int(np.argmin(np.abs(ds["d_over_2A"].values - 1.2)))  # a confinement with a visible response
-    beta = ds["beta"].values
-    R = ds["d_over_2A"].values
-    forces = ds["force"].values
 
-    ax = fig.add_subplot(gs[0, 1])
-    t = ds["period_time"].values
+def _response_panel(ax, ds, ib: int, ir: int) -> None:
+    """(b) period means of dx/lambda over time under each force, at beta ``ib`` and d/2A ``ir``."""
     import matplotlib as mpl
 
+    beta, R, forces = ds["beta"].values, ds["d_over_2A"].values, ds["force"].values
+    t = ds["period_time"].values
     cmap = mpl.colormaps["plasma"]
     for m, f in enumerate(forces):
         ax.plot(t, ds["dx_period"].values[ib, ir, m], ".-", color=cmap(m / max(len(forces), 1)), lw=0.9,
@@ -69,7 +73,12 @@ def plot_potential(ds):
                  rf"$\beta$ = {beta[ib]:g}$^\circ$, $d/2A$ = {R[ir]:g}", fontsize=10)
     ax.legend(fontsize=8)
 
-    ax = fig.add_subplot(gs[0, 2])
+
+def _force_panel(ax, ds, ib: int) -> None:
+    """(c) dF against dx/lambda for three confinements at beta ``ib``, with the fitted lines."""
+    lam = float(ds.attrs["wavelength_m"])
+    beta, R, forces = ds["beta"].values, ds["d_over_2A"].values, ds["force"].values
+    nr = ds.sizes["d_over_2A"]
     picks = sorted({0, nr // 2, nr - 1})
     for c, j in enumerate(picks):
         col = _COLOURS[c % len(_COLOURS)]
@@ -87,10 +96,11 @@ def plot_potential(ds):
     ax.set_title(rf"(c) $\beta$ = {beta[ib]:g}$^\circ$; hollow: broke apart", fontsize=10)
     ax.legend(fontsize=8)
 
-    ax_k = fig.add_subplot(gs[1, 0])
-    ax_d = fig.add_subplot(gs[1, 1])
-    ax_0 = fig.add_subplot(gs[1, 2])
-    for i in range(nb):
+
+def _stiffness_panels(ax_k, ax_d, ax_0, ds) -> None:
+    """(d) stiffness against d/2A and (e) against d per beta; (f) the fitted offset with the model."""
+    beta, R = ds["beta"].values, ds["d_over_2A"].values
+    for i in range(ds.sizes["beta"]):
         col = _COLOURS[i % len(_COLOURS)]
         k = ds["stiffness"].values[i]
         pos = k > 0
@@ -119,4 +129,3 @@ def plot_potential(ds):
     ax_0.set_ylabel(r"$\delta x_0/\lambda$")
     ax_0.set_title(r"(f) offset $\delta x_0$", fontsize=10)
     ax_0.legend(fontsize=7)
-    return fig

@@ -92,7 +92,6 @@ def run(
     from .._cliutil import check_writable
 
     try:
-        from ..params import Channel, ControllerParams, Gait, Scene, SwimmerGeometry
         from .._cliutil import _parse_floats
         from . import load_calibration
         from .runner import RobotConfig
@@ -104,12 +103,8 @@ def run(
         if coupling != 0.0 and controller != "phase-oscillator":
             raise ParameterError("--coupling", "0 unless --controller phase-oscillator", coupling)
         try:
-            scene = Scene(phases_rad=tuple(math.radians(p) for p in phases_deg),
-                          gait=Gait(amplitude_rad=math.radians(amplitude), waves_per_body=waves_per_body,
-                                    frequency_hz=frequency),
-                          geometry=SwimmerGeometry(n_links=links, length_m=body_length),
-                          channel=Channel(width_m=channel_width),
-                          controller=ControllerParams(kind=controller, coupling=coupling, control_rate_hz=control_rate))
+            scene = _scene(phases_deg, links, waves_per_body, amplitude, frequency, controller, coupling,
+                           control_rate, body_length, channel_width)
             cal = load_calibration(calibration)
             cfg = RobotConfig(scene=scene, ids=servo_ids, protocol=protocol, port=port, baudrate=baudrate,
                               duration_s=duration, calibration=cal, servo=servo)
@@ -123,19 +118,38 @@ def run(
     except ParameterError as e:
         _fail(str(e), 2)
 
-    from .runner import dry_run as plan, run_robot, schedule_text
+    from .runner import dry_run as plan, schedule_text
 
     if dry_run:
         ds = plan(cfg, out)
         typer.echo(schedule_text(cfg, ds))
         typer.echo(f"wrote {out} (commanded trajectory, {ds.sizes['time']} ticks; no port opened)")
         return
+    _drive(cfg, out)
+
+
+def _scene(phases_deg, links: int, waves_per_body: float, amplitude: float, frequency: float, controller: str,
+           coupling: float, control_rate: float, body_length: float, channel_width: float):
+    """The :class:`~undulate.params.Scene` of ``run``'s options (angles in degrees)."""
+    from ..params import Channel, ControllerParams, Gait, Scene, SwimmerGeometry
+
+    return Scene(phases_rad=tuple(math.radians(p) for p in phases_deg),
+                 gait=Gait(amplitude_rad=math.radians(amplitude), waves_per_body=waves_per_body,
+                           frequency_hz=frequency),
+                 geometry=SwimmerGeometry(n_links=links, length_m=body_length),
+                 channel=Channel(width_m=channel_width),
+                 controller=ControllerParams(kind=controller, coupling=coupling, control_rate_hz=control_rate))
+
+
+def _drive(cfg, out: Path) -> None:
+    """Run the robots (warnings and the schedule first); report the log written, or fail saying what
+    happened to torque and the log."""
+    from .bus import BusError
+    from .runner import Interrupted, run_robot, schedule_text
+
     for w in cfg.clipped_joints():
         typer.echo(f"warning: {w}", err=True)
     typer.echo(schedule_text(cfg))
-    from .bus import BusError
-    from .runner import Interrupted
-
     try:
         ds = run_robot(cfg, out, log=lambda m: typer.echo(m, err=True))
     except Interrupted as e:

@@ -237,18 +237,32 @@ class _Recorder:
         self.rows += 1
 
     def dataset(self, *, end_reason: str, torque_off: str, dry: bool, ok: bool):
+        """The recorded ticks as a Dataset (the simulation's schema where the names are shared)."""
         import xarray as xr
 
-        from ..provenance import package_version, provenance
-        from ..schema import scene_attrs, variable  # the simulation's schema: same names, dims, units
-
         cfg, n = self.cfg, self.rows
-        sc, g = cfg.scene, cfg.scene.geometry
-        dt = 1.0 / cfg.rate_hz
-        t = self.k[:n] * dt
-        dims3 = ("time", "swimmer", "joint")
+        sc = cfg.scene
+        data = self._commanded_vars(n)
+        if not dry:
+            data.update(self._sensed_vars(n))
+        coords = {
+            "time": ("time", self.k[:n] * (1.0 / cfg.rate_hz), {"units": "s", "long_name": "time"}),
+            "swimmer": ("swimmer", np.arange(cfg.shape[0])),
+            "joint": ("joint", np.arange(cfg.shape[1])),
+            "phase": ("swimmer", np.asarray(sc.phases_rad), {"units": "rad", "long_name": "gait phase phi"}),
+            "servo_id": (("swimmer", "joint"), cfg.id_grid),
+        }
+        attrs = self._attrs(n, end_reason=end_reason, torque_off=torque_off, dry=dry, ok=ok)
+        return xr.Dataset(data, coords=coords, attrs=attrs)
 
-        data = {
+    def _commanded_vars(self, n: int) -> dict:
+        """What was sent, in the first ``n`` rows: commands, phases, goals, and the tick timing."""
+        import xarray as xr
+
+        from ..schema import variable  # the simulation's schema: same names, dims, units
+
+        dims3 = ("time", "swimmer", "joint")
+        return {
             "joint_command": variable("joint_command", self.command[:n]),
             "gait_phase": variable("gait_phase", self.phase[:n]),
             "goal_position": xr.Variable(dims3, self.goal_ticks[:n], {
@@ -262,31 +276,46 @@ class _Recorder:
             "tick_lateness": xr.Variable(("time",), self.lateness[:n], {
                 "units": "s", "long_name": "start of the tick minus its scheduled time"}),
         }
-        if not dry:
-            data.update({
-                "joint_angle": variable("joint_angle", self.angle[:n]),
-                "joint_error": variable("joint_error", np.abs(self.angle[:n] - self.command[:n])),
-                "joint_velocity": xr.Variable(dims3, self.velocity[:n], {
-                    "units": "rad/s", "long_name": "present speed (servo's estimate)"}),
-                "servo_load": xr.Variable(dims3, self.load[:n], {
-                    "units": "N m", "long_name": "present load as output torque: sign * load_sign * fraction * "
-                    "stall torque (undulate.robot.servos)"}),
-                "present_position": xr.Variable(dims3, self.ticks[:n], {"units": "ticks", "long_name": "present position"}),
-                "sense_time": xr.Variable(dims3, self.sense_t[:n], {
-                    "units": "s", "long_name": "gait time at which the reading was taken"}),
-                "servo_error": xr.Variable(dims3, self.error[:n], {
-                    "units": "1", "long_name": "status packet error byte (-1: no reply)"}),
-            })
+
+    def _sensed_vars(self, n: int) -> dict:
+        """What the servos reported, in the first ``n`` rows (not in a dry run)."""
+        import xarray as xr
+
+        from ..schema import variable
+
+        dims3 = ("time", "swimmer", "joint")
+        return {
+            "joint_angle": variable("joint_angle", self.angle[:n]),
+            "joint_error": variable("joint_error", np.abs(self.angle[:n] - self.command[:n])),
+            "joint_velocity": xr.Variable(dims3, self.velocity[:n], {
+                "units": "rad/s", "long_name": "present speed (servo's estimate)"}),
+            "servo_load": xr.Variable(dims3, self.load[:n], {
+                "units": "N m", "long_name": "present load as output torque: sign * load_sign * fraction * "
+                "stall torque (undulate.robot.servos)"}),
+            "present_position": xr.Variable(dims3, self.ticks[:n], {"units": "ticks", "long_name": "present position"}),
+            "sense_time": xr.Variable(dims3, self.sense_t[:n], {
+                "units": "s", "long_name": "gait time at which the reading was taken"}),
+            "servo_error": xr.Variable(dims3, self.error[:n], {
+                "units": "1", "long_name": "status packet error byte (-1: no reply)"}),
+        }
+
+    def _attrs(self, n: int, *, end_reason: str, torque_off: str, dry: bool, ok: bool) -> dict:
+        """The run's attributes: scene, timing achieved, bus and servo settings, how it ended, provenance."""
+        from ..provenance import package_version, provenance
+        from ..schema import scene_attrs
+
+        cfg = self.cfg
+        sc = cfg.scene
         lat = self.lateness[:n]
         rate = (float((n - 1) / (self.wall[n - 1] - self.wall[0])) if n > 1 and not dry else float("nan"))
         config = {"scene": sc.to_dict(), "robot": cfg.to_dict()}
         prov = provenance()
         prov["dynamixel_sdk_version"] = package_version("dynamixel-sdk", "not installed")
-        attrs = {
+        return {
             "title": "undulate robot dry run (commanded trajectory)" if dry else "undulate robot run",
             "source": "robot",
             **scene_attrs(sc),
-            "sample_interval": dt,
+            "sample_interval": 1.0 / cfg.rate_hz,
             "controller": sc.controller.kind,
             "control_rate": cfg.rate_hz,
             "control_rate_units": "Hz (nominal: the tick schedule)",
@@ -315,14 +344,6 @@ class _Recorder:
             "config": json.dumps(config),
             **{f"provenance_{k}": v for k, v in prov.items()},
         }
-        coords = {
-            "time": ("time", t, {"units": "s", "long_name": "time"}),
-            "swimmer": ("swimmer", np.arange(cfg.shape[0])),
-            "joint": ("joint", np.arange(cfg.shape[1])),
-            "phase": ("swimmer", np.asarray(sc.phases_rad), {"units": "rad", "long_name": "gait phase phi"}),
-            "servo_id": (("swimmer", "joint"), cfg.id_grid),
-        }
-        return xr.Dataset(data, coords=coords, attrs=attrs)
 
 
 # --- signals -----------------------------------------------------------------------------------

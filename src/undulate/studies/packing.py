@@ -277,13 +277,94 @@ def walled_packing_density(phi_max_rad, w_over_2A, n_swimmers: int = N_SWIMMERS)
     return theory.walled_packing_density(phi_max_rad, w_over_2A, n_swimmers)
 
 
-def dataset(ctx: StudyContext, p: PackingPlan):
-    """Run the packing study on plan ``p``: the free swimmer, then every (phi_max, rho~, draw)."""
-    import xarray as xr
+class _Runs:
+    """The runs known so far on the threshold grid (phi_max x rho~ x draw): their values and flags."""
 
+    NAMES = ("mean_joint_error_rad", "channel_width_m", "max_penetration_m", "stopped_at_s")
+
+    def __init__(self, p: PackingPlan, base_err: float):
+        shape = (len(p.phi_max_rad), len(p.rho_tilde), p.draws)
+        self.base_err = base_err
+        self.vals = {k: np.full(shape, np.nan) for k in self.NAMES}
+        self.evaluated = np.zeros(shape, bool)
+        self.diverged = np.zeros_like(self.evaluated)
+        self.failed = np.zeros_like(self.evaluated)
+
+    def take(self, i, j, k, run) -> None:
+        """Record sweep result ``run`` at grid indices ``(i, j, k)``."""
+        self.evaluated[i, j, k] = True
+        self.diverged[i, j, k] = bool(run["diverged"] == 1)
+        self.failed[i, j, k] = bool(run["run_failed"]) or self.diverged[i, j, k]
+        for name in self.NAMES:
+            self.vals[name][i, j, k] = float(run[name])
+
+    def take_sweep(self, got, where) -> None:
+        """Record a point sweep's results, ``where[n]`` the grid indices of its point ``n``."""
+        for n, (i, j, k) in enumerate(where):
+            self.take(i, j, k, got.isel(point=n))
+
+    def excess(self):
+        """Mean joint error above the lone swimmer's plus the threshold (rad; > 0: contact)."""
+        return self.vals["mean_joint_error_rad"] - self.base_err - THRESHOLD_RAD
+
+    def state(self, i, k) -> dict[int, bool | None]:
+        """What :func:`bisection_probes` knows of (phi_max ``i``, draw ``k``)."""
+        e = self.vals["mean_joint_error_rad"][i, :, k] - self.base_err - THRESHOLD_RAD
+        return {j: (None if self.failed[i, j, k] or not np.isfinite(e[j]) else bool(e[j] > 0))
+                for j in range(e.size) if self.evaluated[i, j, k]}
+
+
+def _points(p: PackingPlan, where) -> list[dict]:
+    """Sweep points of the grid indices ``where`` (``(i, j, k)``: phi_max, rho~, draw)."""
+    return [{"phi_max_rad": p.phi_max_rad[i], "rho_tilde": p.rho_tilde[j], "draw": k} for i, j, k in where]
+
+
+def _take_heatmap(runs: _Runs, p: PackingPlan, heat) -> None:
+    """Reuse the heatmap's runs at the densities it shares with the threshold grid."""
+    col = {round(r, 9): j for j, r in enumerate(p.rho_tilde)}
+    for jh, r in enumerate(p.heatmap_rho):
+        if round(r, 9) in col:
+            for i in range(len(p.phi_max_rad)):
+                for k in range(p.heatmap_draws):
+                    runs.take(i, col[round(r, 9)], k, heat.isel(phi_max_rad=i, rho_tilde=jh, draw=k))
+
+
+def _bisect(ctx: StudyContext, p: PackingPlan, fn, runs: _Runs) -> int:
+    """Bisection over density, all (phi_max, draw) searches side by side, one sweep a round;
+    returns the number of rounds."""
     from ..sweep import Grid
 
-    geo = SwimmerGeometry()
+    nphi, nrho, ndraw = len(p.phi_max_rad), len(p.rho_tilde), p.draws
+    rounds = 0
+    while True:
+        probes = [(i, j, k) for i in range(nphi) for k in range(ndraw) for j in bisection_probes(runs.state(i, k), nrho)]
+        if not probes:
+            return rounds
+        rounds += 1
+        got = ctx.sweep(f"bisection-{rounds}", fn, Grid(points=_points(p, probes), seed=ctx.config.seed))
+        runs.take_sweep(got.isel(replicate=0), probes)
+
+
+def _rerun_brackets(ctx: StudyContext, p: PackingPlan, full, runs: _Runs):
+    """Run again at full length the runs that bracket a threshold and stopped early;
+    returns the rounds of reruns and the final ``(threshold, lo, hi)``."""
+    from ..sweep import Grid
+
+    reruns = 0
+    while True:
+        thr, lo, hi = _thresholds(p, runs.excess(), runs.failed)
+        todo = _stopped_brackets(p, thr, lo, hi, runs.vals["stopped_at_s"])
+        if not todo:
+            return reruns, (thr, lo, hi)
+        reruns += 1
+        got = ctx.sweep(f"brackets-{reruns}", full, Grid(points=_points(p, todo), seed=ctx.config.seed))
+        runs.take_sweep(got.isel(replicate=0), todo)
+
+
+def dataset(ctx: StudyContext, p: PackingPlan):
+    """Run the packing study on plan ``p``: the free swimmer, then every (phi_max, rho~, draw)."""
+    from ..sweep import Grid
+
     config = ctx.config
     lone = ctx.lone_swimmer()
     amp = float(lone["amplitude_m"])
@@ -297,103 +378,26 @@ def dataset(ctx: StudyContext, p: PackingPlan):
     grid = Grid(axes={"phi_max_rad": p.phi_max_rad, "rho_tilde": p.heatmap_rho,
                       "draw": list(range(p.heatmap_draws))}, seed=config.seed)
     heat = ctx.sweep("groups", fn, grid).isel(replicate=0)
-    nphi, nrho, ndraw = len(p.phi_max_rad), len(p.rho_tilde), p.draws
-    names = ("mean_joint_error_rad", "channel_width_m", "max_penetration_m", "stopped_at_s")
-    vals = {k: np.full((nphi, nrho, ndraw), np.nan) for k in names}
-    evaluated = np.zeros((nphi, nrho, ndraw), bool)
-    diverged = np.zeros_like(evaluated)
-    failed = np.zeros_like(evaluated)
+    runs = _Runs(p, base_err)
+    _take_heatmap(runs, p, heat)
+    rounds = _bisect(ctx, p, fn, runs)
+    reruns, thresholds = _rerun_brackets(ctx, p, full, runs)
+    return _assemble(p, runs, heat, thresholds, amp, int(config.seed), rounds, reruns)
 
-    def take(i, j, k, run) -> None:
-        evaluated[i, j, k] = True
-        diverged[i, j, k] = bool(run["diverged"] == 1)
-        failed[i, j, k] = bool(run["run_failed"]) or diverged[i, j, k]
-        for name in names:
-            vals[name][i, j, k] = float(run[name])
 
-    col = {round(r, 9): j for j, r in enumerate(p.rho_tilde)}
-    for jh, r in enumerate(p.heatmap_rho):
-        if round(r, 9) in col:
-            for i in range(nphi):
-                for k in range(p.heatmap_draws):
-                    take(i, col[round(r, 9)], k, heat.isel(phi_max_rad=i, rho_tilde=jh, draw=k))
+def _assemble(p: PackingPlan, runs: _Runs, heat, thresholds, amp: float, seed: int, rounds: int, reruns: int):
+    """The study's Dataset: the runs, the heatmap, the thresholds and the theory curves."""
+    import xarray as xr
 
-    def state(i, k) -> dict[int, bool | None]:
-        e = vals["mean_joint_error_rad"][i, :, k] - base_err - THRESHOLD_RAD
-        return {j: (None if failed[i, j, k] or not np.isfinite(e[j]) else bool(e[j] > 0))
-                for j in range(nrho) if evaluated[i, j, k]}
-
-    rounds = 0
-    while True:  # bisection over density, all (phi_max, draw) searches side by side, one sweep a round
-        probes = [(i, j, k) for i in range(nphi) for k in range(ndraw) for j in bisection_probes(state(i, k), nrho)]
-        if not probes:
-            break
-        rounds += 1
-        pts = [{"phi_max_rad": p.phi_max_rad[i], "rho_tilde": p.rho_tilde[j], "draw": k} for i, j, k in probes]
-        got = ctx.sweep(f"bisection-{rounds}", fn, Grid(points=pts, seed=config.seed)).isel(replicate=0)
-        for n, (i, j, k) in enumerate(probes):
-            take(i, j, k, got.isel(point=n))
-    reruns = 0
-    while True:  # the runs that bracket a threshold, stopped early: again at full length
-        thr, lo, hi = _thresholds(p, vals["mean_joint_error_rad"] - base_err - THRESHOLD_RAD, failed)
-        todo = _stopped_brackets(p, thr, lo, hi, vals["stopped_at_s"])
-        if not todo:
-            break
-        reruns += 1
-        pts = [{"phi_max_rad": p.phi_max_rad[i], "rho_tilde": p.rho_tilde[j], "draw": k} for i, j, k in todo]
-        got = ctx.sweep(f"brackets-{reruns}", full, Grid(points=pts, seed=config.seed)).isel(replicate=0)
-        for n, (i, j, k) in enumerate(todo):
-            take(i, j, k, got.isel(point=n))
-    err = vals["mean_joint_error_rad"]
-
+    geo = SwimmerGeometry()
     w2a = geo.width_m / (2 * amp)
     phi_fine = np.linspace(0.0, 2 * np.pi, 181)
-    mc = theory.packing_density_mc(phi_fine, w2a, n_swimmers=p.n_swimmers, n_samples=4000,
-                                   seed=int(config.seed))
-    one = {"units": "1"}
-    ds = xr.Dataset(
-        {
-            "mean_joint_error": (("phi_max", "rho_tilde", "draw"), err, {
-                "units": "rad", "long_name": "mean joint error (swimmers, joints, t >= 2 s); "
-                                             "NaN: run failed or not run (see evaluated)"}),
-            "evaluated": (("phi_max", "rho_tilde", "draw"), evaluated, {
-                "long_name": "run done (heatmap or threshold bisection)"}),
-            "run_failed": (("phi_max", "rho_tilde", "draw"), failed, {
-                "long_name": "run diverged (DivergenceError) or failed"}),
-            "diverged": (("phi_max", "rho_tilde", "draw"), diverged, {
-                "long_name": "run diverged (DivergenceError)"}),
-            "channel_width": (("phi_max", "rho_tilde", "draw"), vals["channel_width_m"], {
-                "units": "m", "long_name": "channel width Y (2 A N / rho~)"}),
-            "max_penetration": (("phi_max", "rho_tilde", "draw"), vals["max_penetration_m"], {
-                "units": "m", "long_name": "deepest interpenetration"}),
-            "heatmap_joint_error": (("phi_max", "rho_heatmap", "heatmap_draw"),
-                                    heat["mean_joint_error_rad"].values, {
-                "units": "rad", "long_name": "mean joint error on the heatmap grid; NaN: run failed"}),
-            "heatmap_failed": (("phi_max", "rho_heatmap", "heatmap_draw"),
-                               heat["run_failed"].values.astype(bool) | (heat["diverged"].values == 1), {
-                "long_name": "heatmap run diverged or failed"}),
-            "threshold_rho_tilde": (("phi_max", "draw"), thr, {
-                **one, "long_name": "simulated compatibility threshold (first rho~ with excess joint error)"}),
-            "threshold_lo": (("phi_max", "draw"), lo, {**one, "long_name": "last density below threshold"}),
-            "threshold_hi": (("phi_max", "draw"), hi, {**one, "long_name": "first density above threshold"}),
-            "rho_closed_form": (("phi_fine",), theory.packing_density(phi_fine, w2a), {
-                **one, "long_name": "closed-form compatible density (paper Eq. rho_tilde)"}),
-            "rho_monte_carlo": (("phi_fine",), mc.mean, {
-                **one, "long_name": f"Monte-Carlo compatible density, N = {p.n_swimmers}"}),
-            "rho_monte_carlo_stderr": (("phi_fine",), mc.stderr, {**one, "long_name": "its standard error"}),
-            "rho_closed_form_walls": (("phi_fine",), walled_packing_density(phi_fine, w2a, p.n_swimmers), {
-                **one, "long_name": "closed form with the side walls' room 2A"}),
-            "lone_mean_joint_error": ((), base_err, {"units": "rad", "long_name": "mean joint error, lone swimmer"}),
-            "amplitude": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
-        },
-        coords={
-            "phi_max": ("phi_max", np.asarray(p.phi_max_rad), {"units": "rad", "long_name": "phase spread phi_max"}),
-            "rho_tilde": ("rho_tilde", np.asarray(p.rho_tilde), {**one, "long_name": "normalised density 2AN/Y"}),
-            "draw": ("draw", np.arange(ndraw), {**one, "long_name": "phase draw (replicate)"}),
-            "rho_heatmap": ("rho_heatmap", np.asarray(p.heatmap_rho), {**one, "long_name": "heatmap density 2AN/Y"}),
-            "heatmap_draw": ("heatmap_draw", np.arange(p.heatmap_draws), {**one, "long_name": "heatmap phase draw"}),
-            "phi_fine": ("phi_fine", phi_fine, {"units": "rad", "long_name": "phase spread phi_max (theory)"}),
-        },
+    return xr.Dataset(
+        {**_run_vars(runs, heat), **_threshold_vars(thresholds), **_theory_vars(p, phi_fine, w2a, seed),
+         "lone_mean_joint_error": ((), runs.base_err, {"units": "rad",
+                                                       "long_name": "mean joint error, lone swimmer"}),
+         "amplitude": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"})},
+        coords=_coords(p, phi_fine),
         attrs={
             "title": "packing of 50 swimmers: joint error over phase spread and density (paper Fig. 7)",
             "n_swimmers": p.n_swimmers,
@@ -402,15 +406,76 @@ def dataset(ctx: StudyContext, p: PackingPlan):
             "duration_s": p.duration_s,
             "bisection_rounds": rounds,
             "stop_rule": "none" if PACKING_STOP is None else PACKING_STOP.rule,
-            "runs_stopped_early": int((vals["stopped_at_s"] < p.duration_s - 1e-9).sum()),
+            "runs_stopped_early": int((runs.vals["stopped_at_s"] < p.duration_s - 1e-9).sum()),
             "bracket_reruns": reruns,
-            "threshold_search": "whole grid" if bool(evaluated.all()) else
+            "threshold_search": "whole grid" if bool(runs.evaluated.all()) else
                                 "bisection over rho_tilde (heatmap runs reused; a failed run or a non-monotone "
                                 "column: the whole column)",
             "short_channel_m": SHORT_CHANNEL_OVER_L * geo.length_m,
         },
     )
-    return ds
+
+
+def _run_vars(runs: _Runs, heat) -> dict:
+    """Data variables of the runs: on the threshold grid, then on the heatmap grid."""
+    dims = ("phi_max", "rho_tilde", "draw")
+    hdims = ("phi_max", "rho_heatmap", "heatmap_draw")
+    return {
+        "mean_joint_error": (dims, runs.vals["mean_joint_error_rad"], {
+            "units": "rad", "long_name": "mean joint error (swimmers, joints, t >= 2 s); "
+                                         "NaN: run failed or not run (see evaluated)"}),
+        "evaluated": (dims, runs.evaluated, {"long_name": "run done (heatmap or threshold bisection)"}),
+        "run_failed": (dims, runs.failed, {"long_name": "run diverged (DivergenceError) or failed"}),
+        "diverged": (dims, runs.diverged, {"long_name": "run diverged (DivergenceError)"}),
+        "channel_width": (dims, runs.vals["channel_width_m"], {
+            "units": "m", "long_name": "channel width Y (2 A N / rho~)"}),
+        "max_penetration": (dims, runs.vals["max_penetration_m"], {
+            "units": "m", "long_name": "deepest interpenetration"}),
+        "heatmap_joint_error": (hdims, heat["mean_joint_error_rad"].values, {
+            "units": "rad", "long_name": "mean joint error on the heatmap grid; NaN: run failed"}),
+        "heatmap_failed": (hdims, heat["run_failed"].values.astype(bool) | (heat["diverged"].values == 1), {
+            "long_name": "heatmap run diverged or failed"}),
+    }
+
+
+def _threshold_vars(thresholds) -> dict:
+    """Data variables of the simulated thresholds per (phi_max, draw) and their brackets."""
+    thr, lo, hi = thresholds
+    one = {"units": "1"}
+    return {
+        "threshold_rho_tilde": (("phi_max", "draw"), thr, {
+            **one, "long_name": "simulated compatibility threshold (first rho~ with excess joint error)"}),
+        "threshold_lo": (("phi_max", "draw"), lo, {**one, "long_name": "last density below threshold"}),
+        "threshold_hi": (("phi_max", "draw"), hi, {**one, "long_name": "first density above threshold"}),
+    }
+
+
+def _theory_vars(p: PackingPlan, phi_fine, w2a: float, seed: int) -> dict:
+    """Data variables of the theory on ``phi_fine``: closed form, Monte Carlo, closed form with walls."""
+    mc = theory.packing_density_mc(phi_fine, w2a, n_swimmers=p.n_swimmers, n_samples=4000, seed=seed)
+    one = {"units": "1"}
+    return {
+        "rho_closed_form": (("phi_fine",), theory.packing_density(phi_fine, w2a), {
+            **one, "long_name": "closed-form compatible density (paper Eq. rho_tilde)"}),
+        "rho_monte_carlo": (("phi_fine",), mc.mean, {
+            **one, "long_name": f"Monte-Carlo compatible density, N = {p.n_swimmers}"}),
+        "rho_monte_carlo_stderr": (("phi_fine",), mc.stderr, {**one, "long_name": "its standard error"}),
+        "rho_closed_form_walls": (("phi_fine",), walled_packing_density(phi_fine, w2a, p.n_swimmers), {
+            **one, "long_name": "closed form with the side walls' room 2A"}),
+    }
+
+
+def _coords(p: PackingPlan, phi_fine) -> dict:
+    """Coordinates of the study's Dataset."""
+    one = {"units": "1"}
+    return {
+        "phi_max": ("phi_max", np.asarray(p.phi_max_rad), {"units": "rad", "long_name": "phase spread phi_max"}),
+        "rho_tilde": ("rho_tilde", np.asarray(p.rho_tilde), {**one, "long_name": "normalised density 2AN/Y"}),
+        "draw": ("draw", np.arange(p.draws), {**one, "long_name": "phase draw (replicate)"}),
+        "rho_heatmap": ("rho_heatmap", np.asarray(p.heatmap_rho), {**one, "long_name": "heatmap density 2AN/Y"}),
+        "heatmap_draw": ("heatmap_draw", np.arange(p.heatmap_draws), {**one, "long_name": "heatmap phase draw"}),
+        "phi_fine": ("phi_fine", phi_fine, {"units": "rad", "long_name": "phase spread phi_max (theory)"}),
+    }
 
 
 def summary(ds) -> dict[str, Any]:

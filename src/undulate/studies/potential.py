@@ -175,92 +175,30 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
     """Run the potential study on plan ``p``: the impulse sweep, free swimmers per beta, the force sweep."""
     import xarray as xr
 
-    from ..sweep import Grid
-
-    config = ctx.config
     geo = SwimmerGeometry()
-    gait = Gait()
-    lam = gait.wavelength_m(geo.length_m)
-    betas = [math.radians(b) for b in p.betas_deg]
-
-    # (a) contact impulse over the first two periods against dphi, for several common phases
-    imp_all = ctx.shared_sweep("impulse", *impulse_sweep(p.impulse_dphi, p.impulse_phi0, config.seed)
-                               ).isel(replicate=0)["impulse_2T_Ns"].values  # (dphi, phi0)
-    impulse = np.nanmean(imp_all, axis=1)
-    dphi = np.asarray(p.impulse_dphi)
-    fit_a = fit_abs_linear(dphi, impulse)
-
-    # amplitudes per beta, then every (beta, d/2A, dF) in one sweep
-    amps = np.array([float(ctx.lone_swimmer(amplitude_rad=b)["amplitude_m"]) for b in betas])
-    n_b, n_r, n_f = len(betas), len(p.d_over_2A), len(p.forces_N)
-    points = [{"amplitude_rad": beta, "amplitude_m": float(amp), "d_over_2A": r, "force_N": f}
-              for beta, amp in zip(betas, amps) for r in p.d_over_2A for f in p.forces_N]
-    fn = functools.partial(pair_point, duration_s=p.duration_s, force_onset_s=SETTLE_S)
-    g = ctx.sweep("force", fn, Grid(points=points, seed=config.seed)).isel(replicate=0)
-    shape = (n_b, n_r, n_f)
-    pm = g["dx_period_over_lambda"].values.reshape(*shape, -1)
-    pt = g["period_time"].values
-    k_before = int(np.flatnonzero(pt < SETTLE_S)[-1])
-    last = pm[..., -3:]
-    before = pm[..., k_before]
-    dxl = last.mean(axis=-1) - before
-    drift = np.ptp(last, axis=-1)
-    failed = g["run_failed"].values.astype(bool).reshape(shape)
-    with np.errstate(invalid="ignore"):
-        broken = failed | ~np.isfinite(dxl) | (dxl > BREAK) | (drift > DRIFT)
-    est = {q: np.full((n_b, n_r, 4), np.nan) for q in ("k", "dx0", "r2")}  # value, stderr, low, high
-    n_used = (~broken).sum(axis=-1)
-    for i in range(n_b):
-        for j in range(n_r):
-            fit = stiffness_fit(p.forces_N, dxl[i, j] * lam, ~broken[i, j])
-            for q, e in fit.items():
-                est[q][i, j] = (e.value, e.stderr, e.low, e.high)
-    k, dx0, r2 = est["k"][..., 0], est["dx0"][..., 0], est["r2"][..., 0]
-    bound = ("beta", "d_over_2A", "bound")
-
+    lam = Gait().wavelength_m(geo.length_m)
+    imp_all, impulse, fit_a = _impulse_part(ctx, p)
+    amps, g = _force_sweep(ctx, p)
+    resp = _steady_response(g, (len(p.betas_deg), len(p.d_over_2A), len(p.forces_N)))
+    est, n_used = _stiffness_fits(p, resp["dx"], resp["broken"], lam)
     R = np.asarray(p.d_over_2A)
     one = {"units": "1"}
-    model_thin = np.array([model_dx0_m(R * 2 * a, a, lam) / lam for a in amps])
-    model_bodies = np.array([model_dx0_m(R * 2 * a, a, lam, geo.width_m) / lam for a in amps])
-    fdims = ("beta", "d_over_2A", "force")
     ds = xr.Dataset(
         {
             "impulse": (("dphi",), impulse, {
                 "units": "N s", "long_name": "pair contact impulse over the first 2 periods, mean over phi0"}),
             "impulse_all": (("dphi", "phi0"), imp_all, {
                 "units": "N s", "long_name": "pair contact impulse over the first 2 periods"}),
-            "dx": (fdims, dxl, {**one, "long_name": "steady extra separation dx / lambda under +-dF"}),
-            "dx_before": (fdims, before, {**one, "long_name": "settled dx / lambda"}),
-            "drift": (fdims, drift, {**one, "long_name": "range of the last 3 period means of dx / lambda"}),
-            "broken": (fdims, broken, {"long_name": f"broke apart (dx/lambda > {BREAK}, still drifting, or failed)"}),
-            "run_failed": (fdims, failed, {}),
-            "dx_period": ((*fdims, "period_time"), pm, {**one, "long_name": "period mean of dx / lambda"}),
-            "stiffness": (("beta", "d_over_2A"), k, {"units": "N/m", "long_name": "k in dF = k (dx - dx0)"}),
-            "dx0": (("beta", "d_over_2A"), dx0 / lam, {**one, "long_name": "offset dx0 / lambda of the fit"}),
-            "fit_r2": (("beta", "d_over_2A"), r2, {**one, "long_name": "R^2 of the fit"}),
-            "stiffness_stderr": (("beta", "d_over_2A"), est["k"][..., 1], {
-                "units": "N/m", "long_name": "standard error of k (linregress)"}),
-            "stiffness_ci95": (bound, est["k"][..., 2:], {"units": "N/m", "long_name": "95 % interval of k (t)"}),
-            "dx0_ci95": (bound, est["dx0"][..., 2:] / lam, {
-                **one, "long_name": "95 % interval of dx0 / lambda (bootstrap)"}),
-            "fit_r2_ci95": (bound, est["r2"][..., 2:], {**one, "long_name": "95 % interval of R^2 (bootstrap)"}),
-            "fit_n": (("beta", "d_over_2A"), n_used, {**one, "long_name": "points in the fit"}),
-            "model_dx0_thin": (("beta", "d_over_2A"), model_thin, {
+            **_response_vars(resp),
+            **_fit_vars(est, n_used, lam),
+            "model_dx0_thin": (("beta", "d_over_2A"), np.array([model_dx0_m(R * 2 * a, a, lam) / lam for a in amps]), {
                 **one, "long_name": "compatibility model dx0 / lambda, sinusoids (dy = d - 2A)"}),
-            "model_dx0_bodies": (("beta", "d_over_2A"), model_bodies, {
+            "model_dx0_bodies": (("beta", "d_over_2A"),
+                                 np.array([model_dx0_m(R * 2 * a, a, lam, geo.width_m) / lam for a in amps]), {
                 **one, "long_name": "compatibility model dx0 / lambda, bodies of width w (dy = d - 2A - 2w)"}),
             "amplitude": (("beta",), amps, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
         },
-        coords={
-            "dphi": ("dphi", dphi, {"units": "rad", "long_name": "phase difference phi_b - phi_a"}),
-            "phi0": ("phi0", np.asarray(p.impulse_phi0), {"units": "rad", "long_name": "phase phi_a"}),
-            "beta": ("beta", np.asarray(p.betas_deg), {"units": "degree", "long_name": "joint amplitude beta"}),
-            "d_over_2A": ("d_over_2A", R, {**one, "long_name": "wall spacing over peak-to-peak amplitude"}),
-            "force": ("force", np.asarray(p.forces_N), {"units": "N", "long_name": "applied force dF"}),
-            "period_time": ("period_time", pt, {"units": "s", "long_name": "middle of the gait period"}),
-            "channel_width": (("beta", "d_over_2A"), np.outer(2 * amps, R), {"units": "m", "long_name": "d"}),
-            "bound": ("bound", ["low", "high"], {"long_name": "bounds of a 95 % interval"}),
-        },
+        coords=_coords(p, amps, g["period_time"].values),
         attrs={
             "title": "contact force against detuning; cohesion stiffness of the compatible state (paper Fig. 10)",
             "impulse_channel_width_m": PAIR_CHANNEL_M,
@@ -271,6 +209,106 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
         },
     )
     return ds
+
+
+def _impulse_part(ctx: StudyContext, p: PotentialPlan):
+    """(a) contact impulse over the first two periods against dphi, for several common phases:
+    every run ``(dphi, phi0)``, their mean over phi0 and its ``|dphi|`` fit."""
+    imp_all = ctx.shared_sweep("impulse", *impulse_sweep(p.impulse_dphi, p.impulse_phi0, ctx.config.seed)
+                               ).isel(replicate=0)["impulse_2T_Ns"].values  # (dphi, phi0)
+    impulse = np.nanmean(imp_all, axis=1)
+    return imp_all, impulse, fit_abs_linear(np.asarray(p.impulse_dphi), impulse)
+
+
+def _force_sweep(ctx: StudyContext, p: PotentialPlan):
+    """Amplitudes per beta (free swimmers), then every (beta, d/2A, dF) in one sweep: ``(amps, sweep)``."""
+    from ..sweep import Grid
+
+    betas = [math.radians(b) for b in p.betas_deg]
+    amps = np.array([float(ctx.lone_swimmer(amplitude_rad=b)["amplitude_m"]) for b in betas])
+    points = [{"amplitude_rad": beta, "amplitude_m": float(amp), "d_over_2A": r, "force_N": f}
+              for beta, amp in zip(betas, amps) for r in p.d_over_2A for f in p.forces_N]
+    fn = functools.partial(pair_point, duration_s=p.duration_s, force_onset_s=SETTLE_S)
+    return amps, ctx.sweep("force", fn, Grid(points=points, seed=ctx.config.seed)).isel(replicate=0)
+
+
+def _steady_response(g, shape) -> dict[str, np.ndarray]:
+    """Per (beta, d/2A, dF): period means of dx / lambda, the settled value before the force, the
+    steady extra separation (mean of the last 3 periods minus it), their drift, and what broke."""
+    pm = g["dx_period_over_lambda"].values.reshape(*shape, -1)
+    pt = g["period_time"].values
+    k_before = int(np.flatnonzero(pt < SETTLE_S)[-1])
+    last = pm[..., -3:]
+    before = pm[..., k_before]
+    dxl = last.mean(axis=-1) - before
+    drift = np.ptp(last, axis=-1)
+    failed = g["run_failed"].values.astype(bool).reshape(shape)
+    with np.errstate(invalid="ignore"):
+        broken = failed | ~np.isfinite(dxl) | (dxl > BREAK) | (drift > DRIFT)
+    return {"dx_period": pm, "dx_before": before, "dx": dxl, "drift": drift, "failed": failed, "broken": broken}
+
+
+def _stiffness_fits(p: PotentialPlan, dxl, broken, lam: float):
+    """:func:`stiffness_fit` per (beta, d/2A) on the runs that held: ``({k, dx0, r2}: (value, stderr,
+    low, high) arrays, points used)``."""
+    n_b, n_r = dxl.shape[:2]
+    est = {q: np.full((n_b, n_r, 4), np.nan) for q in ("k", "dx0", "r2")}  # value, stderr, low, high
+    n_used = (~broken).sum(axis=-1)
+    for i in range(n_b):
+        for j in range(n_r):
+            fit = stiffness_fit(p.forces_N, dxl[i, j] * lam, ~broken[i, j])
+            for q, e in fit.items():
+                est[q][i, j] = (e.value, e.stderr, e.low, e.high)
+    return est, n_used
+
+
+def _response_vars(resp: dict) -> dict:
+    """Data variables of the force sweep's runs (beta x d/2A x dF)."""
+    one = {"units": "1"}
+    fdims = ("beta", "d_over_2A", "force")
+    return {
+        "dx": (fdims, resp["dx"], {**one, "long_name": "steady extra separation dx / lambda under +-dF"}),
+        "dx_before": (fdims, resp["dx_before"], {**one, "long_name": "settled dx / lambda"}),
+        "drift": (fdims, resp["drift"], {**one, "long_name": "range of the last 3 period means of dx / lambda"}),
+        "broken": (fdims, resp["broken"], {
+            "long_name": f"broke apart (dx/lambda > {BREAK}, still drifting, or failed)"}),
+        "run_failed": (fdims, resp["failed"], {}),
+        "dx_period": ((*fdims, "period_time"), resp["dx_period"], {**one, "long_name": "period mean of dx / lambda"}),
+    }
+
+
+def _fit_vars(est: dict, n_used, lam: float) -> dict:
+    """Data variables of the stiffness fits per (beta, d/2A)."""
+    one = {"units": "1"}
+    bound = ("beta", "d_over_2A", "bound")
+    return {
+        "stiffness": (("beta", "d_over_2A"), est["k"][..., 0], {"units": "N/m", "long_name": "k in dF = k (dx - dx0)"}),
+        "dx0": (("beta", "d_over_2A"), est["dx0"][..., 0] / lam, {**one, "long_name": "offset dx0 / lambda of the fit"}),
+        "fit_r2": (("beta", "d_over_2A"), est["r2"][..., 0], {**one, "long_name": "R^2 of the fit"}),
+        "stiffness_stderr": (("beta", "d_over_2A"), est["k"][..., 1], {
+            "units": "N/m", "long_name": "standard error of k (linregress)"}),
+        "stiffness_ci95": (bound, est["k"][..., 2:], {"units": "N/m", "long_name": "95 % interval of k (t)"}),
+        "dx0_ci95": (bound, est["dx0"][..., 2:] / lam, {
+            **one, "long_name": "95 % interval of dx0 / lambda (bootstrap)"}),
+        "fit_r2_ci95": (bound, est["r2"][..., 2:], {**one, "long_name": "95 % interval of R^2 (bootstrap)"}),
+        "fit_n": (("beta", "d_over_2A"), n_used, {**one, "long_name": "points in the fit"}),
+    }
+
+
+def _coords(p: PotentialPlan, amps, period_time) -> dict:
+    """Coordinates of the study's Dataset."""
+    one = {"units": "1"}
+    R = np.asarray(p.d_over_2A)
+    return {
+        "dphi": ("dphi", np.asarray(p.impulse_dphi), {"units": "rad", "long_name": "phase difference phi_b - phi_a"}),
+        "phi0": ("phi0", np.asarray(p.impulse_phi0), {"units": "rad", "long_name": "phase phi_a"}),
+        "beta": ("beta", np.asarray(p.betas_deg), {"units": "degree", "long_name": "joint amplitude beta"}),
+        "d_over_2A": ("d_over_2A", R, {**one, "long_name": "wall spacing over peak-to-peak amplitude"}),
+        "force": ("force", np.asarray(p.forces_N), {"units": "N", "long_name": "applied force dF"}),
+        "period_time": ("period_time", period_time, {"units": "s", "long_name": "middle of the gait period"}),
+        "channel_width": (("beta", "d_over_2A"), np.outer(2 * amps, R), {"units": "m", "long_name": "d"}),
+        "bound": ("bound", ["low", "high"], {"long_name": "bounds of a 95 % interval"}),
+    }
 
 
 def _collapse_rms_value(x, logk) -> float:

@@ -388,8 +388,28 @@ def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path, code: str | None = No
     """
     runs_shape = (*grid.shape, grid.replicates)
     dims = (*grid.dims, "replicate")
-    n = len(runs)
     have = np.array([result_path(runs_dir, r).exists() for r in runs], dtype=bool)
+    read = _stack_runs(runs, runs_dir, code, have)
+    if read is None:  # a run file was unreadable or stale and was removed: start over without it
+        return merge(grid, runs, runs_dir, code)
+    template, stacked, attrs = read
+    coords = _grid_coords(grid, runs, dims, runs_shape)
+    variables: dict[str, Any] = {}
+    if template is not None:
+        variables = _stacked_variables(template, stacked, have, coords, dims, runs_shape)
+    variables["run_failed"] = xr.Variable(
+        dims, ~have.reshape(runs_shape), attrs={"long_name": "run raised or never finished (its values are NaN)"}
+    )
+    out = xr.Dataset(variables, coords=coords, attrs=attrs)
+    out["seed"].attrs["long_name"] = "seed passed to the sweep function for this run"
+    return out
+
+
+def _stack_runs(runs: Sequence[Run], runs_dir: Path, code: str | None, have: np.ndarray):
+    """Read the finished runs (``have``) into stacked arrays, one row per run: ``(template, stacked,
+    attrs)`` (the first run read, its stackable variables, the attributes every run agrees on), or
+    None when a run file was removed (corrupt or stale)."""
+    n = len(runs)
     complete = bool(have.all())
     template: xr.Dataset | None = None
     stacked: dict[str, np.ndarray] = {}
@@ -398,34 +418,13 @@ def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path, code: str | None = No
         if not have[j]:
             continue
         path = result_path(runs_dir, run)
-        try:
-            ds, meta = read_run_file(path)
-        except Exception as exc:  # noqa: BLE001 - e.g. truncated by a power cut despite fsync
-            path.unlink(missing_ok=True)
-            write_failure(runs_dir, run, None, f"CorruptResult: {path.name} could not be read ({exc}); "
-                          "it was removed, run the sweep again to recompute it")
-            return merge(grid, runs, runs_dir, code)  # start over without it
-        if code is not None and (meta.get("provenance") or {}).get("code") != code:
-            path.unlink(missing_ok=True)  # computed by other code: never presented
-            write_failure(runs_dir, run, None, f"StaleResult: {path.name} was computed by other code "
-                          f"({(meta.get('provenance') or {}).get('code')!r}, not {code!r}); it was removed, "
-                          "run the sweep again to recompute it")
-            return merge(grid, runs, runs_dir, code)
-        if meta.get("seed") != run.seed or meta.get("point") != json.loads(json.dumps(run.point)):
-            raise ParameterError(
-                "out_dir", f"a store whose run files match its manifest ({path.name} is for another run)",
-                str(runs_dir.parent),
-            )
+        ds = _read_checked(runs_dir, run, path, code)
+        if ds is None:
+            return None
         if template is None:
             template = ds
             attrs = dict(ds.attrs)
-            for name in _stackable(ds):
-                var = ds[name].variable
-                dtype, fill = (var.dtype, None) if complete else _missing_fill(var.dtype)
-                arr = np.empty((n, *var.shape), dtype=dtype)
-                if not complete:
-                    arr[...] = fill
-                stacked[name] = arr
+            stacked = _empty_stack(ds, n, complete)
         else:
             _check_like(template, ds, path)
             for k in list(attrs):
@@ -433,7 +432,49 @@ def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path, code: str | None = No
                     del attrs[k]
         for name, arr in stacked.items():
             arr[j] = ds[name].values
+    return template, stacked, attrs
 
+
+def _read_checked(runs_dir: Path, run: Run, path: Path, code: str | None) -> xr.Dataset | None:
+    """The result of ``run`` from ``path``; None if the file was unreadable or computed by other code
+    (it is then removed and recorded as a failure).  A file of another run is refused."""
+    try:
+        ds, meta = read_run_file(path)
+    except Exception as exc:  # noqa: BLE001 - e.g. truncated by a power cut despite fsync
+        path.unlink(missing_ok=True)
+        write_failure(runs_dir, run, None, f"CorruptResult: {path.name} could not be read ({exc}); "
+                      "it was removed, run the sweep again to recompute it")
+        return None
+    if code is not None and (meta.get("provenance") or {}).get("code") != code:
+        path.unlink(missing_ok=True)  # computed by other code: never presented
+        write_failure(runs_dir, run, None, f"StaleResult: {path.name} was computed by other code "
+                      f"({(meta.get('provenance') or {}).get('code')!r}, not {code!r}); it was removed, "
+                      "run the sweep again to recompute it")
+        return None
+    if meta.get("seed") != run.seed or meta.get("point") != json.loads(json.dumps(run.point)):
+        raise ParameterError(
+            "out_dir", f"a store whose run files match its manifest ({path.name} is for another run)",
+            str(runs_dir.parent),
+        )
+    return ds
+
+
+def _empty_stack(ds: xr.Dataset, n: int, complete: bool) -> dict[str, np.ndarray]:
+    """Arrays for ``n`` runs of each stackable variable of ``ds`` (pre-filled with the missing value
+    unless every run finished)."""
+    stacked = {}
+    for name in _stackable(ds):
+        var = ds[name].variable
+        dtype, fill = (var.dtype, None) if complete else _missing_fill(var.dtype)
+        arr = np.empty((n, *var.shape), dtype=dtype)
+        if not complete:
+            arr[...] = fill
+        stacked[name] = arr
+    return stacked
+
+
+def _grid_coords(grid: Grid, runs: Sequence[Run], dims: tuple, runs_shape: tuple) -> dict[str, Any]:
+    """Coordinates of the grid's axes (or its points), the replicates and every run's seed."""
     coords: dict[str, Any] = {}
     if grid.is_product:
         for name, values in grid.axes.items():
@@ -444,28 +485,26 @@ def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path, code: str | None = No
             coords[name] = ("point", np.asarray(values))
     coords["replicate"] = ("replicate", np.arange(grid.replicates))
     coords["seed"] = (dims, np.array([r.seed for r in runs], dtype=np.int64).reshape(runs_shape))
-    variables: dict[str, Any] = {}
-    if template is not None:
-        first = int(np.argmax(have))
-        for name, c in template.coords.items():
-            if name in stacked:
-                arr = stacked[name]
-                if all(np.array_equal(arr[first], arr[j]) for j in np.flatnonzero(have)):
-                    coords[name] = c.variable  # the same in every run: keep as is
-                else:
-                    coords[name] = xr.Variable((*dims, *c.dims), arr.reshape(*runs_shape, *c.shape), attrs=dict(c.attrs))
+    return coords
+
+
+def _stacked_variables(template: xr.Dataset, stacked: dict[str, np.ndarray], have: np.ndarray,
+                       coords: dict[str, Any], dims: tuple, runs_shape: tuple) -> dict[str, Any]:
+    """The runs' data variables over the grid; adds the runs' coordinates to ``coords`` (stacked
+    where they differ between runs)."""
+    first = int(np.argmax(have))
+    for name, c in template.coords.items():
+        if name in stacked:
+            arr = stacked[name]
+            if all(np.array_equal(arr[first], arr[j]) for j in np.flatnonzero(have)):
+                coords[name] = c.variable  # the same in every run: keep as is
             else:
-                coords[name] = c.variable
-        for name, var in template.data_vars.items():
-            variables[name] = xr.Variable(
-                (*dims, *var.dims), stacked[name].reshape(*runs_shape, *var.shape), attrs=dict(var.attrs)
-            )
-    variables["run_failed"] = xr.Variable(
-        dims, ~have.reshape(runs_shape), attrs={"long_name": "run raised or never finished (its values are NaN)"}
-    )
-    out = xr.Dataset(variables, coords=coords, attrs=attrs)
-    out["seed"].attrs["long_name"] = "seed passed to the sweep function for this run"
-    return out
+                coords[name] = xr.Variable((*dims, *c.dims), arr.reshape(*runs_shape, *c.shape), attrs=dict(c.attrs))
+        else:
+            coords[name] = c.variable
+    return {name: xr.Variable((*dims, *var.dims), stacked[name].reshape(*runs_shape, *var.shape),
+                              attrs=dict(var.attrs))
+            for name, var in template.data_vars.items()}
 
 
 def _stackable(ds: xr.Dataset) -> list[str]:

@@ -7,12 +7,12 @@ its imports light and holds no state.
 from __future__ import annotations
 
 import signal
-import sys
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from .. import _physics
 from ._grid import Run
 from ._store import check_output, result_path, write_failure, write_result
 
@@ -56,13 +56,13 @@ def init_local_worker() -> None:
 
 
 def physics_now() -> tuple[float, int]:
-    """This process's rollout seconds and steps so far (0 if it never simulated)."""
-    sim = sys.modules.get("undulate.simulation")
-    return sim.physics_counters() if sim is not None else (0.0, 0)
+    """This process's rollout seconds and steps so far (0 if it never simulated); take differences.
+    The runs here are measured with :func:`undulate._physics.meter` instead."""
+    return _physics.process_total()
 
 
-def _timing(wall: float, p0: tuple[float, int], p1: tuple[float, int], share: int = 1) -> dict:
-    return {"wall_s": wall / share, "physics_s": (p1[0] - p0[0]) / share, "steps": (p1[1] - p0[1]) // share}
+def _timing(wall: float, physics: _physics.Tally, share: int = 1) -> dict:
+    return {"wall_s": wall / share, "physics_s": physics.seconds / share, "steps": physics.steps // share}
 
 
 def run_chunk(chunk: Chunk) -> list[Outcome]:
@@ -87,15 +87,16 @@ def run_chunk(chunk: Chunk) -> list[Outcome]:
 
 
 def _run_one(chunk: Chunk, runs_dir: Path, run: Run, compute: Callable[[Run], object]) -> Outcome:
-    t0, p0 = time.perf_counter(), physics_now()
-    try:
-        ds = check_output(compute(run), chunk.grid_names)
-        tm = _timing(time.perf_counter() - t0, p0, physics_now())
-        write_result(runs_dir, run, ds, dict(chunk.provenance), timing=tm)
-    except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
-        rec = write_failure(runs_dir, run, exc)
-        tm = _timing(time.perf_counter() - t0, p0, physics_now())
-        return Outcome(run.key, FAILED, rec["error"], tm["wall_s"], tm["physics_s"], tm["steps"])
+    t0 = time.perf_counter()
+    with _physics.meter() as physics:
+        try:
+            ds = check_output(compute(run), chunk.grid_names)
+            tm = _timing(time.perf_counter() - t0, physics)
+            write_result(runs_dir, run, ds, dict(chunk.provenance), timing=tm)
+        except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
+            rec = write_failure(runs_dir, run, exc)
+            tm = _timing(time.perf_counter() - t0, physics)
+            return Outcome(run.key, FAILED, rec["error"], tm["wall_s"], tm["physics_s"], tm["steps"])
     return Outcome(run.key, OK, "", time.perf_counter() - t0, tm["physics_s"], tm["steps"])
 
 
@@ -103,15 +104,16 @@ def _run_batched(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outc
     """``fn(points, seeds) -> list[Dataset]`` on all runs at once; on error, one by one."""
     if not runs:
         return []
-    t0, p0 = time.perf_counter(), physics_now()
-    try:
-        results = list(chunk.fn([dict(r.point) for r in runs], [r.seed for r in runs]))
-        if len(results) != len(runs):
-            raise ValueError(f"the batched sweep function returned {len(results)} Datasets for {len(runs)} points")
-        results = [check_output(ds, chunk.grid_names) for ds in results]
-    except Exception:  # noqa: BLE001 - isolate the failing point(s)
-        return [_run_one(chunk, runs_dir, r, lambda r: _single(chunk.fn, r)) for r in runs]
-    tm = _timing(time.perf_counter() - t0, p0, physics_now(), share=len(runs))  # the batch's, shared evenly
+    t0 = time.perf_counter()
+    with _physics.meter() as physics:
+        try:
+            results = list(chunk.fn([dict(r.point) for r in runs], [r.seed for r in runs]))
+            if len(results) != len(runs):
+                raise ValueError(f"the batched sweep function returned {len(results)} Datasets for {len(runs)} points")
+            results = [check_output(ds, chunk.grid_names) for ds in results]
+        except Exception:  # noqa: BLE001 - isolate the failing point(s)
+            return [_run_one(chunk, runs_dir, r, lambda r: _single(chunk.fn, r)) for r in runs]
+    tm = _timing(time.perf_counter() - t0, physics, share=len(runs))  # the batch's, shared evenly
     out = []
     for run, ds in zip(runs, results):
         try:

@@ -214,8 +214,6 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
     """
     import cv2
 
-    from .._io import atomic_output
-
     cal = calibration or TrackCalibration()
     camera = camera or CameraSetup()
     deg = degradation or Degradation()
@@ -224,37 +222,55 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
     rng = np.random.default_rng(seed)
     dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, DICTIONARY))
     view = _table_view(cv2, cal, camera, _ds_geometry(ds), placement_m, rng, dictionary)
+    run = _FilmedRun(ds, start_s, stride, view.off)
+    tags = [_marker_image(cv2.aruco, dictionary, j, 16) for j in range(run.n_sw)]
+    drop = set(int(k) for k in drop_frames)
+    occluded = _film(cv2, path, view, run, tags, occluders, drop, deg, rng, progress)
+    dropped = np.zeros(run.idx.size, bool)
+    dropped[[k for k in drop if 0 <= k < run.idx.size]] = True
+    return _truth_dataset(view, run.t, run.tx, run.ty, run.th, occluded, dropped, run.fps)
+
+
+class _FilmedRun:
+    """The samples filmed (every ``stride``-th from ``start_s``) in table coordinates (the simulation's
+    origin at ``off``): their times, the frame rate, the robot tags' poses and the body nodes."""
+
+    def __init__(self, ds, start_s: float, stride: int, off):
+        t_all = ds["time"].values
+        idx = np.flatnonzero(t_all >= start_s - 1e-9)[::int(stride)]
+        if idx.size < 2:
+            raise ParameterError("start_s", "a time leaving at least two frames", start_s)
+        self.idx, self.t = idx, t_all[idx]
+        self.fps = Fraction(1.0 / float(t_all[idx[1]] - t_all[idx[0]])).limit_denominator(1001)
+        tx, ty, th_ = middle_link_pose(ds)
+        self.tx, self.ty, self.th = tx[idx] + off[0], ty[idx] + off[1], th_[idx]
+        self.nx, self.ny = ds["node_x"].values[idx] + off[0], ds["node_y"].values[idx] + off[1]
+        self.n_sw = self.nx.shape[1]
+        if self.n_sw > 46:
+            raise ParameterError("ds", "a run of at most 46 swimmers (robot tag ids 0-45)", self.n_sw)
+
+
+def _film(cv2, path: Path, view, run: _FilmedRun, tags, occluders, drop: set, deg: Degradation, rng,
+          progress: bool) -> np.ndarray:
+    """Draw, distort and degrade every frame and encode them (ffmpeg) into ``path``, whole or not at
+    all; returns which tags each frame's occluders hid (frame, swimmer)."""
+    from .._io import atomic_output
+
     mapx, mapy = _camera_maps(cv2, view)
     gain = _lighting_gain(deg, view.W, view.H)
-
-    # --- the run ----------------------------------------------------------------------------------------
-    t_all = ds["time"].values
-    idx = np.flatnonzero(t_all >= start_s - 1e-9)[::int(stride)]
-    if idx.size < 2:
-        raise ParameterError("start_s", "a time leaving at least two frames", start_s)
-    fps = Fraction(1.0 / float(t_all[idx[1]] - t_all[idx[0]])).limit_denominator(1001)
-    off = view.off
-    tx, ty, th_ = middle_link_pose(ds)
-    tx, ty, th_ = tx[idx] + off[0], ty[idx] + off[1], th_[idx]
-    nx, ny = ds["node_x"].values[idx] + off[0], ds["node_y"].values[idx] + off[1]
-    n_sw = nx.shape[1]
-    if n_sw > 46:
-        raise ParameterError("ds", "a run of at most 46 swimmers (robot tag ids 0-45)", n_sw)
-    tags = [_marker_image(cv2.aruco, dictionary, j, 16) for j in range(n_sw)]
-    drop = set(int(k) for k in drop_frames)
-    occluded = np.zeros((idx.size, n_sw), bool)
-    cmd = _ffmpeg_command(view.W, view.H, fps, drop, deg)
+    occluded = np.zeros((run.idx.size, run.n_sw), bool)
+    cmd = _ffmpeg_command(view.W, view.H, run.fps, drop, deg)
     bar = None
     if progress:
         from tqdm import tqdm
 
-        bar = tqdm(total=idx.size, unit="frame", desc="render")
+        bar = tqdm(total=run.idx.size, unit="frame", desc="render")
     with atomic_output(path) as tmp:
         proc = subprocess.Popen(cmd + [str(tmp)], stdin=subprocess.PIPE, stderr=subprocess.PIPE)
         try:
-            for k in range(idx.size):
-                table = _draw_table(cv2, view, nx[k], ny[k], tags, (tx[k], ty[k], th_[k]))
-                occluded[k] = _draw_occluders(cv2, view, table, occluders, float(t_all[idx[k]]), tx[k], ty[k])
+            for k in range(run.idx.size):
+                table = _draw_table(cv2, view, run.nx[k], run.ny[k], tags, (run.tx[k], run.ty[k], run.th[k]))
+                occluded[k] = _draw_occluders(cv2, view, table, occluders, float(run.t[k]), run.tx[k], run.ty[k])
                 frame = cv2.remap(table, mapx, mapy, cv2.INTER_LINEAR, borderMode=cv2.BORDER_REPLICATE)
                 proc.stdin.write(_degrade(cv2, frame, deg, gain, rng).tobytes())
                 if bar is not None:
@@ -270,9 +286,7 @@ def render_video(ds, path: str | os.PathLike, *, calibration: TrackCalibration |
         finally:
             if bar is not None:
                 bar.close()
-    dropped = np.zeros(idx.size, bool)
-    dropped[[k for k in drop if 0 <= k < idx.size]] = True
-    return _truth_dataset(view, t_all[idx], tx, ty, th_, occluded, dropped, fps)
+    return occluded
 
 
 def _check_arguments(ds, path: Path, stride) -> None:
