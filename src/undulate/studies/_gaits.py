@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable
 
-__all__ = ["equal_amplitude_beta", "curvature_beta", "A_TOL_M", "BETA_DEG"]
+__all__ = ["A_TOL_M", "BETA_DEG", "curvature_beta", "equal_amplitude_beta"]
 
 BETA_DEG = 45.0
 """The 3-link body's joint amplitude, deg (the default gait)."""

@@ -16,15 +16,15 @@ from __future__ import annotations
 import enum
 import functools
 from dataclasses import dataclass
-from typing import Union
 
 from ..errors import UndulateError
 from ..params import SwimmerGeometry
 from . import _analysis as C
 from ._criteria import PAIR_CHANNEL_M
+from ._gaits import BETA_DEG  # noqa: F401 - the 3-link joint amplitude, re-exported
 
-__all__ = ["CaseSet", "CaseId", "UnknownCaseError", "FACTORS", "Plan", "plan", "planned_cases", "pair_cases",
-           "spaced_channel_m", "xi32_durations"]
+__all__ = ["FACTORS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_cases", "pair_cases", "plan",
+           "planned_cases", "spaced_channel_m", "xi32_durations"]
 
 PAPER_RANGE_HIGH = 1.2
 LONG_S = 60.0
@@ -33,7 +33,6 @@ DEFAULT_S = 30.0
 CONFINEMENT_S = 40.0
 THIN_BODY_M = 0.003
 DEFAULT_BODY_M = SwimmerGeometry().width_m
-BETA_DEG = 45.0
 IMPULSE_DRAGS_N_S_PER_M = (1.0, 4.0, 8.0, 16.0)
 """The viscous ground's linear drag per link for the impulse runs besides the default 2 N s/m: the drag sets
 how fast contact pushes the pair apart along x (overdamped: speed = force / drag), and so how much of the
@@ -96,7 +95,7 @@ class CaseSet(str, enum.Enum):
     """The two-period contact impulse over |dphi|, the potential criterion: the ground's linear drag."""
 
 
-Level = Union[int, float, str]
+Level = int | float | str
 
 FACTORS: dict[str, type] = {
     "kp_Nm_per_rad": float, "torque_limit_Nm": float, "max_speed_rad_s": float, "contact_timeconst_s": float,

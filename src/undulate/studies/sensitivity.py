@@ -96,8 +96,7 @@ from ..sweep import Grid
 from . import _analysis as C
 from ._criteria import CENTRAL, LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M, R2_MIN, WIDTH_TOL
 from ._explanations import EXPLANATIONS
-from ._explanations.impulse import IMPULSE_EXPLAIN_DRAGS  # noqa: F401 - re-exported
-from ._gaits import A_TOL_M, equal_amplitude_beta  # noqa: F401 - re-exported
+from ._gaits import equal_amplitude_beta
 from ._registry import Study, StudyContext, register
 from ._runners import BODY_LENGTH_M, PAIR_STOP, PERIOD_S, group_point, pair_point
 from ._sensitivity_design import (  # noqa: F401 - the study's constants, re-exported
