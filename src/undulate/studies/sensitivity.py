@@ -75,7 +75,8 @@ typed case id (:class:`~._sensitivity_design.CaseId`; every pair case's
 entry, group case, body width and impulse drag carries its ``case_id``).
 The constants, the plan and the case ids live in :mod:`._sensitivity_design`;
 the dataset is assembled one factor group at a time (the ``_data_*`` steps)
-and summarised the same way (the ``_summary_*`` steps).
+and summarised the same way (the ``_summary_*`` steps and
+:func:`_groups_summary`).
 """
 
 from __future__ import annotations
