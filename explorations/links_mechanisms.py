@@ -65,6 +65,7 @@ from undulate import theory
 from undulate.params import Channel, Gait, Scene, SimOptions, SwimmerGeometry
 from undulate.simulation import simulate
 from undulate.studies import _analysis as C
+from undulate.studies._gaits import equal_amplitude_beta
 from undulate.studies._runners import lone_swimmer
 from undulate.studies.links import joint_amplitude, timestep
 
@@ -376,21 +377,15 @@ def _free_envelope(n, beta, guide):
     return (ny.max(0) - ny.min(0)) / 2, (chord.max() - chord.min()) / 2
 
 
-class _LoneContext:
-    """What :func:`undulate.studies.sensitivity.equal_amplitude_beta` needs of a StudyContext: its
-    ``lone_swimmer`` (here uncached: :func:`undulate.studies._runners.lone_swimmer` run directly)."""
-
-    @staticmethod
-    def lone_swimmer(**point):
-        return lone_swimmer(point, 0)
-
-
 def _guided_beta(n):
-    """beta at which the guided free swimmer's A is the 3-link free swimmer's: the sensitivity study's
-    own secant (``equal_amplitude_beta``)."""
-    from undulate.studies.sensitivity import equal_amplitude_beta
+    """(beta, A): the joint amplitude at which the guided free swimmer's A is the 3-link free swimmer's,
+    by the sensitivity study's own secant (:func:`undulate.studies._gaits.equal_amplitude_beta`), here on
+    uncached free-swimmer runs (:func:`undulate.studies._runners.lone_swimmer`)."""
+    def amplitude_m(beta):
+        point = {"amplitude_rad": beta, "n_links": n, "waves_per_body": 1.0, "heading_guide": True}
+        return float(lone_swimmer(point, 0)["amplitude_m"])
 
-    return equal_amplitude_beta(_LoneContext(), n, float(lone_swimmer({}, 0)["amplitude_m"]), heading_guide=True)
+    return equal_amplitude_beta(amplitude_m, n, float(lone_swimmer({}, 0)["amplitude_m"]))
 
 
 def _recoil_free_run(args):

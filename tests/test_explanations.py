@@ -14,6 +14,8 @@ from undulate.params import Ground, Servo
 from undulate.report import write_report
 from undulate.studies import describe, names
 from undulate.studies import sensitivity as S
+from undulate.studies._explanations import groups, impulse, links, swimming, xi32
+from undulate.studies._sensitivity_design import CaseId, CaseSet
 
 
 def row(verdict, study="pairs", claim="c"):
@@ -84,15 +86,20 @@ def test_follows_line_is_judged_on_the_intervals():
     assert S.follows_line(E(1.0), E(0.03, 0.02, 0.05)) is None
 
 
-def _case(claim, level, ok):
-    return {"claim": claim, "level": level, "n_links": int(level.split()[2].rstrip(",")), "follows_line": ok,
-            "slope": E(1, 0.9, 1.1).to_dict(), "rms_residual_over_lambda": E(0.03, 0.02, 0.04).to_dict()}
+def _case(cid, ok):
+    return {"case_id": str(cid), "claim": cid.case_set.value, "level": "any label", "n_links": cid["n_links"],
+            "follows_line": ok, "slope": E(1, 0.9, 1.1).to_dict(),
+            "rms_residual_over_lambda": E(0.03, 0.02, 0.04).to_dict()}
 
 
 @pytest.mark.parametrize("n3, n8, shown", [(False, True, True), (False, False, False), (True, True, False)])
 def test_xi_three_halves_explanation_needs_n3_failing_and_n8_holding(n3, n8, shown):
-    s = {"cases": {"a": _case("xi32", "N = 3, 30 s (default)", n3), "b": _case("xi32", "N = 8, 30 s", n8)}}
-    assert S._xi32_check(s)[0] is shown
+    s = {"cases": {"a": _case(xi32.N3, n3), "b": _case(xi32.N8, n8)}}
+    (e,) = xi32.EXPLANATIONS
+    assert e.check(s)[0] is shown
+    # found by case id, not by label: the N = 8, 60 s case is another case
+    s = {"cases": {"a": _case(xi32.N3, n3), "b": _case(CaseId.of(CaseSet.XI32, n_links=8, duration_s=60.0), n8)}}
+    assert e.check(s)[:1] == (False,) and "no N = 3 or N = 8" in e.check(s)[1]
 
 
 def test_central_state_width_and_broadening():
@@ -142,9 +149,10 @@ def test_groups_explanation_needs_default_failing_and_the_pairs_spacing_meeting_
     g = S._groups_summary(ds)
     assert g["3 in 0.19 m"]["follows_line_more_scatter"] is False
     assert g["3 in 0.19 m"]["fraction_short_of_line"] > 0.5
-    ok, measured, _ = S._groups_check(3)({"groups": g})
+    three, four = groups.EXPLANATIONS
+    ok, measured, _ = three.check({"groups": g})
     assert ok is shown and "0.162 m" in measured
-    assert S._groups_check(4)({"groups": g})[0] is False  # no groups of four in this summary
+    assert four.check({"groups": g})[0] is False  # no groups of four in this summary
 
 
 @pytest.mark.parametrize("quick", [True, False])
@@ -183,18 +191,19 @@ def test_spaced_channel_adds_the_pairs_spacing_per_extra_swimmer():
 def test_swimming_explanation_needs_the_stronger_drag_to_hold_while_the_pairs_still_swim(
         default_ok, strong_ok, speed, shown):
     est = stats.Estimate(1.0, 0.01, 0.98, 1.02, 9, "t").to_dict()
-    cases = {"a": {"claim": "swim", "level": "fluid density 1000 kg/m^3 (default)", "follows_line": default_ok,
+    cases = {"a": {"case_id": str(swimming.DEFAULT), "claim": "swim", "follows_line": default_ok,
                    "slope": est, "rms_residual_over_lambda": est},
-             "b": {"claim": "swim", "level": f"{S.SWIM_DRAG_N_S_PER_M:g} N s/m per link (default 0.1)",
+             "b": {"case_id": str(swimming.STRONG_DRAG), "claim": "swim",
                    "follows_line": strong_ok, "slope": est, "rms_residual_over_lambda": est}}
-    ok, measured, _ = S._swimming_check({"cases": cases, "swim_drag_pair_speed_m_s": speed})
+    (e,) = swimming.EXPLANATIONS
+    ok, measured, _ = e.check({"cases": cases, "swim_drag_pair_speed_m_s": speed})
     assert ok is shown and "only the drag changed" in measured
-    assert S._swimming_check({"cases": {}})[0] is False
+    assert e.check({"cases": {}})[0] is False
 
 
 def _drag_row(c, linear, escape):
     est = stats.Estimate(0.9, 0.02, 0.85, 0.99, 9, "t").to_dict()
-    return {"drag_N_s_per_m": c, "default": c == S.IMPULSE_DRAG_DEFAULT, "slope_Ns_per_rad": est, "r2": est,
+    return {"case_id": str(S.impulse_case(c)), "drag_N_s_per_m": c, "default": c == S.IMPULSE_DRAG_DEFAULT, "slope_Ns_per_rad": est, "r2": est,
             "linear": linear, "phi0_spread_large_dphi": 2.0, "first_period_dx_large_dphi": escape}
 
 
@@ -208,9 +217,10 @@ def test_impulse_explanation_needs_the_default_failing_and_every_stronger_drag_h
         default_ok, ok8, ok16, escapes, shown):
     rows = [_drag_row(1.0, False, 0.19), _drag_row(S.IMPULSE_DRAG_DEFAULT, default_ok, escapes[0]),
             _drag_row(8.0, ok8, escapes[1]), _drag_row(16.0, ok16, escapes[2])]
-    ok, measured, value = S._impulse_check({"impulse": {"by_drag": rows}})
+    (e,) = impulse.EXPLANATIONS
+    ok, measured, value = e.check({"impulse": {"by_drag": rows}})
     assert ok is shown and "only the drag changed" in measured and "(default)" in measured
-    assert S._impulse_check({"impulse": {}})[0] is False
+    assert e.check({"impulse": {}})[0] is False
     assert S.IMPULSE_DRAG_DEFAULT == Ground().drag_N_s_per_m
 
 
@@ -253,9 +263,10 @@ FALLING = ([0.009, 0.003, 0.0007, 0.001], [(0.007, 0.011), (0.002, 0.004), (0.00
 def test_links_explanation_needs_both_changes_and_neither_alone(guided_x, alone, shown):
     sets = {"links": _links_set("links", *FLAT), "links-x": _links_set("links-x", *alone),
             "links-guided": _links_set("links-guided", *FLAT), "links-guided-x": _links_set("links-guided-x", *guided_x)}
-    assert S._links_check({"links_sets": sets})[0] is shown
+    for e in links.EXPLANATIONS:  # the two amplitude rules' claims: one cause
+        assert e.check({"links_sets": sets})[0] is shown
     del sets["links-x"]
-    assert S._links_check({"links_sets": sets})[0] is False  # a set missing: not shown
+    assert links.EXPLANATIONS[0].check({"links_sets": sets})[0] is False  # a set missing: not shown
 
 
 def test_the_link_number_criterion_is_judged_on_the_intervals():

@@ -19,16 +19,26 @@ def plot_sensitivity(ds, s: dict):
     against N; (d) width of the central state against d/2A per body width, with the model's; (e) the
     two-period contact impulse against |dphi| per linear drag of the ground (mean over phi0, scaled by
     its largest value, so the shapes compare)."""
-    table = s["table"]
-    claims = list(dict.fromkeys(t["claim"] for t in table))
-    rows = list(dict.fromkeys((t["factor"], t["level"]) for t in table))
+    rows = list(dict.fromkeys((t["factor"], t["level"]) for t in s["table"]))
     fig = new_figure(15.0, max(6.0, 0.3 * len(rows) + 1.5))
     gs = fig.add_gridspec(4, 2, width_ratios=[1.5, 1])
-    ax = fig.add_subplot(gs[:, 0])
+    _verdict_grid(fig.add_subplot(gs[:, 0]), s["table"])
+    _xi32_panel(fig.add_subplot(gs[0, 1]), ds)
+    _links_panel(fig.add_subplot(gs[1, 1]), s["links_sets"])
+    _confinement_panel(fig.add_subplot(gs[2, 1]), s)
+    _impulse_panel(fig.add_subplot(gs[3, 1]), ds, s)
+    return fig
+
+
+def _verdict_grid(ax, table: list[dict]) -> None:
+    """(a) the summary's table as a grid of verdicts: (factor, level) rows, claim columns."""
+    from matplotlib.patches import Rectangle
+
+    claims = list(dict.fromkeys(t["claim"] for t in table))
+    rows = list(dict.fromkeys((t["factor"], t["level"]) for t in table))
     for t in table:
         i, j = rows.index((t["factor"], t["level"])), claims.index(t["claim"])
-        ax.add_patch(__import__("matplotlib.patches", fromlist=["Rectangle"]).Rectangle(
-            (j, i), 1, 1, facecolor=COLOURS.get(t["verdict"], "#dddddd"), edgecolor="white"))
+        ax.add_patch(Rectangle((j, i), 1, 1, facecolor=COLOURS.get(t["verdict"], "#dddddd"), edgecolor="white"))
         ax.text(j + 0.5, i + 0.5, t["verdict"], ha="center", va="center", fontsize=7)
     ax.set_xlim(0, len(claims))
     ax.set_ylim(len(rows), 0)
@@ -37,8 +47,9 @@ def plot_sensitivity(ds, s: dict):
     ax.set_yticks(np.arange(len(rows)) + 0.5, [f"{f}: {lv}" for f, lv in rows], fontsize=7)
     ax.set_title("(a) which claims hold where (one factor changed at a time)", fontsize=9)
 
-    # (b) xi = 3/2 per N
-    bx = fig.add_subplot(gs[0, 1])
+
+def _xi32_panel(bx, ds) -> None:
+    """(b) xi = 3/2 pairs: final dx/lambda against dphi/2pi per case (links per body, duration)."""
     dphi = ds["dphi"].values / (2 * np.pi)
     for i in range(ds.sizes["case"]):
         if str(ds["claim"].values[i]) == "xi32":
@@ -49,9 +60,9 @@ def plot_sensitivity(ds, s: dict):
     bx.set_title("(b) xi = 3/2: links per body", fontsize=9)
     bx.legend(fontsize=6)
 
-    # (c) equal-A rule
-    cx = fig.add_subplot(gs[1, 1])
-    sets = s["links_sets"]
+
+def _links_panel(cx, sets: dict) -> None:
+    """(c) the link-number sets: RMS residual (95 % interval) against N, side by side."""
     for k, L in enumerate(sets.values()):
         r = L["rms_residual_over_lambda"]
         v = np.array([np.nan if q["value"] is None else q["value"] for q in r])
@@ -66,8 +77,9 @@ def plot_sensitivity(ds, s: dict):
     cx.set_ylabel("RMS residual / lambda")
     cx.set_title("(c) link-number trend at fixed d/2A (all dphi)", fontsize=9)
 
-    # (d) confinement
-    dx = fig.add_subplot(gs[2, 1])
+
+def _confinement_panel(dx, s: dict) -> None:
+    """(d) the central state's width against d/2A per body width, measured and the model's."""
     from ..theory import neutral_offset_m
 
     A = s["amplitude_3_links_m"]
@@ -82,8 +94,9 @@ def plot_sensitivity(ds, s: dict):
     dx.set_title("(d) confinement: where the central state opens", fontsize=9)
     dx.legend(fontsize=6)
 
-    # (e) impulse against |dphi| per drag
-    ex = fig.add_subplot(gs[3, 1])
+
+def _impulse_panel(ex, ds, s: dict) -> None:
+    """(e) the two-period impulse against |dphi| per linear drag (mean over phi0, over its largest)."""
     if "impulse_drag" in ds.sizes:
         dp = np.abs(ds["impulse_dphi"].values)
         order = np.argsort(dp, kind="stable")
@@ -99,4 +112,3 @@ def plot_sensitivity(ds, s: dict):
     ex.set_xlabel("|dphi| / pi")
     ex.set_ylabel("impulse over 2 periods / its largest")
     ex.set_title("(e) contact impulse against detuning, by drag (default 2)", fontsize=9)
-    return fig

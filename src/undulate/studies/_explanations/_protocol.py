@@ -1,0 +1,112 @@
+"""The protocol every explanation of the sensitivity study follows.
+
+An explanation module (one per failing claim, or per family of claims with one
+cause) defines ``EXPLANATIONS``: a tuple of :class:`CaseExplanation`, each
+naming the claim it explains (``study``, ``claim``: that study's exact
+``Claim.claim`` text), its ``cause`` in words, the :class:`CaseId` s of the
+sensitivity study's ``cases`` it reads, and ``judge``: a pure function of
+:class:`CaseResults` (those cases' summary entries) returning ``(shown,
+measured, value)``.  :class:`CaseExplanation` is an
+:class:`~undulate.studies.Explanation`, so the registry and
+:mod:`undulate.claims` use it unchanged; its ``check(summary)`` runs ``judge``
+on the summary's results keyed by case id.
+
+Naming a case the sensitivity study never makes fails when the module is
+imported, and reading an undeclared case fails when the check runs
+(:class:`UnknownCaseError`); a declared case missing from a summary (a plan
+without it) reads as None, and the judge reports the cause as not shown.
+"""
+
+from __future__ import annotations
+
+import functools
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, field
+from typing import Any
+
+from .._registry import Explanation
+from .._sensitivity_design import CaseId, CaseSet, UnknownCaseError, known_cases
+
+__all__ = ["CaseExplanation", "CaseResults", "Shown", "results_by_case"]
+
+Shown = tuple[bool, str, Any]
+"""What a check returns: whether the runs show the cause, the evidence as text, and as numbers."""
+
+
+def _entries(summary: dict[str, Any]) -> Iterator[dict[str, Any]]:
+    """Every entry of ``summary`` that carries a ``case_id``: the pair cases, the group cases, the body
+    widths (confinement) and the impulse rows per drag."""
+    yield from summary.get("cases", {}).values()
+    yield from summary.get("groups", {}).values()
+    yield from summary.get("confinement", {}).values()
+    yield from summary.get("impulse", {}).get("by_drag", [])
+
+
+def results_by_case(summary: dict[str, Any]) -> dict[CaseId, dict[str, Any]]:
+    """The summary's per-case entries keyed by their (parsed) ``case_id``; a duplicate id raises."""
+    out: dict[CaseId, dict[str, Any]] = {}
+    for e in _entries(summary):
+        cid = CaseId.parse(e["case_id"])
+        if cid in out:
+            raise UnknownCaseError(f"case {cid} twice in one summary")
+        out[cid] = e
+    return out
+
+
+class CaseResults:
+    """The entries of the cases an explanation declares, keyed by :class:`CaseId` (read-only).
+
+    :meth:`get` returns a case's summary entry (None where this summary has no result for it);
+    :meth:`link_set` one set of the link-number cases (the summary's ``links_sets`` entry);
+    ``summary`` is the whole summary, for study-wide numbers."""
+
+    def __init__(self, summary: dict[str, Any], declared: Iterable[CaseId]):
+        self.summary = summary
+        self._declared = frozenset(declared)
+        self._entries = results_by_case(summary)
+
+    def _require(self, cid: CaseId) -> None:
+        if cid not in self._declared:
+            raise UnknownCaseError(f"case {cid} is not among the explanation's declared cases "
+                                   f"({', '.join(sorted(map(str, self._declared)))})")
+
+    def get(self, cid: CaseId) -> dict[str, Any] | None:
+        """The summary entry of case ``cid`` (None if this summary has none); ``cid`` must be declared."""
+        self._require(cid)
+        return self._entries.get(cid)
+
+    def link_set(self, case_set: CaseSet) -> dict[str, Any] | None:
+        """The summary's ``links_sets`` entry of ``case_set`` (the link-number trend over its N; None if
+        this summary has none); some case of that set must be declared."""
+        mine = [c for c in self._declared if c.case_set is case_set]
+        if not mine:
+            raise UnknownCaseError(f"no case of set {case_set.value!r} among the explanation's declared cases")
+        return self.summary.get("links_sets", {}).get(case_set.value)
+
+
+@dataclass(frozen=True)
+class CaseExplanation(Explanation):
+    """An :class:`~undulate.studies.Explanation` judged on the sensitivity study's cases by id.
+
+    Give ``study``, ``claim``, ``cause``, ``cases`` and ``judge`` (not ``check``: it is made here,
+    ``check(summary) = judge(CaseResults(summary, cases))``).  Every id in ``cases`` must be one the
+    study makes in quick or full mode (:func:`~undulate.studies._sensitivity_design.planned_cases`)."""
+
+    check: Callable[[dict[str, Any]], Shown] | None = field(default=None, repr=False, compare=False)
+    cases: tuple[CaseId, ...] = ()
+    judge: Callable[[CaseResults], Shown] | None = field(default=None, repr=False, compare=False)
+
+    def __post_init__(self):
+        if self.judge is None or self.check is not None:
+            raise TypeError("CaseExplanation takes a judge (of CaseResults), not a check")
+        if not self.cases:
+            raise UnknownCaseError(f"the explanation of {self.claim!r} declares no cases")
+        unknown = [str(c) for c in self.cases if c not in known_cases()]
+        if unknown:
+            raise UnknownCaseError(f"the explanation of {self.claim!r} names cases the sensitivity study does "
+                                   f"not make: {', '.join(unknown)}")
+        object.__setattr__(self, "check", functools.partial(_check, self.judge, tuple(self.cases)))
+
+
+def _check(judge: Callable[[CaseResults], Shown], cases: tuple[CaseId, ...], summary: dict[str, Any]) -> Shown:
+    return judge(CaseResults(summary, cases))

@@ -1,0 +1,32 @@
+"""xi = 3/2 pairs: a three-link body's two joints move in antiphase (a standing wave)."""
+
+from __future__ import annotations
+
+from ... import stats
+from .._sensitivity_design import DEFAULT_S, CaseId, CaseSet
+from ._protocol import CaseExplanation, CaseResults, Shown
+
+N3 = CaseId.of(CaseSet.XI32, n_links=3, duration_s=DEFAULT_S)
+N8 = CaseId.of(CaseSet.XI32, n_links=8, duration_s=DEFAULT_S)
+
+
+def judge(r: CaseResults) -> Shown:
+    """Shown: the pairs criterion fails at N = 3 and holds at N = 8 (30 s, only N changed)."""
+    e3, e8 = r.get(N3), r.get(N8)
+    if e3 is None or e8 is None:
+        return False, "no N = 3 or N = 8 runs in this plan", None
+    E = stats.Estimate.from_dict
+    txt = "; ".join(f"N = {e['n_links']}: slope {E(e['slope']):.2f}, RMS {E(e['rms_residual_over_lambda']):.3f} "
+                    f"lambda" for e in (e3, e8))
+    shown = e3["follows_line"] is False and e8["follows_line"] is True
+    return shown, txt + " (30 s, only N changed)", {"N3": e3["follows_line"], "N8": e8["follows_line"]}
+
+
+EXPLANATIONS = (
+    CaseExplanation(
+        study="pairs", claim="xi = 3/2: contact drives pairs to a steady dx that follows the compatibility line",
+        cause="with N = 3 links and joint phases 2 pi xi i / N the two joints of a xi = 3/2 gait move in exact "
+              "antiphase (tests/test_wave_symmetry.py): a standing wave with no phase for a neighbour to match; "
+              "with N = 8 links (joint steps 3 pi/8, a travelling wave) the pairs follow the line.",
+        cases=(N3, N8), judge=judge),
+)

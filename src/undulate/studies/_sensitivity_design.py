@@ -1,0 +1,272 @@
+"""The sensitivity study's design: its constants, its plan (quick and full) and its typed case ids.
+
+Read by the study (:mod:`undulate.studies.sensitivity`) and by its explanations
+(:mod:`undulate.studies._explanations`), so that both name a case the same way.
+A case is one set of runs judged by one claim's criterion; its :class:`CaseId`
+is the :class:`CaseSet` it belongs to and the values of the factors that
+define it, e.g. ``CaseId.of(CaseSet.XI32, n_links=8, duration_s=30.0)``.  The
+display labels (``factor``, ``level``) are the table's and the figure's only.
+:func:`planned_cases` lists, without running anything, every case id the
+study's dataset holds for a plan; the dataset checks that it made exactly
+those, and an explanation may name no other (:class:`UnknownCaseError`).
+"""
+
+from __future__ import annotations
+
+import enum
+import functools
+from dataclasses import dataclass
+
+from ..errors import UndulateError
+from ..params import SwimmerGeometry
+from . import _analysis as C
+from ._criteria import PAIR_CHANNEL_M
+from ._gaits import BETA_DEG  # noqa: F401 - the 3-link joint amplitude, re-exported
+
+__all__ = ["FACTORS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_cases", "pair_cases", "plan",
+           "planned_cases", "spaced_channel_m", "xi32_durations"]
+
+PAPER_RANGE_HIGH = 1.2
+LONG_S = 60.0
+"""Length of the default xi = 1 runs and the N = 8 xi = 3/2 runs, s (cut short for 20 and 30 s)."""
+DEFAULT_S = 30.0
+CONFINEMENT_S = 40.0
+THIN_BODY_M = 0.003
+DEFAULT_BODY_M = SwimmerGeometry().width_m
+IMPULSE_DRAGS_N_S_PER_M = (1.0, 4.0, 8.0, 16.0)
+"""The viscous ground's linear drag per link for the impulse runs besides the default 2 N s/m: the drag sets
+how fast contact pushes the pair apart along x (overdamped: speed = force / drag), and so how much of the
+two-period window the pair spends in contact before it escapes toward compatibility."""
+IMPULSE_DRAG_DEFAULT = 2.0
+FLUID_DENSITIES = (1000.0, 250.0)
+"""Swimming ground: water (the default, Ground.swimming) and a quarter of it (weaker anisotropic drag)."""
+SWIM_DRAG_N_S_PER_M = 0.5
+"""A stronger linear drag per link for the swimming ground (default 0.1 N s/m; the viscous ground's is 2):
+the damping of sliding, the other half of the swimming model."""
+SWIM_MIN_SPEED_M_S = 1e-3
+"""Pairs must still swim (mean speed over the dphi) for the drag level to count as a swimming model."""
+
+# (factor, level label, group_point overrides) for xi = 1; the default is run at LONG_S
+MODEL_LEVELS = (
+    ("servo stiffness", "kp 5 N m/rad (default 10)", {"kp_Nm_per_rad": 5.0}),
+    ("torque limit", "0.75 N m (default 1.5)", {"torque_limit_Nm": 0.75}),
+    ("slew limit", "3 rad/s (default 6)", {"max_speed_rad_s": 3.0}),
+    ("contact softness", "time constant 8 ms (default 2 dt = 4 ms)", {"contact_timeconst_s": 0.008}),
+    ("drag", "1 N s/m per link (default 2)", {"drag_N_s_per_m": 1.0}),
+    ("drag", "4 N s/m per link (default 2)", {"drag_N_s_per_m": 4.0}),
+)
+MODEL_DEFAULTS = {"kp_Nm_per_rad": 10.0, "torque_limit_Nm": 1.5, "max_speed_rad_s": 6.0,
+                  "contact_timeconst_s": 0.0, "drag_N_s_per_m": 2.0}
+"""The defaults of the MODEL_LEVELS keys (0 s contact time constant: two time steps); a test checks
+them against the parameter types."""
+DURATIONS_S = (20.0, 30.0, 60.0)
+PAIR_SPACING_M = 0.032
+"""Median steady lateral spacing of the reference pairs' centre lines in d = 0.13 m, m (measured by the
+groups study, quick and full mode: 32.0 mm): each swimmer beyond two adds this much channel in the
+spaced-group runs."""
+WINDOWS = (1, 3, 5)
+LEFT_OUT = "left out"
+"""The level of the ``dphi_pi`` factor: the dphi = +-pi points left out (default: nearest branch)."""
+
+
+# ------------------------------------------------------------------ case ids
+class CaseSet(str, enum.Enum):
+    """The sets of cases, each judged by one criterion (the values are the dataset's ``claim`` coordinate)."""
+
+    XI1 = "xi1"
+    """xi = 1 pairs, the pairs criterion: model levels, run duration, steady window, dphi = +-pi."""
+    XI32 = "xi32"
+    """xi = 3/2 pairs, the pairs criterion: links per body and run duration."""
+    LINKS = "links"
+    """Equal-A pairs per N, the links criterion on the line with lambda = L."""
+    LINKS_X = "links-x"
+    """The same runs, the line drawn with lambda_x (the bodies' wavelength along the channel)."""
+    LINKS_GUIDED = "links-guided"
+    """Equal-A pairs with the yaw recoil removed (heading guide), lambda = L."""
+    LINKS_GUIDED_X = "links-guided-x"
+    """The same runs, lambda = lambda_x."""
+    SWIM = "swim"
+    """Swimming-ground pairs, the pairs criterion: fluid density, linear drag."""
+    GROUPS = "groups"
+    """Groups (and their reference pairs), the groups criterion: size and channel width."""
+    CONFINEMENT = "confinement"
+    """dphi = 0 pairs over d/2A, the confinement criterion: body width."""
+    IMPULSE = "impulse"
+    """The two-period contact impulse over |dphi|, the potential criterion: the ground's linear drag."""
+
+
+Level = int | float | str
+
+FACTORS: dict[str, type] = {
+    "kp_Nm_per_rad": float, "torque_limit_Nm": float, "max_speed_rad_s": float, "contact_timeconst_s": float,
+    "drag_N_s_per_m": float, "duration_s": float, "steady_window_periods": int, "dphi_pi": str, "n_links": int,
+    "fluid_density_kg_m3": float, "swim_drag_N_s_per_m": float, "n_swimmers": int, "channel_width_m": float,
+    "body_width_m": float,
+}
+"""The factors a case id may name, and the type of their levels (SI units as the names say)."""
+
+
+class UnknownCaseError(UndulateError, KeyError):
+    """A case id that is malformed, not made by the sensitivity study, or not declared by the explanation
+    that asks for it."""
+
+    def __str__(self) -> str:  # KeyError would quote the message
+        return str(self.args[0]) if self.args else ""
+
+
+@dataclass(frozen=True)
+class CaseId:
+    """One case of the sensitivity study: its :class:`CaseSet` and the levels of the factors that
+    define it (names from :data:`FACTORS`, values converted to their type, sorted by name).
+
+    ``str(case_id)`` is its text form (the dataset's ``case_id`` coordinate, the summary's
+    ``case_id`` fields), e.g. ``xi32[duration_s=30.0, n_links=8]``; :meth:`parse` reads it back."""
+
+    case_set: CaseSet
+    levels: tuple[tuple[str, Level], ...]
+
+    def __post_init__(self):
+        try:
+            case_set = CaseSet(self.case_set)
+        except ValueError:
+            raise UnknownCaseError(f"unknown case set {self.case_set!r} (one of {[s.value for s in CaseSet]})") from None
+        levels = {}
+        for name, value in self.levels:
+            if name not in FACTORS:
+                raise UnknownCaseError(f"unknown factor {name!r} in a {case_set.value} case id (one of {list(FACTORS)})")
+            if name in levels:
+                raise UnknownCaseError(f"factor {name!r} given twice in a {case_set.value} case id")
+            value = FACTORS[name](value)
+            if isinstance(value, str) and any(ch in value for ch in ",=[]"):
+                raise UnknownCaseError(f"level {value!r} of {name!r} holds one of ',=[]'")
+            levels[name] = value
+        if not levels:
+            raise UnknownCaseError(f"a {case_set.value} case id names no factor")
+        object.__setattr__(self, "case_set", case_set)
+        object.__setattr__(self, "levels", tuple(sorted(levels.items())))
+
+    @classmethod
+    def of(cls, case_set: CaseSet | str, **levels: Level) -> CaseId:
+        """``CaseId.of(CaseSet.SWIM, fluid_density_kg_m3=250.0)``."""
+        return cls(case_set, tuple(levels.items()))
+
+    def __getitem__(self, factor: str) -> Level:
+        return dict(self.levels)[factor]
+
+    def __str__(self) -> str:
+        return f"{self.case_set.value}[" + ", ".join(f"{k}={v!r}" if not isinstance(v, str) else f"{k}={v}"
+                                                     for k, v in self.levels) + "]"
+
+    @classmethod
+    def parse(cls, text: str) -> CaseId:
+        """The case id whose :func:`str` is ``text``."""
+        text = str(text)
+        head, sep, rest = text.partition("[")
+        if not sep or not rest.endswith("]"):
+            raise UnknownCaseError(f"not a case id: {text!r}")
+        pairs = [item.partition("=") for item in rest[:-1].split(", ")]
+        if any(not eq for _, eq, _ in pairs):
+            raise UnknownCaseError(f"not a case id: {text!r}")
+        return cls(head, tuple((k, v) for k, eq, v in pairs))
+
+
+# ------------------------------------------------------------------ plan
+def _impulse_grid(quick: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """The potential study's impulse grid (:func:`._analysis.impulse_design`) as ``(dphi, phi0)`` tuples."""
+    return tuple(tuple(float(v) for v in a) for a in C.impulse_design(quick))
+
+
+_IMPULSE_QUICK = _impulse_grid(True)
+
+
+@dataclass(frozen=True)
+class Plan:
+    dphi_rad: tuple[float, ...]
+    xi32_links: tuple[int, ...] = (3, 8)
+    links: tuple[int, ...] = (3, 5, 7, 9)
+    confinement_starts: tuple[float, ...] = (-0.15, 0.0, 0.15)
+    confinement_d_over_2A: tuple[float, ...] = (0.9, 1.2)
+    group_dphi_rad: tuple[float, ...] = tuple(float(p) for p in C.group_phases(True))
+    group_draws: int = C.GROUP_DRAWS[True]
+    impulse_dphi_rad: tuple[float, ...] = _IMPULSE_QUICK[0]
+    impulse_phi0_rad: tuple[float, ...] = _IMPULSE_QUICK[1]
+
+
+def spaced_channel_m(n_swimmers: int) -> float:
+    """Channel width (m) that gives ``n_swimmers`` neighbours the reference pairs' lateral spacing:
+    ``0.13 m + (n - 2)`` :data:`PAIR_SPACING_M`."""
+    return round(PAIR_CHANNEL_M + (int(n_swimmers) - 2) * PAIR_SPACING_M, 6)
+
+
+def plan(quick: bool) -> Plan:
+    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, 3 confinement starts; full: 17 dphi (step
+    pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's design
+    (:func:`._analysis.group_phases`, :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of
+    four swimmers; full 33 dphi and 40 draws), so that only the channel differs."""
+    if quick:
+        return Plan(tuple(float(p) for p in C.paper_phases()))
+    impulse_dphi, impulse_phi0 = _impulse_grid(False)
+    return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
+                confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),
+                group_dphi_rad=tuple(float(p) for p in C.group_phases(False)), group_draws=C.GROUP_DRAWS[False],
+                impulse_dphi_rad=impulse_dphi, impulse_phi0_rad=impulse_phi0)
+
+
+def xi32_durations(n_links: int) -> tuple[float, ...]:
+    """The run lengths judged for xi = 3/2 pairs of ``n_links`` links: 30 s; N > 3 also 60 s (one run cut)."""
+    return (DEFAULT_S, LONG_S) if n_links > 3 else (DEFAULT_S,)
+
+
+# ------------------------------------------------------------------ the cases of a plan
+def pair_cases(p: Plan) -> tuple[CaseId, ...]:
+    """The ids of the dataset's ``case`` dimension, in its order (the pair cases judged against the line)."""
+    ids = [CaseId.of(CaseSet.XI1, **over) for _, _, over in MODEL_LEVELS]
+    ids += [CaseId.of(CaseSet.XI1, duration_s=D) for D in DURATIONS_S]
+    ids += [CaseId.of(CaseSet.XI1, steady_window_periods=w) for w in WINDOWS if w != C.STEADY_WINDOW]
+    ids.append(CaseId.of(CaseSet.XI1, dphi_pi=LEFT_OUT))
+    ids += [CaseId.of(CaseSet.XI32, n_links=n, duration_s=D) for n in p.xi32_links for D in xi32_durations(n)]
+    for free, along_x in ((CaseSet.LINKS, CaseSet.LINKS_X), (CaseSet.LINKS_GUIDED, CaseSet.LINKS_GUIDED_X)):
+        ids += [CaseId.of(s, n_links=n) for n in p.links for s in (free, along_x)]
+    ids += [CaseId.of(CaseSet.SWIM, fluid_density_kg_m3=rho) for rho in FLUID_DENSITIES]
+    ids.append(CaseId.of(CaseSet.SWIM, swim_drag_N_s_per_m=SWIM_DRAG_N_S_PER_M))
+    return tuple(ids)
+
+
+def group_case(n_swimmers: int, channel_width_m: float) -> CaseId:
+    return CaseId.of(CaseSet.GROUPS, n_swimmers=n_swimmers, channel_width_m=channel_width_m)
+
+
+def group_cases() -> tuple[tuple[int, float, bool], ...]:
+    """``(swimmers, channel width m, the groups study's own channel)`` of the group cases, in order: the
+    reference pairs in 0.13 m, then three and four swimmers in the groups study's and the spaced channel."""
+    out = [(2, PAIR_CHANNEL_M, True)]
+    for n in (3, 4):
+        out += [(n, C.GROUP_CHANNEL_M[n], True), (n, spaced_channel_m(n), False)]
+    return tuple(out)
+
+
+def confinement_case(body_width_m: float) -> CaseId:
+    return CaseId.of(CaseSet.CONFINEMENT, body_width_m=body_width_m)
+
+
+def impulse_case(drag_N_s_per_m: float) -> CaseId:
+    return CaseId.of(CaseSet.IMPULSE, drag_N_s_per_m=drag_N_s_per_m)
+
+
+def impulse_drags() -> tuple[float, ...]:
+    """Every linear drag of the impulse runs, ascending (the default among them)."""
+    return tuple(sorted((IMPULSE_DRAG_DEFAULT, *IMPULSE_DRAGS_N_S_PER_M)))
+
+
+def planned_cases(p: Plan) -> tuple[CaseId, ...]:
+    """Every case id the sensitivity dataset of plan ``p`` holds (no run needed): the pair cases
+    (:func:`pair_cases`), the group cases, the two body widths and the impulse drags."""
+    return (pair_cases(p) + tuple(group_case(n, w) for n, w, _ in group_cases())
+            + tuple(confinement_case(w) for w in (DEFAULT_BODY_M, THIN_BODY_M))
+            + tuple(impulse_case(c) for c in impulse_drags()))
+
+
+@functools.lru_cache(maxsize=1)
+def known_cases() -> frozenset[CaseId]:
+    """The case ids of the quick and the full plan."""
+    return frozenset(planned_cases(plan(True))) | frozenset(planned_cases(plan(False)))
