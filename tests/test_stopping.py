@@ -158,3 +158,17 @@ def test_stopped_sync_pair_is_the_full_runs_prefix_and_gives_its_lock():
     assert float(short["force_start"]) == float(full["force_start"])
     assert abs(float(short["force_end"]) - float(full["force_end"])) <= 0.1 * abs(float(full["force_end"])) + 1e-3
     assert "PhaseStop(tol_rad=0.15" in short["stopped_at_s"].attrs["stop_rule"]
+
+
+def test_potential_reads_the_last_periods_each_force_run_stepped():
+    """A force run stopped early is read over its own last 3 periods, a whole run over the end."""
+    from undulate.studies.potential import DRIFT, FORCE_STOP, _last_periods
+
+    pm = np.array([[0.0, 1.0, 2.0, 3.0, 4.0, 5.0], [0.0, 1.0, 2.0, 3.0, np.nan, np.nan], [np.nan] * 6])
+    got = _last_periods(pm, 3)
+    np.testing.assert_array_equal(got[0], [3.0, 4.0, 5.0])
+    np.testing.assert_array_equal(got[1], [1.0, 2.0, 3.0])
+    assert np.isnan(got[2]).all()
+    # the rule's margin: a window it accepts has a range within the study's DRIFT
+    assert 2 * FORCE_STOP.spread_frac * FORCE_STOP.tol <= DRIFT
+    assert FORCE_STOP.drift_frac * FORCE_STOP.tol <= DRIFT

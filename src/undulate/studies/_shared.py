@@ -1,7 +1,9 @@
 """Sweeps that more than one study runs, each defined once.
 
 The groups study's three sweeps and the potential study's contact-impulse
-sweep are also the sensitivity study's default-model rows.  Both studies
+sweep are also the sensitivity study's default-model rows; the closed-loop
+pairs' H(dphi) probe is run by both ``phase-interaction`` and
+``synchronization-groups``.  Both studies
 build them here, with the same function, the same bound arguments and the
 same grid, and request them through
 :meth:`~._registry.StudyContext.shared_sweep`: in one output folder they are
@@ -16,11 +18,13 @@ from __future__ import annotations
 import functools
 from collections.abc import Callable, Sequence
 
+import numpy as np
+
 from ..sweep import Grid
 from ._criteria import GROUP_CHANNEL_M, PAIR_CHANNEL_M
 from ._runners import DURATION_S, PAIR_STOP, group_point, pair_point
 
-__all__ = ["IMPULSE_DURATION_S", "group_sweep", "group_part", "impulse_sweep"]
+__all__ = ["IMPULSE_DURATION_S", "group_sweep", "group_part", "impulse_sweep", "h_probe_phases", "h_probe_sweep"]
 
 IMPULSE_DURATION_S = 6.0
 """Length of the contact-impulse runs (the impulse is taken over the first 2 periods), s."""
@@ -56,3 +60,17 @@ def impulse_sweep(dphi_rad: Sequence[float], phi0_rad: Sequence[float], seed: in
     return fn, Grid(axes={**{k: [float(x) for x in v] for k, v in axes.items()},
                           "dphi_rad": [float(v) for v in dphi_rad], "phi0_rad": [float(v) for v in phi0_rad]},
                     seed=seed)
+
+
+def h_probe_phases(quick: bool) -> list[float]:
+    """The held phase differences of the H(dphi) probe, rad: 16 (full: 36) bin centres over [-pi, pi)."""
+    m = 16 if quick else 36
+    return [float(v) for v in np.linspace(-np.pi, np.pi, m, endpoint=False) + np.pi / m]
+
+
+def h_probe_sweep(dphi_rad: Sequence[float], seed: int) -> tuple[Callable, Grid]:
+    """``(fn, grid)`` of the closed-loop pairs' H(dphi) probe (:func:`._phase.probe_run`), positions
+    held and free, at each held phase difference of ``dphi_rad`` (rad)."""
+    from ._phase import probe_run
+
+    return probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": [float(d) for d in dphi_rad]}, seed=seed)

@@ -36,6 +36,7 @@ import numpy as np
 
 from .. import stats
 from ..params import Channel, Scene, SimOptions
+from ._shared import h_probe_phases, h_probe_sweep
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
@@ -70,9 +71,9 @@ def phase_run(point: dict, seed: int, *, duration_s: float):
 
 
 def plan(quick: bool) -> dict[str, Any]:
-    n, m = (8, 16) if quick else (24, 36)
+    n = 8 if quick else 24
     return {"dphi0_rad": list(np.linspace(-np.pi, np.pi, n, endpoint=False) + np.pi / n),
-            "dphi_rad": list(np.linspace(-np.pi, np.pi, m, endpoint=False) + np.pi / m),
+            "dphi_rad": h_probe_phases(quick),
             "duration_s": 20.0 if quick else 60.0}
 
 
@@ -83,8 +84,7 @@ def dataset(ctx: StudyContext, p: dict[str, Any]):
                 seed=ctx.config.seed)
     ds = _label(ctx.sweep("runs", functools.partial(phase_run, duration_s=p["duration_s"]), grid))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
-    probe = ctx.sweep("probe", probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": p["dphi_rad"]},
-                                               seed=ctx.config.seed))
+    probe = ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed))
     ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")
     ds["dphi_rad"].attrs.update(units="rad", long_name="held phase difference of the probe runs")
     ds.attrs.update(title="phase-interaction function H(dphi) of closed-loop pairs", channel_width_m=PAIR_CHANNEL_M,

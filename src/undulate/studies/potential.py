@@ -56,6 +56,7 @@ from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, R2_MIN
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
+from ..stopping import SteadyStop
 from ._runners import pair_point
 from ._shared import impulse_sweep
 
@@ -79,6 +80,11 @@ BREAK = 0.45
 """dx / lambda beyond which the pair has broken apart (left its compatible state)."""
 DRIFT = 0.005
 """Range of the last 3 period means (lambda) above which dx is still drifting."""
+FORCE_STOP = SteadyStop(tol=2 * DRIFT, window=3, extra_periods=2, min_periods=8, drift_frac=0.5, spread_frac=0.25)
+"""The force runs' stopping rule: the last 3 period means of dx/lambda within DRIFT / 2 of their mean
+(so their range is at most :data:`DRIFT`: a stopped run is never "still drifting") in 3 consecutive
+windows, no trend that would move them by DRIFT by the end of the run, never before 8 periods
+(the force switches on after 3); a pair that breaks apart or creeps runs the whole duration."""
 SLIDING_FROM = 1.0
 """d/2A from which the collapse of k is also measured on its own: in narrower channels
 the two bodies are wedged between the walls (large joint errors; the pair barely moves
@@ -228,8 +234,15 @@ def _force_sweep(ctx: StudyContext, p: PotentialPlan):
     amps = np.array([float(ctx.lone_swimmer(amplitude_rad=b)["amplitude_m"]) for b in betas])
     points = [{"amplitude_rad": beta, "amplitude_m": float(amp), "d_over_2A": r, "force_N": f}
               for beta, amp in zip(betas, amps) for r in p.d_over_2A for f in p.forces_N]
-    fn = functools.partial(pair_point, duration_s=p.duration_s, force_onset_s=SETTLE_S)
+    fn = functools.partial(pair_point, duration_s=p.duration_s, force_onset_s=SETTLE_S, stop=FORCE_STOP)
     return amps, ctx.sweep("force", fn, Grid(points=points, seed=ctx.config.seed)).isel(replicate=0)
+
+
+def _last_periods(pm: np.ndarray, n: int) -> np.ndarray:
+    """The last ``n`` period means each run stepped (``pm``: (..., period), NaN after a stop)."""
+    stepped = np.isfinite(pm).sum(axis=-1, keepdims=True)  # periods before the stop (all: whole run)
+    idx = np.clip(stepped - n + np.arange(n), 0, pm.shape[-1] - 1)
+    return np.take_along_axis(pm, idx, axis=-1)
 
 
 def _steady_response(g, shape) -> dict[str, np.ndarray]:
@@ -238,7 +251,7 @@ def _steady_response(g, shape) -> dict[str, np.ndarray]:
     pm = g["dx_period_over_lambda"].values.reshape(*shape, -1)
     pt = g["period_time"].values
     k_before = int(np.flatnonzero(pt < SETTLE_S)[-1])
-    last = pm[..., -3:]
+    last = _last_periods(pm, 3)
     before = pm[..., k_before]
     dxl = last.mean(axis=-1) - before
     drift = np.ptp(last, axis=-1)

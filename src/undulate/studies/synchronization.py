@@ -49,6 +49,7 @@ from ..params import Channel, Scene, SimOptions
 from ..stopping import PhaseStop
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS, PAIR_COUPLING, _label
+from ._shared import h_probe_phases, h_probe_sweep
 from ._points import SyncPoint
 from ._runners import _padded, _stop_vars
 from ._registry import Claim, Study, StudyContext, Verdict, register
@@ -188,9 +189,8 @@ def pair_plan(quick: bool) -> dict[str, Any]:
 
 
 def group_plan(quick: bool) -> dict[str, Any]:
-    m = 16 if quick else 36
     return {"n_swimmers": [3, 5] if quick else [3, 5, 10], "spacing_m": [0.055, 0.065],
-            "dphi_rad": list(np.linspace(-np.pi, np.pi, m, endpoint=False) + np.pi / m),
+            "dphi_rad": h_probe_phases(quick),
             "replicates": 2 if quick else 4, "duration_s": PAIR_DURATION_S if quick else 2 * PAIR_DURATION_S}
 
 
@@ -344,10 +344,7 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
     free = ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed))
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})
-    from ._phase import probe_run
-
-    probe = ctx.sweep("probe", probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": p["dphi_rad"]},
-                                               seed=ctx.config.seed))
+    probe = ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed))
     ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")
     ds["dphi_rad"].attrs.update(units="rad", long_name="held phase difference of the H probe (pair, 0.13 m)")
     ds["spacing_m"].attrs.update(units="m", long_name="channel width per swimmer")
