@@ -59,6 +59,7 @@ if TYPE_CHECKING:  # heavy imports stay lazy
     import xarray as xr
     from matplotlib.figure import Figure
 
+    from .. import _physics
     from ..sweep import Grid, SweepResult
 
 __all__ = [
@@ -449,12 +450,12 @@ def _write_all(name: str, ds: xr.Dataset, figure: Figure, doc: dict[str, Any], o
     return out_dir / f"{name}.nc"
 
 
-def _timing(ctx: StudyContext, p0: tuple[float, int], p1: tuple[float, int]) -> dict[str, Any]:
-    """Physics time of a study: inside ``mujoco.rollout`` in this process (serial sweeps and
-    direct simulations) plus what its sweeps' worker processes report.  Measured, not a result."""
+def _timing(ctx: StudyContext, here: _physics.Tally) -> dict[str, Any]:
+    """Physics time of a study: inside ``mujoco.rollout`` in this process (``here``: serial sweeps
+    and direct simulations) plus what its sweeps' worker processes report.  Measured, not a result."""
     away = [s["timing"] for s in ctx.sweeps if s.get("timing", {}).get("executor") not in (None, "serial")]
-    return {"physics_s": (p1[0] - p0[0]) + sum(t["physics_s"] for t in away),
-            "steps": (p1[1] - p0[1]) + sum(t["steps"] for t in away),
+    return {"physics_s": here.seconds + sum(t["physics_s"] for t in away),
+            "steps": here.steps + sum(t["steps"] for t in away),
             "physics_in_workers_s": sum(t["physics_s"] for t in away),
             "runs_in_workers_wall_s": sum(t["runs_wall_s"] for t in away),
             "n_runs_computed": sum(s["n_computed"] for s in ctx.sweeps)}
@@ -484,12 +485,13 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
 
 
 def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress: bool) -> Path:
-    from ..sweep._worker import physics_now
+    from .. import _physics
 
-    t0, p0 = time.perf_counter(), physics_now()
+    t0 = time.perf_counter()
     ctx = StudyContext(config, name, progress=progress)
     plan = info.plan(config.quick)
-    ds = info.dataset(ctx, plan)
+    with _physics.meter() as here:  # what this process simulates (serial sweeps, direct runs)
+        ds = info.dataset(ctx, plan)
     summary = info.summary(ds)
     claims = judge(name, info.claims, summary)
     _check_units(name, ds)
@@ -504,7 +506,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
         "sweeps": ctx.sweeps,
         "n_computed": sum(s["n_computed"] for s in ctx.sweeps),
         "wall_s": time.perf_counter() - t0,
-        "timing": _timing(ctx, p0, physics_now()),
+        "timing": _timing(ctx, here),
         "config": config.to_dict(),
         "identity": identity(name, config),
         "provenance": provenance(),
