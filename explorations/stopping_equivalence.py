@@ -3,7 +3,8 @@ grid run both ways.
 
 For every study whose runners take a stopping rule (pairs, links, groups, basins, confinement,
 swimming, sensitivity: ``studies._runners.PAIR_STOP``; packing: ``studies.packing.PACKING_STOP``;
-synchronization-pairs: ``studies.synchronization.PAIR_SYNC_STOP``; potential's force runs:
+synchronization-pairs and -groups: ``studies.synchronization.PAIR_SYNC_STOP`` / ``GROUP_SYNC_STOP``;
+potential's force runs:
 ``studies.potential.FORCE_STOP``) the study is
 run twice through the ordinary machinery (``run_study``, sweeps and all) into two fresh folders:
 once with the rule set to None in the study's module (every run full length) and once as shipped.
@@ -35,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 STUDIES = ("swimming", "pairs", "confinement", "links", "basins", "groups", "packing", "sensitivity",
-           "synchronization-pairs", "potential")
+           "synchronization-pairs", "potential", "synchronization-groups")
 TOL = 0.01
 
 
@@ -45,6 +46,8 @@ def _rule_names(study: str) -> list[tuple[str, str]]:
         return [("packing", "PACKING_STOP")]
     if study == "synchronization-pairs":
         return [("synchronization", "PAIR_SYNC_STOP")]
+    if study == "synchronization-groups":
+        return [("synchronization", "GROUP_SYNC_STOP")]
     if study == "potential":
         return [("potential", "FORCE_STOP")]
     if study in ("groups", "sensitivity"):  # the groups sweeps are defined in _shared
@@ -91,6 +94,11 @@ def _offsets(a, b) -> dict[str, float]:
                 out["stiffness (relative)"] = float(np.nanmax(d / np.abs(np.asarray(a[v].values, float))))
         elif v == "broken" and v in b:
             out["broken (runs differing)"] = int((a[v].values != b[v].values).sum())
+        elif v in ("R_final", "compat_rms", "max_drift", "dx_final", "frequency") and v in b:  # closed-loop groups
+            d = np.abs(np.asarray(a[v].values, float) - np.asarray(b[v].values, float))
+            out[v] = float(np.nanmax(d)) if np.isfinite(d).any() else float("nan")
+        elif v == "phase_locked" and v in b:
+            out["phase_locked (runs differing)"] = int((a[v].values != b[v].values).sum())
         elif v in ("dphi_final", "lock_time", "force_end") and v in b:  # closed-loop pairs
             d = np.asarray(a[v].values, float) - np.asarray(b[v].values, float)
             d = np.abs(np.angle(np.exp(1j * d))) if v == "dphi_final" else np.abs(d)

@@ -69,6 +69,9 @@ PAIR_SYNC_STOP = PhaseStop(tol_rad=LOCK_TOL_RAD, hold_s=TAIL_S, extra_s=TAIL_S, 
 """The closed-loop pairs' stopping rule: the lock rule (:data:`LOCK_TOL_RAD` over :data:`TAIL_S`) held
 :data:`TAIL_S` longer, no drift, and the offsets steady (:data:`._runners.PAIR_STOP`'s rule); never
 before 2 :data:`TAIL_S`.  A pair that is still drifting runs the whole :data:`PAIR_DURATION_S`."""
+GROUP_SYNC_STOP = PAIR_SYNC_STOP
+"""The closed-loop groups' stopping rule: the pairs' rule on every pair of swimmers (a group frozen in
+a locked state, every phase difference and offset steady, stops; one still moving runs on)."""
 DRIFT_TOL_RAD_S = 0.02
 COMPAT_TOL = 0.1
 NEIGHBOURS = 9
@@ -117,22 +120,28 @@ def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, sto
     }, coords={"time": ("time", t_full, {"units": "s"})})
 
 
-def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
+def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, stop: PhaseStop | None = None):
     """One closed-loop group (sweep function).  ``point``: ``controller``, ``n_swimmers``,
     ``spacing_m`` (channel width per swimmer).  Initial phases uniform in [0, 2 pi) from
-    ``seed``; positions and phases free."""
+    ``seed``; positions and phases free.  ``stop``: a stopping rule (:data:`GROUP_SYNC_STOP`;
+    None: the whole ``duration_s``); the final values are then over the last :data:`TAIL_S`
+    before the stop and ``R`` is NaN after it."""
     import xarray as xr
 
     from ..observables import neighbour_offsets
     from ..phases import gait_frequency, gait_phase, neighbour_phase_differences, order_parameter
-    from ..simulation import simulate
+    from ..simulation import resolve_options, simulate
 
     pt = SyncPoint.of(point)
     n = pt.n_swimmers
     phases = tuple(np.random.default_rng(seed).uniform(0, 2 * np.pi, n))
     sc = Scene(phases_rad=phases, channel=Channel(width_m=n * pt.spacing_m),
                controller=CONTROLLERS[pt.controller])
-    ds = simulate(sc, SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD))
+    opts = SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD)
+    monitor = None if stop is None else stop.monitor(sc.gait.period_s, sc.wavelength_m, duration_s)
+    ds = simulate(sc, opts, stop=monitor)
+    full = resolve_options(sc, opts)
+    n_full = full.n_steps // full.steps_per_sample + 1
     t = ds["time"].values
     psi = gait_phase(ds)
     r = order_parameter(psi).values
@@ -153,7 +162,7 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
     compat_rms = float(np.sqrt(np.mean(res ** 2)))
     pad = np.full(NEIGHBOURS, np.nan)
     return xr.Dataset({
-        "R": (("time",), r, {"units": "1", "long_name": "order parameter R(t)"}),
+        "R": (("time",), _padded(r, n_full), {"units": "1", "long_name": "order parameter R(t) (NaN after a stop)"}),
         "R_final": ((), float(r[tail].mean()), {"units": "1", "long_name": "mean R over the last TAIL_S"}),
         "lock_time": ((), lock, {"units": "s", "long_name": "time after which R stays >= R_LOCKED (NaN: never)"}),
         "phase_locked": ((), int(locked), {"units": "1", "long_name": "1 if every neighbour dphi drifts < DRIFT_TOL_RAD_S"}),
@@ -165,7 +174,9 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S):
                        {"units": "rad", "long_name": "neighbour dphi, circular mean over the last TAIL_S"}),
         "frequency": ((), float(gait_frequency(psi, t_from=t[-1] - TAIL_S).mean()),
                       {"units": "Hz", "long_name": "collective gait frequency (mean over swimmers), last TAIL_S"}),
-    }, coords={"time": ("time", t, {"units": "s"})})
+        **_stop_vars(ds),
+    }, coords={"time": ("time", np.round(np.arange(n_full) * float(ds.attrs["sample_interval"]), 12),
+                        {"units": "s"})})
 
 
 def free_frequency(point: dict, seed: int, *, duration_s: float = 30.0):
@@ -340,7 +351,8 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
 
     grid = Grid(axes={"controller": list(CONTROLLERS), "n_swimmers": p["n_swimmers"], "spacing_m": p["spacing_m"]},
                 replicates=p["replicates"], seed=ctx.config.seed)
-    ds = _label(ctx.sweep("runs", functools.partial(group_run, duration_s=p["duration_s"]), grid))
+    ds = _label(ctx.sweep("runs", functools.partial(group_run, duration_s=p["duration_s"], stop=GROUP_SYNC_STOP),
+                             grid))
     free = ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed))
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})
