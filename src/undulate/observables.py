@@ -11,6 +11,7 @@ and ``dphi = phi_upper - phi_lower`` wrapped into ``(-pi, pi]``.
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import xarray as xr
@@ -144,13 +145,21 @@ def period_average(da: xr.DataArray, period_s: float) -> xr.DataArray:
     n_full = int(np.floor(u[-1] + 1e-9))
     if n_full < 1:
         raise ValueError("period_average needs at least one whole period of data")
-    keep = (k >= 0) & (k < n_full)
-    g = da.isel(time=np.flatnonzero(keep)).assign_coords(period=("time", k[keep]))
-    out = g.groupby("period").mean("time")
-    out = out.assign_coords(time=("period", t[0] + (np.arange(n_full) + 0.5) * period_s))
-    out = out.swap_dims({"period": "time"}).drop_vars("period")
-    out.attrs = dict(da.attrs)
-    return out
+    ax = da.get_axis_num("time")
+    keep = np.flatnonzero((k >= 0) & (k < n_full))
+    vals = np.asarray(da.values)[(slice(None),) * ax + (keep,)]  # the whole periods' samples (a copy)
+    edges = np.searchsorted(k[keep], np.arange(n_full + 1))  # k rises with t: each period is one slice
+    # per period, the NaN-skipping mean over its slice: what xarray's ``groupby("period").mean("time")``
+    # computes, bitwise (tested), at a fraction of its overhead (pair runs average over ~30 periods often)
+    mean = np.nanmean if vals.dtype.kind in "fc" else np.mean
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN period is NaN, as in xarray
+        means = [mean(vals[(slice(None),) * ax + (slice(edges[i], edges[i + 1]),)], axis=ax)
+                 for i in range(n_full)]
+    data = np.stack(means, axis=ax)
+    coords = {name: c for name, c in da.coords.items() if "time" not in c.dims}
+    coords["time"] = ("time", t[0] + (np.arange(n_full) + 0.5) * period_s)
+    return xr.DataArray(data, dims=da.dims, coords=coords, name=da.name, attrs=dict(da.attrs))
 
 
 def steady_state(da: xr.DataArray, period_s: float, tol: float, window: int = 3) -> xr.Dataset:
