@@ -5,6 +5,7 @@ from __future__ import annotations
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from undulate import Scene, SimOptions, simulate
@@ -46,3 +47,28 @@ def test_cli_animate_from_a_simulate_file(tmp_path):
     assert count_frames(gif) == 11
     r = subprocess.run([*cli, "animate", str(tmp_path / "missing.nc"), "-o", str(gif)], capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
+
+
+def test_blitted_frames_are_pixel_identical_to_full_draws():
+    # two swimmers in contact half of the time: bodies turn red, walls flash, the clock runs
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    from undulate.animate import _Blitter, _Frame, _Recording, _stage
+
+    ds = simulate(Scene(phases_rad=(0.0, 1.5)), SimOptions(duration_s=3.0, sample_rate_hz=10))
+    run = _Recording(ds, 1)
+    fig, ax, walls = _stage(ds, run, 70, "a title")
+    frame = _Frame(ax, run, walls)
+    blit = _Blitter(fig, frame.redrawn())
+    fig2, ax2, walls2 = _stage(ds, run, 70, "a title")
+    frame2, canvas2 = _Frame(ax2, run, walls2), FigureCanvasAgg(fig2)
+    touching = 0
+    for i in range(len(run.times)):
+        frame.draw(i)
+        frame2.draw(i)
+        canvas2.draw()
+        full = np.asarray(canvas2.buffer_rgba())
+        assert blit.size == canvas2.get_width_height()
+        np.testing.assert_array_equal(blit.frame(), full, err_msg=f"frame {i}")
+        touching += bool((run.fpair[i] > 0).any())
+    assert 0 < touching < len(run.times)  # both looks were compared
