@@ -124,7 +124,13 @@ def test_every_registered_study_in_quick_mode(tmp_path):
             if v.dtype.kind in "iufc":
                 assert "units" in v.attrs, (name, k)
         verdicts = {c["claim"]: c["verdict"] for c in doc["claims"]}
-        assert all(v in ("holds", "fails") for v in verdicts.values()), (name, doc["claims"])
+        judged = [c for c in doc["claims"] if c["verdict"] in ("holds", "fails")]
+        # the one designed "no result": phase-interaction where the measured H is zero at every held dphi
+        # (free pairs that stop touching), never for want of runs
+        unjudged = [c for c in doc["claims"] if c not in judged]
+        assert all(name == "phase-interaction" and c["verdict"] == "no result" and "H is zero" in c["reason"]
+                   for c in unjudged), (name, unjudged)
+        assert judged and doc["n_failed"] == 0, (name, doc["claims"])
         # a second run into the same folder computes nothing and gives the same numbers
         studies.run_study(name, a, quick=True, progress=False)
         again = json.loads((a / f"{name}.json").read_text())
