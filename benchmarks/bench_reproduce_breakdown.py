@@ -8,7 +8,7 @@ study:
 * ``runs``: simulations it computed (sweep runs, free swimmers included);
 * ``physics``: core-seconds inside ``mujoco.rollout``, measured where it
   happens -- each sweep run records its own rollout seconds and steps
-  (``undulate.simulation.physics_counters``, saved in the run file and
+  (``undulate._physics.meter`` around the run, saved in the run file and
   reported back to the parent), and this process counts its own (serial
   sweeps, direct simulations);
 * ``us/step``: physics seconds per scene-step;
@@ -81,7 +81,7 @@ def main() -> None:
 
     from undulate.reproduce import reproduce
     from undulate.sweep._executors import default_workers
-    from undulate.sweep._worker import physics_now
+    from undulate import _physics
 
     workers = args.workers or default_workers()
     tmp = None
@@ -90,12 +90,12 @@ def main() -> None:
         tmp = tempfile.TemporaryDirectory(prefix="undulate-breakdown-")
         out = Path(tmp.name)
     print(f"load average before: {os.getloadavg()}", flush=True)
-    t0, p0 = time.perf_counter(), physics_now()
+    t0 = time.perf_counter()
     kw = {"workers": args.workers} if args.workers else {}
-    _, statuses = reproduce(out, quick=not args.full, studies=args.only.split(",") if args.only else None,
-                            log=lambda m: print(m, flush=True), **kw)
+    with _physics.meter() as here:  # what this process simulates (serial sweeps, direct runs, animations)
+        _, statuses = reproduce(out, quick=not args.full, studies=args.only.split(",") if args.only else None,
+                                log=lambda m: print(m, flush=True), **kw)
     wall = time.perf_counter() - t0
-    p1 = physics_now()
     rows = _rows(out, statuses, workers)
     studies_wall = sum(r["wall_s"] for r in rows)
     # animations and the report run in this process after the studies: their physics is this
@@ -103,7 +103,7 @@ def main() -> None:
     in_proc_studies = sum(json.loads((out / f"{s['name']}.json").read_text()).get("timing", {}).get("physics_s", 0.0)
                           - json.loads((out / f"{s['name']}.json").read_text()).get("timing", {}).get(
                               "physics_in_workers_s", 0.0) for s in statuses if s["ok"])
-    anim_phys = max(0.0, (p1[0] - p0[0]) - in_proc_studies)
+    anim_phys = max(0.0, here.seconds - in_proc_studies)
     anim_wall = max(0.0, wall - studies_wall)
     rows.append({"study": "animations + report", "wall_s": anim_wall, "runs": len(__import__(
         "undulate.reproduce", fromlist=["ANIMATIONS"]).ANIMATIONS), "physics_s": anim_phys, "steps": 0,

@@ -7,10 +7,6 @@ that runs other code it cannot see into (a sweep worker around a sweep
 function, a study around its dataset) opens a meter around it and reads
 what the meter collected.  Never read by the physics.
 
-The process total (:func:`process_total`, :func:`undulate.simulation.physics_counters`)
-is the meter that is always open; it remains for callers that take
-differences of it (the study registry, the reproduction benchmark).
-
 Light: imports neither MuJoCo nor the simulator (sweep workers that never
 simulate do not pay for them).  One process-wide set of meters: a meter
 also collects what other threads simulate while it is open.
@@ -21,7 +17,7 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 
-__all__ = ["Tally", "meter", "report", "process_total"]
+__all__ = ["Tally", "meter", "report"]
 
 
 class Tally:
@@ -39,8 +35,7 @@ class Tally:
         return self.seconds, self.steps
 
 
-_PROCESS = Tally()
-_OPEN: list[Tally] = [_PROCESS]
+_OPEN: list[Tally] = []
 
 
 @contextlib.contextmanager
@@ -55,11 +50,7 @@ def meter() -> Iterator[Tally]:
 
 
 def report(seconds: float, steps: int) -> None:
-    """Add one simulation's physics time to every open meter (and the process total)."""
+    """Add one simulation's physics time to every open meter."""
     for tally in _OPEN:
         tally.add(seconds, steps)
 
-
-def process_total() -> tuple[float, int]:
-    """``(seconds, steps)`` this process has simulated so far; monotone: take differences."""
-    return _PROCESS.read()

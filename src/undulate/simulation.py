@@ -47,18 +47,7 @@ from ._xrcompat import install as _lazy_dask
 
 _lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
 
-__all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE",
-           "physics_counters"]
-
-def physics_counters() -> tuple[float, int]:
-    """``(seconds, scene_steps)`` this process has spent inside ``mujoco.rollout`` so far.
-
-    ``seconds`` is wall time of the rollout calls (a batch stepped on several
-    threads counts once); ``scene_steps`` counts every scene's steps (a batch
-    of 4 scenes stepped 1000 times adds 4000).  Monotone: take differences.
-    To measure a piece of code, :func:`undulate._physics.meter` says it directly.
-    """
-    return _physics.process_total()
+__all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE"]
 
 
 RK4_DAMPING_STEP = 1.0
@@ -615,7 +604,7 @@ def simulate_batch(
     Every Dataset's attrs ``physics_time`` (s, wall time inside
     ``mujoco.rollout`` for the whole batch) and ``physics_steps`` (scene-steps)
     record what the call cost; the same is reported to the open physics meters
-    (:func:`undulate._physics.meter`) and the process total (:func:`physics_counters`).
+    (:func:`undulate._physics.meter`).
     """
     bt = _plan_batch(scenes, options, out, controller)
     clock = _Clock()

@@ -55,12 +55,6 @@ def init_local_worker() -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
-def physics_now() -> tuple[float, int]:
-    """This process's rollout seconds and steps so far (0 if it never simulated); take differences.
-    The runs here are measured with :func:`undulate._physics.meter` instead."""
-    return _physics.process_total()
-
-
 def _timing(wall: float, physics: _physics.Tally, share: int = 1) -> dict:
     return {"wall_s": wall / share, "physics_s": physics.seconds / share, "steps": physics.steps // share}
 
