@@ -123,7 +123,6 @@ def test_every_registered_study_in_quick_mode(tmp_path):
         for k, v in ds.variables.items():
             if v.dtype.kind in "iufc":
                 assert "units" in v.attrs, (name, k)
-        verdicts = {c["claim"]: c["verdict"] for c in doc["claims"]}
         judged = [c for c in doc["claims"] if c["verdict"] in ("holds", "fails")]
         # the one designed "no result": phase-interaction where the measured H is zero at every held dphi
         # (free pairs that stop touching), never for want of runs
