@@ -129,7 +129,7 @@ def test_every_registered_study_in_quick_mode(tmp_path):
         unjudged = [c for c in doc["claims"] if c not in judged]
         assert all(name == "phase-interaction" and c["verdict"] == "no result" and "H is zero" in c["reason"]
                    for c in unjudged), (name, unjudged)
-        assert judged and doc["n_failed"] == 0, (name, doc["claims"])
+        assert doc["n_failed"] == 0 and (judged or not doc["claims"]), (name, doc["claims"])  # compatibility: none
         # a second run into the same folder computes nothing and gives the same numbers
         studies.run_study(name, a, quick=True, progress=False)
         again = json.loads((a / f"{name}.json").read_text())
