@@ -27,11 +27,10 @@ from pathlib import Path
 
 import mujoco
 import numpy as np
-import xarray as xr
 from mujoco import rollout
 
 from undulate import Channel, Scene, SimOptions, simulate
-from undulate.observables import neighbour_offsets, period_average
+from undulate.observables import neighbour_offsets, period_average, period_average_groupby
 from undulate.simulation import compile_scene, resolve_options
 
 
@@ -74,25 +73,13 @@ def rollout_calls(repeat: int, calls: int = 2000) -> tuple[float, float]:
     return 1e6 * min(a) / calls, 1e6 * min(b) / calls
 
 
-def _groupby_average(da: xr.DataArray, period_s: float) -> xr.DataArray:
-    t = da["time"].values
-    u = (t - t[0]) / period_s
-    k = np.ceil(u - 1e-9).astype(int) - 1
-    n_full = int(np.floor(u[-1] + 1e-9))
-    keep = (k >= 0) & (k < n_full)
-    g = da.isel(time=np.flatnonzero(keep)).assign_coords(period=("time", k[keep]))
-    out = g.groupby("period").mean("time")
-    out = out.assign_coords(time=("period", t[0] + (np.arange(n_full) + 0.5) * period_s))
-    return out.swap_dims({"period": "time"}).drop_vars("period")
-
-
 def period_averages(repeat: int, calls: int = 50) -> tuple[float, float]:
     """ms per call: xarray groupby, NumPy slices."""
     ds = simulate(Scene(phases_rad=(0.0, 1.0), dx0_m=0.05), SimOptions(duration_s=30.0))
     dx = neighbour_offsets(ds)["dx"]
     a = b = float("inf")
     for _ in range(repeat):
-        a = min(a, _best(lambda: [_groupby_average(dx, 2.0) for _ in range(calls)], 1))
+        a = min(a, _best(lambda: [period_average_groupby(dx, 2.0) for _ in range(calls)], 1))
         b = min(b, _best(lambda: [period_average(dx, 2.0) for _ in range(calls)], 1))
     return 1e3 * a / calls, 1e3 * b / calls
 

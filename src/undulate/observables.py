@@ -162,6 +162,23 @@ def period_average(da: xr.DataArray, period_s: float) -> xr.DataArray:
     return xr.DataArray(data, dims=da.dims, coords=coords, name=da.name, attrs=dict(da.attrs))
 
 
+def period_average_groupby(da: xr.DataArray, period_s: float) -> xr.DataArray:
+    """:func:`period_average` as xarray's ``groupby("period").mean("time")`` computes it: the reference
+    the fast path is checked against (bitwise, ``tests/test_observables.py``) and timed against
+    (``benchmarks/bench_overheads.py``).  Not used by the package itself."""
+    t = da["time"].values
+    u = (t - t[0]) / period_s
+    k = np.ceil(u - 1e-9).astype(int) - 1
+    n_full = int(np.floor(u[-1] + 1e-9))
+    keep = (k >= 0) & (k < n_full)
+    g = da.isel(time=np.flatnonzero(keep)).assign_coords(period=("time", k[keep]))
+    out = g.groupby("period").mean("time")
+    out = out.assign_coords(time=("period", t[0] + (np.arange(n_full) + 0.5) * period_s))
+    out = out.swap_dims({"period": "time"}).drop_vars("period")
+    out.attrs = dict(da.attrs)
+    return out
+
+
 def steady_state(da: xr.DataArray, period_s: float, tol: float, window: int = 3) -> xr.Dataset:
     """Steady value of a slowly settling signal (e.g. Δx/λ), per pair.
 
