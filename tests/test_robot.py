@@ -8,7 +8,6 @@ itself cross-checked against the SDK's packet handlers first.
 from __future__ import annotations
 
 import math
-import os
 import signal
 import subprocess
 import sys

@@ -191,10 +191,10 @@ class PhaseStop:
         if len(t) < 2 or t[-1] - t[0] < self.hold_s + self.extra_s - 1e-9:
             return False
         z = np.exp(1j * np.asarray(dphi, float))
-        mean = np.angle(z.mean(axis=0))
-        if (np.abs(np.angle(z * np.exp(-1j * mean))) > self.spread_frac * self.tol_rad).any():
+        dev = np.angle(z * np.exp(-1j * np.angle(z.mean(axis=0))))  # from the circular mean, per pair
+        if (np.abs(dev) > self.spread_frac * self.tol_rad).any():
             return False
-        dev = np.angle(z * np.exp(-1j * mean))  # continuous inside the window: all near the mean
+        # dev is continuous inside the window (every sample near the mean): its trend is the drift
         slope = np.polyfit(np.asarray(t, float) - t[0], dev, 1)[0]  # rad/s, each pair
         return bool((np.abs(slope) * max(time_left_s, 0.0) <= self.drift_frac * self.tol_rad).all())
 

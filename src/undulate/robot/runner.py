@@ -33,7 +33,6 @@ their last goal (docs/robots.md).
 
 from __future__ import annotations
 
-import contextlib
 import json
 import math
 import signal

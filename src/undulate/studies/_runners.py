@@ -26,10 +26,10 @@ import numpy as np
 import xarray as xr
 
 from ..errors import ParameterError
-from ..params import Channel, ContactModel, Gait, Ground, Scene, Servo, SimOptions, SwimmerGeometry
-from ..stopping import SteadyStop
+from ..params import Channel, Ground, Scene, SimOptions, SwimmerGeometry
+from ..stopping import PhaseStop, SteadyStop
 from ._criteria import PAIR_CHANNEL_M, STEADY_TOL
-from ._points import MODEL_KEYS, GroupPoint, LonePoint, PairPoint
+from ._points import GroupPoint, LonePoint, PairPoint
 
 __all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", 
            "PAIR_DURATION_S", "RECORD_HZ", "LONE_DURATION_S", "LONE_CHANNEL_WIDTH_M",
@@ -70,9 +70,10 @@ AMPLITUDE_ROUND_M = 1e-5
 resumed sweep finds the same parameters after a bitwise-different re-measurement."""
 
 
-def _simulate_stopped(scene: Scene, options: SimOptions, stop: SteadyStop | None):
-    """``simulate`` with the pair stopping rule (None: the whole duration); also the number of
-    samples the full-length run records (a stopped run's series are padded with NaN to it)."""
+def _simulate_stopped(scene: Scene, options: SimOptions, stop: SteadyStop | PhaseStop | None):
+    """``simulate`` with a pair-type stopping rule (:data:`PAIR_STOP`, a closed-loop
+    :class:`~undulate.stopping.PhaseStop`; None: the whole duration); also the number of samples the
+    full-length run records (a stopped run's series are padded with NaN to it)."""
     from ..simulation import resolve_options, simulate
 
     scale = scene.wavelength_m if math.isfinite(scene.wavelength_m) else scene.geometry.length_m

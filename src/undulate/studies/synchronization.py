@@ -51,7 +51,7 @@ from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS, PAIR_COUPLING, _label
 from ._shared import h_probe_phases, h_probe_sweep
 from ._points import SyncPoint
-from ._runners import _padded, _stop_vars
+from ._runners import _padded, _simulate_stopped, _stop_vars
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = ["pair_run", "group_run", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
@@ -92,16 +92,11 @@ def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, sto
     import xarray as xr
 
     from ..phases import neighbour_phase_differences, time_to_lock
-    from ..simulation import resolve_options, simulate
 
     pt = SyncPoint.of(point)
     sc = Scene(phases_rad=(0.0, pt.dphi0_rad), channel=Channel(width_m=PAIR_CHANNEL_M),
                hold_x=pt.hold_x, controller=CONTROLLERS[pt.controller])
-    opts = SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD)
-    monitor = None if stop is None else stop.monitor(sc.gait.period_s, sc.wavelength_m, duration_s)
-    ds = simulate(sc, opts, stop=monitor)
-    full = resolve_options(sc, opts)
-    n_full = full.n_steps // full.steps_per_sample + 1
+    ds, n_full = _simulate_stopped(sc, SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD), stop)
     t = ds["time"].values
     d = neighbour_phase_differences(ds)
     f = ds["contact_force_pair"].values[:, 0]
@@ -130,18 +125,13 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, st
 
     from ..observables import neighbour_offsets
     from ..phases import gait_frequency, gait_phase, neighbour_phase_differences, order_parameter
-    from ..simulation import resolve_options, simulate
 
     pt = SyncPoint.of(point)
     n = pt.n_swimmers
     phases = tuple(np.random.default_rng(seed).uniform(0, 2 * np.pi, n))
     sc = Scene(phases_rad=phases, channel=Channel(width_m=n * pt.spacing_m),
                controller=CONTROLLERS[pt.controller])
-    opts = SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD)
-    monitor = None if stop is None else stop.monitor(sc.gait.period_s, sc.wavelength_m, duration_s)
-    ds = simulate(sc, opts, stop=monitor)
-    full = resolve_options(sc, opts)
-    n_full = full.n_steps // full.steps_per_sample + 1
+    ds, n_full = _simulate_stopped(sc, SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD), stop)
     t = ds["time"].values
     psi = gait_phase(ds)
     r = order_parameter(psi).values
