@@ -316,17 +316,18 @@ class StudyContext:
         self.sweeps: list[dict[str, Any]] = []
         self.failures: list[str] = []
 
-    def sweep_dir(self, part: str) -> Path:
-        """The store of sweep ``part``: ``OUT/.sweeps/STUDY/PART-{quick|full}-seedS``."""
-        return Path(self.config.out_dir) / ".sweeps" / self.name / f"{part}-{self.config.mode}-seed{self.config.seed}"
+    def sweep_dir(self, part: str, folder: str | None = None) -> Path:
+        """The store of sweep ``part``: ``OUT/.sweeps/FOLDER/PART-{quick|full}-seedS`` (``FOLDER``: the
+        study's name unless given)."""
+        return (Path(self.config.out_dir) / ".sweeps" / (folder or self.name)
+                / f"{part}-{self.config.mode}-seed{self.config.seed}")
 
     def shared_sweep(self, part: str, fn: Callable, grid: Grid) -> xr.Dataset:
         """:meth:`sweep` in the store every study of this output folder shares,
         ``OUT/.sweeps/_shared/PART-{quick|full}-seedS``: for the sweeps defined once in
         :mod:`._shared` and run by more than one study (computed by the first, reused by the
         others while their identity is the same)."""
-        where = Path(self.config.out_dir) / ".sweeps" / "_shared" / f"{part}-{self.config.mode}-seed{self.config.seed}"
-        return self.sweep(part, fn, grid, where=where)
+        return self.sweep(part, fn, grid, where=self.sweep_dir(part, "_shared"))
 
     def sweep(self, part: str, fn: Callable, grid: Grid, *, where: Path | None = None) -> xr.Dataset:
         """Run ``fn`` over ``grid`` (resumable; recomputed if its code or arguments changed).
