@@ -38,6 +38,34 @@ def test_open_loop_controller_through_the_closed_loop_path_is_bitwise_the_open_l
     np.testing.assert_allclose(psi, 2 * np.pi * 0.5 * t[:, None] - np.array([0.0, math.pi / 2]), atol=1e-12)
 
 
+def test_a_sensing_open_loop_steps_whole_chunks_bitwise_as_period_by_period():
+    """A feed-forward controller (commands independent of what it senses) is rolled out a chunk at a
+    time and told afterwards what it sensed at each control update: the run and every sensed value
+    are bitwise those of stepping one control period at a time."""
+    from undulate import simulate_batch
+    from undulate.control import SensingOpenLoop
+
+    scenes = [Scene(phases_rad=(0.0, 2.0), channel=PAIR), Scene(phases_rad=(0.0, -0.7), channel=PAIR)]
+    opt = SimOptions(duration_s=3.0, record=("x", "joint_angle", "joint_command", "gait_phase"))
+
+    class PeriodByPeriod(SensingOpenLoop):
+        feed_forward = False
+
+    runs, sensed = [], []
+    for cls in (SensingOpenLoop, PeriodByPeriod):
+        ctl = cls(scenes[0].gait, scenes[0].geometry.n_links, 100.0)
+        runs.append(simulate_batch(scenes, opt, controller=ctl))
+        sensed.append(ctl.sensed)
+    for a, b in zip(*runs):
+        _data_vars_identical(a, b)
+    assert len(sensed[0]) == len(sensed[1]) == 300  # 3 s at 100 Hz
+    for sa, sb in zip(*sensed):
+        for x, y in zip(sa, sb):
+            np.testing.assert_array_equal(x, y)
+    # the loads were sensed while the pair touched (else the test would compare zeros)
+    assert max(np.abs(s[4]).max() for s in sensed[0]) > 0.01
+
+
 def test_phase_oscillator_without_coupling_keeps_its_frequency_exactly():
     sc = Scene(phases_rad=(0.3, -1.0), channel=PAIR, controller=ControllerParams(kind="phase-oscillator", coupling=0.0))
     ds = simulate(sc, SimOptions(duration_s=10.0))

@@ -85,6 +85,36 @@ def test_simulate_records_its_stop_and_its_physics_time():
     assert ref.attrs["stop_reason"] == "" and ref.attrs["stopped_at"] == pytest.approx(10.0)
 
 
+def test_a_batch_with_one_rule_per_scene_stops_each_scene_as_its_run_alone():
+    """Per-scene rules in one batch: each scene ends at its own stop and is stepped no further (the
+    steps counted are the scenes' own), and each Dataset is bitwise the scene's run alone, closed
+    loop included (the controller is vectorised over the batch)."""
+    from undulate import simulate_batch
+    from undulate.params import ControllerParams
+
+    def stop_at(t_end):
+        def stop(blocks):
+            return f"at {t_end}" if float(blocks[0]["time"][-1]) >= t_end - 1e-9 else None
+        return stop
+
+    p = ControllerParams(kind="relay")
+    scenes = [Scene(phases_rad=(0.0, d), channel=Channel(width_m=0.13), controller=p) for d in (0.5, 2.0, -2.5)]
+    opt = SimOptions(duration_s=4.0, chunk_steps=300, record=("x", "joint_angle", "contact_force_pair", "gait_phase"))
+    ends = (1.0, 4.0, 2.0)
+    with _physics.meter() as tally:
+        batch = simulate_batch(scenes, opt, stop=[stop_at(e) for e in ends])
+    alone = [simulate(sc, opt, stop=stop_at(e)) for sc, e in zip(scenes, ends)]
+    assert tally.steps == sum(a.attrs["physics_steps"] for a in alone) < 3 * alone[1].attrs["physics_steps"]
+    for b, a, e in zip(batch, alone, ends):
+        assert b.attrs["stopped_at"] == a.attrs["stopped_at"] and b.attrs["stop_reason"] == a.attrs["stop_reason"]
+        assert a.attrs["stopped_at"] == pytest.approx(e, abs=0.21)  # the chunk that reaches e
+        for v in a.data_vars:
+            np.testing.assert_array_equal(b[v].values, a[v].values, err_msg=v)
+    assert max(float(a["contact_force_pair"].max()) for a in alone) > 0.01  # the pairs touched
+    with pytest.raises(Exception, match="stop"):
+        simulate_batch(scenes, opt, stop=[stop_at(1.0)])
+
+
 @pytest.fixture(scope="module")
 def lone():
     ds = lone_swimmer({}, 0)

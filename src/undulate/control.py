@@ -113,6 +113,9 @@ class Controller:
     """
 
     kind = "base"
+    feed_forward = False
+    """True for a controller whose commands never depend on what it senses (it only records it):
+    the simulator then steps whole chunks and calls :meth:`sense` for each control update after."""
 
     def __init__(self, gait: Gait, n_links: int, rate_hz: float = 100.0):
         self.gait = gait
@@ -199,17 +202,28 @@ class OpenLoop(Controller):
 
 class SensingOpenLoop(OpenLoop):
     """The open-loop gait (phases held) that also keeps what the servos sensed at every control
-    update: ``sensed`` is a list of ``(t_s, psi, angle_rad, velocity_rad_s, load_Nm)``."""
+    update: ``sensed`` is a list of ``(t_s, psi, angle_rad, velocity_rad_s, load_Nm)``.
+
+    Its commands do not depend on what it senses (``feed_forward``): the simulator rolls a whole
+    chunk out in one call into C and hands it what was sensed at each control update afterwards
+    (:meth:`sense`), bitwise what it would have sensed stepping one control period at a time."""
+
+    feed_forward = True
 
     def reset(self, phases_rad, t_s: float = 0.0) -> None:
         super().reset(phases_rad, t_s)
         self.sensed: list = []
 
+    def sense(self, t_s: float, angle_rad, velocity_rad_s, load_Nm) -> None:
+        """Keep what the servos sensed at the control update at ``t_s`` (s)."""
+        self.update(float(t_s))
+        self.sensed.append((self.t_s, self.psi.copy(), np.array(angle_rad), np.array(velocity_rad_s),
+                            np.array(load_Nm)))
+
     def commands(self, t_steps_s, angle_rad=None, velocity_rad_s=None, load_Nm=None):
         out = super().commands(t_steps_s)
         if angle_rad is not None:
-            self.sensed.append((self.t_s, self.psi.copy(), np.array(angle_rad), np.array(velocity_rad_s),
-                                np.array(load_Nm)))
+            self.sense(self.t_s, angle_rad, velocity_rad_s, load_Nm)
         return out
 
 

@@ -332,13 +332,20 @@ class _WarmRollout:
                            initial_warmstart=args[2], state=args[3], sensordata=args[4])
         self.warm[b] = self.datas[b].qacc_warmstart
 
-    def rollout(self, cur: np.ndarray, u: np.ndarray, st: np.ndarray, sd: np.ndarray, nstep: int):
-        """Step every scene ``nstep`` steps from ``cur`` under controls ``u``, into ``st`` and ``sd``."""
+    def rollout(self, cur: np.ndarray, u: np.ndarray, st: np.ndarray, sd: np.ndarray, nstep: int,
+                active: Sequence[int] | None = None):
+        """Step every scene ``nstep`` steps from ``cur`` under controls ``u``, into ``st`` and ``sd``.
+        ``active``: the scenes to step (default all); the others stay at ``cur`` (their sensor rows
+        zero)."""
+        idx = range(len(self.models)) if active is None else active
+        if active is not None and len(active) < len(self.models):
+            rest = np.setdiff1d(np.arange(len(self.models)), active)
+            st[rest], sd[rest] = cur[rest, None], 0.0
         if self.pool is None:
-            for b in range(len(self.models)):
+            for b in idx:
                 self._one(b, cur, u, st, sd, nstep)
         else:
-            list(self.pool.map(lambda b: self._one(b, cur, u, st, sd, nstep), range(len(self.models))))
+            list(self.pool.map(lambda b: self._one(b, cur, u, st, sd, nstep), idx))
         return st, sd
 
     def close(self) -> None:
@@ -360,7 +367,8 @@ class _Clock:
         t0 = time.perf_counter()
         out = runner.rollout(*args, **kwargs)
         self.seconds += time.perf_counter() - t0
-        self.steps += nb * n_steps
+        active = kwargs.get("active")
+        self.steps += (nb if active is None else len(active)) * n_steps
         return out
 
 
@@ -439,16 +447,16 @@ def _depth_of(sd: np.ndarray, md: np.ndarray) -> np.ndarray:
     return np.where(sd[..., md] > 0, np.maximum(0.0, -sd[..., md + 1]), 0.0)
 
 
-def _check_divergence(bt: _Batch, st: np.ndarray, depth: np.ndarray, done: int) -> None:
-    """Raise :class:`DivergenceError` for a chunk's states ``st`` (nb, k, nstate) that blew up: huge or
-    non-finite, a MuJoCo reset (it restarts the data after bad accelerations: the state's clock jumps
-    back), or deep interpenetration."""
+def _check_divergence(bt: _Batch, st: np.ndarray, depth: np.ndarray, done: int, active: np.ndarray) -> None:
+    """Raise :class:`DivergenceError` for a chunk's states ``st`` (nb, k, nstate) of the ``active``
+    scenes that blew up: huge or non-finite, a MuJoCo reset (it restarts the data after bad
+    accelerations: the state's clock jumps back), or deep interpenetration."""
     k, dt = st.shape[1], bt.dt
     t_expected = (done + 1 + np.arange(k)) * dt
     huge = ~(np.abs(st) < _HUGE).all(axis=2)
     reset = np.abs(st[..., 0] - t_expected) > 0.5 * dt
     deep = depth > max(c.scene.contact.max_penetration_m for c in bt.compiled)
-    bad = huge | reset | deep
+    bad = (huge | reset | deep) & active[:, None]
     if not bad.any():
         return
     b = int(np.flatnonzero(bad.any(axis=1))[0])
@@ -481,6 +489,8 @@ class _Stepper:
         self.cur, self.last_sens = state0.copy(), sens0.copy()
         self.bufs = self._buffers(bt.chunk)
         self.done = 0  # integrator steps taken
+        self.active = np.ones(nb, dtype=bool)
+        """The scenes still stepped (a scene whose own stopping rule ended it is stepped no further)."""
 
     def _buffers(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         nb, m0 = self.bt.nb, self.bt.m0
@@ -523,32 +533,37 @@ class _Stepper:
             self.bufs = self._buffers(k)
         state_buf, sens_buf, ctrl_buf = self.bufs
         t = (self.done + np.arange(k)) * dt
+        active = None if self.active.all() else np.flatnonzero(self.active)
         if bt.ctl is None:
-            for b, cs in enumerate(bt.compiled):
-                ctrl_buf[b] = controls(cs, t)
-            st, sd = self.clock.rollout(self.runner, bt.nb, k, self.cur, ctrl_buf, state_buf, sens_buf, k)
+            for b in (range(bt.nb) if active is None else active):
+                ctrl_buf[b] = controls(bt.compiled[b], t)
+            st, sd = self.clock.rollout(self.runner, bt.nb, k, self.cur, ctrl_buf, state_buf, sens_buf, k,
+                                        active=active)
             return st, sd, None, None
         rows = np.arange(sps - 1, k, sps)
         t_rows = np.round((self.done // sps + 1 + np.arange(k // sps)) * (sps * dt), 12)  # as _block stamps them
-        st, sd, cmd_rows, phase_rows = _closed_loop_chunk(
+        chunk = _feed_forward_chunk if bt.ctl.feed_forward else _closed_loop_chunk
+        st, sd, cmd_rows, phase_rows = chunk(
             bt.ctl, bt.compiled, self.runner, self.cur, self.last_sens, t, bt.tick, rows,
-            t_rows, state_buf, sens_buf, ctrl_buf, self.q0, self.clock)
+            t_rows, state_buf, sens_buf, ctrl_buf, self.q0, self.clock, active)
         self.last_sens = sd[:, k - 1].copy()
         return st, sd, cmd_rows, phase_rows
 
-    def step_chunk(self, k: int) -> list[dict]:
-        """Step one chunk of ``k`` steps (a multiple of the sample interval); its sample blocks."""
+    def step_chunk(self, k: int) -> list[dict | None]:
+        """Step one chunk of ``k`` steps (a multiple of the sample interval); its sample blocks (None
+        for a scene no longer stepped)."""
         bt, q0, sps = self.bt, self.q0, self.bt.sps
         st, sd, cmd_rows, phase_rows = self._rollout(k)
         depth = _depth_of(sd, self.md)
         self.cur = st[:, k - 1].copy()
-        _check_divergence(bt, st, depth, self.done)
+        _check_divergence(bt, st, depth, self.done, self.active)
         ns, rows = k // sps, np.arange(sps - 1, k, sps)
         fp, fw = self._forces(sd, ns)
         pn = depth.reshape(bt.nb, ns, sps).max(axis=2)
         blocks = [self._block(b, self.done // sps + 1, st[b, rows, q0:q0 + bt.m0.nq], sd[b, rows], fp[b], fw[b],
                               pn[b], None if cmd_rows is None else cmd_rows[:, b],
-                              None if phase_rows is None else phase_rows[:, b]) for b in range(bt.nb)]
+                              None if phase_rows is None else phase_rows[:, b]) if self.active[b] else None
+                  for b in range(bt.nb)]
         self.done += k
         return blocks
 
@@ -563,7 +578,7 @@ def simulate_batch(
     nthread: int = 0,
     out: str | os.PathLike | Sequence[str | os.PathLike] | None = None,
     controller: Controller | None = None,
-    stop: Callable[[list[dict]], str | None] | None = None,
+    stop: Callable[[list[dict]], str | None] | Sequence[Callable[[list[dict]], str | None]] | None = None,
     progress: Callable[[float, float], None] | None = None,
 ) -> list[xr.Dataset]:
     """Simulate several scenes of one structure together in one rollout.
@@ -592,7 +607,10 @@ def simulate_batch(
     after each chunk of ``SimOptions.chunk_steps`` steps; it returns None to go
     on or a reason to end the run there.  The recording then ends at that
     chunk: bitwise the first samples of the full-length run (each step depends
-    on the state alone).  The Datasets' attrs ``stop_rule`` (the rule's
+    on the state alone).  Or a sequence of rules, one per scene, each called
+    with ``[that scene's samples]``: a scene whose rule ends it is stepped no
+    further while the others go on, so each scene's Dataset is bitwise its run
+    alone with its own rule.  The Datasets' attrs ``stop_rule`` (the rule's
     ``rule`` attribute), ``stop_reason`` ("" when it ran to the end) and
     ``stopped_at`` (s, the last sample) record it.
 
@@ -616,7 +634,7 @@ def simulate_batch(
     mujoco.set_mju_user_warning(_log_mujoco_warning)
     ok = False
     try:
-        reason = _step_all(bt, stepper, recorders.record, progress)
+        _step_all(bt, stepper, recorders, progress)
         results = recorders.finish()
         ok = True
     finally:
@@ -625,19 +643,25 @@ def simulate_batch(
         _physics.report(clock.seconds, clock.steps)
         if not ok:
             recorders.abort()
-    for ds in results:
+    for b, ds in enumerate(results):
         ds.attrs.update(physics_time=clock.seconds, physics_time_units="s", physics_steps=clock.steps,
-                        stop_rule="" if stop is None else str(getattr(stop, "rule", repr(stop))),
-                        stop_reason=reason or "", stopped_at=float(ds["time"].values[-1]), stopped_at_units="s")
+                        stop_rule=recorders.rule(b), stop_reason=recorders.reasons[b] or "",
+                        stopped_at=float(ds["time"].values[-1]), stopped_at_units="s")
     return results
 
 
 class _Recorders:
     """One recorder per scene of a batch (in memory, or streamed to its ``out`` file) and the stopping
-    rule that sees every block recorded."""
+    rule that sees every block recorded (one for the batch, or one per scene)."""
 
-    def __init__(self, bt: _Batch, stop: Callable[[list[dict]], str | None] | None):
+    def __init__(self, bt: _Batch, stop):
         self.bt, self.stop = bt, stop
+        self.per_scene = stop is not None and not callable(stop)
+        if self.per_scene:
+            self.stop = list(stop)
+            if len(self.stop) != bt.nb or not all(callable(r) for r in self.stop):
+                raise ParameterError("stop", f"a stopping rule, or one per scene ({bt.nb} callables)", stop)
+        self.reasons: list[str | None] = [None] * bt.nb
         self.recorders = [_MemoryRecorder() for _ in range(bt.nb)] if bt.outs is None else \
             [_NetCDFRecorder(p_) for p_ in bt.outs]
         self.builders = [functools.partial(_to_dataset, cs, bt.options, record=bt.options.recorded,
@@ -646,11 +670,27 @@ class _Recorders:
                                            controller_kind=None if bt.ctl is None else bt.ctl.kind)
                          for cs in bt.compiled]
 
-    def record(self, blocks: list[dict]) -> str | None:
-        """Record one block per scene; the stopping rule's reason to end the run there, or None."""
+    def rule(self, b: int) -> str:
+        """The stopping rule of scene ``b``, as text ("" without one)."""
+        r = self.stop[b] if self.per_scene else self.stop
+        return "" if r is None else str(getattr(r, "rule", repr(r)))
+
+    def record(self, blocks: list[dict | None]) -> bool:
+        """Record one block per scene still stepped (None: a scene that has stopped); whether every
+        scene has now stopped (its reason in :attr:`reasons`)."""
         for b, block in enumerate(blocks):
-            self.recorders[b].add(block) if self.bt.outs is None else self.recorders[b].add(block, self.builders[b])
-        return None if self.stop is None else self.stop(blocks)
+            if block is not None:
+                self.recorders[b].add(block) if self.bt.outs is None else self.recorders[b].add(block, self.builders[b])
+        if self.stop is None:
+            return False
+        if not self.per_scene:
+            reason = self.stop(blocks)
+            self.reasons = [reason] * len(blocks)
+            return bool(reason)
+        for b, block in enumerate(blocks):
+            if block is not None and self.reasons[b] is None:
+                self.reasons[b] = self.stop[b]([block]) or None
+        return all(r is not None for r in self.reasons)
 
     def finish(self) -> list[xr.Dataset]:
         """One Dataset per scene (built in memory, or opened from its file)."""
@@ -664,28 +704,29 @@ class _Recorders:
                 r.abort()
 
 
-def _step_all(bt: _Batch, stepper: _Stepper, record: Callable[[list[dict]], str | None],
-              progress: Callable[[float, float], None] | None) -> str | None:
-    """Record the t = 0 samples, then step and record chunk by chunk to the end or until ``record``
-    returns a reason to stop (returned; None: ran to the end)."""
+def _step_all(bt: _Batch, stepper: _Stepper, recorders: _Recorders,
+              progress: Callable[[float, float], None] | None) -> None:
+    """Record the t = 0 samples, then step and record chunk by chunk to the end or until every scene's
+    stopping rule has ended it (a scene that stopped is stepped no further)."""
     total = bt.n_samples * bt.sps
-    reason = record(stepper.initial_blocks())
+    ended = recorders.record(stepper.initial_blocks())
     if progress is not None:
         progress(0.0, total * bt.dt)
-    while stepper.done < total and not reason:
-        reason = record(stepper.step_chunk(min(bt.chunk, total - stepper.done)))
+    while stepper.done < total and not ended:
+        stepper.active = np.array([r is None for r in recorders.reasons])
+        ended = recorders.record(stepper.step_chunk(min(bt.chunk, total - stepper.done)))
         if progress is not None:
             progress(stepper.done * bt.dt, total * bt.dt)
-    return reason
 
 
 def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, last_sens, t, tick, rows, t_rows,
-                       state_buf, sens_buf, ctrl_buf, q0, clock: _Clock):
+                       state_buf, sens_buf, ctrl_buf, q0, clock: _Clock, active=None):
     """Step one chunk a control period at a time: sense, command, roll out in C.
 
     ``cur`` (the state at the chunk's start) is updated in place.  Returns the
     chunk's states, sensor data, and the commanded joint angles and gait phases
     at the recorded ``rows`` (each ``(len(rows), nb, n, nj)`` / ``(len(rows), nb, n)``).
+    ``active``: the scenes to step (None: all); the others stay where they are.
     """
     nb, k = state_buf.shape[:2]
     cs0 = compiled[0]
@@ -732,7 +773,7 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, las
             tr = t_rows[sel]
             cmd_rows[sel] = ctl.commands(tr)[0]
             phase_rows[sel] = ctl.gait_phase(tr)
-        clock.rollout(runner, nb, n_t, cur, u, st, sd, n_t)
+        clock.rollout(runner, nb, n_t, cur, u, st, sd, n_t, active=active)
         if not one:
             ctrl_buf[:, a:e], state_buf[:, a:e], sens_buf[:, a:e] = u, st, sd
         cur[:] = st[:, -1]
@@ -741,9 +782,35 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, las
     return state_buf, sens_buf, cmd_rows, phase_rows
 
 
+def _feed_forward_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, last_sens, t, tick, rows, t_rows,
+                        state_buf, sens_buf, ctrl_buf, q0, clock: _Clock, active=None):
+    """:func:`_closed_loop_chunk` for a controller whose commands do not depend on what it senses
+    (``Controller.feed_forward``): the whole chunk in one rollout, then what was sensed at each
+    control update (the state after the step before it, that step's sensors) handed to
+    ``ctl.sense``.  Bitwise the states, sensor data and senses of stepping period by period."""
+    nb, k = state_buf.shape[:2]
+    ix, m0 = compiled[0].index, compiled[0].model
+    lead = compiled[0].scene.servo.back_emf_Nms_per_rad / compiled[0].scene.servo.kp_Nm_per_rad
+    qpos_j, qvel_j, load_j = q0 + ix.qpos_joint, q0 + m0.nq + ix.qvel_joint, ix.sens_load
+    ctrl_buf[:] = 0.0
+    if ix.ctrl_push.size:
+        for b, cs in enumerate(compiled):
+            ctrl_buf[b] = controls(cs, t)
+    ang, vel = ctl.commands(t)
+    ctrl_buf[:, :, ix.ctrl_pos.ravel()] = (ang + lead * vel).reshape(k, nb, -1).transpose(1, 0, 2)
+    ctrl_buf[:, :, ix.ctrl_vel.ravel()] = vel.reshape(k, nb, -1).transpose(1, 0, 2)
+    start = cur.copy()
+    clock.rollout(runner, nb, k, start, ctrl_buf, state_buf, sens_buf, k, active=active)
+    for a in range(0, k, tick):
+        st, sd = (start, last_sens) if a == 0 else (state_buf[:, a - 1], sens_buf[:, a - 1])
+        ctl.sense(float(t[a]), st[:, qpos_j], st[:, qvel_j], sd[:, load_j])
+    cur[:] = state_buf[:, -1]
+    return state_buf, sens_buf, ctl.commands(t_rows)[0], ctl.gait_phase(t_rows)
+
+
 def simulate(scene: Scene, options: SimOptions | None = None, *,
              out: str | os.PathLike | None = None, controller: Controller | None = None,
-             stop: Callable[[list[dict]], str | None] | None = None,
+             stop: Callable[[list[dict]], str | None] | Sequence[Callable[[list[dict]], str | None]] | None = None,
              progress: Callable[[float, float], None] | None = None) -> xr.Dataset:
     """Simulate one scene; see the module docstring for the recorded variables.
 

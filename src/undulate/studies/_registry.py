@@ -329,8 +329,11 @@ class StudyContext:
         others while their identity is the same)."""
         return self.sweep(part, fn, grid, where=self.sweep_dir(part, "_shared"))
 
-    def sweep(self, part: str, fn: Callable, grid: Grid, *, where: Path | None = None) -> xr.Dataset:
+    def sweep(self, part: str, fn: Callable, grid: Grid, *, where: Path | None = None,
+              batched: bool = False) -> xr.Dataset:
         """Run ``fn`` over ``grid`` (resumable; recomputed if its code or arguments changed).
+        ``batched``: ``fn(points, seeds) -> list[Dataset]`` runs a task's points at once
+        (:func:`undulate.sweep.run_sweep`).
 
         Returns the merged Dataset (dims ``grid.dims + ("replicate",)``; failed
         runs NaN and flagged ``run_failed``; they are listed in the study's
@@ -341,7 +344,7 @@ class StudyContext:
         out = where or self.sweep_dir(part)
         workers = 1 if self.config.scheduler is None and grid.n_runs < SERIAL_BELOW else self.config.workers
         res: SweepResult = run_sweep(fn, grid, out, scheduler=self.config.scheduler, workers=workers,
-                                     progress=self.progress)
+                                     progress=self.progress, batched=batched)
         try:
             rel = str(out.relative_to(self.config.out_dir))
         except ValueError:

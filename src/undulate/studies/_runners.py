@@ -83,6 +83,21 @@ def _simulate_stopped(scene: Scene, options: SimOptions, stop: SteadyStop | Phas
     return ds, full.n_steps // full.steps_per_sample + 1
 
 
+def _simulate_stopped_batch(scenes: list[Scene], options: SimOptions, stop: SteadyStop | PhaseStop | None):
+    """:func:`_simulate_stopped` for scenes of one structure (and closed-loop controller) stepped
+    together, each with its own monitor of ``stop``: each Dataset is bitwise its scene's
+    :func:`_simulate_stopped` (:func:`undulate.simulation.simulate_batch`)."""
+    from ..simulation import resolve_options, simulate_batch
+
+    monitors = None
+    if stop is not None:
+        monitors = [stop.monitor(sc.gait.period_s, sc.wavelength_m if math.isfinite(sc.wavelength_m)
+                                 else sc.geometry.length_m, options.duration_s) for sc in scenes]
+    dss = simulate_batch(scenes, options, stop=monitors)
+    full = resolve_options(scenes[0], options)
+    return dss, full.n_steps // full.steps_per_sample + 1
+
+
 def _padded(values: np.ndarray, n: int) -> np.ndarray:
     """``values`` (time first) padded with NaN to ``n`` samples."""
     v = np.asarray(values, float)

@@ -51,10 +51,10 @@ from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS, PAIR_COUPLING, _label
 from ._shared import h_probe_phases, h_probe_sweep
 from ._points import SyncPoint
-from ._runners import _padded, _simulate_stopped, _stop_vars
+from ._runners import _padded, _simulate_stopped_batch, _stop_vars
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
-__all__ = ["pair_run", "group_run", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
+__all__ = ["pair_run", "pair_runs", "group_run", "group_runs", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
            "CONTROLLERS", "PAIR_COUPLING"]
 
 PAIR_DURATION_S = 60.0
@@ -89,14 +89,33 @@ def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, sto
     ``stop``: a stopping rule (:data:`PAIR_SYNC_STOP`; None: the whole ``duration_s``); the
     final values are then taken over the last :data:`TAIL_S` before the stop and ``dphi`` is
     NaN after it.  Deterministic (``seed`` unused)."""
+    return pair_runs([point], [seed], duration_s=duration_s, stop=stop)[0]
+
+
+def pair_runs(points: list[dict], seeds: list[int], *, duration_s: float = PAIR_DURATION_S,
+              stop: PhaseStop | None = None):
+    """:func:`pair_run` on several points (batched sweep function): the pairs of one controller and
+    one ``hold_x`` are stepped together in one batch, each stopping by its own rule (bitwise its
+    run alone: the controller is vectorised over the batch)."""
+    pts = [SyncPoint.of(p) for p in points]
+    opts = SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD)
+    out: list = [None] * len(pts)
+    for key in dict.fromkeys((p.controller, p.hold_x) for p in pts):
+        idx = [i for i, p in enumerate(pts) if (p.controller, p.hold_x) == key]
+        scenes = [Scene(phases_rad=(0.0, pts[i].dphi0_rad), channel=Channel(width_m=PAIR_CHANNEL_M),
+                        hold_x=key[1], controller=CONTROLLERS[key[0]]) for i in idx]
+        dss, n_full = _simulate_stopped_batch(scenes, opts, stop)
+        for i, ds in zip(idx, dss):
+            out[i] = _pair_result(ds, n_full)
+    return out
+
+
+def _pair_result(ds, n_full: int):
+    """A closed-loop pair's run -> its final phase difference, lock time, contact forces, dphi(t)."""
     import xarray as xr
 
     from ..phases import neighbour_phase_differences, time_to_lock
 
-    pt = SyncPoint.of(point)
-    sc = Scene(phases_rad=(0.0, pt.dphi0_rad), channel=Channel(width_m=PAIR_CHANNEL_M),
-               hold_x=pt.hold_x, controller=CONTROLLERS[pt.controller])
-    ds, n_full = _simulate_stopped(sc, SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD), stop)
     t = ds["time"].values
     d = neighbour_phase_differences(ds)
     f = ds["contact_force_pair"].values[:, 0]
@@ -121,17 +140,34 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, st
     ``seed``; positions and phases free.  ``stop``: a stopping rule (:data:`GROUP_SYNC_STOP`;
     None: the whole ``duration_s``); the final values are then over the last :data:`TAIL_S`
     before the stop and ``R`` is NaN after it."""
+    return group_runs([point], [seed], duration_s=duration_s, stop=stop)[0]
+
+
+def group_runs(points: list[dict], seeds: list[int], *, duration_s: float = PAIR_DURATION_S,
+               stop: PhaseStop | None = None):
+    """:func:`group_run` on several points (batched sweep function): the groups of one controller
+    and size are stepped together, each stopping by its own rule (bitwise its run alone)."""
+    pts = [SyncPoint.of(p) for p in points]
+    opts = SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD)
+    out: list = [None] * len(pts)
+    for key in dict.fromkeys((p.controller, p.n_swimmers) for p in pts):
+        idx = [i for i, p in enumerate(pts) if (p.controller, p.n_swimmers) == key]
+        scenes = [Scene(phases_rad=tuple(np.random.default_rng(seeds[i]).uniform(0, 2 * np.pi, key[1])),
+                        channel=Channel(width_m=key[1] * pts[i].spacing_m), controller=CONTROLLERS[key[0]])
+                  for i in idx]
+        dss, n_full = _simulate_stopped_batch(scenes, opts, stop)
+        for i, sc, ds in zip(idx, scenes, dss):
+            out[i] = _group_result(sc, ds, n_full)
+    return out
+
+
+def _group_result(sc: Scene, ds, n_full: int):
+    """A closed-loop group's run -> R(t), lock time, phase-locked / compatible, neighbours' finals."""
     import xarray as xr
 
     from ..observables import neighbour_offsets
     from ..phases import gait_frequency, gait_phase, neighbour_phase_differences, order_parameter
 
-    pt = SyncPoint.of(point)
-    n = pt.n_swimmers
-    phases = tuple(np.random.default_rng(seed).uniform(0, 2 * np.pi, n))
-    sc = Scene(phases_rad=phases, channel=Channel(width_m=n * pt.spacing_m),
-               controller=CONTROLLERS[pt.controller])
-    ds, n_full = _simulate_stopped(sc, SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD), stop)
     t = ds["time"].values
     psi = gait_phase(ds)
     r = order_parameter(psi).values
@@ -328,8 +364,8 @@ def pair_dataset(ctx: StudyContext, p: dict[str, Any]):
 
     grid = Grid(axes={"controller": list(CONTROLLERS), "hold_x": [True, False], "dphi0_rad": p["dphi0_rad"]},
                 seed=ctx.config.seed)
-    ds = _label(ctx.sweep("runs", functools.partial(pair_run, duration_s=p["duration_s"], stop=PAIR_SYNC_STOP),
-                             grid))
+    ds = _label(ctx.sweep("runs", functools.partial(pair_runs, duration_s=p["duration_s"], stop=PAIR_SYNC_STOP),
+                             grid, batched=True))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     ds.attrs.update(title="closed-loop pairs: phase locking", channel_width_m=PAIR_CHANNEL_M,
                     duration_s=p["duration_s"], phase_oscillator_coupling=PAIR_COUPLING)
@@ -341,8 +377,8 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
 
     grid = Grid(axes={"controller": list(CONTROLLERS), "n_swimmers": p["n_swimmers"], "spacing_m": p["spacing_m"]},
                 replicates=p["replicates"], seed=ctx.config.seed)
-    ds = _label(ctx.sweep("runs", functools.partial(group_run, duration_s=p["duration_s"], stop=GROUP_SYNC_STOP),
-                             grid))
+    ds = _label(ctx.sweep("runs", functools.partial(group_runs, duration_s=p["duration_s"], stop=GROUP_SYNC_STOP),
+                             grid, batched=True))
     free = ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed))
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})
