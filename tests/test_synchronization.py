@@ -23,6 +23,24 @@ def test_load_coupled_held_pair_synchronizes_and_its_contact_force_collapses():
     assert ds["force_start"].attrs["units"] == "N" and ds["dphi"].attrs["units"] == "rad"
 
 
+def test_batched_sweep_functions_give_each_point_its_own_run_in_order():
+    """The batched runners group a task's points by controller and hold_x (size for groups), step each
+    group together and return the results in the points' order, bitwise each point's run alone."""
+    from undulate.studies.phase_interaction import phase_run, phase_runs
+    from undulate.studies.synchronization import group_runs
+
+    pts = [{"controller": c, "hold_x": h, "dphi0_rad": d}
+           for c, h, d in (("relay", True, 2.0), ("phase-oscillator", True, 1.0), ("relay", True, -1.5),
+                           ("relay", False, 2.0))]
+    for a, b in zip(phase_runs(pts, [0] * 4, duration_s=3.0), [phase_run(p, 0, duration_s=3.0) for p in pts]):
+        for v in a.data_vars:
+            np.testing.assert_array_equal(a[v].values, b[v].values, err_msg=v)
+    gp = [{"controller": "relay", "n_swimmers": n, "spacing_m": w} for n, w in ((3, 0.055), (4, 0.065), (3, 0.065))]
+    for a, b in zip(group_runs(gp, [0, 1, 2], duration_s=12.0), [group_run(p, s, duration_s=12.0) for p, s in zip(gp, [0, 1, 2])]):
+        for v in a.data_vars:
+            np.testing.assert_array_equal(a[v].values, b[v].values, err_msg=v)
+
+
 def test_open_loop_pair_keeps_its_phase_difference_exactly():
     """The controller-free reference: without feedback nothing can change a phase."""
     from undulate.studies import synchronization as s

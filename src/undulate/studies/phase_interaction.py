@@ -7,23 +7,25 @@ gait period, as a function of the phase difference ``dphi = phi_1 - phi_0``
 states; a zero where ``H`` falls (``dH/d dphi < 0``) is stable; a band where
 ``H`` is zero within its interval (no contact: no interaction) is neutral.
 
-Method (direct measurement; why not the phase-reduction projection is in
-``docs/controllers.md``): pairs start from a grid of ``dphi0`` over
-``[-pi, pi)`` and run closed loop; the record is cut into whole gait periods
-(:data:`WINDOW_PERIODS`); each window gives one sample ``(circular mean of
-dphi, (dphi_end - dphi_start) / window)``.  The samples of all runs are
-binned in ``dphi`` (:data:`N_BINS` bins); each bin's mean carries a t 95 %
-interval.  Positions held (``Scene.hold_x``) and free are measured
-separately; with positions free ``H`` is the marginal over the ``dx`` the
-runs visit.
+Method (phase reduction; why not the direct measurement from closed-loop
+runs is in ``docs/controllers.md``): the pair runs the open-loop gait with its
+phase difference held at each ``dphi`` of a grid (positions held, or free);
+at every control update each closed-loop law is evaluated on what the servos
+sensed (``Controller.phase_velocity``, :func:`._phase.probe_run`), and ``H =
+-(<dpsi_1/dt> - <dpsi_0/dt>)`` is averaged per gait period after the first;
+each grid point's mean carries the t 95 % interval over its periods.  The
+probe is shared with ``synchronization-groups`` (:func:`._shared.h_probe_sweep`).
 
 Prediction against observation: the predicted final states are the stable
 zeros (a + to - sign change between neighbouring grid points whose intervals
 exclude zero, located by a straight-line fit through the bins either side,
 zero = -a/b with the fit's t interval propagated) and the neutral bins.
-Each run's observed final ``dphi`` (circular mean over the last :data:`TAIL_S`)
-is predicted when it lies within :data:`MATCH_TOL_RAD` of a stable zero's
-interval or inside a neutral bin.
+The closed-loop pairs (:func:`phase_runs`, from a grid of ``dphi0``) give the
+observed states: a run whose ``dphi`` moves less than :data:`DRIFT_RAD_S` over
+the last :data:`TAIL_S` has locked, and is predicted when its final ``dphi``
+(circular mean over that window) lies within :data:`MATCH_TOL_RAD` of a stable
+zero's interval or inside a neutral bin; a run still drifting is predicted when
+it drifts the way H's interval points at its ``dphi``.
 """
 
 from __future__ import annotations
@@ -42,7 +44,7 @@ from ._criteria import PAIR_CHANNEL_M
 from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
                      _sign, predicted, probe_run, stable_zeros)
 
-__all__ = ["phase_run", "probe_run", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]
+__all__ = ["phase_run", "phase_runs", "probe_run", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]
 
 TAIL_S = 4.0
 DRIFT_RAD_S = 0.02
@@ -54,15 +56,31 @@ PREDICTED_FRACTION = 0.8
 def phase_run(point: dict, seed: int, *, duration_s: float):
     """One closed-loop pair from ``point["dphi0_rad"]`` (sweep function): ``dphi(t)`` at 20 Hz and
     the contact force.  ``controller``, ``hold_x`` as in :func:`~.synchronization.pair_run`."""
+    return phase_runs([point], [seed], duration_s=duration_s)[0]
+
+
+def phase_runs(points: list[dict], seeds: list[int], *, duration_s: float):
+    """:func:`phase_run` on several points (batched sweep function): the pairs of one controller and
+    one ``hold_x`` are stepped together in one batch (each bitwise its run alone)."""
+    from ..simulation import simulate_batch
+
+    opts = SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=("x", "y", "gait_phase", "contact_force_pair"))
+    out: list = [None] * len(points)
+    keys = [(str(p["controller"]), bool(p["hold_x"])) for p in points]
+    for key in dict.fromkeys(keys):
+        idx = [i for i, k in enumerate(keys) if k == key]
+        scenes = [Scene(phases_rad=(0.0, float(points[i]["dphi0_rad"])), channel=Channel(width_m=PAIR_CHANNEL_M),
+                        hold_x=key[1], controller=CONTROLLERS[key[0]]) for i in idx]
+        for i, sc, ds in zip(idx, scenes, simulate_batch(scenes, opts)):
+            out[i] = _phase_result(sc, ds)
+    return out
+
+
+def _phase_result(sc: Scene, ds):
     import xarray as xr
 
     from ..phases import neighbour_phase_differences
-    from ..simulation import simulate
 
-    sc = Scene(phases_rad=(0.0, float(point["dphi0_rad"])), channel=Channel(width_m=PAIR_CHANNEL_M),
-               hold_x=bool(point["hold_x"]), controller=CONTROLLERS[str(point["controller"])])
-    ds = simulate(sc, SimOptions(duration_s=duration_s, sample_rate_hz=20.0,
-                                 record=("x", "y", "gait_phase", "contact_force_pair")))
     d = neighbour_phase_differences(ds)
     return xr.Dataset({
         "dphi": (("time",), d.values[:, 0], {"units": "rad", "long_name": "phase difference phi_1 - phi_0"}),
@@ -82,7 +100,7 @@ def dataset(ctx: StudyContext, p: dict[str, Any]):
 
     grid = Grid(axes={"controller": list(CONTROLLERS), "hold_x": [True, False], "dphi0_rad": p["dphi0_rad"]},
                 seed=ctx.config.seed)
-    ds = _label(ctx.sweep("runs", functools.partial(phase_run, duration_s=p["duration_s"]), grid))
+    ds = _label(ctx.sweep("runs", functools.partial(phase_runs, duration_s=p["duration_s"]), grid, batched=True))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     probe = ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed))
     ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")
