@@ -98,6 +98,17 @@ def _simulate_stopped_batch(scenes: list[Scene], options: SimOptions, stop: Stea
     return dss, full.n_steps // full.steps_per_sample + 1
 
 
+def _in_batches(keys: list, run) -> list:
+    """A batched sweep function's results in its points' order: ``run(key, idx)`` steps the points
+    ``idx`` that share ``key`` (one batch: same controller, structure) and returns their results."""
+    out: list = [None] * len(keys)
+    for key in dict.fromkeys(keys):
+        idx = [i for i, k in enumerate(keys) if k == key]
+        for i, res in zip(idx, run(key, idx)):
+            out[i] = res
+    return out
+
+
 def _padded(values: np.ndarray, n: int) -> np.ndarray:
     """``values`` (time first) padded with NaN to ``n`` samples."""
     v = np.asarray(values, float)

@@ -40,6 +40,7 @@ from .. import stats
 from ..params import Channel, Scene, SimOptions
 from ._shared import h_probe_phases, h_probe_sweep
 from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._runners import _in_batches
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
                      _sign, predicted, probe_run, stable_zeros)
@@ -65,15 +66,13 @@ def phase_runs(points: list[dict], seeds: list[int], *, duration_s: float):
     from ..simulation import simulate_batch
 
     opts = SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=("x", "y", "gait_phase", "contact_force_pair"))
-    out: list = [None] * len(points)
-    keys = [(str(p["controller"]), bool(p["hold_x"])) for p in points]
-    for key in dict.fromkeys(keys):
-        idx = [i for i, k in enumerate(keys) if k == key]
+
+    def run(key, idx):
         scenes = [Scene(phases_rad=(0.0, float(points[i]["dphi0_rad"])), channel=Channel(width_m=PAIR_CHANNEL_M),
                         hold_x=key[1], controller=CONTROLLERS[key[0]]) for i in idx]
-        for i, sc, ds in zip(idx, scenes, simulate_batch(scenes, opts)):
-            out[i] = _phase_result(sc, ds)
-    return out
+        return [_phase_result(sc, ds) for sc, ds in zip(scenes, simulate_batch(scenes, opts))]
+
+    return _in_batches([(str(p["controller"]), bool(p["hold_x"])) for p in points], run)
 
 
 def _phase_result(sc: Scene, ds):

@@ -51,7 +51,7 @@ from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS, PAIR_COUPLING, _label
 from ._shared import h_probe_phases, h_probe_sweep
 from ._points import SyncPoint
-from ._runners import _padded, _simulate_stopped_batch, _stop_vars
+from ._runners import _in_batches, _padded, _simulate_stopped_batch, _stop_vars
 from ._registry import Claim, Study, StudyContext, Verdict, register
 
 __all__ = ["pair_run", "pair_runs", "group_run", "group_runs", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
@@ -99,15 +99,14 @@ def pair_runs(points: list[dict], seeds: list[int], *, duration_s: float = PAIR_
     run alone: the controller is vectorised over the batch)."""
     pts = [SyncPoint.of(p) for p in points]
     opts = SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD)
-    out: list = [None] * len(pts)
-    for key in dict.fromkeys((p.controller, p.hold_x) for p in pts):
-        idx = [i for i, p in enumerate(pts) if (p.controller, p.hold_x) == key]
+
+    def run(key, idx):
         scenes = [Scene(phases_rad=(0.0, pts[i].dphi0_rad), channel=Channel(width_m=PAIR_CHANNEL_M),
                         hold_x=key[1], controller=CONTROLLERS[key[0]]) for i in idx]
         dss, n_full = _simulate_stopped_batch(scenes, opts, stop)
-        for i, ds in zip(idx, dss):
-            out[i] = _pair_result(ds, n_full)
-    return out
+        return [_pair_result(ds, n_full) for ds in dss]
+
+    return _in_batches([(p.controller, p.hold_x) for p in pts], run)
 
 
 def _pair_result(ds, n_full: int):
@@ -149,16 +148,15 @@ def group_runs(points: list[dict], seeds: list[int], *, duration_s: float = PAIR
     and size are stepped together, each stopping by its own rule (bitwise its run alone)."""
     pts = [SyncPoint.of(p) for p in points]
     opts = SimOptions(duration_s=duration_s, sample_rate_hz=10.0, record=RECORD)
-    out: list = [None] * len(pts)
-    for key in dict.fromkeys((p.controller, p.n_swimmers) for p in pts):
-        idx = [i for i, p in enumerate(pts) if (p.controller, p.n_swimmers) == key]
+
+    def run(key, idx):
         scenes = [Scene(phases_rad=tuple(np.random.default_rng(seeds[i]).uniform(0, 2 * np.pi, key[1])),
                         channel=Channel(width_m=key[1] * pts[i].spacing_m), controller=CONTROLLERS[key[0]])
                   for i in idx]
         dss, n_full = _simulate_stopped_batch(scenes, opts, stop)
-        for i, sc, ds in zip(idx, scenes, dss):
-            out[i] = _group_result(sc, ds, n_full)
-    return out
+        return [_group_result(sc, ds, n_full) for sc, ds in zip(scenes, dss)]
+
+    return _in_batches([(p.controller, p.n_swimmers) for p in pts], run)
 
 
 def _group_result(sc: Scene, ds, n_full: int):
