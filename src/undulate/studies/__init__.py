@@ -27,6 +27,7 @@ from ._registry import (
     names,
     register,
     run_study,
+    start_study,
 )
 
 __all__ = [
@@ -43,4 +44,5 @@ __all__ = [
     "names",
     "register",
     "run_study",
+    "start_study",
 ]
