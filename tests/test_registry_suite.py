@@ -108,48 +108,6 @@ def test_reproduce_with_another_seed_recomputes_the_study(tmp_path, pendulum_stu
     assert claims["claims"] == [] and set(claims["counts"]) == {"holds", "explained", "fails", "no result"}
 
 
-def test_reproduce_writes_each_study_beside_the_next_ones_sweeps_and_reports_failures_in_order(tmp_path,
-                                                                                            pendulum_study):
-    """A study's files are written on a second thread while the next study's sweeps run: the statuses
-    keep the studies' order, a study failing in its sweeps or in its files is reported and the others
-    go on, and each finished study's JSON records its own wall time (sweeps plus files)."""
-    import threading
-
-    threads = {}
-
-    def figure(ds):
-        threads["figure"] = threading.current_thread().name
-        return _Fig()
-
-    def broken_dataset(ctx, plan):
-        raise RuntimeError("no sweep today")
-
-    def broken_figure(ds):
-        raise ValueError("no figure today")
-
-    base = dict(description="test", plan=lambda quick: None, summary=lambda ds: {"n": int(ds.sizes["damping"])})
-    studies.register(studies.Study(name="_pend_fig", dataset=_pendulum_dataset, figure=figure, **base))
-    studies.register(studies.Study(name="_broken_sweeps", dataset=broken_dataset, figure=figure, **base))
-    studies.register(studies.Study(name="_broken_files", dataset=_pendulum_dataset, figure=broken_figure, **base))
-    try:
-        logs: list[str] = []
-        _, st = reproduce(tmp_path, quick=True, studies=["_pendulum", "_broken_sweeps", "_broken_files", "_pend_fig"],
-                          log=logs.append, animation_s=0.5)
-    finally:
-        for n in ("_pend_fig", "_broken_sweeps", "_broken_files"):
-            _registry._REGISTRY.pop(n, None)
-    assert [s["name"] for s in st] == ["_pendulum", "_broken_sweeps", "_broken_files", "_pend_fig"]
-    assert [s["ok"] for s in st] == [True, False, False, True]
-    assert "no sweep today" in st[1]["error"] and "no figure today" in st[2]["error"]
-    assert threads["figure"].startswith("finish")  # the files were written off the main thread
-    for name in ("_pendulum", "_pend_fig"):
-        doc = json.loads((tmp_path / f"{name}.json").read_text())
-        assert doc["wall_s"] > 0 and next(s for s in st if s["name"] == name)["wall_s"] == doc["wall_s"]
-    assert not (tmp_path / "_broken_files.json").exists() and not (tmp_path / "_broken_files.nc").exists()
-    state = json.loads((tmp_path / "reproduce.json").read_text())
-    assert list(state["studies"]) == ["_pendulum", "_broken_sweeps", "_broken_files", "_pend_fig"]
-
-
 # ---- every registered study in quick mode ------------------------------------------
 def _numbers(ds: xr.Dataset) -> dict:
     return {k: v.values for k, v in ds.variables.items() if v.dtype.kind in "biufc"}

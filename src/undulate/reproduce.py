@@ -14,10 +14,8 @@ from __future__ import annotations
 
 import json
 import math
-import threading
 import time
 import traceback
-from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Callable
 
@@ -116,78 +114,6 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
     return anims
 
 
-class _Statuses:
-    """The per-study statuses of one reproduction, in the studies' order, and its state file
-    (``reproduce.json``, saved as each study ends: from the thread that wrote its files, or from the
-    main thread when its sweeps failed)."""
-
-    def __init__(self, names: list[str], state: dict, out: Path):
-        self.names, self.state, self.out = names, state, out
-        self.by_index: dict[int, dict] = {}
-        self.lock = threading.Lock()
-
-    def record(self, i: int, st: dict) -> None:
-        with self.lock:
-            self.by_index[i] = st
-            if not st.get("reused"):
-                done = self.state["studies"]
-                done[st["name"]] = {k: v for k, v in st.items() if k != "reused"}
-                order = [n for n in self.names if n in done] + [n for n in done if n not in self.names]
-                self.state["studies"] = {n: done[n] for n in order}  # the studies' order, whichever ended first
-                _save_state(self.out, self.state)
-
-    def ordered(self) -> list[dict]:
-        return [self.by_index[i] for i in sorted(self.by_index)]
-
-
-def _run_all(registry, names: list[str], out: Path, kw: dict, book: _Statuses, log) -> None:
-    """Each study's sweeps on this thread, its summary, figure and files on a second one while the
-    next study's sweeps run (one study's files at a time)."""
-    mode = "quick" if kw["quick"] else "full"
-    futures = []
-    with ThreadPoolExecutor(1, thread_name_prefix="finish") as finisher:
-        for i, name in enumerate(names):
-            tag = f"[{i + 1}/{len(names)}] {name}"
-            if _study_done(out, name, kw["quick"], kw["seed"]):
-                prev = book.state["studies"].get(name, {})
-                log(f"{tag}: done earlier ({prev.get('wall_s', float('nan')):.1f} s), kept")
-                book.record(i, {"name": name, "ok": True, "wall_s": prev.get("wall_s"), "error": None, "reused": True})
-                continue
-            log(f"{tag}: running ({mode})")
-            t0 = time.perf_counter()
-            try:
-                finish = registry.start_study(name, out, **kw)
-            except (KeyboardInterrupt, SourceChangedError):  # the code changed under us: nothing after is attributable
-                raise
-            except Exception as e:  # a failed study is reported, the others go on
-                book.record(i, _failed(name, e, time.perf_counter() - t0, log, tag))
-                continue
-            futures.append(finisher.submit(_finish, finish, i, name, tag, out, book, log))
-    for f in futures:
-        f.result()  # re-raises SourceChangedError from a study's files
-
-
-def _finish(finish, i: int, name: str, tag: str, out: Path, book: _Statuses, log) -> None:
-    """Write a study's files (on the finishing thread) and record its status."""
-    try:
-        finish()
-    except (KeyboardInterrupt, SourceChangedError):
-        raise
-    except Exception as e:  # noqa: BLE001 - a failed study is reported, the others go on
-        book.record(i, _failed(name, e, 0.0, log, tag))
-        return
-    wall = float(json.loads((out / f"{name}.json").read_text())["wall_s"])  # its sweeps and its files
-    log(f"{tag}: done in {wall:.1f} s")
-    book.record(i, {"name": name, "ok": True, "wall_s": wall, "error": None, "reused": False})
-
-
-def _failed(name: str, e: Exception, wall_s: float, log, tag: str) -> dict:
-    st = {"name": name, "ok": False, "wall_s": wall_s, "error": f"{type(e).__name__}: {e}", "reused": False,
-          "traceback": "".join(traceback.format_exception(e))}
-    log(f"{tag}: FAILED: {st['error']}")
-    return st
-
-
 def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None = None, seed: int = 0,
               studies: list[str] | None = None, log: Callable[[str], None] = print,
               animation_s: float | None = None, workers: int | None = None) -> tuple[Path, list[dict]]:
@@ -218,10 +144,31 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
     names = list(studies) if studies is not None else registry.names()
     for n in names:
         registry.describe(n)  # unknown names fail before any work
+    state = _load_state(out, mode, seed)
     t_all = time.perf_counter()
-    book = _Statuses(names, _load_state(out, mode, seed), out)
-    _run_all(registry, names, out, dict(quick=quick, scheduler=scheduler, seed=seed, workers=workers), book, log)
-    statuses = book.ordered()
+    statuses = []
+    for i, name in enumerate(names, 1):
+        prev = state["studies"].get(name, {})
+        if _study_done(out, name, quick, seed):
+            log(f"[{i}/{len(names)}] {name}: done earlier ({prev.get('wall_s', float('nan')):.1f} s), kept")
+            statuses.append({"name": name, "ok": True, "wall_s": prev.get("wall_s"), "error": None, "reused": True})
+            continue
+        log(f"[{i}/{len(names)}] {name}: running ({mode})")
+        t0 = time.perf_counter()
+        try:
+            registry.run_study(name, out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
+            st = {"name": name, "ok": True, "wall_s": time.perf_counter() - t0, "error": None, "reused": False}
+            log(f"[{i}/{len(names)}] {name}: done in {st['wall_s']:.1f} s")
+        except (KeyboardInterrupt, SourceChangedError):  # the code changed under us: nothing after is attributable
+            raise
+        except Exception as e:  # a failed study is reported, the others go on
+            st = {"name": name, "ok": False, "wall_s": time.perf_counter() - t0,
+                  "error": f"{type(e).__name__}: {e}", "reused": False,
+                  "traceback": traceback.format_exc()}
+            log(f"[{i}/{len(names)}] {name}: FAILED: {st['error']}")
+        statuses.append(st)
+        state["studies"][name] = {k: v for k, v in st.items() if k != "reused"}
+        _save_state(out, state)
 
     anims = _animations(out, animation_s, log, None if scheduler is not None else workers)
     total = time.perf_counter() - t_all

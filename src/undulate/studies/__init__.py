@@ -27,7 +27,6 @@ from ._registry import (
     names,
     register,
     run_study,
-    start_study,
 )
 
 __all__ = [
@@ -44,5 +43,4 @@ __all__ = [
     "names",
     "register",
     "run_study",
-    "start_study",
 ]

@@ -38,7 +38,6 @@ code or arguments (:mod:`undulate.sweep`).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import importlib
 import json
 import math
@@ -73,7 +72,6 @@ __all__ = [
     "names",
     "describe",
     "run_study",
-    "start_study",
     "judge",
     "identity",
     "is_current",
@@ -491,24 +489,6 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
 
 
 def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress: bool) -> Path:
-    return _compute_study(info, name, config, out, progress)()
-
-
-def start_study(name: str, out_dir: str | os.PathLike, quick: bool = False, scheduler: str | None = None,
-                seed: int = 0, progress: bool = True, workers: int | None = None) -> Callable[[], Path]:
-    """:func:`run_study` in two parts: run the study's sweeps now, and return the function that
-    writes the rest (summary, claims, figure, files; no simulation) and returns ``OUT/NAME.nc``.
-    :func:`undulate.reproduce.reproduce` writes one study's files while the next one's sweeps run.
-    Call inside :func:`undulate.sweep.warm_workers` to keep the worker pool between studies."""
-    info = describe(name)
-    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=int(seed),
-                         workers=workers)
-    config.out_dir.mkdir(parents=True, exist_ok=True)
-    return _compute_study(info, name, config, config.out_dir, progress)
-
-
-def _compute_study(info: Study, name: str, config: StudyConfig, out: Path, progress: bool) -> Callable[[], Path]:
-    """Run the study's sweeps; the function that finishes it (:func:`_finish_study`)."""
     from .. import _physics
 
     t0 = time.perf_counter()
@@ -516,15 +496,6 @@ def _compute_study(info: Study, name: str, config: StudyConfig, out: Path, progr
     plan = info.plan(config.quick)
     with _physics.meter() as here:  # what this process simulates (serial sweeps, direct runs)
         ds = info.dataset(ctx, plan)
-    computed_s = time.perf_counter() - t0
-    return functools.partial(_finish_study, info, name, config, out, ctx, ds, here, computed_s)
-
-
-def _finish_study(info: Study, name: str, config: StudyConfig, out: Path, ctx: StudyContext, ds: xr.Dataset,
-                  here: _physics.Tally, computed_s: float) -> Path:
-    """Summary, claims, figure and files of a study whose sweeps are done (``computed_s``: their wall
-    time); its ``wall_s`` is that plus this."""
-    t0 = time.perf_counter() - computed_s
     summary = info.summary(ds)
     claims = judge(name, info.claims, summary)
     _check_units(name, ds)
