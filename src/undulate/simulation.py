@@ -333,14 +333,14 @@ class _WarmRollout:
         self.warm[b] = self.datas[b].qacc_warmstart
 
     def rollout(self, cur: np.ndarray, u: np.ndarray, st: np.ndarray, sd: np.ndarray, nstep: int,
-                active: Sequence[int] | None = None):
+                active: np.ndarray | None = None):
         """Step every scene ``nstep`` steps from ``cur`` under controls ``u``, into ``st`` and ``sd``.
-        ``active``: the scenes to step (default all); the others stay at ``cur`` (their sensor rows
-        zero)."""
-        idx = range(len(self.models)) if active is None else active
-        if active is not None and len(active) < len(self.models):
-            rest = np.setdiff1d(np.arange(len(self.models)), active)
-            st[rest], sd[rest] = cur[rest, None], 0.0
+        ``active``: a mask of the scenes to step (None: all); the others stay at ``cur`` (their
+        sensor rows zero)."""
+        idx = range(len(self.models))
+        if active is not None:
+            idx = np.flatnonzero(active)
+            st[~active], sd[~active] = cur[~active, None], 0.0
         if self.pool is None:
             for b in idx:
                 self._one(b, cur, u, st, sd, nstep)
@@ -368,7 +368,7 @@ class _Clock:
         out = runner.rollout(*args, **kwargs)
         self.seconds += time.perf_counter() - t0
         active = kwargs.get("active")
-        self.steps += (nb if active is None else len(active)) * n_steps
+        self.steps += (nb if active is None else int(active.sum())) * n_steps
         return out
 
 
@@ -489,8 +489,6 @@ class _Stepper:
         self.cur, self.last_sens = state0.copy(), sens0.copy()
         self.bufs = self._buffers(bt.chunk)
         self.done = 0  # integrator steps taken
-        self.active = np.ones(nb, dtype=bool)
-        """The scenes still stepped (a scene whose own stopping rule ended it is stepped no further)."""
 
     def _buffers(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         nb, m0 = self.bt.nb, self.bt.m0
@@ -525,7 +523,7 @@ class _Stepper:
         t = np.round((i0 + np.arange(len(qpos))) * (bt.sps * bt.dt), 12)  # s; equal rates, equal clocks
         return _sample_vars(bt.compiled[b], t, qpos, sens, fp, fw, pn, bt.options.recorded, cmd=cmd, phase=phase)
 
-    def _rollout(self, k: int):
+    def _rollout(self, k: int, active: np.ndarray | None):
         """Step ``k`` integrator steps from the current state: states, sensors, commands and phases at
         the recorded rows (None for the open-loop gait)."""
         bt, dt, sps = self.bt, self.bt.dt, self.bt.sps
@@ -533,9 +531,8 @@ class _Stepper:
             self.bufs = self._buffers(k)
         state_buf, sens_buf, ctrl_buf = self.bufs
         t = (self.done + np.arange(k)) * dt
-        active = None if self.active.all() else np.flatnonzero(self.active)
         if bt.ctl is None:
-            for b in (range(bt.nb) if active is None else active):
+            for b in (range(bt.nb) if active is None else np.flatnonzero(active)):
                 ctrl_buf[b] = controls(bt.compiled[b], t)
             st, sd = self.clock.rollout(self.runner, bt.nb, k, self.cur, ctrl_buf, state_buf, sens_buf, k,
                                         active=active)
@@ -549,20 +546,20 @@ class _Stepper:
         self.last_sens = sd[:, k - 1].copy()
         return st, sd, cmd_rows, phase_rows
 
-    def step_chunk(self, k: int) -> list[dict | None]:
-        """Step one chunk of ``k`` steps (a multiple of the sample interval); its sample blocks (None
-        for a scene no longer stepped)."""
+    def step_chunk(self, k: int, stepping: np.ndarray) -> list[dict | None]:
+        """Step the scenes of mask ``stepping`` one chunk of ``k`` steps (a multiple of the sample
+        interval); their sample blocks (None for a scene not stepped: it stays where it is)."""
         bt, q0, sps = self.bt, self.q0, self.bt.sps
-        st, sd, cmd_rows, phase_rows = self._rollout(k)
+        st, sd, cmd_rows, phase_rows = self._rollout(k, None if stepping.all() else stepping)
         depth = _depth_of(sd, self.md)
         self.cur = st[:, k - 1].copy()
-        _check_divergence(bt, st, depth, self.done, self.active)
+        _check_divergence(bt, st, depth, self.done, stepping)
         ns, rows = k // sps, np.arange(sps - 1, k, sps)
         fp, fw = self._forces(sd, ns)
         pn = depth.reshape(bt.nb, ns, sps).max(axis=2)
         blocks = [self._block(b, self.done // sps + 1, st[b, rows, q0:q0 + bt.m0.nq], sd[b, rows], fp[b], fw[b],
                               pn[b], None if cmd_rows is None else cmd_rows[:, b],
-                              None if phase_rows is None else phase_rows[:, b]) if self.active[b] else None
+                              None if phase_rows is None else phase_rows[:, b]) if stepping[b] else None
                   for b in range(bt.nb)]
         self.done += k
         return blocks
@@ -713,10 +710,26 @@ def _step_all(bt: _Batch, stepper: _Stepper, recorders: _Recorders,
     if progress is not None:
         progress(0.0, total * bt.dt)
     while stepper.done < total and not ended:
-        stepper.active = np.array([r is None for r in recorders.reasons])
-        ended = recorders.record(stepper.step_chunk(min(bt.chunk, total - stepper.done)))
+        stepping = np.array([r is None for r in recorders.reasons])  # a scene whose rule ended it stays
+        ended = recorders.record(stepper.step_chunk(min(bt.chunk, total - stepper.done), stepping))
         if progress is not None:
             progress(stepper.done * bt.dt, total * bt.dt)
+
+
+def _push_controls(ctrl_buf: np.ndarray, compiled, t: np.ndarray) -> None:
+    """Zero a closed-loop chunk's controls, then the perturbation forces from each scene's own controls."""
+    ctrl_buf[:] = 0.0
+    if compiled[0].index.ctrl_push.size:
+        for b, cs in enumerate(compiled):
+            ctrl_buf[b] = controls(cs, t)
+
+
+def _set_points(u: np.ndarray, ang: np.ndarray, vel: np.ndarray, lead: float, pos_cols, vel_cols) -> None:
+    """Servo set-points into controls ``u`` (nb, T, nu) from commands (T, nb, ...): the angle plus the
+    back-EMF lead ``b omega / kp``, and the velocity."""
+    n_t, nb = ang.shape[:2]
+    u[:, :, pos_cols] = (ang + lead * vel).reshape(n_t, nb, -1).transpose(1, 0, 2)
+    u[:, :, vel_cols] = vel.reshape(n_t, nb, -1).transpose(1, 0, 2)
 
 
 def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, last_sens, t, tick, rows, t_rows,
@@ -726,7 +739,7 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, las
     ``cur`` (the state at the chunk's start) is updated in place.  Returns the
     chunk's states, sensor data, and the commanded joint angles and gait phases
     at the recorded ``rows`` (each ``(len(rows), nb, n, nj)`` / ``(len(rows), nb, n)``).
-    ``active``: the scenes to step (None: all); the others stay where they are.
+    ``active``: a mask of the scenes to step (None: all); the others stay where they are.
     """
     nb, k = state_buf.shape[:2]
     cs0 = compiled[0]
@@ -739,10 +752,7 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, las
     n_rows = len(rows)
     cmd_rows = np.empty((n_rows, nb) + qpos_j.shape)
     phase_rows = np.empty((n_rows, nb, qpos_j.shape[0]))
-    ctrl_buf[:] = 0.0  # push inputs: perturbation forces come from each scene's own controls
-    if compiled[0].index.ctrl_push.size:
-        for b, cs in enumerate(compiled):
-            ctrl_buf[b] = controls(cs, t)
+    _push_controls(ctrl_buf, compiled, t)
     pos_flat, vel_flat = pos_cols.ravel(), vel_cols.ravel()
     # the sensed joints: views of the current state and of the last step's sensors
     sens = last_sens
@@ -765,8 +775,7 @@ def _closed_loop_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, las
                 u[:] = ctrl_buf[:, a:e]
             st = st_t if n_t == tick else np.empty((nb, n_t, state_buf.shape[2]))
             sd = sd_t if n_t == tick else np.empty((nb, n_t, sens_buf.shape[2]))
-        u[:, :, pos_flat] = (ang + lead * vel).reshape(n_t, nb, -1).transpose(1, 0, 2)
-        u[:, :, vel_flat] = vel.reshape(n_t, nb, -1).transpose(1, 0, 2)
+        _set_points(u, ang, vel, lead, pos_flat, vel_flat)
         # what is recorded at the samples inside this period (states after step r, at time t[r] + dt)
         sel = (rows >= a) & (rows < e)
         if sel.any():
@@ -789,20 +798,15 @@ def _feed_forward_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, la
     control update (the state after the step before it, that step's sensors) handed to
     ``ctl.sense``.  Bitwise the states, sensor data and senses of stepping period by period."""
     nb, k = state_buf.shape[:2]
-    ix, m0 = compiled[0].index, compiled[0].model
-    lead = compiled[0].scene.servo.back_emf_Nms_per_rad / compiled[0].scene.servo.kp_Nm_per_rad
+    ix, m0, sv = compiled[0].index, compiled[0].model, compiled[0].scene.servo
     qpos_j, qvel_j, load_j = q0 + ix.qpos_joint, q0 + m0.nq + ix.qvel_joint, ix.sens_load
-    ctrl_buf[:] = 0.0
-    if ix.ctrl_push.size:
-        for b, cs in enumerate(compiled):
-            ctrl_buf[b] = controls(cs, t)
+    _push_controls(ctrl_buf, compiled, t)
     ang, vel = ctl.commands(t)
-    ctrl_buf[:, :, ix.ctrl_pos.ravel()] = (ang + lead * vel).reshape(k, nb, -1).transpose(1, 0, 2)
-    ctrl_buf[:, :, ix.ctrl_vel.ravel()] = vel.reshape(k, nb, -1).transpose(1, 0, 2)
-    start = cur.copy()
-    clock.rollout(runner, nb, k, start, ctrl_buf, state_buf, sens_buf, k, active=active)
+    _set_points(ctrl_buf, ang, vel, sv.back_emf_Nms_per_rad / sv.kp_Nm_per_rad, ix.ctrl_pos.ravel(),
+                ix.ctrl_vel.ravel())
+    clock.rollout(runner, nb, k, cur, ctrl_buf, state_buf, sens_buf, k, active=active)
     for a in range(0, k, tick):
-        st, sd = (start, last_sens) if a == 0 else (state_buf[:, a - 1], sens_buf[:, a - 1])
+        st, sd = (cur, last_sens) if a == 0 else (state_buf[:, a - 1], sens_buf[:, a - 1])
         ctl.sense(float(t[a]), st[:, qpos_j], st[:, qvel_j], sd[:, load_j])
     cur[:] = state_buf[:, -1]
     return state_buf, sens_buf, ctl.commands(t_rows)[0], ctl.gait_phase(t_rows)

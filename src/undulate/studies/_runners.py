@@ -74,19 +74,14 @@ def _simulate_stopped(scene: Scene, options: SimOptions, stop: SteadyStop | Phas
     """``simulate`` with a pair-type stopping rule (:data:`PAIR_STOP`, a closed-loop
     :class:`~undulate.stopping.PhaseStop`; None: the whole duration); also the number of samples the
     full-length run records (a stopped run's series are padded with NaN to it)."""
-    from ..simulation import resolve_options, simulate
-
-    scale = scene.wavelength_m if math.isfinite(scene.wavelength_m) else scene.geometry.length_m
-    monitor = None if stop is None else stop.monitor(scene.gait.period_s, scale, options.duration_s)
-    ds = simulate(scene, options, stop=monitor)
-    full = resolve_options(scene, options)
-    return ds, full.n_steps // full.steps_per_sample + 1
+    dss, n_full = _simulate_stopped_batch([scene], options, stop)
+    return dss[0], n_full
 
 
 def _simulate_stopped_batch(scenes: list[Scene], options: SimOptions, stop: SteadyStop | PhaseStop | None):
     """:func:`_simulate_stopped` for scenes of one structure (and closed-loop controller) stepped
-    together, each with its own monitor of ``stop``: each Dataset is bitwise its scene's
-    :func:`_simulate_stopped` (:func:`undulate.simulation.simulate_batch`)."""
+    together, each with its own monitor of ``stop`` (its period and length scale): each Dataset is
+    bitwise its scene's run alone (:func:`undulate.simulation.simulate_batch`)."""
     from ..simulation import resolve_options, simulate_batch
 
     monitors = None
