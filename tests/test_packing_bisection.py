@@ -82,3 +82,27 @@ def test_packing_threshold_by_bisection_equals_the_whole_grid(tmp_path):
     assert sb["threshold_above_grid"] == sw["threshold_above_grid"]
     packing.figure(bis).savefig(tmp_path / "packing.png")
     assert (tmp_path / "packing.png").stat().st_size > 0
+
+
+def test_brackets_continued_from_their_stop_give_the_unstopped_thresholds(tmp_path, monkeypatch):
+    """Real runs (8 swimmers, 6 s): probes far from the threshold stop at 5.2 s; the two that bracket
+    each threshold are then continued from their stop to 6 s, and the thresholds and the bracket runs'
+    means are bit for bit those of the same study with no stopping rule."""
+    from undulate import studies
+    from undulate.studies import packing
+
+    plan = packing.PackingPlan([np.pi], [1.0, 6.0], draws=2, n_swimmers=8, duration_s=6.0)
+
+    def run(out):
+        ctx = studies.StudyContext(studies.StudyConfig(out_dir=out, quick=True), "packing", progress=False)
+        return packing.dataset(ctx, plan)
+
+    stopped = run(tmp_path / "stopped")
+    monkeypatch.setattr(packing, "PACKING_STOP", None)
+    whole = run(tmp_path / "whole")
+    assert stopped.attrs["bracket_runs_continued"] == 4 and stopped.attrs["bracket_reruns"] == 1
+    assert stopped.attrs["runs_stopped_early"] == whole.attrs["runs_stopped_early"] == 0
+    assert whole.attrs["bracket_runs_continued"] == 0
+    assert np.isfinite(whole["threshold_rho_tilde"].values).all()
+    for v in ("threshold_rho_tilde", "mean_joint_error", "max_penetration"):
+        np.testing.assert_array_equal(stopped[v].values, whole[v].values, err_msg=v)

@@ -14,7 +14,7 @@ from undulate.stopping import ExcessStop, SteadyStop
 from undulate.studies import _analysis as C
 from undulate.studies._criteria import STEADY_TOL
 from undulate.studies._runners import PAIR_STOP, group_point, lone_swimmer, pair_point
-from undulate.studies.packing import PACKING_STOP, THRESHOLD_RAD, packing_point
+from undulate.studies.packing import PACKING_STOP, THRESHOLD_RAD, Resumes, packing_continue, packing_point
 from undulate.sweep._store import function_id
 
 
@@ -85,6 +85,37 @@ def test_simulate_records_its_stop_and_its_physics_time():
     assert ref.attrs["stop_reason"] == "" and ref.attrs["stopped_at"] == pytest.approx(10.0)
 
 
+def test_a_stopped_run_goes_on_from_its_checkpoint_bitwise_as_the_uninterrupted_run():
+    """simulate(start=Checkpoint.of(stopped)) records the samples after the stop: with the stopped
+    run's, bitwise the run that never stopped (state and warm start carry everything), and it steps
+    only the rest."""
+    from undulate import Checkpoint
+    from undulate.errors import ParameterError
+    from undulate.params import ControllerParams
+
+    sc = Scene(phases_rad=(0.0, 2.5, 1.0), channel=Channel(width_m=0.2))
+    opt = SimOptions(duration_s=4.0, chunk_steps=300)
+    stopped = simulate(sc, opt, stop=lambda b: "enough" if float(b[0]["time"][-1]) >= 1.5 else None)
+    end = Checkpoint.of(stopped)
+    assert end.time_s == pytest.approx(float(stopped["time"][-1]))
+    with _physics.meter() as tally:
+        rest = simulate(sc, opt, start=end)
+    full = simulate(sc, opt)
+    assert float(rest["time"][0]) > end.time_s and rest.sizes["time"] + stopped.sizes["time"] == full.sizes["time"]
+    assert tally.steps == full.attrs["physics_steps"] - stopped.attrs["physics_steps"]
+    for v in full.data_vars:
+        np.testing.assert_array_equal(np.concatenate([stopped[v].values, rest[v].values]), full[v].values, err_msg=v)
+    np.testing.assert_array_equal(rest.attrs["end_state"], full.attrs["end_state"])
+    assert float(full["contact_force_pair"].max()) > 0.01  # the bodies touched
+    off = Checkpoint(end.state.copy(), end.warmstart)
+    off.state[0] += 0.01  # between samples
+    for bad, sc_, match in [(off, sc, "sample time"), (Checkpoint(end.state[:-1], end.warmstart), sc, "model"),
+                            (end, Scene(phases_rad=(0.0, 2.5, 1.0), channel=Channel(width_m=0.2),
+                                        controller=ControllerParams(kind="relay")), "open-loop")]:
+        with pytest.raises(ParameterError, match=match):
+            simulate(sc_, opt, start=bad)
+
+
 def test_a_batch_with_one_rule_per_scene_stops_each_scene_as_its_run_alone():
     """Per-scene rules in one batch: each scene ends at its own stop and is stepped no further (the
     steps counted are the scenes' own), and each Dataset is bitwise the scene's run alone, closed
@@ -134,6 +165,10 @@ def test_packing_probe_stops_only_when_decided(lone, rho, early):
     side = np.sign(float(full["mean_joint_error_rad"]) - err - THRESHOLD_RAD)
     assert np.sign(float(short["mean_joint_error_rad"]) - err - THRESHOLD_RAD) == side
     assert "ExcessStop(confidence=0.99" in short["stopped_at_s"].attrs["stop_rule"]
+    if early:  # a bracket run is continued from its stop: bitwise the run that never stopped
+        went_on = packing_continue(point, 0, resume=Resumes({Resumes.key(point): short}), **kw)
+        for v in full.data_vars:
+            np.testing.assert_array_equal(went_on[v].values, full[v].values, err_msg=v)
 
 
 def test_excess_rule_needs_its_batches_and_its_confidence():

@@ -35,6 +35,7 @@ __all__ = [
     # simulation (lazy: imports MuJoCo/xarray on first use)
     "simulate",
     "simulate_batch",
+    "Checkpoint",
     "build",
     # studies and theory
     "theory",
@@ -58,6 +59,7 @@ _LAZY = {
     "animate": ("animate", "animate"),
     "simulate": ("simulation", "simulate"),
     "simulate_batch": ("simulation", "simulate_batch"),
+    "Checkpoint": ("simulation", "Checkpoint"),
     "build": ("scene", "build"),
     "neighbour_offsets": ("observables", "neighbour_offsets"),
     "dx_over_wavelength": ("observables", "dx_over_wavelength"),

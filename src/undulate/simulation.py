@@ -47,7 +47,7 @@ from ._xrcompat import install as _lazy_dask
 
 _lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
 
-__all__ = ["simulate", "simulate_batch", "compile_scene", "controls", "resolve_options", "RECORDABLE"]
+__all__ = ["simulate", "simulate_batch", "Checkpoint", "compile_scene", "controls", "resolve_options", "RECORDABLE"]
 
 
 RK4_DAMPING_STEP = 1.0
@@ -295,6 +295,60 @@ def _outs(out, nb: int) -> list[Path] | None:
     return paths
 
 
+@dataclass(frozen=True, eq=False)
+class Checkpoint:
+    """Where a run ended, to go on from: MuJoCo's whole physical state there
+    (``mjSTATE_FULLPHYSICS``, time first: s, then positions, velocities,
+    actuator states) and the constraint solver's warm start
+    (``qacc_warmstart``).  Every Dataset of :func:`simulate` carries them in
+    its attrs ``end_state`` and ``end_warmstart`` (:meth:`of`);
+    ``simulate(scene, options, start=checkpoint)`` then steps on from there to
+    ``options.duration_s`` and records the samples after it: bitwise the rest
+    of the uninterrupted run (each step depends on the state and the warm
+    start alone; open-loop gaits only)."""
+
+    state: np.ndarray
+    warmstart: np.ndarray
+
+    @classmethod
+    def of(cls, ds: xr.Dataset) -> "Checkpoint":
+        """The end of the run ``ds`` (a Dataset :func:`simulate` returned)."""
+        if "end_state" not in ds.attrs or "end_warmstart" not in ds.attrs:
+            raise ParameterError("ds", "a Dataset simulate() returned (attrs end_state and end_warmstart)",
+                                 sorted(ds.attrs)[:5])
+        return cls(np.asarray(ds.attrs["end_state"], dtype=float), np.asarray(ds.attrs["end_warmstart"], dtype=float))
+
+    @property
+    def time_s(self) -> float:
+        """The simulated time at the checkpoint, s."""
+        return float(self.state[0])
+
+
+def _starts(bt: "_Batch", start) -> list[Checkpoint] | None:
+    """The batch's checkpoints, one per scene (None: every scene from rest), validated."""
+    if start is None:
+        return None
+    starts = [start] if isinstance(start, Checkpoint) else list(start)
+    if len(starts) != bt.nb or not all(isinstance(c, Checkpoint) for c in starts):
+        raise ParameterError("start", f"a Checkpoint, or one per scene ({bt.nb})", start)
+    if bt.ctl is not None:
+        raise ParameterError("start", "open-loop scenes only (a closed-loop controller's own state is "
+                             "not in a Checkpoint)", bt.ctl.kind)
+    _, nstate = _state_layout(bt.m0)
+    interval = bt.sps * bt.dt
+    for c in starts:
+        if c.state.shape != (nstate,) or c.warmstart.shape != (bt.m0.nv,):
+            raise ParameterError("start", f"a Checkpoint of this scene's model ({nstate} state values, "
+                                 f"{bt.m0.nv} warm-start values)", (c.state.shape, c.warmstart.shape))
+        k = c.time_s / interval
+        if abs(k - round(k)) > 1e-6 or not 0 <= round(k) < bt.n_samples:
+            raise ParameterError("start", f"a Checkpoint at a sample time ({interval:g} s apart) before "
+                                 f"duration_s", c.time_s)
+    if len({round(c.time_s / interval) for c in starts}) > 1:
+        raise ParameterError("start", "checkpoints of one time in a batch", sorted(c.time_s for c in starts))
+    return starts
+
+
 class _WarmRollout:
     """Rolls each scene out in C, its solver warm start carried across calls.
 
@@ -475,7 +529,7 @@ class _Stepper:
     """Steps a batch chunk by chunk in C (open loop: one rollout per chunk; closed loop:
     :func:`_closed_loop_chunk`) and turns each chunk into recorded sample blocks."""
 
-    def __init__(self, bt: _Batch, nthread: int, clock: _Clock):
+    def __init__(self, bt: _Batch, nthread: int, clock: _Clock, starts: list[Checkpoint] | None = None):
         self.bt, self.clock = bt, clock
         m0, nb = bt.m0, bt.nb
         self.q0, self.nstate = _state_layout(m0)
@@ -489,6 +543,10 @@ class _Stepper:
         self.cur, self.last_sens = state0.copy(), sens0.copy()
         self.bufs = self._buffers(bt.chunk)
         self.done = 0  # integrator steps taken
+        if starts is not None:  # go on from checkpoints: their states, warm starts and step count
+            self.cur = np.stack([c.state for c in starts])
+            self.runner.warm[:] = np.stack([c.warmstart for c in starts])
+            self.done = int(round(starts[0].time_s / (bt.sps * bt.dt))) * bt.sps
 
     def _buffers(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         nb, m0 = self.bt.nb, self.bt.m0
@@ -564,6 +622,10 @@ class _Stepper:
         self.done += k
         return blocks
 
+    def checkpoint(self, b: int) -> Checkpoint:
+        """Where scene ``b`` is now (a scene that stopped stays where its rule ended it)."""
+        return Checkpoint(self.cur[b].copy(), self.runner.warm[b].copy())
+
     def close(self) -> None:
         self.runner.close()
 
@@ -577,6 +639,7 @@ def simulate_batch(
     controller: Controller | None = None,
     stop: Callable[[list[dict]], str | None] | Sequence[Callable[[list[dict]], str | None]] | None = None,
     progress: Callable[[float, float], None] | None = None,
+    start: Checkpoint | Sequence[Checkpoint] | None = None,
 ) -> list[xr.Dataset]:
     """Simulate several scenes of one structure together in one rollout.
 
@@ -616,23 +679,33 @@ def simulate_batch(
     every chunk, between calls into C, never inside the step loop; it cannot
     change the results (e.g. :class:`undulate._progress.RunMonitor`).
 
+    ``start``: a :class:`Checkpoint` (one per scene in a batch, all at one
+    time) to go on from instead of starting at rest: the run steps from the
+    checkpoint's time to ``duration_s`` and records the samples after it,
+    bitwise the rest of the run that reached it (open-loop gaits).  Every
+    Dataset's attrs ``end_state`` and ``end_warmstart`` hold where its scene
+    ended (:meth:`Checkpoint.of`), e.g. to continue a run a stopping rule
+    ended.
+
     Every Dataset's attrs ``physics_time`` (s, wall time inside
     ``mujoco.rollout`` for the whole batch) and ``physics_steps`` (scene-steps)
     record what the call cost; the same is reported to the open physics meters
     (:func:`undulate._physics.meter`).
     """
     bt = _plan_batch(scenes, options, out, controller)
+    starts = _starts(bt, start)
     clock = _Clock()
     recorders = _Recorders(bt, stop)
-    stepper = _Stepper(bt, nthread, clock)
+    stepper = _Stepper(bt, nthread, clock, starts)
     # MuJoCo's own warnings (printed and appended to ./MUJOCO_LOG.TXT by default) go to the
     # log instead while we step: a divergence is diagnosed from the state itself.
     previous_handler = mujoco.get_mju_user_warning()
     mujoco.set_mju_user_warning(_log_mujoco_warning)
     ok = False
     try:
-        _step_all(bt, stepper, recorders, progress)
+        _step_all(bt, stepper, recorders, progress, resumed=starts is not None)
         results = recorders.finish()
+        ends = [stepper.checkpoint(b) for b in range(bt.nb)]
         ok = True
     finally:
         stepper.close()
@@ -643,7 +716,8 @@ def simulate_batch(
     for b, ds in enumerate(results):
         ds.attrs.update(physics_time=clock.seconds, physics_time_units="s", physics_steps=clock.steps,
                         stop_rule=recorders.rule(b), stop_reason=recorders.reasons[b] or "",
-                        stopped_at=float(ds["time"].values[-1]), stopped_at_units="s")
+                        stopped_at=float(ds["time"].values[-1]), stopped_at_units="s",
+                        end_state=ends[b].state, end_warmstart=ends[b].warmstart)
     return results
 
 
@@ -702,13 +776,14 @@ class _Recorders:
 
 
 def _step_all(bt: _Batch, stepper: _Stepper, recorders: _Recorders,
-              progress: Callable[[float, float], None] | None) -> None:
-    """Record the t = 0 samples, then step and record chunk by chunk to the end or until every scene's
-    stopping rule has ended it (a scene that stopped is stepped no further)."""
+              progress: Callable[[float, float], None] | None, resumed: bool = False) -> None:
+    """Record the t = 0 samples (not when ``resumed`` from checkpoints), then step and record chunk by
+    chunk to the end or until every scene's stopping rule has ended it (a scene that stopped is stepped
+    no further)."""
     total = bt.n_samples * bt.sps
-    ended = recorders.record(stepper.initial_blocks())
+    ended = False if resumed else recorders.record(stepper.initial_blocks())
     if progress is not None:
-        progress(0.0, total * bt.dt)
+        progress(stepper.done * bt.dt, total * bt.dt)
     while stepper.done < total and not ended:
         stepping = np.array([r is None for r in recorders.reasons])  # a scene whose rule ended it stays
         ended = recorders.record(stepper.step_chunk(min(bt.chunk, total - stepper.done), stepping))
@@ -815,17 +890,19 @@ def _feed_forward_chunk(ctl: Controller, compiled, runner: _WarmRollout, cur, la
 def simulate(scene: Scene, options: SimOptions | None = None, *,
              out: str | os.PathLike | None = None, controller: Controller | None = None,
              stop: Callable[[list[dict]], str | None] | Sequence[Callable[[list[dict]], str | None]] | None = None,
-             progress: Callable[[float, float], None] | None = None) -> xr.Dataset:
+             progress: Callable[[float, float], None] | None = None,
+             start: Checkpoint | None = None) -> xr.Dataset:
     """Simulate one scene; see the module docstring for the recorded variables.
 
     ``out``: a ``.nc`` path to stream the samples to (memory stays flat for
     any duration); the Dataset returned is then opened lazily from it (close
-    it when done).  ``controller``, ``stop``, ``progress``: see :func:`simulate_batch`.
+    it when done).  ``controller``, ``stop``, ``progress``, ``start``: see :func:`simulate_batch`.
 
     >>> from undulate import Scene, SimOptions, simulate
     >>> ds = simulate(Scene(phases_rad=(0.0, 1.57)), SimOptions(duration_s=4))
     """
-    return simulate_batch([scene], options, out=out, controller=controller, stop=stop, progress=progress)[0]
+    return simulate_batch([scene], options, out=out, controller=controller, stop=stop, progress=progress,
+                          start=start)[0]
 
 
 def _link_angles(yaw: np.ndarray, joints: np.ndarray, root: int) -> np.ndarray:

@@ -60,6 +60,8 @@ __all__ = [
     "PackingPlan",
     "plan",
     "packing_point",
+    "packing_continue",
+    "Resumes",
     "density_threshold",
     "walled_packing_density",
     "dataset",
@@ -78,8 +80,9 @@ SAMPLE_RATE_HZ = 10.0
 PACKING_STOP = ExcessStop(confidence=0.99, batch_s=1.0, min_batches=3)
 """The probes' stopping rule: a run ends once its mean joint error after SKIP_S is decided above or
 below the lone swimmer's + THRESHOLD_RAD at one-sided 99 % (batch means over 1 s, at least 3).  The
-two runs that bracket a threshold are then run again at full length (:func:`_full_brackets`), so the
-interpolated threshold uses the same values as without stopping."""
+two runs that bracket a threshold are then continued from where they stopped to the full length
+(:func:`_rerun_brackets`, :func:`packing_continue`), so the interpolated threshold uses the same values
+as without stopping."""
 
 
 # --------------------------------------------------------------------- the study
@@ -148,6 +151,45 @@ def bisection_probes(known: dict[int, bool | None], m: int) -> list[int]:
     return [(lo + hi) // 2]
 
 
+def _pack(point: dict, *, amplitude_m: float, base_seed: int, n_swimmers: int) -> tuple[Scene, float]:
+    """The scene of packing point ``point`` (see :func:`packing_point`) and its channel width Y, m."""
+    geo = SwimmerGeometry()
+    n = int(n_swimmers)
+    pt = PackingPoint.of(point)
+    u = np.random.default_rng([int(base_seed), pt.draw]).random(n)
+    width = 2.0 * amplitude_m * n / pt.rho_tilde
+    scene = Scene(
+        phases_rad=tuple(pt.phi_max_rad * u),
+        channel=Channel(width_m=width, end_walls_m=SHORT_CHANNEL_OVER_L * geo.length_m),
+        lateral_gap_m=width / n - geo.width_m,
+    )
+    return scene, width
+
+
+def _options(duration_s: float) -> SimOptions:
+    """Only what is measured here: no swimmer-swimmer force sensors (49 of them scan every contact)."""
+    return SimOptions(duration_s=duration_s, sample_rate_hz=SAMPLE_RATE_HZ,
+                      record=("joint_error", "contact_force_wall", "penetration"))
+
+
+def _series(ds) -> dict[str, np.ndarray]:
+    """A run's per-sample record: time (s), mean joint error over swimmers and joints (rad), force on
+    each wall (N) and deepest interpenetration (m)."""
+    t = ds["time"].values
+    return {"time": t, "joint_error": ds["joint_error"].values.reshape(len(t), -1).mean(axis=1),
+            "wall_force": ds["contact_force_wall"].values, "penetration": ds["penetration"].values.reshape(len(t), -1).max(axis=1)}
+
+
+def _measures(sr: dict[str, np.ndarray], skip_s: float) -> tuple[float, float, float, float]:
+    """Mean and largest joint error over the samples at t >= skip (the mean over swimmers and joints of
+    each sample, then over samples: every sample has the same count), mean wall force summed over the
+    walls (samples after skip: sample t holds the mean over (t - interval, t]) and deepest penetration."""
+    t = sr["time"]
+    je = sr["joint_error"][t >= skip_s]
+    wall = sr["wall_force"][t > skip_s + 1e-12].mean(axis=0).sum()
+    return float(je.mean()), float(je.max()), float(wall), float(sr["penetration"].max())
+
+
 def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
                   n_swimmers: int = N_SWIMMERS, duration_s: float = DURATION_S,
                   skip_s: float = SKIP_S, stop: ExcessStop | None = None, lone_error_rad: float = 0.0):
@@ -162,41 +204,64 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
     result, not a failure: ``diverged`` is True and the measurements are NaN,
     so a resumed sweep does not redo it.  ``stop``: a stopping rule (e.g. :data:`PACKING_STOP`;
     None: the whole duration) at the level ``lone_error_rad + THRESHOLD_RAD``; the means are then over
-    the run as stepped (``stopped_at_s``).
+    the run as stepped (``stopped_at_s``), and the run's per-sample record and end state are kept
+    (``series_*``, ``end_*``) so that :func:`packing_continue` can go on from where it stopped.
     """
+    from ..errors import DivergenceError
+    from ..simulation import Checkpoint, simulate
+
+    scene, width = _pack(point, amplitude_m=amplitude_m, base_seed=base_seed, n_swimmers=n_swimmers)
+    monitor = None if stop is None else stop.monitor(float(lone_error_rad) + THRESHOLD_RAD, skip_s)
+    try:
+        ds = simulate(scene, _options(duration_s), stop=monitor)
+    except DivergenceError:
+        return _result(scene, duration_s, width, None, None, skip_s, "none" if monitor is None else monitor.rule)
+    return _result(scene, duration_s, width, _series(ds), Checkpoint.of(ds), skip_s,
+                   "none" if monitor is None else monitor.rule)
+
+
+def packing_continue(point: dict, seed: int, *, amplitude_m: float, base_seed: int, resume: "Resumes",
+                     n_swimmers: int = N_SWIMMERS, duration_s: float = DURATION_S, skip_s: float = SKIP_S):
+    """A stopped packing run continued to the whole ``duration_s`` (sweep function): its record up to the
+    stop and its end state from ``resume`` (:class:`Resumes`, keyed by point), then the rest of the run
+    stepped from that state (:class:`~undulate.simulation.Checkpoint`).  Bitwise the Dataset
+    :func:`packing_point` gives without a stopping rule (``tests/test_stopping.py``), for the part of the
+    run after the stop only."""
+    from ..errors import DivergenceError
+    from ..simulation import Checkpoint, simulate
+
+    scene, width = _pack(point, amplitude_m=amplitude_m, base_seed=base_seed, n_swimmers=n_swimmers)
+    before, end = resume.get(point)
+    try:
+        ds = simulate(scene, _options(duration_s), start=end)
+    except DivergenceError:
+        return _result(scene, duration_s, width, None, None, skip_s, "none")
+    after = _series(ds)
+    sr = {k: np.concatenate([before[k], after[k]]) for k in before}
+    return _result(scene, duration_s, width, sr, Checkpoint.of(ds), skip_s, "none")
+
+
+def _result(scene: Scene, duration_s: float, width: float, sr, end, skip_s: float, rule: str):
+    """A packing run's Dataset from its per-sample record ``sr`` and end state ``end`` (None: diverged)."""
     import xarray as xr
 
-    from ..errors import DivergenceError
-    from ..simulation import simulate
+    n = int(round(duration_s * SAMPLE_RATE_HZ)) + 1
+    diverged = sr is None
+    if diverged:  # NaN of the run's shapes
+        from ..simulation import Checkpoint, _state_layout, compile_scene, resolve_options
 
-    geo = SwimmerGeometry()
-    n = int(n_swimmers)
-    pt = PackingPoint.of(point)
-    u = np.random.default_rng([int(base_seed), pt.draw]).random(n)
-    phases = pt.phi_max_rad * u
-    width = 2.0 * amplitude_m * n / pt.rho_tilde
-    scene = Scene(
-        phases_rad=tuple(phases),
-        channel=Channel(width_m=width, end_walls_m=SHORT_CHANNEL_OVER_L * geo.length_m),
-        lateral_gap_m=width / n - geo.width_m,
-    )
-    nan = float("nan")
-    je_mean = je_max = wall_f = pen = stopped_at = nan
-    diverged = False
-    monitor = None if stop is None else stop.monitor(float(lone_error_rad) + THRESHOLD_RAD, skip_s)
-    try:  # only what is measured here: no swimmer-swimmer force sensors (49 of them scan every contact)
-        ds = simulate(scene, SimOptions(duration_s=duration_s, sample_rate_hz=SAMPLE_RATE_HZ,
-                                        record=("joint_error", "contact_force_wall", "penetration")), stop=monitor)
-    except DivergenceError:
-        diverged = True
+        cs = compile_scene(scene, resolve_options(scene, _options(duration_s)))
+        sr = {"time": np.full(1, np.nan), "joint_error": np.full(1, np.nan), "penetration": np.full(1, np.nan),
+              "wall_force": np.full((1, len(cs.index.wall_names)), np.nan)}
+        end = Checkpoint(np.full(_state_layout(cs.model)[1], np.nan), np.full(cs.model.nv, np.nan))
+        je_mean = je_max = wall_f = pen = stopped_at = float("nan")
     else:
-        je = ds["joint_error"].where(ds["time"] >= skip_s)
-        t = ds["time"].values
-        sel = t > skip_s + 1e-12  # sample t holds the mean over (t - interval, t]
-        je_mean, je_max = float(je.mean()), float(je.mean(("swimmer", "joint")).max())
-        wall_f = float(ds["contact_force_wall"].values[sel].mean(axis=0).sum())
-        pen = float(ds["penetration"].max())
-        stopped_at = float(ds.attrs["stopped_at"])
+        je_mean, je_max, wall_f, pen = _measures(sr, skip_s)
+        stopped_at = float(sr["time"][-1])
+
+    def pad(a):
+        return np.concatenate([a, np.full((n - len(a), *a.shape[1:]), np.nan)])
+
     return xr.Dataset(
         {
             "mean_joint_error_rad": ((), je_mean, {
@@ -209,10 +274,60 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
             "max_penetration_m": ((), pen, {"units": "m", "long_name": "deepest interpenetration"}),
             "diverged": ((), diverged, {"long_name": "the simulation blew up (DivergenceError)"}),
             "stopped_at_s": ((), stopped_at, {"units": "s", "long_name": "last sample (the duration unless the "
-                                              "stopping rule ended the run)",
-                                              "stop_rule": "none" if monitor is None else monitor.rule}),
+                                              "stopping rule ended the run)", "stop_rule": rule}),
+            "series_time_s": (("sample",), pad(sr["time"]), {"units": "s", "long_name": "sample time; "
+                                                              "NaN after the run ended"}),
+            "series_joint_error_rad": (("sample",), pad(sr["joint_error"]), {
+                "units": "rad", "long_name": "mean joint error over swimmers and joints, per sample"}),
+            "series_wall_force_N": (("sample", "wall"), pad(sr["wall_force"]), {
+                "units": "N", "long_name": "contact force on each wall, mean over the sample interval"}),
+            "series_penetration_m": (("sample",), pad(sr["penetration"]), {
+                "units": "m", "long_name": "deepest interpenetration in the sample interval"}),
+            "end_state": (("state",), end.state, {"long_name": "MuJoCo's full physics state where the run "
+                                                  "ended (time first, s)"}),
+            "end_warmstart": (("dof",), end.warmstart, {"units": "m s-2 or rad s-2",
+                                                        "long_name": "the solver's warm start there"}),
         }
     )
+
+
+class Resumes:
+    """Stopped packing runs to go on from (:func:`packing_continue`), by point: each one's per-sample
+    record up to its stop and its end state.  Its ``repr`` is a hash of that content, so it is part of
+    the continuing sweep's identity: changed stopped runs make the continued ones stale."""
+
+    def __init__(self, runs: dict[tuple[float, float, int], Any]):
+        self._runs = {k: self._take(ds) for k, ds in runs.items()}
+
+    @staticmethod
+    def key(point: dict) -> tuple[float, float, int]:
+        pt = PackingPoint.of(point)
+        return round(pt.phi_max_rad, 9), round(pt.rho_tilde, 9), int(pt.draw)
+
+    @staticmethod
+    def _take(run) -> tuple[dict[str, np.ndarray], tuple[np.ndarray, np.ndarray]]:
+        n = int(np.isfinite(run["series_time_s"].values).sum())
+        sr = {"time": run["series_time_s"].values[:n], "joint_error": run["series_joint_error_rad"].values[:n],
+              "wall_force": run["series_wall_force_N"].values[:n], "penetration": run["series_penetration_m"].values[:n]}
+        return sr, (run["end_state"].values.copy(), run["end_warmstart"].values.copy())
+
+    def get(self, point: dict):
+        """``(record, Checkpoint)`` of the stopped run at ``point``."""
+        from ..simulation import Checkpoint
+
+        sr, (state, warm) = self._runs[self.key(point)]
+        return sr, Checkpoint(state, warm)
+
+    def __repr__(self) -> str:
+        import hashlib
+
+        h = hashlib.sha256()
+        for k in sorted(self._runs):
+            sr, end = self._runs[k]
+            h.update(repr(k).encode())
+            for a in (*(sr[n] for n in sorted(sr)), *end):
+                h.update(np.ascontiguousarray(a, dtype=float).tobytes())
+        return f"Resumes(sha256={h.hexdigest()[:16]}, runs={len(self._runs)})"
 
 
 def density_threshold(rho_tilde, excess, failed=None) -> tuple[float, float, float]:
@@ -284,14 +399,19 @@ class _Runs:
 
     def __init__(self, p: PackingPlan, base_err: float):
         shape = (len(p.phi_max_rad), len(p.rho_tilde), p.draws)
-        self.base_err = base_err
+        self.base_err, self.duration_s = base_err, p.duration_s
+        self.stopped: dict[tuple[int, int, int], Any] = {}
+        self.continued = 0  # runs continued from their stop to full length
         self.vals = {k: np.full(shape, np.nan) for k in self.NAMES}
         self.evaluated = np.zeros(shape, bool)
         self.diverged = np.zeros_like(self.evaluated)
         self.failed = np.zeros_like(self.evaluated)
 
     def take(self, i, j, k, run) -> None:
-        """Record sweep result ``run`` at grid indices ``(i, j, k)``."""
+        """Record sweep result ``run`` at grid indices ``(i, j, k)`` (a run that stopped early is kept
+        whole, to be continued if it brackets a threshold)."""
+        if float(run["stopped_at_s"]) < self.duration_s - 1e-9:
+            self.stopped[(i, j, k)] = run
         self.evaluated[i, j, k] = True
         self.diverged[i, j, k] = bool(run["diverged"] == 1)
         self.failed[i, j, k] = bool(run["run_failed"]) or self.diverged[i, j, k]
@@ -345,9 +465,10 @@ def _bisect(ctx: StudyContext, p: PackingPlan, fn, runs: _Runs) -> int:
         runs.take_sweep(got.isel(replicate=0), probes)
 
 
-def _rerun_brackets(ctx: StudyContext, p: PackingPlan, full, runs: _Runs):
-    """Run again at full length the runs that bracket a threshold and stopped early;
-    returns the rounds of reruns and the final ``(threshold, lo, hi)``."""
+def _rerun_brackets(ctx: StudyContext, p: PackingPlan, cont, runs: _Runs):
+    """Continue to full length, from where they stopped (``cont``: :func:`packing_continue` bound but
+    for ``resume``), the runs that bracket a threshold and stopped early; returns the rounds of
+    continuations and the final ``(threshold, lo, hi)``."""
     from ..sweep import Grid
 
     reruns = 0
@@ -357,8 +478,12 @@ def _rerun_brackets(ctx: StudyContext, p: PackingPlan, full, runs: _Runs):
         if not todo:
             return reruns, (thr, lo, hi)
         reruns += 1
-        got = ctx.sweep(f"brackets-{reruns}", full, Grid(points=_points(p, todo), seed=ctx.config.seed))
+        points = _points(p, todo)
+        resume = Resumes({Resumes.key(pt): runs.stopped[w] for pt, w in zip(points, todo)})
+        got = ctx.sweep(f"brackets-{reruns}", functools.partial(cont, resume=resume),
+                        Grid(points=points, seed=ctx.config.seed))
         runs.take_sweep(got.isel(replicate=0), todo)
+        runs.continued += len(todo)
 
 
 def dataset(ctx: StudyContext, p: PackingPlan):
@@ -381,7 +506,9 @@ def dataset(ctx: StudyContext, p: PackingPlan):
     runs = _Runs(p, base_err)
     _take_heatmap(runs, p, heat)
     rounds = _bisect(ctx, p, fn, runs)
-    reruns, thresholds = _rerun_brackets(ctx, p, full, runs)
+    cont = functools.partial(packing_continue, amplitude_m=amp, base_seed=int(config.seed),
+                             n_swimmers=p.n_swimmers, duration_s=p.duration_s)
+    reruns, thresholds = _rerun_brackets(ctx, p, cont, runs)
     return _assemble(p, runs, heat, thresholds, amp, int(config.seed), rounds, reruns)
 
 
@@ -408,6 +535,7 @@ def _assemble(p: PackingPlan, runs: _Runs, heat, thresholds, amp: float, seed: i
             "stop_rule": "none" if PACKING_STOP is None else PACKING_STOP.rule,
             "runs_stopped_early": int((runs.vals["stopped_at_s"] < p.duration_s - 1e-9).sum()),
             "bracket_reruns": reruns,
+            "bracket_runs_continued": runs.continued,
             "threshold_search": "whole grid" if bool(runs.evaluated.all()) else
                                 "bisection over rho_tilde (heatmap runs reused; a failed run or a non-monotone "
                                 "column: the whole column)",
