@@ -236,3 +236,26 @@ def test_potential_reads_the_last_periods_each_force_run_stepped():
     # the rule's margin: a window it accepts has a range within the study's DRIFT
     assert 2 * FORCE_STOP.spread_frac * FORCE_STOP.tol <= DRIFT
     assert FORCE_STOP.drift_frac * FORCE_STOP.tol <= DRIFT
+
+
+def test_a_packing_run_that_diverges_is_a_nan_result_of_the_same_shapes(monkeypatch):
+    """A diverged probe is stored, not raised: NaN measurements, flagged, with every variable (the
+    record and the end state included) shaped as a completed run's, so the sweep's runs merge."""
+    import undulate.simulation as sim
+    from undulate.errors import DivergenceError
+
+    kw = dict(amplitude_m=0.052, base_seed=1, n_swimmers=4, duration_s=2.5)
+    point = {"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}
+    ok = packing_point(point, 0, **kw)
+
+    def blow_up(*a, **k):
+        raise DivergenceError("test: diverged")
+
+    monkeypatch.setattr(sim, "simulate", blow_up)
+    bad = packing_point(point, 0, **kw)
+    assert bool(bad["diverged"]) and not bool(ok["diverged"])
+    assert set(bad.data_vars) == set(ok.data_vars)
+    for v in ok.data_vars:
+        assert bad[v].shape == ok[v].shape, v
+    assert np.isnan(float(bad["mean_joint_error_rad"])) and np.isfinite(float(ok["mean_joint_error_rad"]))
+    assert np.isnan(bad["end_state"].values).all() and np.isfinite(ok["end_state"].values).all()

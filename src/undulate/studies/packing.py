@@ -177,7 +177,8 @@ def _series(ds) -> dict[str, np.ndarray]:
     each wall (N) and deepest interpenetration (m)."""
     t = ds["time"].values
     return {"time": t, "joint_error": ds["joint_error"].values.reshape(len(t), -1).mean(axis=1),
-            "wall_force": ds["contact_force_wall"].values, "penetration": ds["penetration"].values.reshape(len(t), -1).max(axis=1)}
+            "wall_force": ds["contact_force_wall"].values,
+            "penetration": ds["penetration"].values.reshape(len(t), -1).max(axis=1)}
 
 
 def _measures(sr: dict[str, np.ndarray], skip_s: float) -> tuple[float, float, float, float]:
@@ -185,9 +186,10 @@ def _measures(sr: dict[str, np.ndarray], skip_s: float) -> tuple[float, float, f
     each sample, then over samples: every sample has the same count), mean wall force summed over the
     walls (samples after skip: sample t holds the mean over (t - interval, t]) and deepest penetration."""
     t = sr["time"]
-    je = sr["joint_error"][t >= skip_s]
-    wall = sr["wall_force"][t > skip_s + 1e-12].mean(axis=0).sum()
-    return float(je.mean()), float(je.max()), float(wall), float(sr["penetration"].max())
+    je, wall = sr["joint_error"][t >= skip_s], sr["wall_force"][t > skip_s + 1e-12]
+    if not len(je) or not len(wall):  # a run no longer than the skip: nothing to average
+        return float("nan"), float("nan"), float("nan"), float(sr["penetration"].max())
+    return float(je.mean()), float(je.max()), float(wall.mean(axis=0).sum()), float(sr["penetration"].max())
 
 
 def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
@@ -224,9 +226,9 @@ def packing_continue(point: dict, seed: int, *, amplitude_m: float, base_seed: i
                      n_swimmers: int = N_SWIMMERS, duration_s: float = DURATION_S, skip_s: float = SKIP_S):
     """A stopped packing run continued to the whole ``duration_s`` (sweep function): its record up to the
     stop and its end state from ``resume`` (:class:`Resumes`, keyed by point), then the rest of the run
-    stepped from that state (:class:`~undulate.simulation.Checkpoint`).  Bitwise the Dataset
-    :func:`packing_point` gives without a stopping rule (``tests/test_stopping.py``), for the part of the
-    run after the stop only."""
+    stepped from that state (:class:`~undulate.simulation.Checkpoint`): bitwise the Dataset
+    :func:`packing_point` gives without a stopping rule (``tests/test_stopping.py``), for only the
+    steps after the stop."""
     from ..errors import DivergenceError
     from ..simulation import Checkpoint, simulate
 
@@ -247,13 +249,8 @@ def _result(scene: Scene, duration_s: float, width: float, sr, end, skip_s: floa
 
     n = int(round(duration_s * SAMPLE_RATE_HZ)) + 1
     diverged = sr is None
-    if diverged:  # NaN of the run's shapes
-        from ..simulation import Checkpoint, _state_layout, compile_scene, resolve_options
-
-        cs = compile_scene(scene, resolve_options(scene, _options(duration_s)))
-        sr = {"time": np.full(1, np.nan), "joint_error": np.full(1, np.nan), "penetration": np.full(1, np.nan),
-              "wall_force": np.full((1, len(cs.index.wall_names)), np.nan)}
-        end = Checkpoint(np.full(_state_layout(cs.model)[1], np.nan), np.full(cs.model.nv, np.nan))
+    if diverged:
+        sr, end = _nan_run(scene, duration_s)
         je_mean = je_max = wall_f = pen = stopped_at = float("nan")
     else:
         je_mean, je_max, wall_f, pen = _measures(sr, skip_s)
@@ -289,6 +286,17 @@ def _result(scene: Scene, duration_s: float, width: float, sr, end, skip_s: floa
                                                         "long_name": "the solver's warm start there"}),
         }
     )
+
+
+def _nan_run(scene: Scene, duration_s: float):
+    """A NaN per-sample record and end state of the run's shapes (for a run that diverged)."""
+    from ..simulation import Checkpoint, _state_layout, compile_scene, resolve_options
+
+    cs = compile_scene(scene, resolve_options(scene, _options(duration_s)))
+    nan = np.full(1, np.nan)
+    sr = {"time": nan, "joint_error": nan, "penetration": nan,
+          "wall_force": np.full((1, len(cs.index.wall_names)), np.nan)}
+    return sr, Checkpoint(np.full(_state_layout(cs.model)[1], np.nan), np.full(cs.model.nv, np.nan))
 
 
 class Resumes:
