@@ -61,8 +61,12 @@ def test_measured_h_is_antisymmetric_for_identical_bodies(law):
 
 
 def _grid_summary(controller: str, dphi0, dphi, duration_s: float):
-    runs = [P.phase_run({"controller": controller, "hold_x": True, "dphi0_rad": d}, 0, duration_s=duration_s)
-            for d in dphi0]
+    """The study's judgement on the closed-loop pairs it shares with synchronization-pairs (each
+    ending once its lock is decided) against H measured on ``dphi``."""
+    from undulate.studies._closed_loop_pairs import closed_loop_pairs_sweep
+
+    fn, _ = closed_loop_pairs_sweep(dphi0, duration_s, 0)
+    runs = fn([{"controller": controller, "hold_x": True, "dphi0_rad": d} for d in dphi0], [0] * len(dphi0))
     v = xr.concat([r[["dphi"]] for r in runs], dim="dphi0_rad")
     h = xr.concat([P.probe_run({"dphi_rad": d, "hold_x": True}, 0)["H"].sel(law=controller) for d in dphi],
                   dim=xr.DataArray(dphi, dims="dphi_rad", name="dphi_rad"))
@@ -71,7 +75,7 @@ def _grid_summary(controller: str, dphi0, dphi, duration_s: float):
 
 def test_relay_held_pairs_lock_where_the_measured_h_predicts_on_a_small_grid():
     dphi = list(np.linspace(-np.pi, np.pi, 12, endpoint=False) + np.pi / 12)
-    s = _grid_summary("relay", [-2.4, -0.8, 0.8, 2.4], dphi, 20.0)
+    s = _grid_summary("relay", [-2.4, -0.8, 0.8, 2.4], dphi, 30.0)
     assert s["n_runs"] == 4
     assert s["n_predicted"] == s["n_runs"], s
 

@@ -26,13 +26,12 @@ def test_load_coupled_held_pair_synchronizes_and_its_contact_force_collapses():
 def test_batched_sweep_functions_give_each_point_its_own_run_in_order():
     """The batched runners group a task's points by controller and hold_x (size for groups), step each
     group together and return the results in the points' order, bitwise each point's run alone."""
-    from undulate.studies.phase_interaction import phase_run, phase_runs
-    from undulate.studies.synchronization import group_runs
+    from undulate.studies.synchronization import group_runs, pair_run, pair_runs
 
     pts = [{"controller": c, "hold_x": h, "dphi0_rad": d}
            for c, h, d in (("relay", True, 2.0), ("phase-oscillator", True, 1.0), ("relay", True, -1.5),
                            ("relay", False, 2.0))]
-    for a, b in zip(phase_runs(pts, [0] * 4, duration_s=3.0), [phase_run(p, 0, duration_s=3.0) for p in pts]):
+    for a, b in zip(pair_runs(pts, [0] * 4, duration_s=3.0), [pair_run(p, 0, duration_s=3.0) for p in pts]):
         for v in a.data_vars:
             np.testing.assert_array_equal(a[v].values, b[v].values, err_msg=v)
     gp = [{"controller": "relay", "n_swimmers": n, "spacing_m": w} for n, w in ((3, 0.055), (4, 0.065), (3, 0.065))]

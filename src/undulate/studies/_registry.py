@@ -322,12 +322,12 @@ class StudyContext:
         return (Path(self.config.out_dir) / ".sweeps" / (folder or self.name)
                 / f"{part}-{self.config.mode}-seed{self.config.seed}")
 
-    def shared_sweep(self, part: str, fn: Callable, grid: Grid) -> xr.Dataset:
+    def shared_sweep(self, part: str, fn: Callable, grid: Grid, *, batched: bool = False) -> xr.Dataset:
         """:meth:`sweep` in the store every study of this output folder shares,
         ``OUT/.sweeps/_shared/PART-{quick|full}-seedS``: for the sweeps defined once in
         :mod:`._shared` and run by more than one study (computed by the first, reused by the
         others while their identity is the same)."""
-        return self.sweep(part, fn, grid, where=self.sweep_dir(part, "_shared"))
+        return self.sweep(part, fn, grid, where=self.sweep_dir(part, "_shared"), batched=batched)
 
     def sweep(self, part: str, fn: Callable, grid: Grid, *, where: Path | None = None,
               batched: bool = False) -> xr.Dataset:

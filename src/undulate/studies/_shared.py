@@ -3,7 +3,9 @@
 The groups study's three sweeps and the potential study's contact-impulse
 sweep are also the sensitivity study's default-model rows; the closed-loop
 pairs' H(dphi) probe is run by both ``phase-interaction`` and
-``synchronization-groups``.  Both studies
+``synchronization-groups`` (the closed-loop pairs, run by both
+``synchronization-pairs`` and ``phase-interaction``, are defined in
+:mod:`._closed_loop_pairs`).  Both studies
 build them here, with the same function, the same bound arguments and the
 same grid, and request them through
 :meth:`~._registry.StudyContext.shared_sweep`: in one output folder they are
@@ -74,3 +76,4 @@ def h_probe_sweep(dphi_rad: Sequence[float], seed: int) -> tuple[Callable, Grid]
     from ._phase import probe_run
 
     return probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": [float(d) for d in dphi_rad]}, seed=seed)
+

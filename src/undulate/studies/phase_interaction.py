@@ -20,9 +20,11 @@ Prediction against observation: the predicted final states are the stable
 zeros (a + to - sign change between neighbouring grid points whose intervals
 exclude zero, located by a straight-line fit through the bins either side,
 zero = -a/b with the fit's t interval propagated) and the neutral bins.
-The closed-loop pairs (:func:`phase_runs`, from a grid of ``dphi0``) give the
-observed states: a run whose ``dphi`` moves less than :data:`DRIFT_RAD_S` over
-the last :data:`TAIL_S` has locked, and is predicted when its final ``dphi``
+The closed-loop pairs give the observed states: they are
+``synchronization-pairs``' own runs (:func:`._closed_loop_pairs.closed_loop_pairs_sweep`,
+from a grid of ``dphi0``, each ending once its lock is decided), shared by
+identity, so both studies judge one set of runs.  A run whose ``dphi`` moves
+less than :data:`DRIFT_RAD_S` over the last :data:`TAIL_S` it ran has locked, and is predicted when its final ``dphi``
 (circular mean over that window) lies within :data:`MATCH_TOL_RAD` of a stable
 zero's interval or inside a neutral bin; a run still drifting is predicted when
 it drifts the way H's interval points at its ``dphi``.
@@ -30,22 +32,20 @@ it drifts the way H's interval points at its ``dphi``.
 
 from __future__ import annotations
 
-import functools
 import math
 from typing import Any
 
 import numpy as np
 
 from .. import stats
-from ..params import Channel, Scene, SimOptions
+from ._closed_loop_pairs import closed_loop_pairs_sweep, pair_plan
 from ._shared import h_probe_phases, h_probe_sweep
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._runners import _in_batches
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
                      _sign, predicted, probe_run, stable_zeros)
 
-__all__ = ["phase_run", "phase_runs", "probe_run", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]
+__all__ = ["probe_run", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]
 
 TAIL_S = 4.0
 DRIFT_RAD_S = 0.02
@@ -54,52 +54,17 @@ PREDICTED_FRACTION = 0.8
 """Claim: at least this fraction of runs end where H predicts."""
 
 
-def phase_run(point: dict, seed: int, *, duration_s: float):
-    """One closed-loop pair from ``point["dphi0_rad"]`` (sweep function): ``dphi(t)`` at 20 Hz and
-    the contact force.  ``controller``, ``hold_x`` as in :func:`~.synchronization.pair_run`."""
-    return phase_runs([point], [seed], duration_s=duration_s)[0]
-
-
-def phase_runs(points: list[dict], seeds: list[int], *, duration_s: float):
-    """:func:`phase_run` on several points (batched sweep function): the pairs of one controller and
-    one ``hold_x`` are stepped together in one batch (each bitwise its run alone)."""
-    from ..simulation import simulate_batch
-
-    opts = SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=("x", "y", "gait_phase", "contact_force_pair"))
-
-    def run(key, idx):
-        scenes = [Scene(phases_rad=(0.0, float(points[i]["dphi0_rad"])), channel=Channel(width_m=PAIR_CHANNEL_M),
-                        hold_x=key[1], controller=CONTROLLERS[key[0]]) for i in idx]
-        return [_phase_result(sc, ds) for sc, ds in zip(scenes, simulate_batch(scenes, opts))]
-
-    return _in_batches([(str(p["controller"]), bool(p["hold_x"])) for p in points], run)
-
-
-def _phase_result(sc: Scene, ds):
-    import xarray as xr
-
-    from ..phases import neighbour_phase_differences
-
-    d = neighbour_phase_differences(ds)
-    return xr.Dataset({
-        "dphi": (("time",), d.values[:, 0], {"units": "rad", "long_name": "phase difference phi_1 - phi_0"}),
-        "force": (("time",), ds["contact_force_pair"].values[:, 0], {"units": "N", "long_name": "contact force"}),
-    }, coords={"time": ("time", ds["time"].values, {"units": "s"})}, attrs={"period_s": sc.gait.period_s})
-
-
 def plan(quick: bool) -> dict[str, Any]:
-    n = 8 if quick else 24
-    return {"dphi0_rad": list(np.linspace(-np.pi, np.pi, n, endpoint=False) + np.pi / n),
-            "dphi_rad": h_probe_phases(quick),
-            "duration_s": 20.0 if quick else 60.0}
+    """The closed-loop pairs are ``synchronization-pairs``' own (its initial phase differences and
+    duration: 12 x 60 s quick, 24 x 120 s full, each ending once locked); H on the probe's grid."""
+    pairs = pair_plan(quick)
+    return {"dphi0_rad": pairs["dphi0_rad"], "duration_s": pairs["duration_s"], "dphi_rad": h_probe_phases(quick)}
 
 
 def dataset(ctx: StudyContext, p: dict[str, Any]):
-    from ..sweep import Grid
-
-    grid = Grid(axes={"controller": list(CONTROLLERS), "hold_x": [True, False], "dphi0_rad": p["dphi0_rad"]},
-                seed=ctx.config.seed)
-    ds = _label(ctx.sweep("runs", functools.partial(phase_runs, duration_s=p["duration_s"]), grid, batched=True))
+    ds = _label(ctx.shared_sweep("closed-loop-pairs", *closed_loop_pairs_sweep(p["dphi0_rad"], p["duration_s"],
+                                                                               ctx.config.seed), batched=True))
+    ds = ds[["dphi", "force_start", "force_end", "stopped_at_s", "run_failed"]]
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     probe = ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed))
     ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")
@@ -109,14 +74,22 @@ def dataset(ctx: StudyContext, p: dict[str, Any]):
     return ds
 
 
+def _tail(t: np.ndarray, d: np.ndarray) -> tuple[float, float]:
+    """A run's final dphi (circular mean over its last TAIL_S, rad) and its drift over them (rad/s);
+    ``d`` is NaN after the run's stop."""
+    n = int(np.isfinite(d).sum())
+    t, d = t[:n], d[:n]
+    tail = t >= t[-1] - TAIL_S
+    return (float(np.angle(np.exp(1j * d[tail]).mean())),
+            float(np.angle(np.exp(1j * (d[-1] - d[tail][0])))) / TAIL_S)
+
+
 def _one(v, h) -> dict[str, Any]:
     """H (per held dphi, t interval over periods), its stable zeros and the closed-loop finals."""
     bins = [{"centre": float(d), "H": stats.mean(h.sel(dphi_rad=d).values).to_dict()} for d in h["dphi_rad"].values]
     t = v["time"].values
-    tail = t >= t[-1] - TAIL_S
-    runs = [d for d in v["dphi"].values if np.isfinite(d).all()]
-    finals = [float(np.angle(np.exp(1j * d[tail]).mean())) for d in runs]
-    drift = [float(np.angle(np.exp(1j * (d[-1] - d[tail][0])))) / TAIL_S for d in runs]
+    runs = [d for d in v["dphi"].values if np.isfinite(d[0])]  # a failed run is NaN throughout
+    finals, drift = (list(x) for x in zip(*[_tail(t, d) for d in runs])) if runs else ([], [])
     zeros = stable_zeros(bins)
     ok = [predicted(f, zeros, bins) if abs(r) < DRIFT_RAD_S else _drifts_as_h(f, r, bins)
           for f, r in zip(finals, drift)]

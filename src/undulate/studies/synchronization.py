@@ -16,7 +16,8 @@ load feedback ``sigma`` = :data:`PAIR_COUPLING`; ``relay``, the closest model to
 the PRX robots' oscillator we could build): two swimmers in the paper's
 ``d = 0.13 m`` channel, initial phase differences spread over ``[-pi, pi)``,
 longitudinal positions held (``Scene.hold_x``) or free, run for
-:data:`PAIR_DURATION_S` or until :data:`PAIR_SYNC_STOP` finds the lock decided.  Per run: the final phase difference (circular mean
+:data:`PAIR_DURATION_S` or until :data:`PAIR_SYNC_STOP` finds the lock decided
+(the runs of :mod:`._closed_loop_pairs`, shared with ``phase-interaction``).  Per run: the final phase difference (circular mean
 over the last :data:`TAIL_S`), the time to lock (:func:`undulate.phases.time_to_lock`,
 tolerance :data:`LOCK_TOL_RAD`), and the mean swimmer-swimmer contact force over
 the first and the last :data:`TAIL_S`.
@@ -49,6 +50,8 @@ from ..params import Channel, Scene, SimOptions
 from ..stopping import PhaseStop
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS, PAIR_COUPLING, _label
+from ._closed_loop_pairs import (LOCK_TOL_RAD, PAIR_DURATION_S, PAIR_SYNC_STOP, RECORD, TAIL_S,  # noqa: F401
+                                 _tail_circmean, closed_loop_pairs_sweep, pair_plan, pair_run, pair_runs)
 from ._shared import h_probe_phases, h_probe_sweep
 from ._points import SyncPoint
 from ._runners import _in_batches, _padded, _simulate_stopped_batch, _stop_vars
@@ -57,18 +60,11 @@ from ._registry import Claim, Study, StudyContext, Verdict, register
 __all__ = ["pair_run", "pair_runs", "group_run", "group_runs", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
            "CONTROLLERS", "PAIR_COUPLING"]
 
-PAIR_DURATION_S = 60.0
-TAIL_S = 10.0
-LOCK_TOL_RAD = 0.15
 SYNC_TOL_RAD = math.radians(30.0)
 """A final phase difference within this of 0 (pi) counts as in phase (anti-phase)."""
 COLLIDING_N = 0.05
 """Runs whose mean contact force over the first TAIL_S exceeds this (N) collided."""
 R_LOCKED = 0.9
-PAIR_SYNC_STOP = PhaseStop(tol_rad=LOCK_TOL_RAD, hold_s=TAIL_S, extra_s=TAIL_S, min_s=2 * TAIL_S)
-"""The closed-loop pairs' stopping rule: the lock rule (:data:`LOCK_TOL_RAD` over :data:`TAIL_S`) held
-:data:`TAIL_S` longer, no drift, and the offsets steady (:data:`._runners.PAIR_STOP`'s rule); never
-before 2 :data:`TAIL_S`.  A pair that is still drifting runs the whole :data:`PAIR_DURATION_S`."""
 GROUP_SYNC_STOP = PAIR_SYNC_STOP
 """The closed-loop groups' stopping rule: the pairs' rule on every pair of swimmers (a group frozen in
 a locked state, every phase difference and offset steady, stops; one still moving runs on)."""
@@ -76,61 +72,6 @@ DRIFT_TOL_RAD_S = 0.02
 COMPAT_TOL = 0.1
 NEIGHBOURS = 9
 """Slots for the neighbour pairs' final (dx, dphi) of a group (up to 10 swimmers; NaN-padded)."""
-RECORD = ("x", "y", "joint_angle", "joint_command", "joint_error", "contact_force_pair", "gait_phase")
-
-
-def _tail_circmean(a: np.ndarray, sel: np.ndarray) -> np.ndarray:
-    return np.angle(np.exp(1j * a[sel]).mean(axis=0))
-
-
-def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, stop: PhaseStop | None = None):
-    """One closed-loop pair (sweep function).  ``point``: ``controller`` (a key of
-    :data:`CONTROLLERS`), ``hold_x`` (bool), ``dphi0_rad`` (initial phi_1 - phi_0).
-    ``stop``: a stopping rule (:data:`PAIR_SYNC_STOP`; None: the whole ``duration_s``); the
-    final values are then taken over the last :data:`TAIL_S` before the stop and ``dphi`` is
-    NaN after it.  Deterministic (``seed`` unused)."""
-    return pair_runs([point], [seed], duration_s=duration_s, stop=stop)[0]
-
-
-def pair_runs(points: list[dict], seeds: list[int], *, duration_s: float = PAIR_DURATION_S,
-              stop: PhaseStop | None = None):
-    """:func:`pair_run` on several points (batched sweep function): the pairs of one controller and
-    one ``hold_x`` are stepped together in one batch, each stopping by its own rule (bitwise its
-    run alone: the controller is vectorised over the batch)."""
-    pts = [SyncPoint.of(p) for p in points]
-    opts = SimOptions(duration_s=duration_s, sample_rate_hz=20.0, record=RECORD)
-
-    def run(key, idx):
-        scenes = [Scene(phases_rad=(0.0, pts[i].dphi0_rad), channel=Channel(width_m=PAIR_CHANNEL_M),
-                        hold_x=key[1], controller=CONTROLLERS[key[0]]) for i in idx]
-        dss, n_full = _simulate_stopped_batch(scenes, opts, stop)
-        return [_pair_result(ds, n_full) for ds in dss]
-
-    return _in_batches([(p.controller, p.hold_x) for p in pts], run)
-
-
-def _pair_result(ds, n_full: int):
-    """A closed-loop pair's run -> its final phase difference, lock time, contact forces, dphi(t)."""
-    import xarray as xr
-
-    from ..phases import neighbour_phase_differences, time_to_lock
-
-    t = ds["time"].values
-    d = neighbour_phase_differences(ds)
-    f = ds["contact_force_pair"].values[:, 0]
-    head, tail = t <= t[0] + TAIL_S, t >= t[-1] - TAIL_S
-    t_full = np.round(np.arange(n_full) * float(ds.attrs["sample_interval"]), 12)  # the full run's axis
-    return xr.Dataset({
-        "dphi_final": ((), float(_tail_circmean(d.values[:, 0], tail)),
-                       {"units": "rad", "long_name": "final phase difference (circular mean, last TAIL_S)"}),
-        "lock_time": ((), float(time_to_lock(d, tol_rad=LOCK_TOL_RAD, hold_s=TAIL_S)[0]),
-                      {"units": "s", "long_name": "time to lock (NaN: still drifting)"}),
-        "force_start": ((), float(f[head].mean()), {"units": "N", "long_name": "mean contact force, first TAIL_S"}),
-        "force_end": ((), float(f[tail].mean()), {"units": "N", "long_name": "mean contact force, last TAIL_S"}),
-        "dphi": (("time",), _padded(d.values[:, 0], n_full), {
-            "units": "rad", "long_name": "phase difference over time (NaN after a stop)"}),
-        **_stop_vars(ds),
-    }, coords={"time": ("time", t_full, {"units": "s"})})
 
 
 def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, stop: PhaseStop | None = None):
@@ -215,12 +156,6 @@ def free_frequency(point: dict, seed: int, *, duration_s: float = 30.0):
     ds = simulate(sc, SimOptions(duration_s=duration_s, record=("gait_phase",)))
     f = float(gait_frequency(gait_phase(ds), t_from=duration_s - TAIL_S)[0])
     return xr.Dataset({"frequency": ((), f, {"units": "Hz", "long_name": "free gait frequency"})})
-
-
-def pair_plan(quick: bool) -> dict[str, Any]:
-    n = 12 if quick else 24
-    return {"dphi0_rad": list(np.linspace(-np.pi, np.pi, n, endpoint=False) + np.pi / n),
-            "duration_s": PAIR_DURATION_S if quick else 2 * PAIR_DURATION_S}
 
 
 def group_plan(quick: bool) -> dict[str, Any]:
@@ -358,12 +293,8 @@ def pair_summary(ds) -> dict[str, Any]:
 
 
 def pair_dataset(ctx: StudyContext, p: dict[str, Any]):
-    from ..sweep import Grid
-
-    grid = Grid(axes={"controller": list(CONTROLLERS), "hold_x": [True, False], "dphi0_rad": p["dphi0_rad"]},
-                seed=ctx.config.seed)
-    ds = _label(ctx.sweep("runs", functools.partial(pair_runs, duration_s=p["duration_s"], stop=PAIR_SYNC_STOP),
-                             grid, batched=True))
+    ds = _label(ctx.shared_sweep("closed-loop-pairs", *closed_loop_pairs_sweep(p["dphi0_rad"], p["duration_s"],
+                                                                               ctx.config.seed), batched=True))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     ds.attrs.update(title="closed-loop pairs: phase locking", channel_width_m=PAIR_CHANNEL_M,
                     duration_s=p["duration_s"], phase_oscillator_coupling=PAIR_COUPLING)
