@@ -679,13 +679,9 @@ def simulate_batch(
     every chunk, between calls into C, never inside the step loop; it cannot
     change the results (e.g. :class:`undulate._progress.RunMonitor`).
 
-    ``start``: a :class:`Checkpoint` (one per scene in a batch, all at one
-    time) to go on from instead of starting at rest: the run steps from the
-    checkpoint's time to ``duration_s`` and records the samples after it,
-    bitwise the rest of the run that reached it (open-loop gaits).  Every
-    Dataset's attrs ``end_state`` and ``end_warmstart`` hold where its scene
-    ended (:meth:`Checkpoint.of`), e.g. to continue a run a stopping rule
-    ended.
+    ``start``: a :class:`Checkpoint` per scene (all at one time) to go on from
+    instead of from rest, e.g. where a stopping rule ended a run: every Dataset's
+    attrs ``end_state`` and ``end_warmstart`` hold where its scene ended.
 
     Every Dataset's attrs ``physics_time`` (s, wall time inside
     ``mujoco.rollout`` for the whole batch) and ``physics_steps`` (scene-steps)
@@ -704,8 +700,7 @@ def simulate_batch(
     ok = False
     try:
         _step_all(bt, stepper, recorders, progress, resumed=starts is not None)
-        results = recorders.finish()
-        ends = [stepper.checkpoint(b) for b in range(bt.nb)]
+        results, ends = recorders.finish(), [stepper.checkpoint(b) for b in range(bt.nb)]
         ok = True
     finally:
         stepper.close()
@@ -713,12 +708,17 @@ def simulate_batch(
         _physics.report(clock.seconds, clock.steps)
         if not ok:
             recorders.abort()
+    _stamp(results, clock, recorders, ends)
+    return results
+
+
+def _stamp(results: list[xr.Dataset], clock: _Clock, recorders: "_Recorders", ends: list[Checkpoint]) -> None:
+    """Each Dataset's attrs: what the batch cost, how its scene's run ended, and where (its checkpoint)."""
     for b, ds in enumerate(results):
         ds.attrs.update(physics_time=clock.seconds, physics_time_units="s", physics_steps=clock.steps,
                         stop_rule=recorders.rule(b), stop_reason=recorders.reasons[b] or "",
                         stopped_at=float(ds["time"].values[-1]), stopped_at_units="s",
                         end_state=ends[b].state, end_warmstart=ends[b].warmstart)
-    return results
 
 
 class _Recorders:
