@@ -259,3 +259,24 @@ def test_a_packing_run_that_diverges_is_a_nan_result_of_the_same_shapes(monkeypa
         assert bad[v].shape == ok[v].shape, v
     assert np.isnan(float(bad["mean_joint_error_rad"])) and np.isfinite(float(ok["mean_joint_error_rad"]))
     assert np.isnan(bad["end_state"].values).all() and np.isfinite(ok["end_state"].values).all()
+
+
+def test_the_continued_runs_identity_follows_the_stopped_runs_content():
+    """Resumes is bound into the continuing sweep's call: its repr is a hash of the stopped runs'
+    records and end states, so a changed stopped run makes the continued ones stale."""
+    import xarray as xr
+
+    def run(x):
+        return xr.Dataset({"series_time_s": ("sample", [0.0, 0.1, np.nan]),
+                           "series_joint_error_rad": ("sample", [0.1, x, np.nan]),
+                           "series_wall_force_N": (("sample", "wall"), np.zeros((3, 2))),
+                           "series_penetration_m": ("sample", [0.0, 0.0, np.nan]),
+                           "end_state": ("state", [0.1, 1.0, 2.0]), "end_warmstart": ("dof", [0.0, 0.5])})
+
+    point = {"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}
+    a, b, c = (Resumes({Resumes.key(point): run(x)}) for x in (0.2, 0.2, 0.3))
+    assert repr(a) == repr(b) != repr(c)
+    fn = functools.partial(packing_continue, amplitude_m=0.05, base_seed=0)
+    assert function_id(functools.partial(fn, resume=a)) != function_id(functools.partial(fn, resume=c))
+    sr, end = a.get(point)
+    assert len(sr["time"]) == 2 and end.time_s == 0.1  # the record up to the stop, NaN padding dropped
