@@ -280,8 +280,9 @@ def _result(scene: Scene, duration_s: float, width: float, sr, end, skip_s: floa
                 "units": "N", "long_name": "contact force on each wall, mean over the sample interval"}),
             "series_penetration_m": (("sample",), pad(sr["penetration"]), {
                 "units": "m", "long_name": "deepest interpenetration in the sample interval"}),
-            "end_state": (("state",), end.state, {"long_name": "MuJoCo's full physics state where the run "
-                                                  "ended (time first, s)"}),
+            "end_state": (("state",), end.state, {"units": "mixed: s, m, rad, m s-1, rad s-1 (mjSTATE_FULLPHYSICS)",
+                                                  "long_name": "MuJoCo's full physics state where the run "
+                                                  "ended (time first)"}),
             "end_warmstart": (("dof",), end.warmstart, {"units": "m s-2 or rad s-2",
                                                         "long_name": "the solver's warm start there"}),
         }
