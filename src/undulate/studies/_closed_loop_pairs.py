@@ -92,10 +92,10 @@ def _pair_result(ds, n_full: int):
 
 
 def pair_plan(quick: bool) -> dict[str, Any]:
+    """Initial phase differences (12 quick, 24 full, bin centres over [-pi, pi), rad) and duration (s)."""
     n = 12 if quick else 24
     return {"dphi0_rad": list(np.linspace(-np.pi, np.pi, n, endpoint=False) + np.pi / n),
             "duration_s": PAIR_DURATION_S if quick else 2 * PAIR_DURATION_S}
-
 
 
 def closed_loop_pairs_sweep(dphi0_rad: Sequence[float], duration_s: float, seed: int) -> tuple[Callable, Grid]:

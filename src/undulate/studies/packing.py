@@ -214,12 +214,12 @@ def packing_point(point: dict, seed: int, *, amplitude_m: float, base_seed: int,
 
     scene, width = _pack(point, amplitude_m=amplitude_m, base_seed=base_seed, n_swimmers=n_swimmers)
     monitor = None if stop is None else stop.monitor(float(lone_error_rad) + THRESHOLD_RAD, skip_s)
+    rule = "none" if monitor is None else monitor.rule
     try:
         ds = simulate(scene, _options(duration_s), stop=monitor)
     except DivergenceError:
-        return _result(scene, duration_s, width, None, None, skip_s, "none" if monitor is None else monitor.rule)
-    return _result(scene, duration_s, width, _series(ds), Checkpoint.of(ds), skip_s,
-                   "none" if monitor is None else monitor.rule)
+        return _result(scene, duration_s, width, None, None, skip_s, rule)
+    return _result(scene, duration_s, width, _series(ds), Checkpoint.of(ds), skip_s, rule)
 
 
 def packing_continue(point: dict, seed: int, *, amplitude_m: float, base_seed: int, resume: "Resumes",

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from .. import stats
-from ._closed_loop_pairs import closed_loop_pairs_sweep, pair_plan
+from ._closed_loop_pairs import _tail_circmean, closed_loop_pairs_sweep, pair_plan
 from ._shared import h_probe_phases, h_probe_sweep
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._criteria import PAIR_CHANNEL_M
@@ -80,8 +80,7 @@ def _tail(t: np.ndarray, d: np.ndarray) -> tuple[float, float]:
     n = int(np.isfinite(d).sum())
     t, d = t[:n], d[:n]
     tail = t >= t[-1] - TAIL_S
-    return (float(np.angle(np.exp(1j * d[tail]).mean())),
-            float(np.angle(np.exp(1j * (d[-1] - d[tail][0])))) / TAIL_S)
+    return float(_tail_circmean(d, tail)), float(np.angle(np.exp(1j * (d[-1] - d[tail][0])))) / TAIL_S
 
 
 def _one(v, h) -> dict[str, Any]:
