@@ -18,21 +18,73 @@ given), so the same data give the same interval.
 
 Intervals that cannot be formed (too few points, a degenerate resample) are
 NaN; :meth:`Estimate.to_dict` turns NaN into ``None`` for JSON.
+
+**Repeated looks.**  A study that adds runs in stages looks at its intervals
+after every stage (:mod:`undulate.studies._registry`).  Every interval of a
+look is formed at the level :func:`level` returns, which the registry sets
+for the look with :func:`at_level` (:func:`look_levels`: the family-wise
+``1 - CONFIDENCE`` split over the looks, Bonferroni); ``ci95`` in
+:meth:`Estimate.to_dict` is that interval and ``level`` its level.  Outside a
+look the level is :data:`CONFIDENCE`.
 """
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 __all__ = ["Estimate", "LineFit", "line_fit", "rank_correlation", "rms", "std", "mean", "bootstrap",
-           "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE"]
+           "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level", "look_levels", "Check", "decide"]
 
 CONFIDENCE = 0.95
+"""The family-wise confidence of every claim's verdict: ``holds`` means 95 %."""
+
+LOOK_SHARES = {1: (1.0,), 2: (0.2, 0.8), 3: (0.1, 0.3, 0.6), 4: (0.05, 0.15, 0.3, 0.5)}
+"""How :func:`look_levels` splits ``alpha = 1 - CONFIDENCE`` over K looks: shares that sum to 1,
+small early (the shape of O'Brien-Fleming's spending: an early look stops only for a clear answer)."""
+
+_LEVEL: contextvars.ContextVar[float] = contextvars.ContextVar("undulate_confidence_level", default=CONFIDENCE)
+
+
+def level() -> float:
+    """The confidence level of the intervals formed now (:data:`CONFIDENCE` outside a staged look)."""
+    return _LEVEL.get()
+
+
+@contextlib.contextmanager
+def at_level(confidence: float) -> Iterator[float]:
+    """Form every interval inside the ``with`` block at ``confidence`` (0 < confidence < 1)."""
+    if not 0.0 < float(confidence) < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1), not {confidence!r}")
+    token = _LEVEL.set(float(confidence))
+    try:
+        yield float(confidence)
+    finally:
+        _LEVEL.reset(token)
+
+
+def look_levels(n_looks: int, confidence: float = CONFIDENCE) -> tuple[float, ...]:
+    """The per-look confidence levels of a plan looked at ``n_looks`` times.
+
+    Bonferroni over the looks: look k forms its intervals at ``1 - alpha_k``
+    with ``sum(alpha_k) = alpha = 1 - confidence`` (shares
+    :data:`LOOK_SHARES`).  By the union bound the chance that *any* look's
+    interval misses the true value is at most ``alpha``, whatever the looks'
+    dependence, so a verdict taken at whichever look decides it keeps the
+    family-wise ``confidence`` (``holds`` means 95 %).  ``n_looks`` beyond the
+    table split alpha equally.
+    """
+    if isinstance(n_looks, bool) or not isinstance(n_looks, int) or n_looks < 1:
+        raise ValueError(f"n_looks must be an integer >= 1, not {n_looks!r}")
+    alpha = 1.0 - confidence
+    shares = LOOK_SHARES.get(n_looks, (1.0 / n_looks,) * n_looks)
+    return tuple(1.0 - alpha * s for s in shares)
 BOOTSTRAP_SEED = 20240601
 """Seed of every bootstrap unless the caller gives one (results are reproducible)."""
 N_RESAMPLES = 2000
@@ -61,6 +113,7 @@ class Estimate:
     high: float = math.nan
     n: int = 0
     method: str = ""
+    level: float = CONFIDENCE
 
     @property
     def finite(self) -> bool:
@@ -73,7 +126,7 @@ class Estimate:
     def scaled(self, factor: float) -> Estimate:
         """The same estimate in other units (``factor > 0``)."""
         return Estimate(self.value * factor, self.stderr * factor, self.low * factor, self.high * factor,
-                        self.n, self.method)
+                        self.n, self.method, self.level)
 
     def inside(self, lo: float = -math.inf, hi: float = math.inf) -> bool | None:
         """True if the whole interval lies in ``[lo, hi]``, False if it lies wholly outside,
@@ -86,12 +139,24 @@ class Estimate:
             return False
         return None
 
+    def within(self, lo: float, hi: float, what: str = "") -> Check:
+        """A :class:`Check`: the interval inside ``[lo, hi]``, wholly outside, or straddling a bound."""
+        return _within(self, lo, hi, what)
+
+    def below(self, hi: float, what: str = "") -> Check:
+        """A :class:`Check`: the interval below ``hi``, wholly above it, or straddling it."""
+        return _within(self, -math.inf, hi, what)
+
+    def above(self, lo: float, what: str = "") -> Check:
+        """A :class:`Check`: the interval above ``lo``, wholly below it, or straddling it."""
+        return _within(self, lo, math.inf, what)
+
     def to_dict(self) -> dict[str, Any]:
         def j(v: float) -> float | None:
             return float(v) if math.isfinite(v) else None
 
         return {"value": j(self.value), "stderr": j(self.stderr), "ci95": [j(self.low), j(self.high)],
-                "n": int(self.n), "method": self.method}
+                "n": int(self.n), "method": self.method, "level": float(self.level)}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any] | None) -> Estimate:
@@ -100,7 +165,7 @@ class Estimate:
             return cls(math.nan)
         lo, hi = (d.get("ci95") or [None, None])[:2]
         return cls(_f(d.get("value")), _f(d.get("stderr")), _f(lo), _f(hi), int(d.get("n") or 0),
-                   str(d.get("method", "")))
+                   str(d.get("method", "")), float(d.get("level") or CONFIDENCE))
 
     def __format__(self, spec: str) -> str:
         spec = spec or ".3g"
@@ -118,6 +183,85 @@ class Estimate:
 
 
 NAN = Estimate(math.nan)
+
+
+def _g(v: float) -> str:
+    return format(v, ".3g")
+
+
+@dataclass(frozen=True)
+class Check:
+    """One criterion of a claim, judged on an interval: three outcomes.
+
+    ``state``: True when the interval lies inside the accepted region, False
+    when it lies wholly outside, None when it straddles a boundary (or there is
+    no interval: then ``runs_needed`` is None too).  ``text`` names what was
+    checked, the interval and, when undecided, the boundary it straddles.
+    ``runs_needed``: for a straddling interval, about how many runs (points)
+    would make its half-width shorter than the estimate's distance from the
+    boundary, if it shrinks as 1/sqrt(n) (None when the estimate sits on it).
+    Make them with :meth:`Estimate.within`, :meth:`Estimate.below`,
+    :meth:`Estimate.above`, :meth:`Check.apart` or :meth:`Check.exact`.
+    """
+
+    state: bool | None
+    text: str
+    runs_needed: int | None = None
+
+    @classmethod
+    def exact(cls, ok: bool, text: str) -> Check:
+        """A criterion on a count or an exact number (no interval): never undecided."""
+        return cls(bool(ok), text)
+
+    @classmethod
+    def apart(cls, a: Estimate, b: Estimate, what: str) -> Check:
+        """``a > b`` judged on both intervals: True when ``a``'s lies wholly above ``b``'s, False when
+        wholly below, None when they overlap (``what`` names the comparison)."""
+        if not (a.has_interval and b.has_interval):
+            return cls(None, f"{what}: no interval")
+        if a.low > b.high:
+            return cls(True, f"{what}: [{_g(a.low)}, {_g(a.high)}] above [{_g(b.low)}, {_g(b.high)}]")
+        if a.high < b.low:
+            return cls(False, f"{what}: [{_g(a.low)}, {_g(a.high)}] below [{_g(b.low)}, {_g(b.high)}]")
+        return cls(None, f"{what}: [{_g(a.low)}, {_g(a.high)}] overlaps [{_g(b.low)}, {_g(b.high)}]")
+
+
+def _runs_needed(e: Estimate, bound: float) -> int | None:
+    """Runs that would shrink ``e``'s interval (half-width on the side facing ``bound``, ~1/sqrt(n))
+    to the estimate's distance from ``bound``."""
+    gap = abs(e.value - bound)
+    half = (e.value - e.low) if bound < e.value else (e.high - e.value)
+    if not (e.n > 0 and gap > 0 and math.isfinite(half) and half > 0):
+        return None
+    return int(math.ceil(e.n * (half / gap) ** 2))
+
+
+def _within(e: Estimate, lo: float, hi: float, what: str) -> Check:
+    region = (f"[{_g(lo)}, {_g(hi)}]" if math.isfinite(lo) and math.isfinite(hi)
+              else f"> {_g(lo)}" if math.isfinite(lo) else f"< {_g(hi)}")
+    head = f"{what} {e:.3g}"
+    state = e.inside(lo, hi)
+    if not e.has_interval:
+        return Check(None, f"{head}: no interval")
+    if state is True:
+        return Check(True, f"{head} inside {region}")
+    if state is False:
+        return Check(False, f"{head} wholly outside {region}")
+    straddled = [b for b in (lo, hi) if math.isfinite(b) and e.low <= b <= e.high]
+    needed = [_runs_needed(e, b) for b in straddled]
+    n = None if None in needed or not needed else max(needed)  # type: ignore[type-var]
+    bounds = " and ".join(_g(b) for b in straddled)
+    return Check(None, f"{head} straddles {bounds} (region {region})", n)
+
+
+def decide(checks: Sequence[Check]) -> bool | None:
+    """Several criteria of one claim: False if any fails, else None if any is undecided, else True."""
+    states = [c.state for c in checks]
+    if False in states:
+        return False
+    if None in states:
+        return None
+    return True
 
 
 def _clean(*arrays) -> tuple[np.ndarray, ...]:
@@ -158,16 +302,17 @@ def bootstrap(statistic: Callable[..., float], *samples, seed: int | None = None
 
     import warnings
 
+    conf = level()
     rng = np.random.default_rng(BOOTSTRAP_SEED if seed is None else seed)
     with warnings.catch_warnings():  # degenerate resamples are handled below
         warnings.simplefilter("ignore")
         res = st.bootstrap(samples, stat, paired=True, vectorized=vectorized, n_resamples=n_resamples,
-                           confidence_level=CONFIDENCE, method="percentile", rng=rng)
+                           confidence_level=conf, method="percentile", rng=rng)
     dist = np.asarray(res.bootstrap_distribution, float)
     dist = dist[np.isfinite(dist)]
     if dist.size < n_resamples // 2:  # too many degenerate resamples: no honest interval
         return math.nan, math.nan, math.nan
-    lo, hi = np.percentile(dist, [100 * (1 - CONFIDENCE) / 2, 100 * (1 + CONFIDENCE) / 2])
+    lo, hi = np.percentile(dist, [100 * (1 - conf) / 2, 100 * (1 + conf) / 2])
     return float(dist.std(ddof=1)), float(lo), float(hi)
 
 
@@ -212,19 +357,21 @@ def line_fit(x, y, *, seed: int | None = None) -> LineFit:
         return LineFit(Estimate(math.nan, n=n), Estimate(math.nan, n=n), Estimate(math.nan, n=n), n)
     r = st.linregress(x, y)
     dof = n - 2
-    q = float(st.t.ppf((1 + CONFIDENCE) / 2, dof)) if dof > 0 else math.nan
+    conf = level()
+    q = float(st.t.ppf((1 + conf) / 2, dof)) if dof > 0 else math.nan
     se_s = float(r.stderr) if dof > 0 else math.nan
     se_i = float(r.intercept_stderr) if dof > 0 else math.nan
-    slope = Estimate(float(r.slope), se_s, r.slope - q * se_s, r.slope + q * se_s, n, "linregress, t interval")
+    slope = Estimate(float(r.slope), se_s, r.slope - q * se_s, r.slope + q * se_s, n, "linregress, t interval",
+                     conf)
     icpt = Estimate(float(r.intercept), se_i, r.intercept - q * se_i, r.intercept + q * se_i, n,
-                    "linregress, t interval")
+                    "linregress, t interval", conf)
 
     def r2_of(a, b, axis=-1):
         return _pearson_rows(a, b, axis) ** 2
 
     r2v = float(r.rvalue ** 2) if np.ptp(y) > 0 else math.nan
     se, lo, hi = bootstrap(r2_of, x, y, seed=seed, vectorized=True)
-    return LineFit(slope, icpt, Estimate(r2v, se, lo, hi, n, "bootstrap percentile"), n)
+    return LineFit(slope, icpt, Estimate(r2v, se, lo, hi, n, "bootstrap percentile", conf), n)
 
 
 def rank_correlation(x, y, *, seed: int | None = None) -> Estimate:
@@ -241,7 +388,8 @@ def rank_correlation(x, y, *, seed: int | None = None) -> Estimate:
         return _pearson_rows(st.rankdata(a, axis=axis), st.rankdata(b, axis=axis), axis)
 
     se, lo, hi = bootstrap(rho_rows, x, y, seed=seed, vectorized=True)
-    return Estimate(float(st.spearmanr(x, y).statistic), se, lo, hi, n, "spearmanr, bootstrap percentile")
+    return Estimate(float(st.spearmanr(x, y).statistic), se, lo, hi, n, "spearmanr, bootstrap percentile",
+                    level())
 
 
 def rms(values, *, seed: int | None = None) -> Estimate:
@@ -254,7 +402,7 @@ def rms(values, *, seed: int | None = None) -> Estimate:
         return np.sqrt(np.mean(a * a, axis=axis))
 
     se, lo, hi = bootstrap(f, v, seed=seed, vectorized=True)
-    return Estimate(float(f(v)), se, lo, hi, int(v.size), "bootstrap percentile")
+    return Estimate(float(f(v)), se, lo, hi, int(v.size), "bootstrap percentile", level())
 
 
 def std(values, *, seed: int | None = None) -> Estimate:
@@ -263,7 +411,7 @@ def std(values, *, seed: int | None = None) -> Estimate:
     if v.size == 0:
         return Estimate(math.nan, method="bootstrap percentile")
     se, lo, hi = bootstrap(lambda a, axis=-1: np.std(a, axis=axis), v, seed=seed, vectorized=True)
-    return Estimate(float(np.std(v)), se, lo, hi, int(v.size), "bootstrap percentile")
+    return Estimate(float(np.std(v)), se, lo, hi, int(v.size), "bootstrap percentile", level())
 
 
 def mean(values) -> Estimate:
@@ -278,8 +426,9 @@ def mean(values) -> Estimate:
     if n < 2:
         return Estimate(m, n=n, method="t interval")
     se = float(v.std(ddof=1) / math.sqrt(n))
-    q = float(st.t.ppf((1 + CONFIDENCE) / 2, n - 1))
-    return Estimate(m, se, m - q * se, m + q * se, n, "t interval")
+    conf = level()
+    q = float(st.t.ppf((1 + conf) / 2, n - 1))
+    return Estimate(m, se, m - q * se, m + q * se, n, "t interval", conf)
 
 
 def estimates(values: Sequence[Estimate]) -> list[dict[str, Any]]:

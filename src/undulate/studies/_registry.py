@@ -45,13 +45,14 @@ import os
 import pkgutil
 import sys
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from .. import stats
 from ..errors import ParameterError, UndulateError
 from ..provenance import provenance
 
@@ -80,8 +81,11 @@ __all__ = [
     "explain",
 ]
 
-HOLDS, FAILS, NO_RESULT = "holds", "fails", "no result"
-VERDICTS = (HOLDS, FAILS, NO_RESULT)
+HOLDS, FAILS, UNDECIDED, NO_RESULT = "holds", "fails", "undecided", "no result"
+VERDICTS = (HOLDS, FAILS, UNDECIDED, NO_RESULT)
+"""A study's verdicts on a claim: its intervals lie inside the accepted region (``holds``), one lies
+wholly outside (``fails``), none is outside and one straddles a boundary (``undecided``), or there is no
+number to judge (``no result``)."""
 EXPLAINED = "explained"
 """Not a study's verdict: :mod:`undulate.claims` turns a claim that ``fails`` into
 ``explained`` when some study's :class:`Explanation` of it was shown by that study's runs."""
@@ -124,22 +128,43 @@ class StudyConfig:
 # ------------------------------------------------------------------- claims
 @dataclass(frozen=True)
 class Verdict:
-    """The judgement of one claim: ``verdict`` is ``holds``, ``fails`` or ``no result``;
+    """The judgement of one claim: ``verdict`` is one of :data:`VERDICTS`;
     ``measured``: the measured value(s) with uncertainty, as text; ``value``: the same as
-    numbers (e.g. an :class:`~undulate.stats.Estimate` dict); ``reason``: why there is no result."""
+    numbers (e.g. an :class:`~undulate.stats.Estimate` dict); ``reason``: why there is no
+    result, or which boundary an undecided claim's interval straddles; ``runs_needed``: for an
+    undecided claim, about how many runs its straddling interval would need to decide
+    (:class:`~undulate.stats.Check`; None when unknown)."""
 
     verdict: str
     measured: str
     value: Any = None
     reason: str = ""
+    runs_needed: int | None = None
 
     def __post_init__(self):
         if self.verdict not in VERDICTS:
             raise UndulateError(f"verdict must be one of {VERDICTS}, not {self.verdict!r}")
 
     @classmethod
-    def judged(cls, ok: bool, measured: str, value: Any = None) -> Verdict:
-        return cls(HOLDS if ok else FAILS, measured, value)
+    def judged(cls, ok: bool | None, measured: str, value: Any = None, reason: str = "") -> Verdict:
+        """``ok``: True holds, False fails, None undecided (``reason`` then names the boundary)."""
+        return cls(HOLDS if ok is True else FAILS if ok is False else UNDECIDED, measured, value, reason)
+
+    @classmethod
+    def of(cls, checks: Sequence[stats.Check], measured: str, value: Any = None) -> Verdict:
+        """The verdict of a claim with several criteria (:func:`undulate.stats.decide`): fails if one
+        fails, undecided if none fails and one straddles, else holds.  An undecided verdict's reason
+        names every straddled boundary; its ``runs_needed`` is the largest of theirs."""
+        ok = stats.decide(checks)
+        if ok is not None:
+            return cls.judged(ok, measured, value)
+        open_ = [c for c in checks if c.state is None]
+        needed = [c.runs_needed for c in open_]
+        n = None if None in needed else max(needed)  # type: ignore[type-var]
+        reason = "; ".join(c.text for c in open_)
+        if n is not None:
+            reason += f" (about {n} runs would decide it)"
+        return cls(UNDECIDED, measured, value, reason, n)
 
     @classmethod
     def none(cls, reason: str, measured: str = "", value: Any = None) -> Verdict:
@@ -171,7 +196,8 @@ def judge(study: str, claims: tuple[Claim, ...], summary: dict[str, Any]) -> lis
         if not isinstance(v, Verdict):
             raise UndulateError(f"claim {c.claim!r} of study {study!r} returned {type(v).__name__}, not Verdict")
         rows.append({"study": study, "claim": c.claim, "paper": c.paper, "criterion": c.criterion,
-                     "measured": v.measured, "value": v.value, "verdict": v.verdict, "reason": v.reason})
+                     "measured": v.measured, "value": v.value, "verdict": v.verdict, "reason": v.reason,
+                     "runs_needed": v.runs_needed})
     return rows
 
 
@@ -183,7 +209,8 @@ class Explanation:
     ``Claim.claim`` text; :func:`undulate.claims.collect` matches on both);
     ``cause``: the cause in one sentence; ``check``: a pure function of the
     *explaining* study's summary returning ``(shown, measured, value)``:
-    whether that study's own runs show the cause (judged on 95 % intervals,
+    whether that study's own runs show the cause (True), refute it (False)
+    or leave it undecided (None: an interval it rests on straddles its bound) (judged on 95 % intervals,
     e.g. "the claim's criterion fails with the default and holds with only
     this factor changed"), the evidence numbers as text, and as numbers.
     The explaining study's figure is the evidence figure.
@@ -200,7 +227,8 @@ def explain(study: str, explanations: tuple[Explanation, ...], summary: dict[str
     rows = []
     for e in explanations:
         shown, measured, value = e.check(summary)
-        rows.append({"study": e.study, "claim": e.claim, "cause": e.cause, "shown": bool(shown),
+        rows.append({"study": e.study, "claim": e.claim, "cause": e.cause,
+                     "shown": None if shown is None else bool(shown),
                      "measured": measured, "value": value, "evidence_study": study,
                      "evidence_figure": f"{study}.png"})
     return rows
@@ -214,14 +242,24 @@ class Study:
     name: str
     description: str
     plan: Callable[[bool], Any] = field(repr=False, compare=False)
+    """``plan(quick)``: the mode's whole plan (its cap: the last stage)."""
     dataset: Callable[[StudyContext, Any], xr.Dataset] = field(repr=False, compare=False)
     summary: Callable[[xr.Dataset], dict[str, Any]] = field(repr=False, compare=False)
     figure: Callable[[xr.Dataset], Figure] = field(repr=False, compare=False)
     claims: tuple[Claim, ...] = ()
     explanations: tuple[Explanation, ...] = ()
     paper_figure: str | None = None
+    reference: str = "paper"
+    """Whose claims the study judges: ``"paper"`` (the reproduced study) or ``"prx2021"`` (beyond
+    the paper: synchronization through contact, Zhou, Hao & Gravish, Phys. Rev. X 11, 031051 (2021),
+    judged against our candidate controllers).  The report and ``claims.json`` count them apart."""
     needs_simulation: bool = True
     module: str = ""
+    stages: Callable[[bool], tuple[Any, ...]] | None = field(default=None, repr=False, compare=False)
+    """``stages(quick)``: the mode's plan in stages, each containing the one before (its grids'
+    points a superset, so a stage reuses every run made before it), the last equal to
+    ``plan(quick)``.  The registry runs a stage only while one of the study's claims or
+    explanations is undecided (:func:`run_study`).  None: one stage, ``plan(quick)``."""
     order: float | None = None
     """Where the study comes in ``undulate studies``, the reproduction and the report
     (ascending; ties keep the order of registration: modules by name, then the order
@@ -488,25 +526,60 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
         return _run_study(info, name, config, out, progress)
 
 
+def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
+    """The plans of ``info``'s stages in this mode (one, ``plan(quick)``, unless it declares stages)."""
+    plans = tuple(info.stages(quick)) if info.stages is not None else (info.plan(quick),)
+    if not plans:
+        raise UndulateError(f"study {info.name!r} declares no stages")
+    return plans
+
+
+def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]]) -> list[str]:
+    """What is still undecided after a look: claim texts and explained claims."""
+    return ([c["claim"] for c in claims if c["verdict"] == UNDECIDED]
+            + [f"explanation of {e['claim']}" for e in explanations if e["shown"] is None])
+
+
 def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress: bool) -> Path:
+    """Run the study's stages until nothing it judges is undecided (or the last stage ran).
+
+    Look k of K forms its intervals at :func:`undulate.stats.look_levels`\\ (K)[k] (Bonferroni over
+    the looks, so a verdict taken at any look keeps the family-wise 95 %); the runs of every earlier
+    stage are reused by the sweeps (content-keyed stores).  The study's files hold the last look.
+    """
     from .. import _physics
 
     t0 = time.perf_counter()
     ctx = StudyContext(config, name, progress=progress)
-    plan = info.plan(config.quick)
+    plans = stage_plans(info, config.quick)
+    levels = stats.look_levels(len(plans))
+    looks: list[dict[str, Any]] = []
     with _physics.meter() as here:  # what this process simulates (serial sweeps, direct runs)
-        ds = info.dataset(ctx, plan)
-    summary = info.summary(ds)
-    claims = judge(name, info.claims, summary)
+        for k, (plan, level) in enumerate(zip(plans, levels), start=1):
+            first = len(ctx.sweeps)
+            with stats.at_level(level):
+                ds = info.dataset(ctx, plan)
+                summary = info.summary(ds)
+                claims = [{**c, "reference": info.reference} for c in judge(name, info.claims, summary)]
+                explanations = explain(name, info.explanations, summary)
+            still = _open(claims, explanations)
+            mine = ctx.sweeps[first:]
+            looks.append({"stage": k, "of": len(plans), "confidence_level": level,
+                          "n_runs": sum(s["n_runs"] for s in mine),
+                          "n_computed": sum(s["n_computed"] for s in mine),
+                          "verdicts": {c["claim"]: c["verdict"] for c in claims}, "undecided": still})
+            if not still:
+                break
     _check_units(name, ds)
     figure = info.figure(ds)
     doc = {
         "study": name,
         "summary": summary,
         "claims": claims,
-        "explanations": explain(name, info.explanations, summary),
-        "n_failed": len(ctx.failures),
-        "failures": ctx.failures[:50],
+        "explanations": explanations,
+        "stages": looks,
+        "n_failed": len(set(ctx.failures)),
+        "failures": list(dict.fromkeys(ctx.failures))[:50],  # a failed run is met again at each later stage
         "sweeps": ctx.sweeps,
         "n_computed": sum(s["n_computed"] for s in ctx.sweeps),
         "wall_s": time.perf_counter() - t0,

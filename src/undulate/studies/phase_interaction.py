@@ -162,6 +162,6 @@ def _plot(ds):
 
 
 register(Study(
-    name="phase-interaction", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=_plot,
+    name="phase-interaction", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=_plot, reference="prx2021",
     description="Phase-interaction function H(dphi) = <d dphi/dt> of closed-loop pairs measured from contact "
                 "(held and free positions, each controller), its stable zeros against the runs' final states."))

@@ -376,14 +376,14 @@ def _plot_groups(ds):
 
 
 register(Study(
-    name="synchronization-pairs", plan=pair_plan, dataset=pair_dataset, summary=pair_summary, claims=PAIR_CLAIMS,
+    name="synchronization-pairs", plan=pair_plan, dataset=pair_dataset, summary=pair_summary, claims=PAIR_CLAIMS, reference="prx2021",
     figure=_plot_pairs,
     description="Closed-loop pairs (self-oscillating; phase oscillator with load feedback; relay) in the "
                 "d = 0.13 m channel, positions held vs free: final phase difference, time to lock, "
                 "contact force before and after (PRX 2021's three claims)."))
 register(Study(
     name="synchronization-groups", plan=group_plan, dataset=group_dataset, summary=group_summary,
-    claims=GROUP_CLAIMS, figure=_plot_groups,
+    claims=GROUP_CLAIMS, figure=_plot_groups, reference="prx2021",
     description="3-10 closed-loop swimmers, phases and positions free: order parameter R(t), time to "
                 "lock, whether the final state is phase-locked, position-compatible, or both, and where the "
                 "neighbour pairs end in the (dphi, dx) plane against the compatible branches and H(dphi)."))

@@ -79,8 +79,10 @@ class Run:
 
     @property
     def key(self) -> str:
-        """File stem of the run in the store (``p000012_r000``)."""
-        return f"p{self.index:06d}_r{self.replicate:03d}"
+        """File stem of the run in the store (``p3f9c0a1b2d4e5f60_r000``): 16 hex digits of its point's
+        content hash, then the replicate.  By content, not position: a grid that grows by points (a
+        later stage of a staged plan) finds every run it shares with the grid before it."""
+        return f"p{_point_hex(self.point)}_r{self.replicate:03d}"
 
 
 class Grid:
@@ -256,9 +258,18 @@ class Grid:
         return f"Grid({what}, replicates={self.replicates}, seed={self.seed})"
 
 
-def _point_hash(point: Mapping[str, Scalar]) -> tuple[int, ...]:
+def _point_digest(point: Mapping[str, Scalar]) -> bytes:
     text = json.dumps({k: _canonical(v) for k, v in point.items()}, sort_keys=True)
-    digest = hashlib.sha256(text.encode()).digest()
+    return hashlib.sha256(text.encode()).digest()
+
+
+def _point_hex(point: Mapping[str, Scalar]) -> str:
+    """16 hex digits of the point's content hash (its runs' file stems in a store)."""
+    return _point_digest(point)[:8].hex()
+
+
+def _point_hash(point: Mapping[str, Scalar]) -> tuple[int, ...]:
+    digest = _point_digest(point)
     return tuple(int.from_bytes(digest[i : i + 4], "little") for i in range(0, 32, 4))
 
 

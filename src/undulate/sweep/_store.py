@@ -3,8 +3,8 @@
 Layout of ``out_dir``::
 
     manifest.json              what sweep this is (function, grid); checked on resume
-    runs/p000012_r000.nc       a finished run (the fn's Dataset + its point and seed)
-    runs/p000013_r000.failed.json   a run that raised: point, seed, error, traceback
+    runs/p3f9c0a1b2d4e5f60_r000.nc           a finished run (the fn's Dataset + its point and seed)
+    runs/p0b1e77c24a9d3e81_r000.failed.json  a run that raised: point, seed, error, traceback
     sweep.nc                   the merged Dataset (rewritten at the end of every call)
     .lock                      held (flock) by the process running the sweep
 
@@ -12,6 +12,13 @@ Every file is written to a unique temporary name in the same folder and
 ``os.replace``-d into place, so a name that exists is complete: the rename is
 the completion marker.  A process killed at any moment leaves at most a
 temporary file, which the next call removes.
+
+Runs are keyed by their point's content (:attr:`Run.key`), so a store's grid
+may change between calls: a grid that grows (a later stage of a staged plan,
+a refined axis) reuses every run it shares with the grid before it, and runs
+the current grid does not name stay on disk unmerged.  The manifest records
+the last grid.  What may not change is the function, the replicates and the
+base seed (they decide what a key's run is).
 """
 
 from __future__ import annotations
@@ -36,7 +43,7 @@ from .._xrcompat import install as _lazy_dask
 
 _lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
 
-FORMAT = "undulate-sweep/1"
+FORMAT = "undulate-sweep/2"  # 2: runs keyed by point content (1: by position)
 #: The merged file: netCDF-4 (HDF5).
 ENGINE = "h5netcdf"
 RUN_ATTR = "sweep_run"
@@ -152,7 +159,7 @@ def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:
 
 
 #: Manifest keys whose change makes the stored runs stale (recomputed, not refused).
-RESULT_KEYS = ("function", "code", "undulate_version")
+RESULT_KEYS = ("format", "function", "code", "undulate_version")
 
 
 def _stale(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
@@ -170,21 +177,26 @@ def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
     old_name = old.get("function_name") or str(old.get("function", "")).split("(")[0]
     if old_name != new.get("function_name"):
         out.append(f"function {old_name!r} != {new.get('function_name')!r}")
-    for key in ("format", "batched"):
+    for key in ("batched",):
         if old.get(key) != new.get(key):
             out.append(f"{key} {old.get(key)!r} != {new.get(key)!r}")
     og, ng = old.get("grid", {}), new.get("grid", {})
     for key in ("replicates", "seed"):
         if og.get(key) != ng.get(key):
             out.append(f"grid {key} {og.get(key)!r} != {ng.get(key)!r}")
-    if og.get("axes") != ng.get("axes") or og.get("points") != ng.get("points"):
-        def desc(g):
-            if "axes" in g and g["axes"] is not None:
-                return "axes " + ", ".join(f"{k}[{len(v)}]" for k, v in g["axes"].items())
-            return f"{len(g.get('points') or [])} explicit points"
-        d_old, d_new = desc(og), desc(ng)
-        out.append(f"grid values differ ({d_old} vs {d_new})" if d_old == d_new else f"grid {d_old} != {d_new}")
+    if ("axes" in og) != ("axes" in ng):
+        out.append("grid kind differs (axes vs explicit points)")
+    elif _names(og) != _names(ng):
+        out.append(f"grid parameters {_names(og)} != {_names(ng)}")
     return out
+
+
+def _names(grid: dict[str, Any]) -> list[str]:
+    """The parameter names of a grid's dict (:meth:`Grid.to_dict`)."""
+    if grid.get("axes") is not None:
+        return list(grid["axes"])
+    pts = grid.get("points") or [{}]
+    return sorted(pts[0])
 
 
 # ---- the store -----------------------------------------------------------
@@ -198,6 +210,8 @@ class Store:
         self._lock_fd: int | None = None
         self.stale: list[str] = []
         """Why the runs found on open were discarded (empty: nothing was)."""
+        self.grown = False
+        """The grid differs from the last call's (runs shared with it are reused by key)."""
         self.manifest: dict[str, Any] = {}
 
     @classmethod
@@ -227,6 +241,7 @@ class Store:
                     str(root),
                 )
             store.stale = _stale(old, manifest)
+            store.grown = old.get("grid") != manifest.get("grid")
         elif root.exists() and any(p.name != ".lock" for p in root.iterdir()):
             raise ParameterError("out_dir", "a new or empty directory, or one made by run_sweep (no manifest.json found)", str(root))
         store.runs_dir.mkdir(parents=True, exist_ok=True)
@@ -234,6 +249,8 @@ class Store:
         try:
             if store.stale:  # computed by other code or arguments: never reused
                 store._discard_runs()
+                atomic_write_text(mpath, json.dumps(manifest, indent=1) + "\n")
+            elif store.grown:  # another grid of the same sweep: its shared runs are reused by key
                 atomic_write_text(mpath, json.dumps(manifest, indent=1) + "\n")
             if not mpath.exists():
                 atomic_write_text(mpath, json.dumps(manifest, indent=1) + "\n")
