@@ -211,6 +211,10 @@ def test_grown_grid_reuses_shared_runs_bitwise(tmp_path):
     xr.testing.assert_identical(res.dataset.drop_attrs(), fresh.dataset.drop_attrs())
     back = run_sweep(sweep_funcs.pendulum, small, out, workers=1, progress=False)  # the smaller look again
     assert (back.n_reused, back.n_computed) == (2, 0)
+    more = Grid(axes=small.axes, replicates=3, seed=4)  # more draws of the same points
+    res = run_sweep(sweep_funcs.pendulum, more, out, workers=1, progress=False)
+    assert (res.n_reused, res.n_computed) == (2, 4)
+    np.testing.assert_array_equal(res.dataset["final_angle"].isel(replicate=0), back.dataset["final_angle"].isel(replicate=0))
 
 
 # ---- interruption -----------------------------------------------------------------------------

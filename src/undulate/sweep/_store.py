@@ -17,8 +17,8 @@ Runs are keyed by their point's content (:attr:`Run.key`), so a store's grid
 may change between calls: a grid that grows (a later stage of a staged plan,
 a refined axis) reuses every run it shares with the grid before it, and runs
 the current grid does not name stay on disk unmerged.  The manifest records
-the last grid.  What may not change is the function, the replicates and the
-base seed (they decide what a key's run is).
+the last grid.  What may not change is the function, the grid's parameters
+and the base seed (they decide what a key's run is); points and replicates may.
 """
 
 from __future__ import annotations
@@ -181,7 +181,7 @@ def _differences(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
         if old.get(key) != new.get(key):
             out.append(f"{key} {old.get(key)!r} != {new.get(key)!r}")
     og, ng = old.get("grid", {}), new.get("grid", {})
-    for key in ("replicates", "seed"):
+    for key in ("seed",):  # points and replicates may change: runs are keyed by point and replicate
         if og.get(key) != ng.get(key):
             out.append(f"grid {key} {og.get(key)!r} != {ng.get(key)!r}")
     if ("axes" in og) != ("axes" in ng):
