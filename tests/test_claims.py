@@ -28,10 +28,21 @@ def verdicts(name, summary):
 
 def test_pairs_claims_are_judged_on_the_intervals():
     assert verdicts("pairs", pairs_summary()) == ["holds"] * 4
-    # the value is within tolerance but the interval is not: not demonstrated
-    assert verdicts("pairs", pairs_summary(slope=(1.0, 0.7, 1.3)))[:3] == ["fails"] * 3
-    assert verdicts("pairs", pairs_summary(rms=(0.08, 0.05, 0.12)))[0] == "fails"
-    assert verdicts("pairs", pairs_summary(std0=(0.3, 0.01, 0.5)))[-1] == "fails"
+    # the value is within tolerance but the interval straddles the bounds: undecided, not demonstrated
+    assert verdicts("pairs", pairs_summary(slope=(1.0, 0.7, 1.3)))[:3] == ["undecided"] * 3
+    assert verdicts("pairs", pairs_summary(rms=(0.08, 0.05, 0.12)))[0] == "undecided"
+    assert verdicts("pairs", pairs_summary(std0=(0.3, 0.01, 0.5)))[-1] == "undecided"
+    # an interval wholly outside the accepted region fails
+    assert verdicts("pairs", pairs_summary(slope=(1.5, 1.3, 1.7)))[:3] == ["fails"] * 3
+    assert verdicts("pairs", pairs_summary(rms=(0.2, 0.15, 0.25)))[0] == "fails"
+    assert verdicts("pairs", pairs_summary(std0=(0.01, 0.005, 0.02)))[-1] == "fails"
+
+
+def test_an_undecided_claim_names_the_straddled_boundary_and_the_runs_it_needs():
+    row = judge("pairs", describe("pairs").claims, pairs_summary(slope=(1.0, 0.7, 1.3)))[0]
+    assert row["verdict"] == "undecided" and "straddles 0.8 and 1.2" in row["reason"]
+    # the half-width 0.3 must shrink to the distance 0.2 from the boundary: 9 (0.3 / 0.2)^2 = 20.25 -> 21 runs
+    assert row["runs_needed"] == 21
 
 
 def test_missing_interval_is_no_result_with_a_reason():
@@ -60,7 +71,44 @@ def test_links_claim_needs_a_fall_beyond_the_intervals():
     assert verdicts("links", summary(falls)) == ["fails", "fails"]
 
 
-def test_verdicts_are_one_of_three():
+def test_verdicts_are_one_of_four():
     with pytest.raises(Exception):
         Verdict("maybe", "x")
     assert Verdict.none("why").verdict == "no result"
+
+
+def _row(study, claim, verdict, **extra):
+    return {"study": study, "claim": claim, "paper": "", "measured": "", "value": None, "verdict": verdict,
+            "reason": "", "criterion": "", **extra}
+
+
+def test_claims_json_counts_each_reference_apart_and_old_rows_are_the_papers(tmp_path):
+    import json
+
+    from undulate.claims import FIELDS, VERDICTS, collect, write_claims_json
+
+    assert VERDICTS == ("holds", "explained", "undecided", "fails", "no result")
+    assert "reference" in FIELDS and "runs_needed" in FIELDS
+    old = [_row("alpha", "a", "holds"), _row("alpha", "b", "fails")]  # written before `reference` existed
+    new = [_row("sync", "relay: c", "undecided", reference="prx2021", reason="x straddles 0.5", runs_needed=40),
+           _row("sync", "relay: d", "fails", reference="prx2021"),
+           _row("beta", "e", "undecided", reference="paper", reason="y straddles 1", runs_needed=None)]
+    (tmp_path / "alpha.json").write_text(json.dumps({"claims": old}))
+    (tmp_path / "sync.json").write_text(json.dumps({"claims": new[:2], "explanations": [
+        {"study": "sync", "claim": "relay: d", "cause": "why", "shown": None, "measured": "m", "value": None,
+         "evidence_study": "sync", "evidence_figure": "sync.png"}]}))
+    (tmp_path / "beta.json").write_text(json.dumps({"claims": new[2:]}))
+    rows = collect(tmp_path, ["alpha", "sync", "beta"])
+    assert [r["reference"] for r in rows] == ["paper", "paper", "prx2021", "prx2021", "paper"]
+    assert [r["runs_needed"] for r in rows] == [None, None, 40, None, None]
+    d = rows[3]  # an explanation left undecided (shown null) does not explain the claim
+    assert d["verdict"] == "fails" and d["explanation"] is None and d["explanations_not_shown"][0]["shown"] is None
+    doc = json.loads(write_claims_json(tmp_path, rows).read_text())
+    assert doc["counts"] == {"holds": 1, "explained": 0, "undecided": 2, "fails": 2, "no result": 0}
+    assert doc["counts_by_reference"] == {
+        "paper": {"holds": 1, "explained": 0, "undecided": 1, "fails": 1, "no result": 0},
+        "prx2021": {"holds": 0, "explained": 0, "undecided": 1, "fails": 1, "no result": 0}}
+    # rows handed over without `reference` (an older caller) are counted as the paper's too
+    bare = [{k: v for k, v in r.items() if k != "reference"} for r in rows]
+    doc = json.loads(write_claims_json(tmp_path, bare).read_text())
+    assert doc["counts_by_reference"]["paper"] == doc["counts"]

@@ -216,8 +216,104 @@ def test_the_report_writer_leaves_the_claims_data_unchanged(claims_report):
     assert path.read_bytes() == before
     assert collect(out, names) == rows
     assert write_claims_json(out, collect(out, names)).read_bytes() == before
-    counts = json.loads(before)["counts"]
-    assert counts == {"holds": 1, "explained": 2, "fails": 2, "no result": 1}
+    doc = json.loads(before)
+    assert doc["counts"] == {"holds": 1, "explained": 2, "undecided": 0, "fails": 2, "no result": 1}
+    # the hand-written rows carry no `reference` (study files older than the field): the paper's
+    assert doc["counts_by_reference"]["paper"] == doc["counts"]
+    assert set(doc["counts_by_reference"]["prx2021"].values()) == {0}
+    assert {r["reference"] for r in doc["claims"]} == {"paper"}
+
+
+# Beyond the paper: PRX 2021 claims, judged per controller (the claim text opens with its name).
+PRX_UNDECIDED_REASON = "median last/first force ratio 0.48 [0.31, 0.62] straddles 0.5 (region < 0.5)"
+
+
+@pytest.fixture(scope="module")
+def tables_report(tmp_path_factory):
+    """A report with the paper's claims (one study file without `reference`, as written before the
+    field, one with it and an undecided claim) and a PRX 2021 study whose claims name their controller,
+    one undecided with the runs it would need; the PRX study ran 2 of 3 stages."""
+    from PIL import Image
+
+    out = tmp_path_factory.mktemp("tables_report")
+    old = [_claim("alpha", "xi = 1: pairs follow the line", "holds"),
+           _claim("alpha", "links A: error falls with N", "fails")]
+    new = [{**_claim("beta", "groups follow the line", "holds"), "reference": "paper", "runs_needed": None},
+           {**_claim("beta", "the central state broadens", "undecided",
+                     reason="slope 0.9 [0.7, 1.1] straddles 0.8 (region > 0.8) (about 37 runs would decide it)"),
+            "reference": "paper", "runs_needed": 37}]
+    prx = [{**_claim("sync", f"{c}: synchronization sharply reduces the interaction force", v,
+                     reason=PRX_UNDECIDED_REASON if v == "undecided" else ""),
+            "reference": "prx2021", "runs_needed": 52 if v == "undecided" else None}
+           for c, v in (("self-oscillating", "holds"), ("phase-oscillator", "fails"), ("relay", "undecided"))]
+    stages = [{"stage": k, "of": 3, "confidence_level": lvl, "n_runs": n, "n_computed": n - m,
+               "verdicts": {}, "undecided": u}
+              for k, lvl, n, m, u in ((1, 0.995, 12, 0, ["x"]), (2, 0.985, 24, 12, []))]
+    (out / "alpha.json").write_text(json.dumps({"claims": old, "files": []}))
+    (out / "beta.json").write_text(json.dumps({"claims": new, "files": []}))
+    (out / "sync.json").write_text(json.dumps({"claims": prx, "files": [], "stages": stages}))
+    for i, name in enumerate(("alpha", "beta", "sync")):
+        Image.new("RGB", (400, 240), (60 + 60 * i, 120, 200)).save(out / f"{name}.png")
+    names = ["alpha", "beta", "sync"]
+    statuses = [{"name": n, "ok": True, "wall_s": 1.0} for n in names]
+    rows = collect(out, names)
+    write_claims_json(out, rows)
+    write_report(out, statuses, mode="quick")
+    return out, rows
+
+
+_MEASURE_TABLES = """() => {
+  const table = h => { let el = document.getElementById(h).nextElementSibling;
+                       while (el && el.tagName !== 'TABLE') el = el.nextElementSibling; return el; };
+  const intro = h => document.getElementById(h).nextElementSibling.innerText;
+  const rows = t => Array.from(t.querySelectorAll('tbody tr'), tr => Array.from(tr.cells, c => c.innerText));
+  const un = Array.from(document.querySelectorAll('.badge.un'), b => getComputedStyle(b).backgroundColor);
+  const ok = getComputedStyle(document.querySelector('.badge.ok')).backgroundColor;
+  const sec = Array.from(document.querySelectorAll('section.claim'))
+                   .filter(s => s.querySelector('.badge.un')).map(s => s.innerText);
+  const studies = document.getElementById('studies').parentElement.innerText;
+  return {paper: rows(table('claims')), prx: rows(table('claims-prx2021')),
+          paperIntro: intro('claims'), prxIntro: intro('claims-prx2021'),
+          prxHead: Array.from(table('claims-prx2021').querySelectorAll('th'), th => th.innerText),
+          un, ok, sec, studies};
+}"""
+
+
+def test_the_paper_and_prx_claims_are_two_tables_with_their_own_counts(tables_report):
+    out, rows = tables_report
+    doc = json.loads((out / "claims.json").read_text())
+    by = doc["counts_by_reference"]
+    assert by["paper"] == {"holds": 2, "explained": 0, "undecided": 1, "fails": 1, "no result": 0}
+    assert by["prx2021"] == {"holds": 1, "explained": 0, "undecided": 1, "fails": 1, "no result": 0}
+    assert doc["counts"] == {v: by["paper"][v] + by["prx2021"][v] for v in doc["counts"]}
+    assert [r["reference"] for r in doc["claims"]] == ["paper"] * 4 + ["prx2021"] * 3  # old rows: the paper's
+    assert [r["runs_needed"] for r in doc["claims"] if r["verdict"] == "undecided"] == [37, 52]
+
+    chromium = ensure_chromium()
+    from playwright.sync_api import sync_playwright
+
+    with sync_playwright() as p:
+        browser = p.chromium.launch(executable_path=chromium, headless=True, args=CHROMIUM_ARGS)
+        page = browser.new_page(viewport=VIEWPORT)
+        page.goto((out / "index.html").as_uri(), wait_until="load")
+        m = page.evaluate(_MEASURE_TABLES)
+        browser.close()
+    assert [r[0] for r in m["paper"]] == ["alpha", "alpha", "beta", "beta"]  # no PRX row in the paper's table
+    assert [r[0] for r in m["prx"]] == ["sync"] * 3
+    assert m["paperIntro"].startswith("2 of the paper's 4 claims hold, 1 is undecided (beta: the central state")
+    assert m["paperIntro"].rstrip().endswith("and 1 fails.")
+    assert m["prxIntro"].startswith("1 of the 3 PRX 2021 claims judged against our controllers holds")
+    assert "controller" in m["prxHead"]
+    # each row names its controller
+    assert [r[1] for r in m["prx"]] == ["self-oscillating", "phase-oscillator", "relay"]
+    (relay,) = [r for r in m["prx"] if r[1] == "relay"]
+    assert "undecided" in relay and "straddles 0.5" in relay[-1] and "about 52 runs would decide it" in relay[-1]
+    (central,) = [r for r in m["paper"] if "central state" in r[1]]
+    assert "straddles 0.8" in central[-1] and "about 37 runs would decide it" in central[-1]
+    assert len(m["un"]) >= 2 and len(set(m["un"])) == 1 and m["un"][0] != m["ok"]  # its own badge style
+    assert any(PRX_UNDECIDED_REASON in s and "about 52" in s for s in m["sec"])  # the section: boundary and runs
+    assert "Stages: 2 of 3 ran (stopped early: nothing left undecided)" in m["studies"]
+    assert "24 runs (12 computed) at 98.5 % intervals" in m["studies"]
 
 
 def test_interrupted_reproduction_resumes_without_redoing_finished_studies(tmp_path):

@@ -214,3 +214,48 @@ def test_killed_mid_stage_resumes_to_the_same_result(tmp_path):
     assert [(s["stage"], s["n_runs"], s["verdicts"]) for s in a["stages"]] == \
         [(s["stage"], s["n_runs"], s["verdicts"]) for s in b["stages"]]
     assert sum(s["n_computed"] for s in a["stages"]) < sum(s["n_runs"] for s in a["stages"])  # reused
+
+
+# ---- every study's stages nest and end at its whole plan ---------------------------------------
+def _fields(p):
+    import dataclasses
+
+    if isinstance(p, dict):
+        d = p
+    elif dataclasses.is_dataclass(p):
+        d = {f.name: getattr(p, f.name) for f in dataclasses.fields(p)}
+    elif p is None:
+        return {}
+    elif isinstance(p, (list, tuple, np.ndarray)):
+        d = {"values": p}
+    elif hasattr(p, "__dict__"):
+        d = vars(p)
+    else:
+        d = {k: getattr(p, k) for k in p.__slots__}
+    def flat(v):
+        if isinstance(v, np.ndarray):
+            return v.ravel().tolist()
+        return [repr(np.asarray(x).tolist()) if isinstance(x, (list, tuple, dict, np.ndarray)) else x for x in v]
+
+    return {k: (flat(v) if isinstance(v, (list, tuple, np.ndarray)) else v) for k, v in d.items()}
+
+
+@pytest.mark.parametrize("quick", [True, False])
+def test_every_studys_stages_nest_and_end_at_its_plan(quick):
+    from undulate import studies
+    from undulate.studies._registry import describe, stage_plans
+
+    for name in studies.names():
+        info = describe(name)
+        plans = [_fields(p) for p in stage_plans(info, quick)]
+        assert plans[-1] == _fields(info.plan(quick)), name
+        for a, b in zip(plans, plans[1:]):
+            for key, va in a.items():
+                vb = b[key]
+                if isinstance(va, list):  # a grid: every value of a look is in the next look
+                    assert set(va) <= set(vb), (name, key)
+                elif isinstance(va, (int, float)) and key in ("draws", "replicates", "group_draws",
+                                                               "heatmap_draws", "refine"):
+                    assert va <= vb, (name, key)
+                else:
+                    assert va == vb, (name, key)

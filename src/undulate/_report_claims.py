@@ -1,9 +1,13 @@
-"""The claims part of the report page: a table to scan, and one section per claim with the rest.
+"""The claims part of the report page: tables to scan, and one section per claim with the rest.
 
-The table holds one short line per claim: study, claim, the measured value with its 95 %
+Two tables, each under its own heading with its own counts and a sentence saying what held: the
+reproduced paper's claims, and beyond the paper the PRX 2021 synchronization claims (rows whose
+``reference`` is ``"prx2021"``), each row of which names the controller it was judged against.
+A table holds one short line per claim: study, claim, the measured value with its 95 %
 interval, the verdict as a badge and the cause in one sentence (the first sentence of the
-claim's own explanation, cut at ``CAUSE_WORDS`` words) with a link to the claim's section.
-The section below the table (id :func:`claim_anchor`) carries everything else: the paper's
+claim's own explanation, cut at ``CAUSE_WORDS`` words; for an undecided claim the boundary its
+interval straddles and the runs that would decide it) with a link to the claim's section.
+The section below the tables (id :func:`claim_anchor`) carries everything else: the paper's
 statement, the full measured text, the criterion, the whole explanation with its evidence, and
 the evidence figure.  Nothing here changes the claim rows (``claims.json`` is written from the
 same rows by :mod:`undulate.claims`).
@@ -17,14 +21,22 @@ import re
 from pathlib import Path
 from typing import Any
 
-from .claims import VERDICTS
+from .claims import REFERENCES, VERDICTS, counts, reference_of
 
 #: The longest cause sentence the table shows, and the longest measured text, in words.
 CAUSE_WORDS = 25
 MEASURED_WORDS = 40
 
 #: A verdict's badge class.
-BADGE = {"holds": "ok", "explained": "ex", "fails": "no", "no result": "na", "failed": "no"}
+BADGE = {"holds": "ok", "explained": "ex", "undecided": "un", "fails": "no", "no result": "na", "failed": "no"}
+
+#: Each reference's table: (heading id, heading, the claims' owner in the summary sentence).
+TABLES = {
+    "paper": ("claims", "The paper's claims", "the paper's {n} claims"),
+    "prx2021": ("claims-prx2021", "Beyond the paper: synchronization through contact (PRX 2021)",
+                "the {n} PRX 2021 claims judged against our controllers"),
+}
+_RUNS_SUFFIX = re.compile(r"\s*\(about \d+ runs would decide it\)\s*$")
 
 _SENTENCE_END = re.compile(r"(?<=[.!?])\s+(?=[A-Z])")
 
@@ -90,16 +102,29 @@ def _cause_text(c: dict[str, Any]) -> tuple[str, str]:
     did not show, or why there is no result; ("", "") when there is none."""
     if c.get("explanation"):
         return "", c["explanation"].get("cause") or ""
+    if c.get("verdict") == "undecided":
+        return "undecided: ", _RUNS_SUFFIX.sub("", str(c.get("reason") or "")) or "no boundary named"
     if c.get("explanations_not_shown"):
-        return "tested, not shown: ", c["explanations_not_shown"][0].get("cause") or ""
+        e = c["explanations_not_shown"][0]
+        return ("tested, undecided: " if e.get("shown") is None and "shown" in e else "tested, not shown: "), \
+            e.get("cause") or ""
     if c.get("verdict") == "no result" and c.get("reason"):
         return "", c["reason"]
     return "", ""
 
 
+def runs_needed_text(c: dict[str, Any]) -> str:
+    """"about N runs would decide it" for an undecided row whose ``runs_needed`` is known, else ""."""
+    n = c.get("runs_needed")
+    return f"about {n} runs would decide it" if c.get("verdict") == "undecided" and n is not None else ""
+
+
 def _cause_cell(c: dict[str, Any], anchor: str, previous: tuple[str, str] | None) -> str:
     label, text = _cause_text(c)
     link = f"<a class='more' href='#{esc(anchor)}'>details</a>"
+    runs = runs_needed_text(c)
+    if runs:
+        link = f"{esc(runs)} · {link}"
     if previous is not None and text and (label, text) == previous:
         return f"<span class='na'>same cause as the row above</span> · {link}"
     if text:
@@ -109,23 +134,45 @@ def _cause_cell(c: dict[str, Any], anchor: str, previous: tuple[str, str] | None
     return link
 
 
-def claims_table(rows: list[dict[str, Any]], ids: list[str], statuses: list[dict[str, Any]]) -> list[str]:
-    """The claims table, in the studies' order; a failed study is one row."""
-    out = [("<table class='claims'><thead><tr><th>study</th><th>claim</th><th>measured (95 % interval)</th>"
-           "<th>verdict</th><th>cause</th></tr></thead><tbody>")]
+def controller_of(claim: Any) -> tuple[str, str]:
+    """(controller, the rest of the claim) of a claim text that opens with its controller's name
+    (``"relay: groups synchronize ..."``, as the PRX 2021 studies write them); ("", text) when it
+    opens with none (a name of one word before the first ``": "``)."""
+    text = str(claim or "")
+    head, sep, rest = text.partition(": ")
+    if sep and head and " " not in head.strip() and rest:
+        return head.strip(), rest
+    return "", text
+
+
+def claims_table(rows: list[dict[str, Any]], ids: list[str], statuses: list[dict[str, Any]], *,
+                 controller: bool = False) -> list[str]:
+    """A claims table, in the studies' order; a failed study is one row.  ``controller``: a column
+    naming the controller each claim was judged against (taken from the claim's text)."""
+    ctl_head = "<th>controller</th>" if controller else ""
+    out = [(f"<table class='claims'><thead><tr><th>study</th>{ctl_head}<th>claim</th>"
+            "<th>measured (95 % interval)</th><th>verdict</th><th>cause</th></tr></thead><tbody>")]
     by_study: dict[str, list[tuple[dict, str]]] = {}
     for r, a in zip(rows, ids):
         by_study.setdefault(r["study"], []).append((r, a))
     for st in statuses:
         name = st["name"]
         if not st.get("ok"):
-            out.append(f"<tr><td><a href='#{esc(name)}'>{esc(name)}</a></td><td colspan='2'>study failed</td>"
+            out.append(f"<tr><td><a href='#{esc(name)}'>{esc(name)}</a></td>"
+                       f"<td colspan='{3 if controller else 2}'>study failed</td>"
                        f"<td>{badge('failed')}</td><td>{esc(first_sentence(st.get('error')))}"
                        f" · <a class='more' href='#{esc(name)}'>details</a></td></tr>")
             continue
         previous = None
         for c, a in by_study.get(name, []):
-            out.append(f"<tr><td>{esc(name)}</td><td>{esc(c.get('claim', ''))}</td>"
+            claim = esc(c.get("claim", ""))
+            if controller:
+                ctl, rest = controller_of(c.get("claim"))
+                ctl_cell = esc(ctl) if ctl else "<span class='na'>not named</span>"
+                claim = f"<td>{ctl_cell}</td><td>{esc(rest)}</td>"
+            else:
+                claim = f"<td>{claim}</td>"
+            out.append(f"<tr class='verdict-{BADGE.get(c.get('verdict'), 'na')}'><td>{esc(name)}</td>{claim}"
                        f"<td>{esc(clip(c.get('measured', ''), MEASURED_WORDS))}</td><td>{badge(c.get('verdict'))}</td>"
                        f"<td>{_cause_cell(c, a, previous)}</td></tr>")
             previous = _cause_text(c)
@@ -154,20 +201,28 @@ def _evidence(e: dict[str, Any], title: str) -> list[str]:
             f"<dt>evidence</dt><dd>{esc(e.get('measured'))}" + (f" ({', '.join(where)})" if where else "") + "</dd>"]
 
 
-def claim_section(c: dict[str, Any], anchor: str, out_dir: Path) -> list[str]:
-    """One claim's section: every number and word the table leaves out, and its evidence figure."""
+def claim_section(c: dict[str, Any], anchor: str, out_dir: Path, back: str = "claims") -> list[str]:
+    """One claim's section: every number and word the table leaves out, and its evidence figure;
+    ``back``: the id of the table it comes from."""
     verdict = c.get("verdict")
     out = [(f"<section class='claim' id='{esc(anchor)}'><h3>{esc(c['study'])}: {esc(c.get('claim', ''))} "
            f"{badge(verdict)}</h3><div class='claim-body'><dl>"),
-           f"<dt>paper</dt><dd>{esc(c.get('paper', ''))}</dd>",
+           f"<dt>{'PRX 2021' if reference_of(c) == 'prx2021' else 'paper'}</dt><dd>{esc(c.get('paper', ''))}</dd>",
            f"<dt>measured</dt><dd>{esc(c.get('measured', ''))}</dd>",
            f"<dt>criterion</dt><dd>{esc(c.get('criterion', ''))}</dd>"]
-    if c.get("reason") and c.get("reason") not in str(c.get("measured", "")):
+    if verdict == "undecided":
+        out.append(f"<dt>undecided: the interval straddles</dt><dd>{esc(c.get('reason') or 'no boundary named')}</dd>")
+        n = c.get("runs_needed")
+        out.append("<dt>runs that would decide it</dt><dd>"
+                   + (f"about {esc(n)} (if the interval shrinks as 1/&radic;n)" if n is not None else "not known")
+                   + "</dd>")
+    elif c.get("reason") and c.get("reason") not in str(c.get("measured", "")):
         out.append(f"<dt>no result because</dt><dd>{esc(c['reason'])}</dd>")
     if c.get("explanation"):
         out += _evidence(c["explanation"], "cause (shown by the runs)")
     for e in c.get("explanations_not_shown") or []:
-        out += _evidence(e, "cause tested, not shown by the runs")
+        out += _evidence(e, "cause tested, undecided by the runs" if e.get("shown") is None and "shown" in e
+                         else "cause tested, not shown by the runs")
     out.append("</dl>")
     figs = [(f, s) for f, s in _figures(c) if (out_dir / f).is_file()] if verdict != "holds" else []
     if figs:
@@ -177,24 +232,87 @@ def claim_section(c: dict[str, Any], anchor: str, out_dir: Path) -> list[str]:
             out.append(f"<figure><a href='{esc(fig)}'><img class='fig' src='{esc(fig)}' "
                        f"alt='{esc(fig)}'></a><figcaption>Evidence: {cap}</figcaption></figure>")
         out.append("</div>")
-    out.append("</div><p class='back'><a href='#claims'>back to the claims table</a></p></section>")
+    out.append(f"</div><p class='back'><a href='#{esc(back)}'>back to the claims table</a></p></section>")
     return out
 
 
+def _n(k: int, one: str, many: str) -> str:
+    return f"{k} {one if k == 1 else many}"
+
+
+def summary_sentence(rows: list[dict[str, Any]], owner: str) -> str:
+    """One sentence saying what held among ``rows`` (``owner``: e.g. "the paper's {n} claims"),
+    naming the undecided claims, e.g. "12 of the paper's 17 claims hold, 3 are explained by a
+    demonstrated cause, 2 are undecided (pairs: ...; links: ...)."."""
+    k = counts(rows)
+    n = len(rows)
+    if n == 0:
+        return "No claim was judged."
+    whose = owner.format(n=n)
+    if n == 1:
+        whose = whose.replace("claims", "claim")
+    parts = [f"{k['holds']} of {whose} {'holds' if n == 1 or k['holds'] == 1 else 'hold'}"]
+    if k["explained"]:
+        parts.append(f"{k['explained']} {'is' if k['explained'] == 1 else 'are'} explained by a demonstrated cause")
+    if k["undecided"]:
+        names = "; ".join(f"{r['study']}: {clip(r.get('claim'), 12)}" for r in rows if r.get("verdict") == "undecided")
+        parts.append(f"{k['undecided']} {'is' if k['undecided'] == 1 else 'are'} undecided ({names})")
+    if k["fails"]:
+        parts.append(_n(k["fails"], "fails", "fail"))
+    if k["no result"]:
+        parts.append(_n(k["no result"], "has no result", "have no result"))
+    text = parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " and " + parts[-1]
+    return text + "."
+
+
+def _intro(ref: str, rows: list[dict[str, Any]], failed: list[str]) -> str:
+    """The paragraph that opens a table: what held, how to read it, its counts."""
+    head = summary_sentence(rows, TABLES.get(ref, (None, None, f"the {{n}} {ref} claims"))[2])
+    if failed:
+        head += f" {_n(len(failed), 'study', 'studies')} failed ({', '.join(failed)}): its claims are not counted."
+    if ref == "prx2021":
+        how = ("Beyond the reproduced paper: the claims of <i>synchronization through contact</i> (Zhou, Hao &amp; "
+               "Gravish, Phys. Rev. X 11, 031051 (2021)), each judged against one of our candidate controllers "
+               "(named in its row); a claim that fails says that controller does not show it.")
+    else:
+        how = ("One line per claim; measured values carry 95 % intervals in brackets and every criterion "
+               f"is stated on them. {badge('explained')}: the claim fails under the default model and a study's "
+               "own runs show the cause; a failing claim without a demonstrated cause stays "
+               f"{badge('fails')}. {badge('undecided')}: an interval straddles its criterion's boundary "
+               "(the row names it, and about how many runs would decide it). Each claim's section below the "
+               "tables has the paper's statement, the criterion, the whole explanation with its numbers, and "
+               "the evidence figure.")
+    k = counts(rows)
+    return (f"<p class='verdicts'><b>{esc(head)}</b></p><p>{how} Counts: "
+            + ", ".join(f"{badge(v)} {n}" for v, n in k.items())
+            + ". Also in <a href='claims.json'>claims.json</a>.</p>")
+
+
+def _study_reference(name: str, rows: list[dict[str, Any]], st: dict[str, Any]) -> str:
+    mine = [reference_of(r) for r in rows if r["study"] == name]
+    return mine[0] if mine else (st.get("reference") or "paper")
+
+
 def claims_part(rows: list[dict[str, Any]], statuses: list[dict[str, Any]], out_dir: Path) -> list[str]:
-    """The claims heading, the table, and every claim's section below it."""
+    """The paper's claims table, the PRX 2021 table (when it has rows or a failed study), each
+    under its heading with its counts, and every claim's section below them.  A status's optional
+    ``reference`` places a failed study (one with no rows) in its table."""
     ids = anchors(rows)
-    counts = {v: sum(r["verdict"] == v for r in rows) for v in VERDICTS}
-    out = ["<h2 id='claims'>The paper's claims</h2>",
-           "<p>One line per claim; measured values carry 95 % intervals in brackets and every criterion "
-           f"is stated on them. {badge('explained')}: the claim fails under the default model and a study's "
-           "own runs show the cause; a failing claim without a demonstrated cause stays "
-           f"{badge('fails')}. Each claim's section below the table has the paper's statement, the "
-           "criterion, the whole explanation with its numbers, and the evidence figure. Counts: "
-           + ", ".join(f"{badge(k)} {n}" for k, n in counts.items())
-           + ". Also in <a href='claims.json'>claims.json</a>.</p>"]
-    out += claims_table(rows, ids, statuses)
+    refs = list(REFERENCES) + [x for x in dict.fromkeys(reference_of(r) for r in rows) if x not in REFERENCES]
+    back: dict[str, str] = {}
+    out: list[str] = []
+    for ref in refs:
+        mine = [(r, a) for r, a in zip(rows, ids) if reference_of(r) == ref]
+        sts = [st for st in statuses if _study_reference(st["name"], rows, st) == ref]
+        if ref != "paper" and not mine and not any(not st.get("ok") for st in sts):
+            continue
+        hid, title, _ = TABLES.get(ref, (f"claims-{ref}", f"Claims of {ref}", ""))
+        failed = [st["name"] for st in sts if not st.get("ok")]
+        out.append(f"<h2 id='{esc(hid)}'>{esc(title)}</h2>")
+        out.append(_intro(ref, [r for r, _ in mine], failed))
+        out += claims_table([r for r, _ in mine], [a for _, a in mine], sts, controller=(ref == "prx2021"))
+        back.update({a: hid for _, a in mine})
     out.append("<h2 id='claim-details'>The claims one by one</h2>")
     for c, a in zip(rows, ids):
-        out += claim_section(c, a, out_dir)
+        out += claim_section(c, a, out_dir, back.get(a, "claims"))
     return out

@@ -1,24 +1,42 @@
 """The claims table of a reproduction: collected from the studies' own judgements.
 
 Each claim lives beside its study (``CLAIMS`` in ``undulate/studies/NAME.py``:
-a pure function of that study's summary, judged on the 95 % intervals of its
+a pure function of that study's summary, judged on the intervals of its
 numbers) and is judged when the study runs (``NAME.json["claims"]``).  This
-module gathers those rows for the report and for ``claims.json``.
+module gathers those rows for the report and for ``claims.json``.  How a
+verdict is decided (intervals, several criteria, staged runs, the look
+correction) is told in the documentation's *Verdicts* page.
 
-Verdicts: ``holds``, ``fails``, ``no result`` (from the claim's own study)
-and ``explained``: the claim fails under the default model **and** a study's
-:class:`~undulate.studies.Explanation` of it was shown by that study's own
-runs (``NAME.json["explanations"]``, ``shown`` true: e.g. the claim's
-criterion holds with only the named factor changed).  Nothing else turns a
-failing claim into ``explained``: an explanation that its runs did not show
-is listed with the row (``explanations_not_shown``) and the claim stays
+Verdicts (:data:`VERDICTS`): ``holds``, ``fails``, ``undecided`` (an interval
+straddles its criterion's boundary: the row's ``reason`` names the boundary
+and ``runs_needed`` estimates the runs that would decide it), ``no result``
+(from the claim's own study) and ``explained``: the claim fails under the
+default model **and** a study's :class:`~undulate.studies.Explanation` of it
+was shown by that study's own runs (``NAME.json["explanations"]``, ``shown``
+true: e.g. the claim's criterion holds with only the named factor changed).
+Nothing else turns a failing claim into ``explained``: an explanation that
+its runs did not show (``shown`` false) or left undecided (``shown`` null) is
+listed with the row (``explanations_not_shown``) and the claim stays
 ``fails``.
 
 A row: ``study``, ``claim``, ``paper`` (the paper's statement), ``measured``
 (the measured value with its uncertainty, as text), ``value`` (the same as
-numbers), ``verdict``, ``reason`` (why there is no result), ``criterion``,
-``explanation`` (for ``explained``: ``cause``, ``measured`` evidence numbers,
-``evidence_study``, ``evidence_figure``; else None).
+numbers), ``verdict``, ``reason`` (why there is no result, or the boundary an
+undecided claim straddles), ``criterion``, ``reference`` (whose claim it is:
+``"paper"``, the reproduced paper, or ``"prx2021"``, beyond the paper:
+synchronization through contact, Zhou, Hao & Gravish, Phys. Rev. X 11, 031051
+(2021); a row from a study file written before the field existed counts as
+``"paper"``), ``runs_needed`` (for ``undecided``: about how many runs would
+decide it, or null), ``explanation`` (for ``explained``: ``cause``,
+``measured`` evidence numbers, ``value``, ``evidence_study``,
+``evidence_figure``, ``shown``; else null) and, when some explanation of the
+claim was tested but not shown, ``explanations_not_shown`` (the same fields,
+``shown`` false or null).
+
+``claims.json``: ``{"claims": rows, "counts": {verdict: n},
+"counts_by_reference": {"paper": {verdict: n}, "prx2021": {verdict: n}}}``;
+``counts`` counts every row (as before), ``counts_by_reference`` each
+reference's rows apart; both list every verdict of :data:`VERDICTS`.
 """
 
 from __future__ import annotations
@@ -29,16 +47,27 @@ from typing import Any
 
 from ._io import atomic_write_text
 
-__all__ = ["VERDICTS", "collect", "apply_explanations", "write_claims_json", "FIELDS"]
+__all__ = ["VERDICTS", "REFERENCES", "collect", "apply_explanations", "counts", "counts_by_reference",
+           "reference_of", "write_claims_json", "FIELDS"]
 
-VERDICTS = ("holds", "explained", "fails", "no result")
-FIELDS = ("study", "claim", "paper", "measured", "value", "verdict", "reason", "criterion")
-_EXPLANATION_FIELDS = ("cause", "measured", "value", "evidence_study", "evidence_figure")
+VERDICTS = ("holds", "explained", "undecided", "fails", "no result")
+REFERENCES = ("paper", "prx2021")
+"""Whose claims a row judges: the reproduced paper, or beyond it the PRX 2021 synchronization paper
+(:attr:`undulate.studies.Study.reference`)."""
+FIELDS = ("study", "claim", "paper", "measured", "value", "verdict", "reason", "criterion", "reference",
+          "runs_needed")
+_EXPLANATION_FIELDS = ("cause", "measured", "value", "evidence_study", "evidence_figure", "shown")
+
+
+def reference_of(row: dict[str, Any]) -> str:
+    """A row's reference; a row without one (a study file older than the field) is the paper's."""
+    return row.get("reference") or "paper"
 
 
 def apply_explanations(rows: list[dict[str, Any]], explanations: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Rows with ``explanation`` set and ``fails`` -> ``explained`` where a shown explanation
-    names that (study, claim); explanations not shown go to ``explanations_not_shown``."""
+    names that (study, claim); explanations not shown (false or undecided) go to
+    ``explanations_not_shown``."""
     out = []
     for r in rows:
         r = {**r, "explanation": None}
@@ -56,7 +85,8 @@ def apply_explanations(rows: list[dict[str, Any]], explanations: list[dict[str, 
 
 def collect(out_dir: str | Path, names: list[str]) -> list[dict[str, Any]]:
     """The claim rows of studies ``names`` from ``out_dir/NAME.json`` (in that order), with the
-    explanations of every study among ``names`` applied (:func:`apply_explanations`)."""
+    explanations of every study among ``names`` applied (:func:`apply_explanations`).  A row
+    without ``reference`` (an older study file) gets ``"paper"``."""
     rows, explanations = [], []
     for name in names:
         p = Path(out_dir) / f"{name}.json"
@@ -64,14 +94,29 @@ def collect(out_dir: str | Path, names: list[str]) -> list[dict[str, Any]]:
             continue
         doc = json.loads(p.read_text())
         for r in doc.get("claims", []):
-            rows.append({k: r.get(k) for k in FIELDS})
+            row = {k: r.get(k) for k in FIELDS}
+            row["reference"] = reference_of(row)
+            rows.append(row)
         explanations += doc.get("explanations", [])
     return apply_explanations(rows, explanations)
 
 
+def counts(rows: list[dict[str, Any]]) -> dict[str, int]:
+    """``{verdict: n}`` over ``rows``, every verdict of :data:`VERDICTS` (in that order)."""
+    return {v: sum(r.get("verdict") == v for r in rows) for v in VERDICTS}
+
+
+def counts_by_reference(rows: list[dict[str, Any]]) -> dict[str, dict[str, int]]:
+    """:func:`counts` of each reference's rows: every one of :data:`REFERENCES` (zero counts when it
+    has no rows), then any other reference met, in the order met."""
+    refs = list(REFERENCES) + [x for x in dict.fromkeys(reference_of(r) for r in rows) if x not in REFERENCES]
+    return {ref: counts([r for r in rows if reference_of(r) == ref]) for ref in refs}
+
+
 def write_claims_json(out_dir: str | Path, rows: list[dict[str, Any]]) -> Path:
-    """Write ``out_dir/claims.json`` (atomically): ``{"claims": rows, "counts": {verdict: n}}``."""
+    """Write ``out_dir/claims.json`` (atomically): ``{"claims": rows, "counts": {verdict: n},
+    "counts_by_reference": {reference: {verdict: n}}}``."""
     path = Path(out_dir) / "claims.json"
-    counts = {v: sum(r["verdict"] == v for r in rows) for v in VERDICTS}
-    atomic_write_text(path, json.dumps({"claims": rows, "counts": counts}, indent=2, allow_nan=False) + "\n")
+    doc = {"claims": rows, "counts": counts(rows), "counts_by_reference": counts_by_reference(rows)}
+    atomic_write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
     return path

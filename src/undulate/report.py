@@ -1,13 +1,16 @@
 """One self-contained HTML page for a reproduction run (``DIR/index.html``).
 
 The page uses relative links only, so the folder can be moved, zipped or
-opened offline.  It shows the table of the paper's claims, one short line
-each (study, claim, measured value with its 95 % interval, verdict, the cause
-in one sentence: see :mod:`undulate.claims`) with every claim's own section
-below it (the paper's statement, criterion, whole explanation and evidence
-figure: :mod:`undulate._report_claims`), every study's figure, provenance,
-wall times, animations and links to every data file.  A failed study is
-shown as failed, with its error.
+opened offline.  It shows the table of the paper's claims and, beyond the
+paper, the table of the PRX 2021 synchronization claims (each judged against
+a named controller), each with its own counts and one sentence saying what
+held; one short line per claim (study, claim, measured value with its 95 %
+interval, verdict, the cause in one sentence, or for an undecided claim the
+boundary its interval straddles: see :mod:`undulate.claims`) with every
+claim's own section below them (the paper's statement, criterion, whole
+explanation and evidence figure: :mod:`undulate._report_claims`), every
+study's figure, the stages it ran, provenance, wall times, animations and
+links to every data file.  A failed study is shown as failed, with its error.
 """
 
 from __future__ import annotations
@@ -66,6 +69,7 @@ table.claims th{position:sticky;top:0}table.claims tbody tr:nth-child(even){back
 .badge{display:inline-block;padding:0 .55em;border-radius:.8em;font-size:.9em;font-weight:600;white-space:nowrap}
 .badge.ok{background:#dcf2e1;color:#125523}.badge.ex{background:#fdf0d0;color:#7a4d00}
 .badge.no{background:#fadadd;color:#9b111b}.badge.na{background:#ececec;color:#555}
+.badge.un{background:#fff1c2;color:#8a5a00;border:1px dashed #d99a00}p.verdicts{margin-bottom:.2em}
 a.more{white-space:nowrap}
 section.claim{border-top:1px solid #eee;padding-top:.2em}section.claim h3{font-size:1.05em}
 .claim-body{display:flex;flex-wrap:wrap;gap:1em;align-items:flex-start}.claim-body dl{flex:1 1 420px;margin:0}
@@ -87,8 +91,9 @@ def _load_docs(out: Path, statuses: list[dict[str, Any]]) -> dict[str, dict]:
     return docs
 
 
-def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None) -> list[str]:
-    """The document head, the title and the one-line status of the run."""
+def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None, beyond: bool = False) -> list[str]:
+    """The document head, the title and the one-line status of the run (``beyond``: the page has
+    the table of claims beyond the paper)."""
     n_ok = sum(1 for s in statuses if s.get("ok"))
     failed = [s["name"] for s in statuses if not s.get("ok")]
     return ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
@@ -98,7 +103,9 @@ def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None)
             f"<p>Mode: <b>{_esc(mode)}</b>. Studies: {n_ok} of {len(statuses)} completed"
             + (f"; <span class='no'>failed: {_esc(', '.join(failed))}</span>" if failed else "")
             + (f". Total wall time {total_wall_s:.0f} s." if total_wall_s is not None else ".")
-            + " Contents: <a href='#claims'>claims</a> · <a href='#claim-details'>the claims one by one</a>"
+            + " Contents: <a href='#claims'>the paper's claims</a>"
+            + (" · <a href='#claims-prx2021'>beyond the paper (PRX 2021)</a>" if beyond else "")
+            + " · <a href='#claim-details'>the claims one by one</a>"
             + " · <a href='#studies'>studies</a> · <a href='#provenance'>provenance</a>.</p>"]
 
 
@@ -152,6 +159,30 @@ def _study_numbers(doc: dict[str, Any]) -> list[str]:
     return parts
 
 
+def _stages(doc: dict[str, Any]) -> list[str]:
+    """One line on the stages a study ran (``NAME.json["stages"]``): how many of how many, the runs
+    and the confidence level of each look, and why it stopped; nothing for a study file without them."""
+    looks = [s for s in doc.get("stages") or [] if isinstance(s, dict)]
+    if not looks:
+        return []
+    last = looks[-1]
+    k, of = len(looks), last.get("of", len(looks))
+
+    def look(s: dict[str, Any]) -> str:
+        lvl = s.get("confidence_level")
+        at = f" at {100 * lvl:.4g} % intervals" if isinstance(lvl, (int, float)) else ""
+        return f"{s.get('n_runs', '?')} runs ({s.get('n_computed', '?')} computed){at}"
+
+    if of == 1:
+        return [f"<p class='stages'>One stage: {_esc(look(last))}.</p>"]
+    still = last.get("undecided") or []
+    why = ("stopped early: nothing left undecided" if k < of
+           else f"still undecided after the last: {'; '.join(map(str, still))}" if still else "all ran")
+    return [f"<p class='stages'>Stages: {k} of {of} ran ({_esc(why)}); "
+            + "; ".join(f"stage {_esc(s.get('stage', i + 1))}: {_esc(look(s))}" for i, s in enumerate(looks))
+            + ".</p>"]
+
+
 def _study(st: dict[str, Any], doc: dict[str, Any]) -> list[str]:
     """One study: its figure, files, wall time, provenance and numbers, or its error."""
     name, wall = st["name"], st.get("wall_s")
@@ -161,7 +192,7 @@ def _study(st: dict[str, Any], doc: dict[str, Any]) -> list[str]:
     parts.append(f"<img class='fig' src='{_esc(name)}.png' alt='{_esc(name)} figure'>")
     links = [f"<a href='{_esc(f)}'>{_esc(f)}</a>" for f in doc.get("files", []) + [f"{name}.json"]]
     parts.append("<p>Files: " + " · ".join(links) + (f" — wall time {wall:.1f} s" if wall is not None else "") + "</p>")
-    return parts + _study_provenance(doc) + _study_numbers(doc)
+    return parts + _stages(doc) + _study_provenance(doc) + _study_numbers(doc)
 
 
 def _provenance(mode: str, statuses: list[dict[str, Any]]) -> list[str]:
@@ -180,21 +211,37 @@ def _provenance(mode: str, statuses: list[dict[str, Any]]) -> list[str]:
     return parts
 
 
+def _reference(name: str) -> str:
+    """A registered study's :attr:`~undulate.studies.Study.reference` ("paper" for a name the registry
+    does not know): places a failed study, which has no claim rows, in its claims table."""
+    from .errors import ParameterError
+    from .studies import describe
+
+    try:
+        return describe(name).reference
+    except ParameterError:  # not a registered study
+        return "paper"
+
+
 def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: str,
                  animations: list[dict[str, str]] | None = None, total_wall_s: float | None = None) -> Path:
     """Write ``out_dir/index.html`` from the studies' JSON summaries.
 
     ``statuses``: one dict per study, in order, with ``name``, ``ok``,
-    ``wall_s`` and ``error``; ``animations``: dicts with ``file`` (relative
+    ``wall_s``, ``error`` and optionally ``reference`` (else the registered
+    study's); ``animations``: dicts with ``file`` (relative
     to ``out_dir``) and ``caption``.  Reads the claim rows as
     :func:`undulate.claims.collect` gives them and writes nothing but the page.
     """
-    from .claims import collect
+    from .claims import collect, reference_of
 
     out = Path(out_dir)
     docs = _load_docs(out, statuses)
     rows = collect(out, [st["name"] for st in statuses if st.get("ok")])
-    parts = _head(mode, statuses, total_wall_s)
+    statuses = [{**st, "reference": st.get("reference") or _reference(st["name"])} for st in statuses]
+    beyond = any(reference_of(r) != "paper" for r in rows) or any(
+        not st.get("ok") and st["reference"] != "paper" for st in statuses)
+    parts = _head(mode, statuses, total_wall_s, beyond)
     parts += claims_part(rows, statuses, out)
     parts += _animations(out, animations)
     parts.append("<h2 id='studies'>Studies</h2>")

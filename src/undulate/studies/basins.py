@@ -33,6 +33,7 @@ from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, RETURN_TOL
 from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._stages import strides, thinned
 from ._runners import PAIR_DURATION_S, PAIR_STOP, pair_point
 
 __all__ = [
@@ -246,13 +247,19 @@ def _return_and_push(s: dict) -> Verdict:
                 f"dx0/lambda = {tn:+.3f} / {tp:+.3f} (bracket)")
     value = {"n_returned": ret, "n_pushed_away": away,
              "threshold_negative": tn.to_dict(), "threshold_positive": tp.to_dict()}
-    return Verdict.judged(ret > 0 and away > 0 and tp.has_interval and tn.has_interval, measured, value)
+    # counts of outcomes and whether a bracket exists: exact, never undecided
+    return Verdict.of([stats.Check.exact(ret > 0, f"{ret} starts returned"),
+                       stats.Check.exact(away > 0, f"{away} starts pushed away"),
+                       stats.Check.exact(tn.has_interval, "return threshold bracketed on the negative side"),
+                       stats.Check.exact(tp.has_interval, "return threshold bracketed on the positive side")],
+                      measured, value)
 
 
 CLAIMS = (
     Claim("dphi = 0 pairs return to dx = 0 from nearby starts and are pushed away from far ones",
           "starts close enough to zero evolve to dx_f = 0; beyond a threshold (withheld) they are pushed away",
-          "both behaviours occur and the return threshold is bracketed on both sides", _return_and_push),
+          "both behaviours occur and the return threshold is bracketed on both sides (counts of starts and "
+          "brackets: holds or fails, never undecided)", _return_and_push),
 )
 
 
@@ -262,8 +269,16 @@ def figure(ds):
     return plot_basins(ds)
 
 
+def stages(quick: bool) -> tuple[BasinsPlan, ...]:
+    """The plan in looks (:mod:`._stages`): the scan of starts and the (dx0, dphi) grid thinned (quick:
+    scan 11, 21; grid 5 x 5, 9 x 9.  Full: scan 11, 21, 41; grid 11 x 11, 21 x 21, 41 x 41)."""
+    p, s = plan(quick), strides(quick)
+    return tuple(BasinsPlan(x0, p.refine, gx, gp, p.duration_s) for x0, gx, gp in
+                 zip(thinned(p.scan_dx0, s), thinned(p.grid_dx0, s), thinned(p.grid_dphi, s)))
+
+
 register(Study(
-    name="basins", paper_figure="8", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    name="basins", paper_figure="8", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
     description="Pairs at d = 0.13 m from a range of initial offsets: dx(t) at dphi = 0 and "
                 "its return threshold; the map of dx_f - dx0 over (dx0/lambda, dphi) beside "
                 "the sinusoidal basin model."))

@@ -33,6 +33,7 @@ from ..sweep import Grid
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._stages import strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
@@ -228,8 +229,13 @@ def figure(ds: xr.Dataset):
     return plot_pairs(ds)
 
 
+def stages(quick: bool) -> tuple[Plan, ...]:
+    """The plan in looks (:mod:`._stages`): quick 5, 9 dphi; full 13, 25, 49 (every 4th, 2nd, all)."""
+    return tuple(Plan(d) for d in thinned(plan(quick).dphi_rad, strides(quick)))
+
+
 register(Study(
-    name="pairs", paper_figure="3", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    name="pairs", paper_figure="3", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
     description="Pairs of 3-link swimmers (d = 0.13 m, 30 s) at nine (full: 49) phase differences "
                 "and xi in {0, 3/4, 1, 3/2}: dx(t), steady dx vs dphi with the compatibility lines, "
                 "slope and RMS error per xi."))

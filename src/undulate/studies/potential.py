@@ -56,6 +56,7 @@ from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, R2_MIN
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._stages import strides, thinned
 from ..stopping import SteadyStop
 from ._runners import pair_point
 from ._shared import impulse_sweep
@@ -389,6 +390,7 @@ def summary(ds) -> dict[str, Any]:
         "per_beta": per_beta,
         "median_fit_r2": float(np.nanmedian(r2_all)),
         "fit_r2_ci95_low_median": float(np.nanmedian(ds["fit_r2_ci95"].values[..., 0])),
+        "fit_r2_ci95_high_median": float(np.nanmedian(ds["fit_r2_ci95"].values[..., 1])),
         "n_fits": int(np.isfinite(r2_all).sum()),
         "collapse_rms_log10k_vs_d_over_2A": _collapse_rms(x_scaled.ravel(), logk.ravel()).to_dict(),
         "collapse_rms_log10k_vs_d_m": _collapse_rms(x_metres.ravel(), logk.ravel()).to_dict(),
@@ -409,59 +411,63 @@ E = stats.Estimate.from_dict
 def _impulse_linear(s: dict) -> Verdict:
     f = s["impulse_fit"]
     a, r2 = E(f["slope_Ns_per_rad"]), E(f["r2"])
-    measured = f"fit impulse = a|dphi| + b: a = {a:.3g} N s/rad, R^2 = {r2:.2f}"
+    measured = f"fit impulse = a|dphi| + b: a = {a:.3g} N s/rad, R^2 = {r2:.2f} (95 % intervals)"
+    value = {"slope_Ns_per_rad": f["slope_Ns_per_rad"], "r2": f["r2"]}
     if not r2.has_interval:
-        return Verdict.none("no interval for R^2 (fewer than 3 dphi)", measured, f)
-    return Verdict.judged(r2.low >= R2_MIN and a.low > 0, measured,
-                          {"slope_Ns_per_rad": f["slope_Ns_per_rad"], "r2": f["r2"]})
+        return Verdict.none("no interval for R^2 (fewer than 3 dphi)", measured, value)
+    return Verdict.of([r2.above(R2_MIN, "R^2"), a.above(0.0, "slope a (N s/rad)")], measured, value)
 
 
 def _harmonic(s: dict) -> Verdict:
-    med, low = s["median_fit_r2"], s["fit_r2_ci95_low_median"]
+    med, low, high = s["median_fit_r2"], s["fit_r2_ci95_low_median"], s["fit_r2_ci95_high_median"]
     measured = (f"median R^2 of the {s['n_fits']} dF = k (dx - dx0) fits {med:.3f} "
-                f"(median lower 95 % bound {low:.3f})")
-    if s["n_fits"] == 0 or not np.isfinite(low):
-        return Verdict.none("no fit with an R^2 interval", measured)
-    return Verdict.judged(low >= R2_MIN, measured, {"median_r2": med, "median_r2_low": low})
+                f"(medians of the 95 % bounds {low:.3f}, {high:.3f})")
+    value = {"median_r2": med, "median_r2_low": low, "median_r2_high": high}
+    if s["n_fits"] == 0 or not (np.isfinite(low) and np.isfinite(high)):
+        return Verdict.none("no fit with an R^2 interval", measured, value)
+    # the typical fit: the median R^2 with the medians of its bounds
+    typical = stats.Estimate(med, float("nan"), low, high, int(s["n_fits"]), "medians over the fits")
+    return Verdict.of([typical.above(R2_MIN, "median R^2")], measured, value)
 
 
 def _k_falls(s: dict) -> Verdict:
     rho = {b: E(v["spearman_k_vs_d"]) for b, v in s["per_beta"].items()}
-    measured = "Spearman rank correlation of k with d per beta: " + ", ".join(
+    measured = "Spearman rank correlation of k with d per beta (95 % intervals): " + ", ".join(
         f"{b} deg: {r:+.2f}" for b, r in rho.items())
     value = {b: r.to_dict() for b, r in rho.items()}
     if not rho or any(not r.finite for r in rho.values()):
         return Verdict.none("fewer than 3 stiffnesses for some beta", measured, value)
-    # with 3 to 9 widths a bootstrap interval of a rank correlation is degenerate: judge the value
-    return Verdict.judged(all(r.value < 0 for r in rho.values()), measured, value)
+    return Verdict.of([r.below(0.0, f"Spearman rho at beta = {b} deg") for b, r in rho.items()], measured, value)
 
 
 def _collapse(s: dict) -> Verdict:
     a, m = E(s["collapse_rms_log10k_vs_d_over_2A"]), E(s["collapse_rms_log10k_vs_d_m"])
-    measured = f"scatter of log10 k about one curve: {a:.2f} decades against d/2A, {m:.2f} against d"
+    measured = (f"scatter of log10 k about one curve: {a:.2f} decades against d/2A, {m:.2f} against d "
+                "(95 % intervals)")
     value = {"against_d_over_2A": a.to_dict(), "against_d": m.to_dict()}
     if not (a.finite and m.finite):
         return Verdict.none("too few stiffnesses for the collapse fit", measured, value)
-    return Verdict.judged(a.value < m.value, measured, value)
+    return Verdict.of([stats.Check.apart(m, a, "scatter against d vs against d/2A (decades)")], measured, value)
 
 
 CLAIMS = (
     Claim("the contact force over the first two periods grows linearly with |dphi|",
           "cumulative contact forces over the first two periods are linearly dependent on dphi",
-          f"the lower 95 % bound of R^2 of impulse = a|dphi| + b is >= {R2_MIN} and that of a is > 0",
-          _impulse_linear),
+          f"the lower 95 % bound of R^2 of impulse = a|dphi| + b is >= {R2_MIN} and that of a is > 0 (fails if "
+          f"the upper bound of R^2 is below {R2_MIN} or that of a below 0; undecided if an interval straddles "
+          "its bound)", _impulse_linear),
     Claim("dF against dx is linear (a harmonic well around compatibility)",
           "a linear relationship between the applied force and the steady separation",
-          f"the median over (beta, d/2A) of the lower 95 % bound of R^2 of dF = k (dx - dx0) is >= {R2_MIN}",
-          _harmonic),
+          f"the median over (beta, d/2A) of the lower 95 % bound of R^2 of dF = k (dx - dx0) is >= {R2_MIN} "
+          f"(fails if the median of the upper bounds is below {R2_MIN}; undecided between)", _harmonic),
     Claim("the cohesion stiffness k falls as the channel widens",
           "stiffness decreases with increasing wall width",
-          "Spearman's rho of k with d is negative for every beta (its bootstrap interval is reported; with "
-          "3-9 widths it cannot exclude 0)", _k_falls),
+          "the bootstrap 95 % interval of Spearman's rho of k with d lies below 0 for every beta (fails if one "
+          "lies wholly above 0; undecided if one straddles 0, as it can with 3-9 widths)", _k_falls),
     Claim("stiffness curves for different amplitudes collapse when d is scaled by 2A",
           "when we normalise the wall width by gait amplitude the stiffness curves follow a similar trend",
-          "the scatter of log10 k about one quadratic is smaller against d/2A than against d (bootstrap "
-          "intervals reported)", _collapse),
+          "the bootstrap 95 % interval of the scatter of log10 k about one quadratic against d/2A lies wholly "
+          "below that against d (fails if wholly above; undecided if they overlap)", _collapse),
 )
 
 
@@ -471,8 +477,19 @@ def figure(ds):
     return plot_potential(ds)
 
 
+def stages(quick: bool) -> tuple[PotentialPlan, ...]:
+    """The plan in looks (:mod:`._stages`): the impulse grid (dphi and common phases) thinned; in full
+    mode also the confinements and forces (quick keeps its 3 x 5 force grid: a fit needs them)."""
+    p, s = plan(quick), strides(quick)
+    out = []
+    for k, dphi, phi0 in zip(s, thinned(p.impulse_dphi, s), thinned(p.impulse_phi0, s)):
+        d, f = (p.d_over_2A, p.forces_N) if quick else (p.d_over_2A[::max(1, k // 2)], p.forces_N[::max(1, k // 2)])
+        out.append(PotentialPlan(dphi, p.betas_deg, d, f, p.duration_s, impulse_phi0=phi0))
+    return tuple(out)
+
+
 register(Study(
-    name="potential", paper_figure="10", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS,
+    name="potential", paper_figure="10", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS,
     figure=figure,
     description="Contact impulse over the first two periods against dphi; equal and opposite "
                 "forces on a settled dphi = 0 pair: dF = k (dx - dx0) per d/2A and beta, with "

@@ -1,0 +1,218 @@
+"""Three-valued verdicts of the paper's claims (groups, swimming, basins, confinement, potential, packing).
+
+Constructed summaries, shaped like each study's ``summary``: an interval inside its accepted region
+holds, one wholly outside fails, one that straddles a boundary leaves the claim undecided (with the
+boundary named in the reason).  Criteria on counts or numbers without an interval are never undecided.
+"""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from undulate import stats
+from undulate.studies import describe
+from undulate.studies import _analysis as C
+from undulate.studies._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, judge
+
+
+def est(value, low, high, n=9):
+    return stats.Estimate(value, math.nan, low, high, n, "test").to_dict()
+
+
+def rows(name, summary):
+    return judge(name, describe(name).claims, summary)
+
+
+def verdicts(name, summary):
+    return [r["verdict"] for r in rows(name, summary)]
+
+
+# ------------------------------------------------------------------ groups
+def groups_summary(slope=(1.0, 0.9, 1.1), rms=(0.1, 0.08, 0.12), pair_rms=(0.03, 0.02, 0.04)):
+    def group(size, slope_, rms_):
+        return {"group_size": size, "n_neighbour_pairs": 18, "slope": est(*slope_),
+                "rms_residual_over_lambda": est(*rms_)}
+
+    return {"per_group_size": {"2": group(2, (1.0, 0.95, 1.05), pair_rms), "3": group(3, slope, rms),
+                               "4": group(4, slope, rms)}}
+
+
+@pytest.mark.parametrize("kw, verdict", [
+    ({}, HOLDS),
+    ({"slope": (0.6, 0.5, 0.7)}, FAILS),             # slope wholly below 1 - 0.2
+    ({"slope": (0.76, 0.62, 0.9)}, UNDECIDED),       # slope straddles 0.8
+    ({"rms": (0.3, 0.25, 0.35)}, FAILS),             # RMS wholly above 0.2
+    ({"rms": (0.17, 0.12, 0.22)}, UNDECIDED),        # RMS straddles 0.2
+    ({"rms": (0.01, 0.005, 0.015)}, FAILS),          # RMS wholly below the pairs'
+    ({"rms": (0.05, 0.03, 0.07)}, UNDECIDED),        # RMS overlaps the pairs'
+    ({"slope": (0.6, 0.5, 0.7), "rms": (0.17, 0.12, 0.22)}, FAILS),  # one fails: fails
+])
+def test_groups(kw, verdict):
+    r = rows("groups", groups_summary(**kw))
+    assert [x["verdict"] for x in r] == [verdict] * 2
+    if verdict == UNDECIDED:
+        assert "straddles" in r[0]["reason"] or "overlaps" in r[0]["reason"]
+
+
+def test_groups_missing_interval_is_no_result():
+    s = groups_summary()
+    s["per_group_size"]["2"]["rms_residual_over_lambda"] = stats.Estimate(math.nan).to_dict()
+    assert verdicts("groups", s) == [NO_RESULT] * 2
+
+
+def test_group_follows_line_is_three_valued():
+    E = stats.Estimate
+    pair = E(0.03, math.nan, 0.02, 0.04, 9)
+    assert C.group_follows_line(E(1.0, math.nan, 0.9, 1.1, 9), E(0.1, math.nan, 0.08, 0.12, 9), pair) is True
+    assert C.group_follows_line(E(0.6, math.nan, 0.5, 0.7, 9), E(0.1, math.nan, 0.08, 0.12, 9), pair) is False
+    assert C.group_follows_line(E(0.76, math.nan, 0.62, 0.9, 9), E(0.1, math.nan, 0.08, 0.12, 9), pair) is None
+    assert C.group_follows_line(E(1.0), E(0.1, math.nan, 0.08, 0.12, 9), pair) is None  # no interval
+    checks = C.group_follows_line_checks(E(0.76, math.nan, 0.62, 0.9, 9), E(0.1, math.nan, 0.08, 0.12, 9), pair)
+    assert [c.state for c in checks] == [None, True, True] and "0.8" in checks[0].text
+
+
+# ------------------------------------------------------------------ swimming
+def swimming_summary(slope=(1.0, 0.9, 1.1), rms=(0.04, 0.03, 0.05)):
+    line = {"slope": est(1.0, 0.95, 1.05), "rms_residual_over_lambda": est(0.03, 0.02, 0.04)}
+    return {"lone_swimmer_speed_m_s": 0.0085,
+            "modes": {"viscous": line, "swimming": {"slope": est(*slope), "rms_residual_over_lambda": est(*rms)}}}
+
+
+@pytest.mark.parametrize("kw, verdict", [
+    ({}, HOLDS),
+    ({"slope": (1.5, 1.3, 1.7)}, FAILS),
+    ({"slope": (0.92, 0.24, 1.6)}, UNDECIDED),   # straddles both 0.8 and 1.2
+    ({"rms": (0.26, 0.11, 0.36)}, FAILS),        # wholly above 0.1
+    ({"rms": (0.09, 0.06, 0.12)}, UNDECIDED),    # straddles 0.1
+])
+def test_swimming(kw, verdict):
+    r = rows("swimming", swimming_summary(**kw))
+    assert r[0]["verdict"] == verdict
+    if verdict == UNDECIDED:
+        assert "straddles" in r[0]["reason"]
+
+
+def test_swimming_missing_interval_is_no_result():
+    s = swimming_summary()
+    s["modes"]["swimming"]["slope"] = stats.Estimate(math.nan).to_dict()
+    assert verdicts("swimming", s) == [NO_RESULT]
+
+
+# ------------------------------------------------------------------ basins (counts: exact)
+def basins_summary(returned=11, pushed=16, negative=(-0.33, -0.34, -0.32)):
+    nan = stats.Estimate(math.nan).to_dict()
+    return {"n_returned": returned, "n_pushed_away_from_zero": pushed, "n_starts_dphi0": 29,
+            "return_threshold": {"positive": {"threshold_dx0_over_lambda": est(0.29, 0.28, 0.30)},
+                                 "negative": {"threshold_dx0_over_lambda": est(*negative) if negative else nan}}}
+
+
+def test_basins_is_exact():
+    assert verdicts("basins", basins_summary()) == [HOLDS]
+    assert verdicts("basins", basins_summary(pushed=0)) == [FAILS]
+    assert verdicts("basins", basins_summary(returned=0)) == [FAILS]
+    assert verdicts("basins", basins_summary(negative=None)) == [FAILS]  # not bracketed on one side
+
+
+# ------------------------------------------------------------------ confinement (no interval: exact)
+def confinement_summary(widths=(0.0, 0.02, 0.05, 0.18), never_shrinks=True):
+    d = [0.6, 0.9, 1.2, 1.5]
+    inside = max(w for a, w in zip(d, widths) if a <= 1.2)
+    return {"d_over_2A": d, "central_width_over_lambda": list(widths), "max_width_in_paper_range": inside,
+            "width_never_shrinks_with_d": never_shrinks}
+
+
+def test_confinement_is_exact():
+    assert verdicts("confinement", confinement_summary()) == [HOLDS]
+    assert verdicts("confinement", confinement_summary((0.0, 0.0, 0.0, 0.18))) == [FAILS]  # opens only beyond 1.2
+    assert verdicts("confinement", confinement_summary(never_shrinks=False)) == [FAILS]
+    s = confinement_summary()
+    s["max_width_in_paper_range"] = None
+    assert verdicts("confinement", s) == [NO_RESULT]
+
+
+# ------------------------------------------------------------------ potential
+def potential_summary(r2=(0.95, 0.92, 0.99), a=(4.0, 2.5, 5.5), fit_r2=(0.99, 0.978, 1.0),
+                      rho=((-1.0, -1.0, -1.0),) * 3, collapse=((0.2, 0.1, 0.3), (0.6, 0.45, 0.75))):
+    return {"impulse_fit": {"slope_Ns_per_rad": est(*a), "r2": est(*r2)},
+            "median_fit_r2": fit_r2[0], "fit_r2_ci95_low_median": fit_r2[1], "fit_r2_ci95_high_median": fit_r2[2],
+            "n_fits": 9,
+            "per_beta": {b: {"spearman_k_vs_d": est(*r, n=3)} for b, r in zip(("30", "45", "60"), rho)},
+            "collapse_rms_log10k_vs_d_over_2A": est(*collapse[0]), "collapse_rms_log10k_vs_d_m": est(*collapse[1])}
+
+
+def test_potential_holds():
+    assert verdicts("potential", potential_summary()) == [HOLDS] * 4
+
+
+@pytest.mark.parametrize("kw, index, verdict", [
+    ({"r2": (0.8, 0.7, 0.88)}, 0, FAILS),             # R^2 wholly below 0.9
+    ({"r2": (0.85, 0.74, 0.98)}, 0, UNDECIDED),       # straddles 0.9
+    ({"a": (-1.0, -2.0, -0.5)}, 0, FAILS),            # slope wholly below 0
+    ({"a": (0.5, -0.5, 1.5)}, 0, UNDECIDED),          # slope straddles 0
+    ({"fit_r2": (0.8, 0.7, 0.85)}, 1, FAILS),         # the median upper bound below 0.9
+    ({"fit_r2": (0.93, 0.85, 1.0)}, 1, UNDECIDED),    # median bounds straddle 0.9
+    ({"rho": ((0.5, 0.2, 1.0),) + ((-1.0, -1.0, -1.0),) * 2}, 2, FAILS),
+    ({"rho": ((-0.5, -1.0, 1.0),) + ((-1.0, -1.0, -1.0),) * 2}, 2, UNDECIDED),  # 3 widths: straddles 0
+    ({"collapse": ((0.6, 0.45, 0.75), (0.2, 0.1, 0.3))}, 3, FAILS),   # wholly larger against d/2A
+    ({"collapse": ((0.37, 0.02, 0.46), (0.6, 0.14, 0.74))}, 3, UNDECIDED),  # intervals overlap
+])
+def test_potential(kw, index, verdict):
+    r = rows("potential", potential_summary(**kw))
+    assert r[index]["verdict"] == verdict
+    assert all(x["verdict"] == HOLDS for k, x in enumerate(r) if k != index)
+    if verdict == UNDECIDED:
+        assert "straddles" in r[index]["reason"] or "overlaps" in r[index]["reason"]
+
+
+def test_potential_missing_numbers_are_no_result():
+    s = potential_summary()
+    s["impulse_fit"]["r2"] = stats.Estimate(math.nan).to_dict()
+    s["per_beta"]["30"]["spearman_k_vs_d"] = stats.Estimate(math.nan).to_dict()
+    s["collapse_rms_log10k_vs_d_m"] = stats.Estimate(math.nan).to_dict()
+    assert verdicts("potential", s) == [NO_RESULT, HOLDS, NO_RESULT, NO_RESULT]
+
+
+# ------------------------------------------------------------------ packing
+def packing_summary(rho=(-0.96, -1.0, -0.71), thresholds=((3.66, 3.54, 3.78), (2.69, 2.36, 3.01), (2.09, 1.86, 2.31)),
+                    above_first=True, rel=0.0009):
+    thr = [stats.Estimate(math.nan).to_dict() if above_first else est(5.0, 4.8, 5.2, n=2)]
+    thr += [est(*t, n=2) for t in thresholds]
+    means = ([] if above_first else [5.0]) + [t[0] for t in thresholds]  # the summary's: above the grid is larger
+    return {"spearman_threshold_vs_phi_max": est(*rho, n=6),
+            "largest_rise_of_threshold_between_neighbouring_phi_max": max(b - a for a, b in zip(means, means[1:])),
+            "threshold_rho_tilde": thr, "phi_max_rad": [0.0, math.pi / 2, math.pi, 2 * math.pi],
+            "threshold_above_grid": [above_first, False, False, False], "n_diverged": 0, "n_runs": 40,
+            "max_rel_diff_closed_form_vs_monte_carlo": rel, "monte_carlo_rel_stderr_at_max_diff": 0.0011}
+
+
+def test_packing_holds():
+    assert verdicts("packing", packing_summary()) == [HOLDS, HOLDS]
+    assert verdicts("packing", packing_summary(above_first=False)) == [HOLDS, HOLDS]
+
+
+@pytest.mark.parametrize("kw, verdict, words", [
+    ({"rho": (0.5, 0.2, 0.8)}, FAILS, ""),                      # rho wholly above 0
+    ({"rho": (-0.4, -0.9, 0.3)}, UNDECIDED, "straddles"),       # rho straddles 0
+    # a rise beyond the intervals: fails
+    ({"thresholds": ((2.0, 1.9, 2.1), (2.69, 2.5, 2.9), (2.09, 1.86, 2.31))}, FAILS, ""),
+    # the mean rises inside overlapping intervals: undecided
+    ({"thresholds": ((2.6, 2.3, 2.9), (2.69, 2.36, 3.01), (2.09, 1.86, 2.31))}, UNDECIDED, "rises inside"),
+])
+def test_packing_threshold_falls(kw, verdict, words):
+    r = rows("packing", packing_summary(**kw))
+    assert r[0]["verdict"] == verdict and r[1]["verdict"] == HOLDS
+    assert words in r[0]["reason"]
+
+
+def test_packing_rise_above_the_grid_fails():
+    s = packing_summary(above_first=False)
+    s["threshold_rho_tilde"][-1] = stats.Estimate(math.nan).to_dict()
+    s["threshold_above_grid"][-1] = True
+    assert verdicts("packing", s)[0] == FAILS
+
+
+def test_packing_closed_form_is_exact():
+    assert verdicts("packing", packing_summary(rel=0.02))[1] == FAILS
+    assert verdicts("packing", packing_summary(rel=0.0099))[1] == HOLDS
