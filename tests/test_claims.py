@@ -68,6 +68,8 @@ def test_links_claim_needs_a_fall_beyond_the_intervals():
     assert verdicts("links", summary(falls)) == ["holds", "holds"]
     falls[2] = (0.05, 0.01, 0.09)
     falls[3] = (0.045, 0.01, 0.085)  # falls at every step, but the last interval overlaps the first
+    assert verdicts("links", summary(falls)) == ["undecided", "undecided"]
+    falls[3] = (0.2, 0.15, 0.25)  # the last interval wholly above the one before it: a rise
     assert verdicts("links", summary(falls)) == ["fails", "fails"]
 
 

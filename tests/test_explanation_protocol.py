@@ -127,7 +127,7 @@ def test_the_summary_keys_every_planned_case_by_id_and_every_explanation_reads_i
                                     CaseSet.LINKS_GUIDED_X.value}
     for e in X.EXPLANATIONS:
         shown, measured, value = e.check(s)
-        assert isinstance(shown, bool) and measured and value is not None, e.claim
+        assert shown in (True, False, None) and measured and value is not None, e.claim
         # with no results, each reports "not shown" (its cases are declared, merely absent)
         assert e.check({})[0] is False and e.check({})[2] is None
 

@@ -81,9 +81,16 @@ def E(v, lo=math.nan, hi=math.nan):
 
 def test_follows_line_is_judged_on_the_intervals():
     assert S.follows_line(E(1.0, 0.9, 1.1), E(0.03, 0.02, 0.05)) is True
-    assert S.follows_line(E(1.0, 0.7, 1.3), E(0.03, 0.02, 0.05)) is False  # interval too wide
-    assert S.follows_line(E(1.0, 0.9, 1.1), E(0.05, 0.02, 0.12)) is False
+    # an interval straddling a bound leaves it undecided (None), one wholly outside fails
+    assert S.follows_line(E(1.0, 0.7, 1.3), E(0.03, 0.02, 0.05)) is None  # slope interval straddles 0.8, 1.2
+    assert S.follows_line(E(1.0, 0.9, 1.1), E(0.05, 0.02, 0.12)) is None  # RMS straddles 0.1
+    assert S.follows_line(E(0.5, 0.4, 0.6), E(0.03, 0.02, 0.05)) is False
+    assert S.follows_line(E(1.0, 0.9, 1.1), E(0.2, 0.15, 0.25)) is False
     assert S.follows_line(E(1.0), E(0.03, 0.02, 0.05)) is None
+    # the verdict tells a straddle from a missing interval
+    assert S.line_verdict(E(1.0, 0.7, 1.3), E(0.03, 0.02, 0.05)) == "undecided"
+    assert S.line_verdict(E(1.0), E(0.03, 0.02, 0.05)) == "no result"
+    assert S.line_verdict(E(0.5, 0.4, 0.6), E(0.03, 0.02, 0.05)) == "fails"
 
 
 def _case(cid, ok):
@@ -140,7 +147,8 @@ def _group_ds(cases):
 @pytest.mark.parametrize("spaced_gain, spaced_scatter, shown", [
     (1.0, 0.08, True),    # at the pairs' spacing: on the line, more scatter than pairs -> the cause is shown
     (0.6, 0.08, False),   # still short of the line at the pairs' spacing: not shown
-    (1.0, 0.01, False),   # on the line but no more scatter than pairs: the claim's criterion fails, not shown
+    (1.0, 0.01, None),    # on the line, scatter like the pairs': the RMS intervals overlap, undecided
+    (1.0, 0.001, False),  # on the line but less scatter than pairs (wholly below): the criterion fails, not shown
 ])
 def test_groups_explanation_needs_default_failing_and_the_pairs_spacing_meeting_the_whole_criterion(
         spaced_gain, spaced_scatter, shown):
@@ -254,15 +262,18 @@ def _links_set(claim, values, intervals):
             "falls": S.C.falls_with_links([E(v, lo, hi) for v, (lo, hi) in zip(values, intervals)])}
 
 
-FLAT = ([0.03, 0.035, 0.03, 0.035], [(0.02, 0.04)] * 4)
+FLAT = ([0.03, 0.035, 0.03, 0.035], [(0.02, 0.04)] * 4)  # overlapping intervals: the trend is undecided
+RISING = ([0.03, 0.035, 0.04, 0.05], [(0.028, 0.032), (0.033, 0.037), (0.038, 0.042), (0.048, 0.052)])  # fails
 FALLING = ([0.009, 0.003, 0.0007, 0.001], [(0.007, 0.011), (0.002, 0.004), (0.0004, 0.0009), (0.0008, 0.0012)])
 
 
-@pytest.mark.parametrize("guided_x, alone, shown", [(FALLING, FLAT, True), (FLAT, FLAT, False),
-                                                    (FALLING, FALLING, False)])
+@pytest.mark.parametrize("guided_x, alone, shown", [(FALLING, RISING, True), (RISING, RISING, False),
+                                                    (FALLING, FALLING, False), (FALLING, FLAT, None),
+                                                    (FLAT, RISING, None)])
 def test_links_explanation_needs_both_changes_and_neither_alone(guided_x, alone, shown):
-    sets = {"links": _links_set("links", *FLAT), "links-x": _links_set("links-x", *alone),
-            "links-guided": _links_set("links-guided", *FLAT), "links-guided-x": _links_set("links-guided-x", *guided_x)}
+    sets = {"links": _links_set("links", *RISING), "links-x": _links_set("links-x", *alone),
+            "links-guided": _links_set("links-guided", *RISING),
+            "links-guided-x": _links_set("links-guided-x", *guided_x)}
     for e in links.EXPLANATIONS:  # the two amplitude rules' claims: one cause
         assert e.check({"links_sets": sets})[0] is shown
     del sets["links-x"]
@@ -275,5 +286,6 @@ def test_the_link_number_criterion_is_judged_on_the_intervals():
                               (0.001, 0.0008, 0.0012))]) is True  # the last step: a point rise inside the intervals
     assert f([E(*v) for v in ((0.009, 0.007, 0.011), (0.003, 0.002, 0.004), (0.0007, 0.0004, 0.0009),
                               (0.002, 0.0015, 0.0025))]) is False  # a rise beyond the intervals
-    assert f([E(*v) for v in ((0.04, 0.03, 0.05), (0.035, 0.028, 0.045))]) is False  # no significant overall fall
+    assert f([E(*v) for v in ((0.04, 0.03, 0.05), (0.035, 0.028, 0.045))]) is None  # overlapping: undecided
+    assert f([E(*v) for v in ((0.04, 0.03, 0.05), (0.08, 0.06, 0.1))]) is False  # wholly above: fails
     assert f([E(0.04), E(0.01)]) is None

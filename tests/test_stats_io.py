@@ -51,7 +51,8 @@ def test_rms_and_estimate_judgement():
     assert stats.Estimate(1.0, 0.2, 0.7, 1.3).inside(0.8, 1.2) is None
     assert stats.Estimate(2.0, 0.1, 1.8, 2.2).inside(0.8, 1.2) is False
     d = stats.Estimate(1.0, 0.05, 0.9, 1.1, 7, "t").to_dict()
-    assert d == {"value": 1.0, "stderr": 0.05, "ci95": [0.9, 1.1], "n": 7, "method": "t"}
+    assert d == {"value": 1.0, "stderr": 0.05, "ci95": [0.9, 1.1], "n": 7, "method": "t",
+                 "level": 0.95}
     assert stats.Estimate.from_dict(d) == stats.Estimate(1.0, 0.05, 0.9, 1.1, 7, "t")
 
 

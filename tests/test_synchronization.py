@@ -76,6 +76,7 @@ def test_synchronization_studies_in_quick_mode_give_every_claim_a_verdict(tmp_pa
     run_study(name, tmp_path, quick=True)
     doc = json.loads((tmp_path / f"{name}.json").read_text())
     assert doc["n_failed"] == 0
-    # phase-interaction: "no result" where H is zero at every held dphi (nothing to predict)
-    allowed = ("holds", "fails", "no result") if name == "phase-interaction" else ("holds", "fails")
+    # phase-interaction: "no result" where H is zero at every held dphi (nothing to predict); an interval
+    # criterion (the contact-force ratio) may be undecided when its interval straddles the bound
+    allowed = ("holds", "fails", "undecided") + (("no result",) if name == "phase-interaction" else ())
     assert doc["claims"] and all(r["verdict"] in allowed for r in doc["claims"]), doc["claims"]

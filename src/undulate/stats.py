@@ -216,14 +216,19 @@ class Check:
     @classmethod
     def apart(cls, a: Estimate, b: Estimate, what: str) -> Check:
         """``a > b`` judged on both intervals: True when ``a``'s lies wholly above ``b``'s, False when
-        wholly below, None when they overlap (``what`` names the comparison)."""
+        wholly below, None when they overlap (``what`` names the comparison; ``runs_needed``: the runs
+        at which the two facing half-widths, shrinking as 1/sqrt(n), would fit between the values)."""
         if not (a.has_interval and b.has_interval):
             return cls(None, f"{what}: no interval")
         if a.low > b.high:
             return cls(True, f"{what}: [{_g(a.low)}, {_g(a.high)}] above [{_g(b.low)}, {_g(b.high)}]")
         if a.high < b.low:
             return cls(False, f"{what}: [{_g(a.low)}, {_g(a.high)}] below [{_g(b.low)}, {_g(b.high)}]")
-        return cls(None, f"{what}: [{_g(a.low)}, {_g(a.high)}] overlaps [{_g(b.low)}, {_g(b.high)}]")
+        gap = abs(a.value - b.value)
+        half = (a.value - a.low) + (b.high - b.value) if a.value >= b.value else (a.high - a.value) + (b.value - b.low)
+        n = min(a.n, b.n)
+        needed = int(math.ceil(n * (half / gap) ** 2)) if n > 0 and gap > 0 and math.isfinite(half) else None
+        return cls(None, f"{what}: [{_g(a.low)}, {_g(a.high)}] overlaps [{_g(b.low)}, {_g(b.high)}]", needed)
 
 
 def _runs_needed(e: Estimate, bound: float) -> int | None:

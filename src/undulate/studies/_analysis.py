@@ -30,6 +30,7 @@ from ._runners import BODY_LENGTH_M, PERIOD_S
 __all__ = [
     "FALLS_RULE",
     "falls_with_links",
+    "falls_with_links_checks",
     "STEADY_TOL",
     "STEADY_WINDOW",
     "STEADY_RULE",
@@ -57,6 +58,7 @@ __all__ = [
     "GROUP_SLOPE_TOL",
     "GROUP_RMS_TOL",
     "group_follows_line",
+    "group_follows_line_checks",
 ]
 
 GROUP_DRAWS = {True: 8, False: 40}
@@ -367,22 +369,47 @@ def rms(values: Sequence[float] | np.ndarray) -> stats.Estimate:
 
 
 FALLS_RULE = ("the RMS residual rises at no step in N beyond its uncertainty (no 95 % interval lies wholly above "
-              "the previous N's) and its 95 % interval at the largest N lies wholly below that at N = 3")
+              "the previous N's) and its 95 % interval at the largest N lies wholly below that at N = 3 "
+              "(fails on a rise beyond the intervals or a largest-N interval wholly above N = 3's; undecided "
+              "when the largest N's interval overlaps N = 3's)")
 """The link-number criterion ("the error falls as links are added"), judged on the intervals."""
 
 
-def falls_with_links(rms_by_n: Sequence[stats.Estimate]) -> bool | None:
-    """:data:`FALLS_RULE` on RMS residuals in increasing N (None if one has no interval).
+def falls_with_links_checks(rms_by_n: Sequence[stats.Estimate], n_links: Sequence[int] | None = None
+                            ) -> list[stats.Check]:
+    """:data:`FALLS_RULE` on RMS residuals in increasing N, one :class:`~undulate.stats.Check` per criterion.
 
-    A step counts as a rise only when its interval lies wholly above the previous one's: a
-    point value 0.0003 lambda higher inside overlapping intervals (the 0.5 mm floor that
-    recoil-free smooth bodies reach at N = 7 and 9) is no evidence that the error grows.
-    The overall fall must be beyond the intervals (last wholly below first)."""
+    One check per step (never undecided: a step is a rise only when its interval lies wholly above the
+    previous one's, so a point value 0.0003 lambda higher inside overlapping intervals -- the 0.5 mm
+    floor that recoil-free smooth bodies reach at N = 7 and 9 -- is no evidence that the error grows),
+    and one for the overall fall (:meth:`~undulate.stats.Check.apart`: the largest N's interval wholly
+    below the first's holds, wholly above fails, overlapping is undecided).  ``n_links`` labels the
+    steps (default 1, 2, ...).  A step or the overall fall without an interval is undecided."""
+    seq = list(rms_by_n)
+    ns = list(n_links) if n_links is not None else list(range(1, len(seq) + 1))
+    checks = []
+    for (na, a), (nb, b) in zip(zip(ns, seq), zip(ns[1:], seq[1:])):
+        what = f"RMS at N = {na} -> {nb}"
+        if not (a.has_interval and b.has_interval):
+            checks.append(stats.Check(None, f"{what}: no interval"))
+        elif b.low > a.high:
+            checks.append(stats.Check.exact(False, f"{what}: [{b.low:.3g}, {b.high:.3g}] wholly above "
+                                                   f"[{a.low:.3g}, {a.high:.3g}] (a rise)"))
+        else:
+            checks.append(stats.Check.exact(True, f"{what}: no rise beyond the intervals"))
+    if len(seq) >= 2:
+        checks.append(stats.Check.apart(seq[0], seq[-1], f"RMS at N = {ns[0]} above N = {ns[-1]}"))
+    return checks
+
+
+def falls_with_links(rms_by_n: Sequence[stats.Estimate]) -> bool | None:
+    """:data:`FALLS_RULE` on RMS residuals in increasing N: True holds, False fails, None undecided
+    (the first and last intervals overlap) or no verdict (fewer than two, or one without an interval).
+    :func:`falls_with_links_checks` decided by :func:`undulate.stats.decide`."""
     seq = list(rms_by_n)
     if len(seq) < 2 or not all(r.has_interval for r in seq):
         return None
-    no_rise = all(not (b.low > a.high) for a, b in zip(seq, seq[1:]))
-    return bool(no_rise and seq[-1].high < seq[0].low)
+    return stats.decide(falls_with_links_checks(seq))
 
 
 def group_records(traj: xr.Dataset, amplitude_m: float) -> list[dict]:
@@ -424,11 +451,21 @@ def sweep_runs(sweep: xr.Dataset):
         yield None if bool(r["run_failed"]) else r
 
 
+def group_follows_line_checks(slope: stats.Estimate, rms: stats.Estimate,
+                              pair_rms: stats.Estimate) -> list[stats.Check]:
+    """The groups claim's criterion on 95 % intervals, as three :class:`~undulate.stats.Check` objects:
+    the slope within 1 +- :data:`GROUP_SLOPE_TOL`, the RMS residual below :data:`GROUP_RMS_TOL` and
+    wholly above the reference pairs' ``pair_rms`` (more scatter; overlapping intervals leave it
+    undecided)."""
+    return [slope.within(1 - GROUP_SLOPE_TOL, 1 + GROUP_SLOPE_TOL, "slope"),
+            rms.below(GROUP_RMS_TOL, "RMS residual (lambda)"),
+            stats.Check.apart(rms, pair_rms, "RMS residual vs the pairs' (lambda)")]
+
+
 def group_follows_line(slope: stats.Estimate, rms: stats.Estimate, pair_rms: stats.Estimate) -> bool | None:
-    """The groups claim's criterion on 95 % intervals: the slope within 1 +- :data:`GROUP_SLOPE_TOL`,
-    the RMS residual below :data:`GROUP_RMS_TOL` and wholly above the reference pairs' ``pair_rms``
-    (more scatter); None when an interval is missing."""
+    """:func:`group_follows_line_checks` decided (:func:`undulate.stats.decide`): True holds, False
+    fails, None undecided (an interval straddles its bound, or the RMS intervals overlap) or an
+    interval is missing."""
     if not (slope.has_interval and rms.has_interval and pair_rms.has_interval):
         return None
-    return bool(slope.inside(1 - GROUP_SLOPE_TOL, 1 + GROUP_SLOPE_TOL) is True
-                and rms.high < GROUP_RMS_TOL and rms.low > pair_rms.high)
+    return stats.decide(group_follows_line_checks(slope, rms, pair_rms))

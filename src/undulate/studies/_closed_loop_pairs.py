@@ -98,6 +98,14 @@ def pair_plan(quick: bool) -> dict[str, Any]:
             "duration_s": PAIR_DURATION_S if quick else 2 * PAIR_DURATION_S}
 
 
+def pair_stages(quick: bool) -> tuple[dict[str, Any], ...]:
+    """:func:`pair_plan` in looks (:mod:`._stages`): quick 6, 12 initial phase differences; full 6, 12, 24."""
+    from ._stages import thinned
+
+    p = pair_plan(quick)
+    return tuple({**p, "dphi0_rad": list(d)} for d in thinned(p["dphi0_rad"], (2, 1) if quick else (4, 2, 1)))
+
+
 def closed_loop_pairs_sweep(dphi0_rad: Sequence[float], duration_s: float, seed: int) -> tuple[Callable, Grid]:
     """``(fn, grid)`` of the closed-loop pairs (batched: ``ctx.shared_sweep(..., batched=True)``):
     :func:`pair_runs` for each controller, positions held and free, from each initial phase

@@ -20,6 +20,16 @@ quarter of the step to 1e-3 (docs/timestep.md).
 Summary per rule and N: RMS distance of the steady dx from the nearest
 compatibility branch (paper: it falls as links are added), the slope, and
 how many runs were steady.
+
+Outliers are findings (:mod:`undulate.studies._outliers`): where one N's RMS
+interval is more than :data:`~undulate.studies._outliers.WIDTH_FACTOR` times
+as wide as the median of the other N's, the summary names the runs that
+widen it (|residual| beyond the group's median + 3 MAD) and why: still
+drifting, on another compatible branch, or in another steady state (and
+then which: end to end, side by side inside the band, side by side pressed
+outside it).  Runs that settled on another branch than their start's are
+listed for every N (they do not widen the interval: the residual is taken
+from the nearest branch).
 """
 
 from __future__ import annotations
@@ -36,7 +46,9 @@ from .. import stats
 from ..sweep import Grid
 from ._criteria import PAIR_CHANNEL_M
 from . import _analysis as C
+from . import _outliers as O
 from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._stages import strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
 
 N_LINKS = (3, 5, 7, 9)
@@ -107,6 +119,8 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray) -
     if dx_t is None:
         dx_t = np.full(failed.shape + time.shape, np.nan)
     beta = np.array([[joint_amplitude(r, n) for n in N_LINKS] for r in RULES])
+    extent = sim["extent_x"].isel(replicate=0).mean("swimmer").values.reshape(nr, nn, nd)
+    extent = np.where(failed, np.nan, extent)
     return xr.Dataset(
         {
             **variables,
@@ -115,6 +129,8 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray) -
                                                                   "reflection)"}),
             "amplitude": (("rule", "n_links"), A, {"units": "m", "long_name": "gait amplitude A of a free "
                                                                            "swimmer"}),
+            "extent_x": (dims, extent, {"units": "m", "long_name": "head-to-tail extent along x of a swimmer "
+                                                                 "(mean of the two) at the end of the run"}),
             "joint_amplitude": (("rule", "n_links"), beta, {"units": "rad", "long_name": "joint amplitude beta"}),
             "timestep": ("n_links", [timestep(n) for n in N_LINKS], {"units": "s",
                                                                      "long_name": "integrator time step"}),
@@ -142,7 +158,9 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray) -
 
 
 def summary(ds: xr.Dataset) -> dict:
-    """Pure: per rule and N, the RMS residual (bootstrap interval) and the slope (standard error)."""
+    """Pure: per rule and N, the RMS residual (bootstrap interval), the slope (standard error) and the
+    outlier findings (:data:`OUTLIER_RULE`; per N ``wide_interval``, ``outliers``,
+    ``runs_on_another_branch``; per rule ``outlier_note``)."""
     lam = float(ds.attrs["wavelength_m"])
     dphi = ds["dphi"].values
     open_ = np.abs(dphi) < np.pi - 1e-9
@@ -170,10 +188,13 @@ def summary(ds: xr.Dataset) -> dict:
                 "n_steady": int(d["steady"].values[ok].sum()),
                 "max_penetration_m": float(np.nanmax(d["penetration_max"].values)) if ok.any() else None,
             }
+        note = _find_outliers(ds.sel(rule=rule), rows)
         falls = C.falls_with_links([E(rows[k]["rms_residual_over_lambda"]) for k in sorted(rows, key=int)])
         per_rule[str(rule)] = {
             "per_n": rows,
-            "rms_falls_with_n": falls,  # the claim's criterion (C.FALLS_RULE); None without intervals
+            # the claim's criterion (C.FALLS_RULE): True holds, False fails, None undecided or no interval
+            "rms_falls_with_n": falls,
+            "outlier_note": note,  # None when no N's interval is wide
         }
     ok = ~ds["run_failed"].values
     return {
@@ -189,10 +210,133 @@ def summary(ds: xr.Dataset) -> dict:
                     "point between branches)",
         "steady_rule": C.STEADY_RULE,
         "slope_method": C.SLOPE_METHOD,
+        "outlier_rule": OUTLIER_RULE,
     }
 
 
 E = stats.Estimate.from_dict
+
+END_TO_END = 0.75
+"""A pair lies end to end (in line, not side by side) when its steady |dx| is at least this fraction of a
+body's extent along x: the bodies overlap along less than a quarter of their length."""
+IN_BAND_OVER_LAMBDA = 1e-3
+"""A steady state lies inside the full compatibility band when its band excess is below this (lambda)."""
+OUTLIER_RULE = (
+    f"an N's RMS interval is wide when its width exceeds {O.WIDTH_FACTOR:g} x the median width of the "
+    f"other N's; its outlying runs have |residual| above the N's median + {O.MAD_K:g} x {O.MAD_SCALE} MAD; "
+    f"each is 'still drifting' (not steady, or settled only within the last {C.STEADY_WINDOW + 1} periods "
+    "of its run), 'another compatible branch' (steady, nearest a branch other than the one(s) nearest "
+    "the start dx0 = 0) or 'another steady state' (steady, off every branch: end to end when "
+    f"|dx| >= {END_TO_END:g} x the body's extent, else side by side inside or outside the full "
+    "compatibility band); 'runs_on_another_branch' lists, for every N, the runs that settled on another "
+    "branch than their start's (they do not widen the interval: the residual is taken from the nearest "
+    "branch)")
+
+
+def _run_end_s(dx_t: np.ndarray, time: np.ndarray) -> float:
+    """Time of the last finite sample of a run's dx(t) (runs stopped once steady end early), s."""
+    fin = np.flatnonzero(np.isfinite(dx_t))
+    return float(time[fin[-1]]) if fin.size else math.nan
+
+
+def _arrangement(dx_m: float, dy_m: float, extent_m: float, excess: float, force: float) -> tuple[str, str]:
+    """``(arrangement, description)`` of one steady state off the branches."""
+    if math.isfinite(extent_m) and extent_m > 0 and abs(dx_m) >= END_TO_END * extent_m:
+        return "end to end", (f"end to end (in line): |dx| = {abs(dx_m) / extent_m:.2f} of the body's extent, "
+                              f"dy = {dy_m * 1e3:.0f} mm, mean contact force {force:.2g} N: the bodies do not "
+                              "lie side by side, so compatibility does not constrain them")
+    if math.isfinite(excess) and excess <= IN_BAND_OVER_LAMBDA:
+        return "side by side, in band", (f"side by side inside the full compatibility band at dy = "
+                                         f"{dy_m * 1e3:.0f} mm (the lateral offset lets a phase mismatch pass)")
+    return "side by side, pressed", (f"side by side {excess:.3f} lambda outside the compatibility band at dy = "
+                                     f"{dy_m * 1e3:.0f} mm, pressed (mean contact force {force:.2g} N)")
+
+
+def _outlier_runs(d: xr.Dataset, lam: float) -> tuple[list[dict], float]:
+    """The runs of one N that widen its interval, each with its cause (:data:`OUTLIER_RULE`)."""
+    res = d["residual_over_lambda"].values
+    mask, thr = O.outlying(res)
+    other = O.branch_changes(d["dx_steady_over_lambda"].values, d["dphi"].values)
+    time = d["time"].values
+    out = []
+    for j in np.flatnonzero(mask):
+        r = d.isel(dphi=j)
+        steady, settle = bool(r["steady"]), float(r["settle_time"])
+        end = _run_end_s(r["dx"].values, time)
+        drifting = not steady or not (settle <= end - (C.STEADY_WINDOW + 1) * C.PERIOD_S)
+        cls = O.classify(drifting, bool(other[j]))
+        arr, text = _arrangement(float(r["dx_steady"]), float(r["dy_steady"]), float(r["extent_x"]),
+                                 float(r["band_excess"]) / lam, float(r["contact_force_mean"]))
+        if cls == O.DRIFTING:
+            text = f"not settled by {end:g} s (steady: {steady}, settle time {settle:g} s)"
+        elif cls == O.OTHER_BRANCH:
+            text = f"settled nearest branch n = {int(O.nearest_branch(r['dx_steady_over_lambda'], r['dphi']))}"
+        out.append({"dphi_rad": float(r["dphi"]), "dphi_over_pi": float(r["dphi"]) / math.pi,
+                    "residual_over_lambda": float(res[j]), "dx_steady_over_lambda": float(r["dx_steady_over_lambda"]),
+                    "class": cls, "arrangement": arr, "why": text, "steady": steady, "settle_time_s": settle,
+                    "run_end_s": end})
+    return out, thr
+
+
+def _branch_changes(d: xr.Dataset) -> list[dict]:
+    dxl, dphi = d["dx_steady_over_lambda"].values, d["dphi"].values
+    n = O.nearest_branch(dxl, dphi)
+    return [{"dphi_rad": float(dphi[j]), "dphi_over_pi": float(dphi[j]) / math.pi,
+             "dx_steady_over_lambda": float(dxl[j]), "branch": int(n[j]),
+             "start_branches": list(O.start_branches(dphi[j]))}
+            for j in np.flatnonzero(O.branch_changes(dxl, dphi))]
+
+
+def _find_outliers(dr: xr.Dataset, rows: dict[str, dict]) -> str | None:
+    """Fill ``rows`` (one rule's per-N summary) with the outlier findings; return the rule's note."""
+    lam = float(dr.attrs["wavelength_m"])
+    widths = {}
+    for k, row in rows.items():
+        lo, hi = row["rms_residual_over_lambda"]["ci95"]
+        widths[k] = hi - lo if lo is not None and hi is not None else math.nan
+    ratios = O.width_ratios(widths)
+    notes = []
+    for k, row in rows.items():
+        wide = bool(ratios[k] > O.WIDTH_FACTOR)
+        d = dr.sel(n_links=int(k))
+        runs, thr = _outlier_runs(d, lam) if wide else ([], math.nan)
+        row.update({"rms_interval_width": widths[k] if math.isfinite(widths[k]) else None,
+                    "width_over_others_median": ratios[k] if math.isfinite(ratios[k]) else None,
+                    "wide_interval": wide, "outlier_threshold_over_lambda": thr if math.isfinite(thr) else None,
+                    "outliers": runs, "runs_on_another_branch": _branch_changes(d)})
+        if wide:
+            notes.append(_note(k, ratios[k], runs))
+    return "; ".join(notes) or None
+
+
+def _note(n: str, ratio: float, runs: list[dict]) -> str:
+    head = f"N = {n}'s RMS interval is {ratio:.1f} x the other N's median width"
+    if not runs:
+        return head + f": no single run stands out (median + {O.MAD_K:g} MAD)"
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in runs:
+        groups.setdefault((r["class"], r["arrangement"] if r["class"] == O.OTHER_STATE else ""), []).append(r)
+    parts = []
+    for (cls, arr), rs in groups.items():
+        where = ", ".join(f"{r['dphi_over_pi']:+.3g} pi (residual {r['residual_over_lambda']:+.3f})" for r in rs)
+        parts.append(f"{cls}{' (' + arr + ')' if arr else ''} at dphi = {where}")
+    return f"{head}: {len(runs)} run(s) differ -- " + "; ".join(parts)
+
+
+def _brief_outliers(per_n: dict[str, dict]) -> str:
+    """``"; outliers: N = 7, 2 runs: another steady state (end to end) at dphi = -1, +1 pi"`` for the N
+    whose interval is wide (:func:`_find_outliers`); empty when none is (or the summary has no findings)."""
+    parts = []
+    for n, row in per_n.items():
+        runs = row.get("outliers") or []
+        if not row.get("wide_interval"):
+            continue
+        kinds = dict.fromkeys(f"{r['class']}" + (f" ({r['arrangement']})" if r["class"] == O.OTHER_STATE else "")
+                              for r in runs)
+        at = ", ".join(f"{r['dphi_over_pi']:+.3g}" for r in runs)
+        parts.append(f"N = {n}, {len(runs)} run(s): {', '.join(kinds)} at dphi = {at} pi" if runs
+                     else f"N = {n}: wide interval, no single run stands out")
+    return "; outliers: " + "; ".join(parts) if parts else ""
 
 
 def _falls(rule: str) -> Callable[[dict], Verdict]:
@@ -204,7 +348,8 @@ def _falls(rule: str) -> Callable[[dict], Verdict]:
         value = {n: per_n[n]["rms_residual_over_lambda"] for n in ns}
         if not all(r.has_interval for r in rms):
             return Verdict.none("an RMS residual without an interval (too few runs with a result)", measured, value)
-        return Verdict.judged(C.falls_with_links(rms), measured, value)
+        measured += _brief_outliers(per_n)  # a finding, not part of the criterion
+        return Verdict.of(C.falls_with_links_checks(rms, [int(n) for n in ns]), measured, value)
     return judge
 
 
@@ -223,7 +368,12 @@ def figure(ds: xr.Dataset):
     return plot_links(ds)
 
 
+def stages(quick: bool) -> tuple[Plan, ...]:
+    """The plan in looks (:mod:`._stages`): quick 5, 9 dphi; full 9, 17, 33."""
+    return tuple(Plan(d) for d in thinned(plan(quick).dphi_rad, strides(quick)))
+
+
 register(Study(
-    name="links", paper_figure="5", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    name="links", paper_figure="5", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
     description="Pairs of N = 3, 5, 7, 9-link swimmers at xi = 1 (d = 0.13 m): steady dx/lambda vs "
                 "dphi with the compatibility line, and the RMS error per N (two joint-amplitude rules)."))

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from .. import stats
-from ._closed_loop_pairs import _tail_circmean, closed_loop_pairs_sweep, pair_plan
+from ._closed_loop_pairs import _tail_circmean, closed_loop_pairs_sweep, pair_plan, pair_stages
 from ._shared import h_probe_phases, h_probe_sweep
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._criteria import PAIR_CHANNEL_M
@@ -59,6 +59,14 @@ def plan(quick: bool) -> dict[str, Any]:
     duration: 12 x 60 s quick, 24 x 120 s full, each ending once locked); H on the probe's grid."""
     pairs = pair_plan(quick)
     return {"dphi0_rad": pairs["dphi0_rad"], "duration_s": pairs["duration_s"], "dphi_rad": h_probe_phases(quick)}
+
+
+def stages(quick: bool) -> tuple[dict[str, Any], ...]:
+    """The looks of ``synchronization-pairs``' closed-loop pairs (:func:`._closed_loop_pairs.pair_stages`),
+    each judged against H on the probe's whole grid."""
+    h = h_probe_phases(quick)
+    return tuple({"dphi0_rad": p["dphi0_rad"], "duration_s": p["duration_s"], "dphi_rad": h}
+                 for p in pair_stages(quick))
 
 
 def dataset(ctx: StudyContext, p: dict[str, Any]):
@@ -128,6 +136,14 @@ def summary(ds) -> dict[str, Any]:
     return out
 
 
+def _zero_text(z: dict[str, Any]) -> str:
+    """A stable zero in degrees, its interval shifted by the turn that puts it around the zero (the zero is
+    wrapped into (-180, 180], its interval is not: a zero near pi may carry an interval beyond 180)."""
+    lo, hi = z["ci95"]
+    turn = 2 * np.pi * round(((lo + hi) / 2 - z["zero_rad"]) / (2 * np.pi))
+    return f"{math.degrees(z['zero_rad']):.0f} deg [{math.degrees(lo - turn):.0f}, {math.degrees(hi - turn):.0f}]"
+
+
 def _predicts(c: str, cond: str):
     def judge(s: dict) -> Verdict:
         v = s["per_controller"][c][cond]
@@ -137,12 +153,15 @@ def _predicts(c: str, cond: str):
         if v["all_neutral"]:
             return Verdict.none("H is zero within its interval at every dphi (no contact once the held-phase "
                                 "pair has settled): nothing to predict")
-        zs = ", ".join(f"{math.degrees(z['zero_rad']):.0f} deg [{math.degrees(z['ci95'][0]):.0f}, "
-                       f"{math.degrees(z['ci95'][1]):.0f}]" for z in v["stable_zeros"]) or "none"
-        return Verdict.judged(k >= PREDICTED_FRACTION * n,
-                              f"{k}/{n} runs end at a state H predicts ({v['n_locked']} locked, the rest judged by the "
-                              f"direction of their drift; stable zeros {zs}; "
-                              f"{len(v['neutral_bins'])} neutral bins)", {"predicted": k, "n_runs": n})
+        zs = ", ".join(_zero_text(z) for z in v["stable_zeros"]) or "none"
+        locked = [abs(r) < DRIFT_RAD_S for r in v["drift_rad_s"]]
+        k_locked = sum(p for p, lk in zip(v["predicted"], locked) if lk)
+        n_locked = sum(locked)
+        return Verdict.of(
+            [stats.Check.exact(k >= PREDICTED_FRACTION * n, f"{k}/{n} runs predicted")],
+            f"{k}/{n} runs end at a state H predicts: {k_locked}/{n_locked} locked runs at a stable zero or in a "
+            f"neutral bin, {k - k_locked}/{n - n_locked} still drifting the way H points (stable zeros {zs}; "
+            f"{len(v['neutral_bins'])}/{len(v['bins'])} bins neutral)", {"predicted": k, "n_runs": n})
     return judge
 
 
@@ -162,6 +181,6 @@ def _plot(ds):
 
 
 register(Study(
-    name="phase-interaction", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=_plot, reference="prx2021",
+    name="phase-interaction", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS, figure=_plot, reference="prx2021",
     description="Phase-interaction function H(dphi) = <d dphi/dt> of closed-loop pairs measured from contact "
                 "(held and free positions, each controller), its stable zeros against the runs' final states."))

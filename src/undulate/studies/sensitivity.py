@@ -66,10 +66,14 @@ by :data:`._runners.PAIR_STOP` (as the studies they vary do), except the
   is recorded) changes what the two-period window measures.
 
 The summary's ``table`` has one row per (factor, level, claim): the verdict
-by that claim's own criterion and its key number with the 95 % interval.
+by that claim's own criterion and its key number with the 95 % interval
+(``holds``, ``fails`` when an interval lies wholly outside its region,
+``undecided`` when one straddles a bound, ``no result`` only where a number
+is missing; each entry's ``*_verdict`` beside its True / False / None).
 ``EXPLANATIONS`` state the causes of failing claims that these runs
 demonstrate (:class:`~._registry.Explanation`; :mod:`undulate.claims`
-marks such a claim ``explained`` only when the check is true): one module
+marks such a claim ``explained`` only when the check is true; None when a
+condition it rests on is undecided): one module
 per cause in :mod:`._explanations`, each reading the summary's results by
 typed case id (:class:`~._sensitivity_design.CaseId`; every pair case's
 entry, group case, body width and impulse drag carries its ``case_id``).
@@ -98,7 +102,7 @@ from . import _analysis as C
 from ._criteria import CENTRAL, LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M, R2_MIN, WIDTH_TOL
 from ._explanations import EXPLANATIONS
 from ._gaits import equal_amplitude_beta
-from ._registry import Study, StudyContext, register
+from ._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, Study, StudyContext, register
 from ._runners import BODY_LENGTH_M, PAIR_STOP, PERIOD_S, group_point, pair_point
 from ._sensitivity_design import (  # noqa: F401 - the study's constants, re-exported
     BETA_DEG, CONFINEMENT_S, DEFAULT_BODY_M, DEFAULT_S, DURATIONS_S, FLUID_DENSITIES, IMPULSE_DRAG_DEFAULT,
@@ -516,11 +520,26 @@ def _line(y, dphi) -> dict[str, Any]:
     return {"slope": fit.slope, "rms": C.rms(res)}
 
 
+def line_checks(slope: stats.Estimate, rms: stats.Estimate) -> list[stats.Check]:
+    """The pairs study's criterion as :class:`~undulate.stats.Check` s: the slope's interval within
+    1 +- LINE_SLOPE_TOL, the RMS residual's below LINE_RMS_TOL lambda."""
+    return [slope.within(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL, "slope"),
+            rms.below(LINE_RMS_TOL, "RMS residual (lambda)")]
+
+
 def follows_line(slope: stats.Estimate, rms: stats.Estimate) -> bool | None:
-    """The pairs study's criterion on the intervals (None without intervals)."""
+    """The pairs study's criterion on the intervals: True when both lie inside their regions, False when
+    one lies wholly outside, None when one straddles a bound -- or when one has no interval
+    (:func:`line_verdict` tells the two apart, as the pairs study does)."""
     if not (slope.has_interval and rms.has_interval):
         return None
-    return slope.inside(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL) is True and rms.high < LINE_RMS_TOL
+    return stats.decide(line_checks(slope, rms))
+
+
+def line_verdict(slope: stats.Estimate, rms: stats.Estimate) -> str:
+    """:func:`follows_line` as a verdict: ``no result`` without both intervals, else holds / fails /
+    undecided."""
+    return _verdict(follows_line(slope, rms), missing=not (slope.has_interval and rms.has_interval))
 
 
 LINK_SETS = {
@@ -538,8 +557,12 @@ CLAIM_LABELS = {"xi1": "xi = 1 pairs follow the line", "xi32": "xi = 3/2 pairs f
                 "swim": "swimming pairs follow the line"}
 
 
-def _verdict(ok: bool | None) -> str:
-    return "no result" if ok is None else ("holds" if ok else "fails")
+def _verdict(ok: bool | None, missing: bool) -> str:
+    """A table verdict: ``no result`` only where a number (an interval) is ``missing``; else ``ok`` True
+    holds, False fails, None undecided (an interval straddles a bound of its region)."""
+    if missing:
+        return NO_RESULT
+    return HOLDS if ok is True else FAILS if ok is False else UNDECIDED
 
 
 def central_width(dx_final) -> float:
@@ -578,11 +601,12 @@ def _summary_cases(ds: xr.Dataset) -> tuple[dict[str, dict], list[dict]]:
                  "rms_residual_over_lambda": fit["rms"].to_dict(),
                  "rms_residual_over_lambda_open_interval": C.rms(c["residual_over_lambda"].values[open_]).to_dict(),
                  "n_runs": int(np.isfinite(y).sum()), "n_steady": int(c["steady"].values.sum()),
-                 "follows_line": follows_line(fit["slope"], fit["rms"])}
+                 "follows_line": follows_line(fit["slope"], fit["rms"]),
+                 "follows_line_verdict": line_verdict(fit["slope"], fit["rms"])}
         cases[f"{claim}: {factor}: {level}"] = entry
         if cid.case_set.value not in LINK_SETS:
             table.append({"claim": CLAIM_LABELS[claim], "factor": factor, "level": level,
-                          "verdict": _verdict(entry["follows_line"]),
+                          "verdict": entry["follows_line_verdict"],
                           "key number": f"slope {fit['slope']:.2f}, RMS {fit['rms']:.3f} lambda, "
                                         f"{entry['n_steady']}/{entry['n_runs']} steady"})
     return cases, table
@@ -605,12 +629,14 @@ def _summary_link_sets(cases: dict[str, dict]) -> tuple[dict[str, dict], list[di
                "rms_residual_over_lambda": [r.to_dict() for r in rms],
                "rms_residual_over_lambda_open_interval": [r.to_dict() for r in rms_open],
                "falls": C.falls_with_links(rms), "falls_open_interval": C.falls_with_links(rms_open)}
+        out["falls_verdict"] = _verdict(out["falls"], missing=_no_trend(rms))
+        out["falls_open_interval_verdict"] = _verdict(out["falls_open_interval"], missing=_no_trend(rms_open))
         link_sets[claim] = out
-        rows = (((label + " (all dphi)"), rms, out["falls"]),) + (
-            ((label + ", dphi = +-pi left out"), rms_open, out["falls_open_interval"]),) * (claim == "links")
-        for lab, seq, ok in rows:
+        rows = (((label + " (all dphi)"), rms, out["falls_verdict"]),) + (
+            ((label + ", dphi = +-pi left out"), rms_open, out["falls_open_interval_verdict"]),) * (claim == "links")
+        for lab, seq, verdict in rows:
             table.append({"claim": "error falls as links are added", "factor": links[0]["factor"],
-                          "level": lab, "verdict": _verdict(ok),
+                          "level": lab, "verdict": verdict,
                           "key number": "RMS / lambda at N = " + ", ".join(
                               f"{e['n_links']}: {r:.4f}" for e, r in zip(links, seq))
                           + ("" if claim in ("links", "links-guided") else "; lambda_x / L " + ", ".join(
@@ -618,10 +644,20 @@ def _summary_link_sets(cases: dict[str, dict]) -> tuple[dict[str, dict], list[di
     return link_sets, table
 
 
-def _linear(idphi, impulse) -> tuple[stats.LineFit, bool | None]:
-    """The potential study's criterion: the impulse's line fit against |dphi| and whether it is linear."""
+def _no_trend(rms_by_n) -> bool:
+    """No link-number trend can be judged: fewer than two N, or an RMS without an interval."""
+    seq = list(rms_by_n)
+    return len(seq) < 2 or not all(r.has_interval for r in seq)
+
+
+def _linear(idphi, impulse) -> tuple[stats.LineFit, bool | None, str]:
+    """The potential study's criterion: the impulse's line fit against |dphi|, whether it is linear (the
+    R^2 interval above R2_MIN and the slope's above 0: True, False when one lies wholly outside, None when
+    one straddles or has no interval) and the verdict (``no result`` only without the intervals)."""
     f = stats.line_fit(np.abs(idphi), impulse)
-    return f, None if not f.r2.has_interval else bool(f.r2.low >= R2_MIN and f.slope.low > 0)
+    missing = not (f.r2.has_interval and f.slope.has_interval)
+    ok = None if missing else stats.decide([f.r2.above(R2_MIN, "R^2"), f.slope.above(0.0, "slope")])
+    return f, ok, _verdict(ok, missing)
 
 
 def _summary_impulse(ds: xr.Dataset) -> tuple[dict[str, Any], list[dict]]:
@@ -631,27 +667,29 @@ def _summary_impulse(ds: xr.Dataset) -> tuple[dict[str, Any], list[dict]]:
     pot, table = {}, []
     for label, use in (("all dphi (default)", np.ones(idphi.shape, bool)),
                        ("dphi = +-pi left out", np.abs(idphi) < np.pi - 1e-9)):
-        f, ok = _linear(idphi[use], imp[use])
-        pot[label] = {"slope_Ns_per_rad": f.slope.to_dict(), "r2": f.r2.to_dict(), "linear": ok}
+        f, ok, verdict = _linear(idphi[use], imp[use])
+        pot[label] = {"slope_Ns_per_rad": f.slope.to_dict(), "r2": f.r2.to_dict(), "linear": ok,
+                      "linear_verdict": verdict}
         table.append({"claim": "impulse over 2 periods linear in |dphi|", "factor": "dphi = +-pi",
-                      "level": label, "verdict": _verdict(ok),
+                      "level": label, "verdict": verdict,
                       "key number": f"a = {f.slope:.3g} N s/rad, R^2 = {f.r2:.2f}"})
     pot_drag = []
     if "impulse_drag" in ds.sizes:
         big = np.abs(idphi) >= np.pi / 2 - 1e-9
         for k, c in enumerate(ds["impulse_drag"].values):
             allv = ds["impulse_drag_all"].values[k]
-            f, ok = _linear(idphi, np.nanmean(allv, axis=1))
+            f, ok, verdict = _linear(idphi, np.nanmean(allv, axis=1))
             with np.errstate(invalid="ignore", divide="ignore"):
                 spread = float(np.nanmedian((np.nanmax(allv, 1) / np.nanmin(allv, 1))[big]))
             esc = float(np.nanmean(ds["impulse_drag_escape"].values[k][big]))
             pot_drag.append({"case_id": str(impulse_case(float(c))), "drag_N_s_per_m": float(c),
                              "default": bool(c == IMPULSE_DRAG_DEFAULT),
                              "slope_Ns_per_rad": f.slope.to_dict(), "r2": f.r2.to_dict(), "linear": ok,
+                             "linear_verdict": verdict,
                              "phi0_spread_large_dphi": spread, "first_period_dx_large_dphi": esc})
             table.append({"claim": "impulse over 2 periods linear in |dphi|", "factor": "drag (impulse runs)",
                           "level": f"{c:g} N s/m per link" + (" (default)" if c == IMPULSE_DRAG_DEFAULT else ""),
-                          "verdict": _verdict(ok),
+                          "verdict": verdict,
                           "key number": f"R^2 = {f.r2:.2f}; |dphi| >= pi/2: first-period |dx| {esc:.3f} lambda, "
                                         f"phi0 max/min {spread:.1f}"})
     pot["by_drag"] = pot_drag
@@ -680,13 +718,13 @@ def _summary_confinement(ds: xr.Dataset) -> tuple[dict[str, dict], list[dict]]:
         wtxt = ", ".join(f"{r:.2f}: {x:.3f}" for r, x in zip(v["d_over_2A"], v["central_width_over_lambda"]))
         table.append({"claim": "central state broadens over d/2A 0.6-1.2", "factor": "body width w",
                       "level": f"w = {key}" + (" (default)" if key == w0 else ""),
-                      "verdict": _verdict(v["broadens_centreline_A"]),
+                      "verdict": _verdict(v["broadens_centreline_A"], missing=v["broadens_centreline_A"] is None),
                       "key number": f"width/lambda at d/2A = {wtxt}; model opens at d/2A = "
                                     f"{v['model_opening_d_over_2A']:.2f}"})
     v = conf[w0]
     table.append({"claim": "central state broadens over d/2A 0.6-1.2", "factor": "definition of A",
                   "level": "edge amplitude A + w/2 (default: centre line A)",
-                  "verdict": _verdict(v["broadens_edge_A"]),
+                  "verdict": _verdict(v["broadens_edge_A"], missing=v["broadens_edge_A"] is None),
                   "key number": "width/lambda at d/2(A + w/2) = " + ", ".join(
                       f"{r:.2f}: {x:.3f}" for r, x in zip(v["d_over_2A_edge"], v["central_width_over_lambda"]))})
     return conf, table
@@ -721,9 +759,11 @@ def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
                  "median_dy_m": float(np.median(c["group_dy"].values[ok])) if ok.any() else math.nan,
                  "fraction_inside_band": float(np.mean(c["group_band_excess"].values[ok] == 0)) if ok.any() else math.nan,
                  "fraction_short_of_line": float(np.mean(np.abs(dx) < np.abs(dphi) / (2 * np.pi))) if ok.any() else math.nan,
-                 "follows_line_more_scatter": None}
+                 "follows_line_more_scatter": None, "follows_line_more_scatter_verdict": NO_RESULT}
         if size > 2 and ref_rms is not None:
-            entry["follows_line_more_scatter"] = C.group_follows_line(fit.slope, rms, ref_rms)
+            entry["follows_line_more_scatter"] = ok = C.group_follows_line(fit.slope, rms, ref_rms)
+            entry["follows_line_more_scatter_verdict"] = _verdict(ok, missing=not (
+                fit.slope.has_interval and rms.has_interval and ref_rms.has_interval))
         out[f"{size} in {w:g} m"] = entry
     return out
 
@@ -733,7 +773,7 @@ def _group_table(groups: dict[str, dict]) -> list[dict]:
     return [{"claim": f"groups of {g['group_size']} follow the line, more scatter",
              "factor": "neighbour spacing (channel width)",
              "level": f"d = {g['channel_width_m']:g} m" + (" (default)" if g["default"] else ": the pairs' spacing"),
-             "verdict": _verdict(g["follows_line_more_scatter"]),
+             "verdict": g["follows_line_more_scatter_verdict"],
              "key number": f"slope {stats.Estimate.from_dict(g['slope']):.2f}, RMS "
                            f"{stats.Estimate.from_dict(g['rms_residual_over_lambda']):.3f} lambda, "
                            f"neighbour spacing {g['median_dy_m'] * 1000:.1f} mm"}
@@ -768,8 +808,23 @@ def figure(ds: xr.Dataset):
     return plot_sensitivity(ds, summary(ds))
 
 
+def stages(quick: bool) -> tuple[Plan, ...]:
+    """The plan in looks, in step with the studies whose runs it shares (groups, potential): the pair
+    phases, the groups' phases and draws and the impulse grid thinned (:mod:`._stages`)."""
+    import dataclasses
+
+    from ._stages import strides, thinned
+
+    p, s = plan(quick), strides(quick)
+    return tuple(dataclasses.replace(p, dphi_rad=d, group_dphi_rad=g, group_draws=max(1, p.group_draws // k),
+                                     impulse_dphi_rad=i, impulse_phi0_rad=f)
+                 for k, d, g, i, f in zip(s, thinned(p.dphi_rad, (2, 1) if quick else (2, 1, 1)),
+                                          thinned(p.group_dphi_rad, s), thinned(p.impulse_dphi_rad, s),
+                                          thinned(p.impulse_phi0_rad, s)))
+
+
 register(Study(
-    name="sensitivity", plan=plan, dataset=dataset, summary=summary, claims=(), explanations=EXPLANATIONS,
+    name="sensitivity", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=(), explanations=EXPLANATIONS,
     figure=figure,
     description="Model sensitivity: the xi = 1 and xi = 3/2 pair claims, the link-number trend and the "
                 "confinement claim against servo, contact, drag, duration, steady rule, dphi = +-pi, links per "

@@ -51,7 +51,7 @@ from ..stopping import PhaseStop
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS, PAIR_COUPLING, _label
 from ._closed_loop_pairs import (LOCK_TOL_RAD, PAIR_DURATION_S, PAIR_SYNC_STOP, RECORD, TAIL_S,  # noqa: F401
-                                 _tail_circmean, closed_loop_pairs_sweep, pair_plan, pair_run, pair_runs)
+                                 _tail_circmean, closed_loop_pairs_sweep, pair_plan, pair_run, pair_runs, pair_stages)
 from ._shared import h_probe_phases, h_probe_sweep
 from ._points import SyncPoint
 from ._runners import _in_batches, _padded, _simulate_stopped_batch, _stop_vars
@@ -164,6 +164,12 @@ def group_plan(quick: bool) -> dict[str, Any]:
             "replicates": 2 if quick else 4, "duration_s": PAIR_DURATION_S if quick else 2 * PAIR_DURATION_S}
 
 
+def group_stages(quick: bool) -> tuple[dict[str, Any], ...]:
+    """:func:`group_plan` in looks: more replicates per look (quick 1, 2; full 1, 2, 4)."""
+    p = group_plan(quick)
+    return tuple({**p, "replicates": r} for r in ((1, 2) if quick else (1, 2, 4)))
+
+
 def _fraction(mask: np.ndarray, of: np.ndarray) -> tuple[int, int]:
     return int((mask & of).sum()), int(of.sum())
 
@@ -177,20 +183,33 @@ def _held_lock(c: str):
         ni, nc = v["held_synchronized"], v["held_colliding"]
         if nc == 0:
             return Verdict.none("no held run collided", value=v)
-        return Verdict.judged(ni == nc, f"{ni}/{nc} colliding held runs end within {math.degrees(SYNC_TOL_RAD):.0f} "
-                              f"deg of 0 or pi (in phase {v['held_in_phase']}, anti-phase {v['held_anti_phase']})",
-                              {"synchronized": ni, "colliding": nc})
+        tol = f"{math.degrees(SYNC_TOL_RAD):.0f} deg"
+        quiet = v["n_held"] - nc
+        measured = (f"{ni}/{nc} colliding held runs end within {tol} of 0 or pi (in phase "
+                    f"{v['held_colliding_in_phase']}, anti-phase {v['held_colliding_anti_phase']})")
+        if quiet:  # counted apart: in phase without ever touching is not synchronization through contact
+            measured += (f"; the {quiet} held runs that never collided: in phase "
+                         f"{v['held_in_phase'] - v['held_colliding_in_phase']}, "
+                         f"anti-phase {v['held_anti_phase'] - v['held_colliding_anti_phase']}")
+        return Verdict.of([stats.Check.exact(ni == nc, f"{ni}/{nc} colliding held runs synchronized")], measured,
+                          {"synchronized": ni, "colliding": nc, "in_phase": v["held_colliding_in_phase"],
+                           "anti_phase": v["held_colliding_anti_phase"]})
     return judge
 
 
 def _anti_phase_disappears(c: str):
     def judge(s: dict) -> Verdict:
         v = s["per_controller"][c]
-        ha, fa = v["held_anti_phase"], v["free_anti_phase"]
-        measured = (f"anti-phase finals: held {ha}, free {fa}" if ha else
-                    f"no held run locked anti-phase (free: {fa}): the premise fails in this model")
-        return Verdict.judged(fa < ha, measured, {"held_anti_phase": ha, "free_anti_phase": fa})
+        ha, fa, nh, nf = v["held_anti_phase"], v["free_anti_phase"], v["n_held"], v["n_free"]
+        measured = (f"runs ending within {math.degrees(SYNC_TOL_RAD):.0f} deg of pi: held {ha}/{nh}, free {fa}/{nf}"
+                    if ha else f"no held run ends anti-phase (0/{nh}; free: {fa}/{nf}): the premise fails in this model")
+        return Verdict.of([stats.Check.exact(fa < ha, f"free {fa} < held {ha} anti-phase runs")], measured,
+                          {"held_anti_phase": ha, "free_anti_phase": fa, "n_held": nh, "n_free": nf})
     return judge
+
+
+FORCE_RATIO_MAX = 0.5
+"""Claim: the median last/first contact-force ratio over colliding runs lies below this."""
 
 
 def _force_drops(c: str):
@@ -198,10 +217,11 @@ def _force_drops(c: str):
         r = E(s["per_controller"][c]["force_ratio"])
         if not r.finite:
             return Verdict.none("no run collided", value=r.to_dict())
-        measured = f"median last/first-{TAIL_S:g}-s contact force over colliding runs {r:.2f}"
+        measured = (f"median last/first-{TAIL_S:g}-s contact force over {r.n} colliding runs (held and free) "
+                    f"{r:.2f}")
         if not r.has_interval:
             return Verdict.none("fewer than 3 colliding runs (no interval for the median)", measured, r.to_dict())
-        return Verdict.judged(r.high < 0.5, measured, r.to_dict())
+        return Verdict.of([r.below(FORCE_RATIO_MAX, "median contact-force ratio")], measured, r.to_dict())
     return judge
 
 
@@ -215,7 +235,8 @@ PAIR_CLAIMS = tuple(claim for c in CONTROLLERS for claim in (
     Claim(f"{c}: synchronization sharply reduces the interaction force",
           "PRX 2021: synchronization dramatically reduces interaction forces",
           "the 95 % interval (bootstrap) of the median last/first contact-force ratio over colliding runs "
-          "lies below 0.5", _force_drops(c)),
+          f"lies below {FORCE_RATIO_MAX} (fails if it lies wholly above; undecided if it straddles it)",
+          _force_drops(c)),
 ))
 
 
@@ -225,7 +246,7 @@ def _groups_end_both(c: str):
         n, both, locked, compat = v["n_runs"], v["both"], v["phase_locked"], v["compatible"]
         if n == 0:
             return Verdict.none("no group run has a result")
-        return Verdict.judged(both > n / 2, (
+        return Verdict.of([stats.Check.exact(both > n / 2, f"{both}/{n} runs both")], (
             f"{both}/{n} runs both, {locked}/{n} phase-locked, {compat}/{n} compatible (RMS < {COMPAT_TOL} lambda); "
             f"median final R {v['median_R_final']:.2f}; collective {v['median_collective_frequency_hz']:.3f} Hz vs "
             f"free {v['free_frequency_hz']:.3f} Hz"), {"both": both, "n_runs": n})
@@ -240,7 +261,7 @@ def _groups_as_predicted(c: str):
             return Verdict.none("no group run has a result")
         k = hf["neighbour_predicted_and_compatible"]
         zs = ", ".join(f"{math.degrees(z['zero_rad']):.0f} deg" for z in hf["stable_zeros"]) or "none"
-        return Verdict.judged(k >= 0.8 * n, (
+        return Verdict.of([stats.Check.exact(k >= 0.8 * n, f"{k}/{n} neighbour pairs")], (
             f"{k}/{n} neighbour pairs end where both landscapes predict (H with positions free: stable zeros {zs}, "
             f"{len(hf['neutral_bins'])}/{len(hf['bins'])} grid points neutral; {hf['neighbour_predicted']}/{n} at a "
             f"state H predicts, {v['neighbour_compatible']}/{n} on a compatible branch within {COMPAT_TOL} lambda)"),
@@ -275,13 +296,18 @@ def pair_summary(ds) -> dict[str, Any]:
         in_phase = np.abs(final) < SYNC_TOL_RAD
         anti = np.abs(final) > np.pi - SYNC_TOL_RAD
         hsel = np.broadcast_to(held[:, None], final.shape)
+        done = np.isfinite(final)  # a failed run has no final phase difference
         ratio = fe[collide] / fs[collide]
         se, lo, hi = stats.bootstrap(_median, ratio)
         out["per_controller"][str(c)] = {
             "force_ratio": stats.Estimate(_median(ratio), se, lo, hi, int(ratio.size),
                                           "median, bootstrap percentile").to_dict(),
-            "held_colliding": int((collide & hsel).sum()),
+            "n_held": int((done & hsel).sum()),
+            "n_free": int((done & ~hsel).sum()),
+            "held_colliding": int((collide & done & hsel).sum()),
             "held_synchronized": int(((in_phase | anti) & collide & hsel).sum()),
+            "held_colliding_in_phase": int((in_phase & collide & hsel).sum()),
+            "held_colliding_anti_phase": int((anti & collide & hsel).sum()),
             "held_in_phase": int((in_phase & hsel).sum()),
             "held_anti_phase": int((anti & hsel).sum()),
             "free_anti_phase": int((anti & ~hsel).sum()),
@@ -376,13 +402,13 @@ def _plot_groups(ds):
 
 
 register(Study(
-    name="synchronization-pairs", plan=pair_plan, dataset=pair_dataset, summary=pair_summary, claims=PAIR_CLAIMS, reference="prx2021",
+    name="synchronization-pairs", plan=pair_plan, stages=pair_stages, dataset=pair_dataset, summary=pair_summary, claims=PAIR_CLAIMS, reference="prx2021",
     figure=_plot_pairs,
     description="Closed-loop pairs (self-oscillating; phase oscillator with load feedback; relay) in the "
                 "d = 0.13 m channel, positions held vs free: final phase difference, time to lock, "
                 "contact force before and after (PRX 2021's three claims)."))
 register(Study(
-    name="synchronization-groups", plan=group_plan, dataset=group_dataset, summary=group_summary,
+    name="synchronization-groups", plan=group_plan, stages=group_stages, dataset=group_dataset, summary=group_summary,
     claims=GROUP_CLAIMS, figure=_plot_groups, reference="prx2021",
     description="3-10 closed-loop swimmers, phases and positions free: order parameter R(t), time to "
                 "lock, whether the final state is phase-locked, position-compatible, or both, and where the "

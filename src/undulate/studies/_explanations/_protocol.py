@@ -11,15 +11,23 @@ measured, value)``.  :class:`CaseExplanation` is an
 :mod:`undulate.claims` use it unchanged; its ``check(summary)`` runs ``judge``
 on the summary's results keyed by case id.
 
+``shown`` is three-valued, like a claim's verdict: True only when every
+condition the cause needs is decided in its favour, False when one is decided
+against it, None otherwise (an interval a condition rests on straddles its
+bound, or has no interval yet): combine conditions with :func:`all_of` and
+:func:`negate`, and name each case's state in the text with :func:`state_word`.
+
 Naming a case the sensitivity study never makes fails when the module is
 imported, and reading an undeclared case fails when the check runs
 (:class:`UnknownCaseError`); a declared case missing from a summary (a plan
-without it) reads as None, and the judge reports the cause as not shown.
+without it) reads as None, and the judge reports the cause as not shown
+(False: this plan has no runs that could show it).
 """
 
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
@@ -27,10 +35,43 @@ from typing import Any
 from .._registry import Explanation
 from .._sensitivity_design import CaseId, CaseSet, UnknownCaseError, known_cases
 
-__all__ = ["CaseExplanation", "CaseResults", "Shown", "results_by_case"]
+__all__ = ["CaseExplanation", "CaseResults", "Shown", "results_by_case", "all_of", "negate", "number", "state_word"]
 
-Shown = tuple[bool, str, Any]
-"""What a check returns: whether the runs show the cause, the evidence as text, and as numbers."""
+Shown = tuple[bool | None, str, Any]
+"""What a check returns: whether the runs show the cause (True), refute it (False) or leave it undecided
+(None), the evidence as text, and as numbers."""
+
+
+def all_of(*conditions: bool | None) -> bool | None:
+    """Three-valued AND of an explanation's conditions: False if one is decided against the cause, else
+    None if one is undecided (or has no number), else True."""
+    states = [None if c is None else bool(c) for c in conditions]
+    if False in states:
+        return False
+    if None in states:
+        return None
+    return True
+
+
+def negate(condition: bool | None) -> bool | None:
+    """Three-valued NOT: "the criterion fails" from whether it holds (None stays None)."""
+    return None if condition is None else not bool(condition)
+
+
+def number(value: Any) -> float:
+    """A summary number as a float; NaN where it is missing (None after a JSON round trip, NaN)."""
+    try:
+        return float(value)
+    except (TypeError, ValueError):
+        return math.nan
+
+
+def state_word(state: bool | None, verdict: str | None = None) -> str:
+    """A criterion's state in words: its ``verdict`` when the summary gives one (``no result`` where a
+    number is missing), else holds / fails / undecided."""
+    if verdict:
+        return verdict
+    return "holds" if state is True else "fails" if state is False else "undecided"
 
 
 def _entries(summary: dict[str, Any]) -> Iterator[dict[str, Any]]:

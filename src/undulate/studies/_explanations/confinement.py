@@ -6,7 +6,7 @@ import numpy as np
 
 from .._criteria import WIDTH_TOL
 from .._sensitivity_design import DEFAULT_BODY_M, PAPER_RANGE_HIGH, THIN_BODY_M, confinement_case
-from ._protocol import CaseExplanation, CaseResults, Shown
+from ._protocol import CaseExplanation, CaseResults, Shown, all_of, negate, state_word
 
 DEFAULT_WIDTH = confinement_case(DEFAULT_BODY_M)
 THIN = confinement_case(THIN_BODY_M)
@@ -18,18 +18,21 @@ def _widths(e: dict) -> str:
 
 def judge(r: CaseResults) -> Shown:
     """Shown: with the default width the central state stays closed within d/2A <= 1.2, opens beyond the
-    model's opening (which lies above 1.2), and with thin bodies (only w changed) it broadens in range."""
+    model's opening (which lies above 1.2), and with thin bodies (only w changed) it broadens in range.
+    The widths are point values (no intervals): undecided only where a broadening has no width to judge."""
     d, thin = r.get(DEFAULT_WIDTH), r.get(THIN)
     if d is None or thin is None:
         return False, "no confinement runs at the default and the thin body width", None
-    txt = (f"default w: opens past d/2A = {d['model_opening_d_over_2A']:.2f} (model), widths {_widths(d)}"
-           f"; w = {thin['body_width_m'] * 1000:g} mm (only w changed): widths {_widths(thin)}")
+    bd, bt = d["broadens_centreline_A"], thin["broadens_centreline_A"]
+    txt = (f"default w: opens past d/2A = {d['model_opening_d_over_2A']:.2f} (model), widths {_widths(d)} "
+           f"(broadens: {state_word(bd, 'no result' if bd is None else None)})"
+           f"; w = {thin['body_width_m'] * 1000:g} mm (only w changed): widths {_widths(thin)} "
+           f"(broadens: {state_word(bt, 'no result' if bt is None else None)})")
     w_d = np.asarray(d["central_width_over_lambda"], float)
     ratio = np.asarray(d["d_over_2A"], float)
     closed_in_range = bool(np.all(w_d[ratio <= PAPER_RANGE_HIGH + 1e-9] <= WIDTH_TOL))
     open_beyond = bool(np.any(w_d[ratio > d["model_opening_d_over_2A"]] > WIDTH_TOL))
-    shown = (d["broadens_centreline_A"] is False and closed_in_range and open_beyond
-             and d["model_opening_d_over_2A"] > PAPER_RANGE_HIGH and thin["broadens_centreline_A"] is True)
+    shown = all_of(negate(bd), closed_in_range, open_beyond, d["model_opening_d_over_2A"] > PAPER_RANGE_HIGH, bt)
     return shown, txt, {"default_closed_in_range": closed_in_range, "default_open_beyond_model": open_beyond,
                         "thin_broadens": thin["broadens_centreline_A"]}
 

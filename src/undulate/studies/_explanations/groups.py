@@ -2,10 +2,12 @@
 
 from __future__ import annotations
 
+import math
+
 from ... import stats
 from .._criteria import GROUP_CHANNEL_M, PAIR_CHANNEL_M
 from .._sensitivity_design import group_case, spaced_channel_m
-from ._protocol import CaseExplanation, CaseResults, Shown
+from ._protocol import CaseExplanation, CaseResults, Shown, all_of, negate, number, state_word
 
 REFERENCE_PAIRS = group_case(2, PAIR_CHANNEL_M)
 
@@ -26,20 +28,23 @@ def _text(e: dict) -> str:
     return (f"d = {e['channel_width_m']:g} m: slope {E(e['slope']):.2f}, RMS {E(e['rms_residual_over_lambda']):.3f} "
             f"lambda, neighbour spacing {e['median_dy_m'] * 1000:.1f} mm, "
             f"{e['fraction_short_of_line'] * 100:.0f} % short of the line, "
-            f"{e['fraction_inside_band'] * 100:.0f} % inside the contact-free band")
+            f"{e['fraction_inside_band'] * 100:.0f} % inside the contact-free band "
+            f"(groups criterion: {state_word(e['follows_line_more_scatter'], e.get('follows_line_more_scatter_verdict'))})")
 
 
 def judge(size: int, r: CaseResults) -> Shown:
     """Shown: groups of ``size`` fail the groups criterion in the groups study's channel with most
-    neighbours short of the line, and meet it in the channel that gives them the pairs' spacing."""
+    neighbours short of the line, and meet it in the channel that gives them the pairs' spacing; undecided
+    while either criterion straddles (or has no interval)."""
     ref, dflt, spaced = (r.get(c) for c in cases(size))
     if ref is None or dflt is None or spaced is None:
         return False, f"no groups of {size} in this plan", None
     E = stats.Estimate.from_dict
     measured = (f"{_text(dflt)}; {_text(spaced)} (same phases); pairs in 0.13 m: RMS "
                 f"{E(ref['rms_residual_over_lambda']):.3f} lambda, spacing {ref['median_dy_m'] * 1000:.1f} mm")
-    shown = (dflt["follows_line_more_scatter"] is False and dflt["fraction_short_of_line"] > 0.5
-             and spaced["follows_line_more_scatter"] is True)
+    short = number(dflt["fraction_short_of_line"])
+    shown = all_of(negate(dflt["follows_line_more_scatter"]), None if not math.isfinite(short) else short > 0.5,
+                   spaced["follows_line_more_scatter"])
     return shown, measured, {"default": dflt["follows_line_more_scatter"],
                              "pairs_spacing": spaced["follows_line_more_scatter"],
                              "default_fraction_short": dflt["fraction_short_of_line"]}

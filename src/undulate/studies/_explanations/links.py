@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ... import stats
 from .._sensitivity_design import CaseId, CaseSet, Plan
-from ._protocol import CaseExplanation, CaseResults, Shown
+from ._protocol import CaseExplanation, CaseResults, Shown, all_of, negate, state_word
 
 LINK_SETS = (CaseSet.LINKS, CaseSet.LINKS_X, CaseSet.LINKS_GUIDED, CaseSet.LINKS_GUIDED_X)
 """The four link-number sets, each over the plan's N: equal-A with lambda = L and lambda_x; the same with
@@ -28,12 +28,14 @@ CAUSE = (
 def _text(entry: dict) -> str:
     E = stats.Estimate.from_dict
     return (f"{entry['label']}: RMS / lambda " + ", ".join(f"{E(r):.4f}" for r in entry["rms_residual_over_lambda"])
-            + " at N = " + ", ".join(str(n) for n in entry["n_links"]))
+            + " at N = " + ", ".join(str(n) for n in entry["n_links"])
+            + f" (falls: {state_word(entry['falls'], entry.get('falls_verdict'))})")
 
 
 def judge(r: CaseResults) -> Shown:
     """Shown: the trend appears when the bodies are what the compatibility model assumes (no recoil,
-    lambda the wavelength along the channel), and neither change alone makes it appear."""
+    lambda the wavelength along the channel), and neither change alone makes it appear; undecided while
+    one of the four trends is (overlapping intervals, or one missing)."""
     sets = {s: r.link_set(s) for s in LINK_SETS}
     if any(v is None for v in sets.values()):
         return False, "not every link-number set (equal-A; lambda = L and lambda_x; recoil and none) in this plan", None
@@ -42,8 +44,8 @@ def judge(r: CaseResults) -> Shown:
                 + ", ".join(f"{a * 1000:.1f}" for a in guided["amplitude_m"]) + " mm with the recoil removed; "
                 "lambda_x / L " + ", ".join(f"{v:.3f}" for v in guided_x["wavelength_over_L"]) + ")")
     falls = {s.value: v["falls"] for s, v in sets.items()}
-    shown = (falls["links-guided-x"] is True and falls["links"] is False and falls["links-x"] is False
-             and falls["links-guided"] is False)
+    shown = all_of(falls["links-guided-x"], negate(falls["links"]), negate(falls["links-x"]),
+                   negate(falls["links-guided"]))
     return shown, measured, falls
 
 

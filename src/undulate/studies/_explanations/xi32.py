@@ -4,21 +4,22 @@ from __future__ import annotations
 
 from ... import stats
 from .._sensitivity_design import DEFAULT_S, CaseId, CaseSet
-from ._protocol import CaseExplanation, CaseResults, Shown
+from ._protocol import CaseExplanation, CaseResults, Shown, all_of, negate, state_word
 
 N3 = CaseId.of(CaseSet.XI32, n_links=3, duration_s=DEFAULT_S)
 N8 = CaseId.of(CaseSet.XI32, n_links=8, duration_s=DEFAULT_S)
 
 
 def judge(r: CaseResults) -> Shown:
-    """Shown: the pairs criterion fails at N = 3 and holds at N = 8 (30 s, only N changed)."""
+    """Shown: the pairs criterion fails at N = 3 and holds at N = 8 (30 s, only N changed); refuted when it
+    holds at N = 3 or fails at N = 8; undecided while either straddles (or has no interval)."""
     e3, e8 = r.get(N3), r.get(N8)
     if e3 is None or e8 is None:
         return False, "no N = 3 or N = 8 runs in this plan", None
     E = stats.Estimate.from_dict
     txt = "; ".join(f"N = {e['n_links']}: slope {E(e['slope']):.2f}, RMS {E(e['rms_residual_over_lambda']):.3f} "
-                    f"lambda" for e in (e3, e8))
-    shown = e3["follows_line"] is False and e8["follows_line"] is True
+                    f"lambda (criterion: {state_word(e['follows_line'], e.get('follows_line_verdict'))})" for e in (e3, e8))
+    shown = all_of(negate(e3["follows_line"]), e8["follows_line"])
     return shown, txt + " (30 s, only N changed)", {"N3": e3["follows_line"], "N8": e8["follows_line"]}
 
 

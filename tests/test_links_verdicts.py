@@ -1,0 +1,182 @@
+"""The links claim ("the error falls as links are added") is three-valued, and a wide interval is a finding.
+
+Constructed summaries give holds / fails / undecided; constructed datasets check that the outlier finder
+(:mod:`undulate.studies._outliers`, used by ``links.summary``) names the runs that widen an N's interval
+and why, and reports none where no interval is wide.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import xarray as xr
+
+from undulate import stats
+from undulate.studies import _analysis as C
+from undulate.studies import _outliers as O
+from undulate.studies import describe, links
+from undulate.studies._registry import judge
+
+LAM = 0.54
+
+
+def est(value, low, high):
+    return stats.Estimate(value, math.nan, low, high, 9, "test")
+
+
+def summary(rms, per_n_extra=None):
+    per_n = {str(n): {"rms_residual_over_lambda": est(*r).to_dict(), **(per_n_extra or {}).get(n, {})}
+             for n, r in zip((3, 5, 7, 9), rms)}
+    return {"per_rule": {"fixed": {"per_n": per_n}, "curvature": {"per_n": per_n}}}
+
+
+def rows(rms, per_n_extra=None):
+    describe("links")
+    return judge("links", links.CLAIMS, summary(rms, per_n_extra))
+
+
+FALLS = [(0.08, 0.07, 0.09), (0.06, 0.05, 0.07), (0.04, 0.03, 0.05), (0.02, 0.01, 0.03)]
+
+
+def test_holds_when_every_step_stays_and_the_last_interval_lies_below_the_first():
+    assert [r["verdict"] for r in rows(FALLS)] == ["holds", "holds"]
+    # a point rise inside overlapping intervals is no rise
+    flat_tail = FALLS[:3] + [(0.045, 0.035, 0.055)]
+    assert [r["verdict"] for r in rows(flat_tail)] == ["holds", "holds"]
+
+
+def test_fails_on_a_rise_beyond_the_intervals_or_a_last_interval_above_the_first():
+    rise = [FALLS[0], (0.03, 0.02, 0.04), (0.07, 0.06, 0.08), (0.02, 0.01, 0.03)]  # 5 -> 7 rises
+    assert [r["verdict"] for r in rows(rise)] == ["fails", "fails"]
+    creep = [(0.02, 0.015, 0.025), (0.025, 0.018, 0.03), (0.03, 0.022, 0.035), (0.035, 0.028, 0.04)]
+    assert [r["verdict"] for r in rows(creep)] == ["fails", "fails"]  # no step rises beyond, but 9 above 3
+
+
+def test_undecided_when_the_last_interval_overlaps_the_first():
+    wide = FALLS[:2] + [(0.05, 0.01, 0.09), (0.045, 0.01, 0.085)]  # falls at every step, last overlaps first
+    r = rows(wide)[0]
+    assert r["verdict"] == "undecided"
+    assert "N = 3 above N = 9" in r["reason"] and "overlaps" in r["reason"]
+    assert C.falls_with_links([est(*v) for v in wide]) is None
+    assert C.falls_with_links([est(*v) for v in FALLS]) is True
+    assert C.falls_with_links([est(0.04, math.nan, math.nan), est(0.01, 0.0, 0.02)]) is None  # no interval
+
+
+def test_the_checks_name_each_step_and_the_overall_fall():
+    checks = C.falls_with_links_checks([est(*v) for v in FALLS], [3, 5, 7, 9])
+    assert [c.text.split(":")[0] for c in checks] == ["RMS at N = 3 -> 5", "RMS at N = 5 -> 7", "RMS at N = 7 -> 9",
+                                                      "RMS at N = 3 above N = 9"]
+    assert stats.decide(checks) is True
+
+
+def test_a_missing_interval_is_no_result():
+    r = rows(FALLS[:3] + [(0.02, math.nan, math.nan)])[0]
+    assert r["verdict"] == "no result"
+
+
+def test_the_measured_text_mentions_outliers_when_an_interval_is_wide():
+    out = [{"dphi_over_pi": s, "class": O.OTHER_STATE, "arrangement": "end to end"} for s in (-1.0, 1.0)]
+    r = rows(FALLS, {7: {"wide_interval": True, "outliers": out}})[0]
+    assert "outliers: N = 7, 2 run(s): another steady state (end to end) at dphi = -1, +1 pi" in r["measured"]
+    assert "outliers" not in rows(FALLS)[0]["measured"]
+
+
+# ------------------------------------------------------------------ outlier finder on constructed data
+DPHI = np.arange(-4, 5) * (np.pi / 4)
+TIME = np.arange(0.0, 30.0 + 1e-9, 0.1)
+
+
+def dataset(residual, *, steady=None, settle=None, extent=None, excess=None, dx_shift=None) -> xr.Dataset:
+    """A links-like dataset, one rule and N = 3, 5, 7, 9: ``residual`` (4, 9) in lambda; keyword arrays
+    (4, 9) override the defaults (steady, settled at 4 s, extent 0.46 m, inside the band, no wrap)."""
+    res = np.asarray(residual, float)
+    shape = (1,) + res.shape
+    dxl = DPHI / (2 * np.pi) + res + (0 if dx_shift is None else np.asarray(dx_shift, float))
+    full = {"steady": np.ones(res.shape, bool) if steady is None else np.asarray(steady, bool),
+            "settle": np.full(res.shape, 4.0) if settle is None else np.asarray(settle, float),
+            "extent": np.full(res.shape, 0.46) if extent is None else np.asarray(extent, float),
+            "excess": np.zeros(res.shape) if excess is None else np.asarray(excess, float)}
+    dims = ("rule", "n_links", "dphi")
+    v = lambda a: (dims, np.asarray(a).reshape(shape))  # noqa: E731
+    return xr.Dataset(
+        {"residual_over_lambda": v(res), "dx_steady_over_lambda": v(dxl), "dx_steady": v(dxl * LAM),
+         "dy_steady": v(np.full(res.shape, 0.02)), "steady": v(full["steady"]), "settle_time": v(full["settle"]),
+         "steady_spread": v(np.zeros(res.shape)), "extent_x": v(full["extent"]),
+         "band_excess": v(full["excess"] * LAM), "contact_force_mean": v(np.full(res.shape, 1.0)),
+         "penetration_max": v(np.full(res.shape, 1e-4)), "run_failed": v(np.zeros(res.shape, bool)),
+         "dx": (dims + ("time",), np.broadcast_to((dxl * LAM)[None, :, :, None], shape + TIME.shape).copy()),
+         "amplitude": (("rule", "n_links"), np.full((1, 4), 0.05)),
+         "joint_amplitude": (("rule", "n_links"), np.full((1, 4), math.radians(45))),
+         "timestep": ("n_links", [2e-3, 6.7e-4, 5e-4, 4e-4])},
+        coords={"rule": ["fixed"], "n_links": [3, 5, 7, 9], "dphi": DPHI, "time": TIME},
+        attrs={"wavelength_m": LAM})
+
+
+NOISE = np.array([0.004, 0.03, -0.02, 0.025, 0.0, -0.025, 0.02, -0.03, -0.004])
+
+
+def base_residuals():
+    return np.stack([NOISE, NOISE * 1.2, NOISE, NOISE * 1.1])
+
+
+def test_a_wide_group_names_its_two_off_branch_runs_and_their_states():
+    res = base_residuals()
+    res[2, 2], res[2, 6] = -0.3, 0.3  # N = 7, dphi = -pi/2 and +pi/2: steady, off every branch
+    extent = np.full(res.shape, 0.46)
+    extent[2, 6] = 0.35  # |dx| = 0.55 lambda = 0.30 m: 0.85 of the extent, end to end
+    excess = np.zeros(res.shape)
+    excess[2, 2] = 0.1  # side by side, 0.1 lambda outside the band
+    s = links.summary(dataset(res, extent=extent, excess=excess))
+    per_n = s["per_rule"]["fixed"]["per_n"]
+    assert [per_n[n]["wide_interval"] for n in ("3", "5", "7", "9")] == [False, False, True, False]
+    found = per_n["7"]["outliers"]
+    assert [o["dphi_over_pi"] for o in found] == [-0.5, 0.5]
+    assert [o["residual_over_lambda"] for o in found] == pytest.approx([-0.3, 0.3])
+    assert {o["class"] for o in found} == {O.OTHER_STATE}
+    assert [o["arrangement"] for o in found] == ["side by side, pressed", "end to end"]
+    assert all(per_n[n]["outliers"] == [] for n in ("3", "5", "9"))
+    note = s["per_rule"]["fixed"]["outlier_note"]
+    assert note.startswith("N = 7's RMS interval is") and "2 run(s) differ" in note
+    import json
+    json.dumps(s)  # the finding is JSON-able
+
+
+def test_a_group_without_a_wide_interval_reports_no_outliers():
+    s = links.summary(dataset(base_residuals()))
+    fixed = s["per_rule"]["fixed"]
+    assert fixed["outlier_note"] is None
+    assert all(not r["wide_interval"] and r["outliers"] == [] for r in fixed["per_n"].values())
+    mask, _ = O.outlying(NOISE)
+    assert not mask.any()
+
+
+def test_a_run_still_settling_is_drifting_and_a_branch_change_is_listed():
+    res = base_residuals()
+    res[2, 2], res[2, 6] = -0.3, 0.3
+    steady = np.ones(res.shape, bool)
+    steady[2, 2] = False
+    settle = np.full(res.shape, 4.0)
+    settle[2, 6] = 24.0  # steady only over the last window of a 30 s run
+    shift = np.zeros(res.shape)
+    shift[1, 7] = -1.0  # N = 5, dphi = 3 pi/4: settled one wavelength down, on branch n = -1
+    s = links.summary(dataset(res, steady=steady, settle=settle, dx_shift=shift))
+    per_n = s["per_rule"]["fixed"]["per_n"]
+    assert [o["class"] for o in per_n["7"]["outliers"]] == [O.DRIFTING, O.DRIFTING]
+    [moved] = per_n["5"]["runs_on_another_branch"]
+    assert moved["dphi_over_pi"] == 0.75 and moved["branch"] == -1 and moved["start_branches"] == [0]
+
+
+def test_outlier_helpers():
+    assert O.width_ratios({"a": 1.0, "b": 1.0, "c": 6.0}) == {"a": pytest.approx(1 / 3.5), "b": pytest.approx(1 / 3.5),
+                                                              "c": 6.0}
+    mask, thr = O.outlying([0.01, -0.02, 0.015, 0.3, -0.01, 0.02, 0.0])
+    assert mask.tolist() == [False, False, False, True, False, False, False] and 0.02 < thr < 0.3
+    assert O.start_branches(np.pi) == (-1, 0) and O.start_branches(np.pi / 2) == (0,)
+    # dphi = pi: dx = -lambda/2 is on a start branch (a tie), dphi = 3 pi/4 at -0.625 lambda is not
+    moved = O.branch_changes([-0.5, -0.625, 0.375], [np.pi, 3 * np.pi / 4, 3 * np.pi / 4])
+    assert moved.tolist() == [False, True, False]
+    assert O.classify(True, True) == O.DRIFTING
+    assert O.classify(False, True) == O.OTHER_BRANCH
+    assert O.classify(False, False) == O.OTHER_STATE
