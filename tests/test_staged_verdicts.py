@@ -158,16 +158,32 @@ def test_a_decided_claim_stops_the_stages(tmp_path, staged, monkeypatch):
 def test_an_undecided_claim_adds_stages_and_reuses_runs(tmp_path, staged, monkeypatch):
     from undulate.studies import run_study
 
-    monkeypatch.setattr(staged, "REGION", (0.0, 5.0))  # the true mean 0 sits on the boundary
+    # first look: the interval of the mean straddles -1 with the estimate far enough from it that
+    # the cap's runs should decide it (not futile): stages are added, each computing only its new runs
+    monkeypatch.setattr(staged, "REGION", (-1.0, 5.0))
     run_study("_staged", tmp_path, workers=1, progress=False)
     doc = _doc(tmp_path, "_staged")
     looks = doc["stages"]
+    assert len(looks) >= 2
     assert [s["n_computed"] for s in looks] == [6, 6, 12][:len(looks)]  # each stage computes only its new points
     for s in looks[:-1]:
-        assert s["undecided"]  # a stage is added only while the claim is undecided
-    if doc["claims"][0]["verdict"] == UNDECIDED:
-        assert len(looks) == 3 and doc["claims"][0]["reason"]
+        assert s["undecided"]  # a stage is added only while the claim is undecided (and decidable)
     assert [s["confidence_level"] for s in looks] == list(stats.look_levels(3)[:len(looks)])
+
+
+def test_a_claim_the_cap_cannot_decide_stops_for_futility(tmp_path, staged, monkeypatch):
+    """The true mean 0 sits on the boundary: the first look's interval straddles it with the estimate so
+    near that even the cap's 4x runs would not decide it.  No stage is added; the claim stays undecided,
+    with the runs it would need (a futility stop never says holds or fails)."""
+    from undulate.studies import run_study
+
+    monkeypatch.setattr(staged, "REGION", (0.0, 5.0))
+    run_study("_staged", tmp_path, workers=1, progress=False)
+    doc = _doc(tmp_path, "_staged")
+    claim = doc["claims"][0]
+    assert claim["verdict"] == UNDECIDED and claim["runs_needed"] > 0
+    assert claim["growth_needed"] > 4
+    assert [s["stage"] for s in doc["stages"]] == [1] and doc["stages"][0]["futile"] == [claim["claim"]]
 
 
 @pytest.mark.parametrize("region", [(-2.0, 2.0), (1.5, 3.0), (-3.0, -1.2)])
@@ -186,7 +202,7 @@ _RUN = textwrap.dedent("""
     import sys
     sys.path.insert(0, {here!r})
     import staged_study
-    staged_study.REGION = (0.0, 5.0)
+    staged_study.REGION = (-1.0, 5.0)
     from undulate.studies import run_study
     run_study("_staged", {out!r}, workers=1, progress=False)
 """)

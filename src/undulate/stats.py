@@ -207,6 +207,8 @@ class Check:
     state: bool | None
     text: str
     runs_needed: int | None = None
+    growth_needed: float | None = None
+    """``runs_needed`` over the runs the interval rests on: how many times more runs would decide it."""
 
     @classmethod
     def exact(cls, ok: bool, text: str) -> Check:
@@ -227,8 +229,10 @@ class Check:
         gap = abs(a.value - b.value)
         half = (a.value - a.low) + (b.high - b.value) if a.value >= b.value else (a.high - a.value) + (b.value - b.low)
         n = min(a.n, b.n)
-        needed = int(math.ceil(n * (half / gap) ** 2)) if n > 0 and gap > 0 and math.isfinite(half) else None
-        return cls(None, f"{what}: [{_g(a.low)}, {_g(a.high)}] overlaps [{_g(b.low)}, {_g(b.high)}]", needed)
+        ok = n > 0 and gap > 0 and math.isfinite(half)
+        needed = int(math.ceil(n * (half / gap) ** 2)) if ok else None
+        return cls(None, f"{what}: [{_g(a.low)}, {_g(a.high)}] overlaps [{_g(b.low)}, {_g(b.high)}]", needed,
+                   (half / gap) ** 2 if ok else None)
 
 
 def _runs_needed(e: Estimate, bound: float) -> int | None:
@@ -256,7 +260,7 @@ def _within(e: Estimate, lo: float, hi: float, what: str) -> Check:
     needed = [_runs_needed(e, b) for b in straddled]
     n = None if None in needed or not needed else max(needed)  # type: ignore[type-var]
     bounds = " and ".join(_g(b) for b in straddled)
-    return Check(None, f"{head} straddles {bounds} (region {region})", n)
+    return Check(None, f"{head} straddles {bounds} (region {region})", n, None if n is None else n / e.n)
 
 
 def decide(checks: Sequence[Check]) -> bool | None:

@@ -140,6 +140,9 @@ class Verdict:
     value: Any = None
     reason: str = ""
     runs_needed: int | None = None
+    growth_needed: float | None = None
+    """For an undecided claim: how many times more runs its straddling interval would need
+    (``runs_needed`` over the runs it rests on; None when unknown)."""
 
     def __post_init__(self):
         if self.verdict not in VERDICTS:
@@ -161,10 +164,12 @@ class Verdict:
         open_ = [c for c in checks if c.state is None]
         needed = [c.runs_needed for c in open_]
         n = None if None in needed else max(needed)  # type: ignore[type-var]
+        growth = [c.growth_needed for c in open_]
+        g = None if None in growth else max(growth)  # type: ignore[type-var]
         reason = "; ".join(c.text for c in open_)
         if n is not None:
             reason += f" (about {n} runs would decide it)"
-        return cls(UNDECIDED, measured, value, reason, n)
+        return cls(UNDECIDED, measured, value, reason, n, g)
 
     @classmethod
     def none(cls, reason: str, measured: str = "", value: Any = None) -> Verdict:
@@ -197,7 +202,7 @@ def judge(study: str, claims: tuple[Claim, ...], summary: dict[str, Any]) -> lis
             raise UndulateError(f"claim {c.claim!r} of study {study!r} returned {type(v).__name__}, not Verdict")
         rows.append({"study": study, "claim": c.claim, "paper": c.paper, "criterion": c.criterion,
                      "measured": v.measured, "value": v.value, "verdict": v.verdict, "reason": v.reason,
-                     "runs_needed": v.runs_needed})
+                     "runs_needed": v.runs_needed, "growth_needed": v.growth_needed})
     return rows
 
 
@@ -354,6 +359,15 @@ class StudyContext:
         self.sweeps: list[dict[str, Any]] = []
         self.failures: list[str] = []
 
+    def needs_explanation(self, study: str, claim: str) -> bool:
+        """Whether an explanation of ``study``'s ``claim`` can change its verdict: True when that claim
+        fails in this output folder (``OUT/STUDY.json``), or when its verdict is not known there (the
+        explaining study run on its own).  A claim that holds, is undecided or has no result cannot be
+        ``explained`` (:mod:`undulate.claims`), so its explanation is moot: an explaining study need not
+        run for it, and it never keeps a study's stages going."""
+        verdict = _claim_verdicts(Path(self.config.out_dir), self.config).get((study, claim))
+        return verdict is None or verdict == FAILS
+
     def sweep_dir(self, part: str, folder: str | None = None) -> Path:
         """The store of sweep ``part``: ``OUT/.sweeps/FOLDER/PART-{quick|full}-seedS`` (``FOLDER``: the
         study's name unless given)."""
@@ -448,13 +462,20 @@ def _check_units(name: str, ds: xr.Dataset) -> None:
 
 def identity(name: str, config: StudyConfig) -> dict[str, Any]:
     """What a study's files depend on besides its sweeps: mode, seed, package version and
-    the hash of the study module's code (and every undulate module it imports)."""
+    the hash of the study module's code (and every undulate module it imports); for a study that
+    explains other studies' claims, also their verdicts in ``config.out_dir`` (it runs only for the
+    claims that fail: :meth:`StudyContext.needs_explanation`)."""
     from .._source import code_hash
     from ..provenance import package_version
 
     info = describe(name)
-    return {"study": name, "quick": bool(config.quick), "seed": int(config.seed),
-            "undulate_version": package_version("undulate"), "code": code_hash(info.dataset)}
+    ident = {"study": name, "quick": bool(config.quick), "seed": int(config.seed),
+             "undulate_version": package_version("undulate"), "code": code_hash(info.dataset)}
+    if info.explanations:  # which explanations it runs for depends on the verdicts it explains
+        known = _claim_verdicts(Path(config.out_dir), config)
+        ident["explains"] = [list(t) for t in sorted({(e.study, e.claim, known.get((e.study, e.claim), "unknown"))
+                                                      for e in info.explanations})]
+    return ident
 
 
 def is_current(name: str, config: StudyConfig) -> bool:
@@ -534,10 +555,44 @@ def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
     return plans
 
 
-def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]]) -> list[str]:
-    """What is still undecided after a look: claim texts and explained claims."""
-    return ([c["claim"] for c in claims if c["verdict"] == UNDECIDED]
-            + [f"explanation of {e['claim']}" for e in explanations if e["shown"] is None])
+def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], growth_left: float) -> list[str]:
+    """What another stage may still decide after a look: undecided claims, except those whose interval
+    would need more than ``growth_left`` times the runs it rests on (the mode's cap cannot decide them:
+    a futility stop, which never turns a claim into ``holds`` or ``fails``), and explanations whose claim
+    fails (the others are moot: :meth:`StudyContext.needs_explanation`)."""
+    def decidable(c: dict[str, Any]) -> bool:
+        g = c.get("growth_needed")
+        return g is None or g <= growth_left
+
+    return ([c["claim"] for c in claims if c["verdict"] == UNDECIDED and decidable(c)]
+            + [f"explanation of {e['claim']}" for e in explanations if e["shown"] is None and e["needed"]])
+
+
+def _growth_left(n_plans: int, look: int, quick: bool) -> float:
+    """How many times more runs the cap holds than look ``look`` (1-based) of ``n_plans``: the stride of
+    that look when the study's stages follow :mod:`._stages` (``n_plans`` strides), else unbounded."""
+    from ._stages import strides
+
+    s = strides(quick)
+    return float(s[look - 1]) if n_plans == len(s) else math.inf
+
+
+def _claim_verdicts(out_dir: Path, config: StudyConfig) -> dict[tuple[str, str], str]:
+    """``(study, claim) -> verdict`` of every study JSON in ``out_dir`` made in ``config``'s mode and seed."""
+    out: dict[tuple[str, str], str] = {}
+    for p in sorted(Path(out_dir).glob("*.json")):
+        try:
+            doc = json.loads(p.read_text())
+        except (OSError, ValueError):
+            continue
+        if not isinstance(doc, dict) or not isinstance(doc.get("claims"), list):
+            continue
+        cfg = doc.get("config") or {}
+        if bool(cfg.get("quick")) != bool(config.quick) or int(cfg.get("seed", 0)) != int(config.seed):
+            continue
+        for c in doc["claims"]:
+            out[(str(c.get("study")), str(c.get("claim")))] = str(c.get("verdict"))
+    return out
 
 
 def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress: bool) -> Path:
@@ -561,13 +616,16 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
                 ds = info.dataset(ctx, plan)
                 summary = info.summary(ds)
                 claims = [{**c, "reference": info.reference} for c in judge(name, info.claims, summary)]
-                explanations = explain(name, info.explanations, summary)
-            still = _open(claims, explanations)
+                explanations = [{**e, "needed": ctx.needs_explanation(e["study"], e["claim"])}
+                                for e in explain(name, info.explanations, summary)]
+            still = _open(claims, explanations, _growth_left(len(plans), k, config.quick))
             mine = ctx.sweeps[first:]
             looks.append({"stage": k, "of": len(plans), "confidence_level": level,
                           "n_runs": sum(s["n_runs"] for s in mine),
                           "n_computed": sum(s["n_computed"] for s in mine),
-                          "verdicts": {c["claim"]: c["verdict"] for c in claims}, "undecided": still})
+                          "verdicts": {c["claim"]: c["verdict"] for c in claims}, "undecided": still,
+                          "futile": [c["claim"] for c in claims
+                                     if c["verdict"] == UNDECIDED and c["claim"] not in still]})
             if not still:
                 break
     _check_units(name, ds)

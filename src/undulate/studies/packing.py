@@ -116,10 +116,11 @@ def plan(quick: bool) -> PackingPlan:
     in 0.25, where the thresholds lie; 4.5 to 6.5 in 0.5) for 5 phase draws, found by
     bisection; heatmap at 7 densities (0.5 to 6.5 in 1) for the first 2 draws: 50
     swimmers, 10 s each (about 400 runs instead of the 1235 of the whole grid; same
-    thresholds: docs/performance.md).  Quick: 4 x 5 x 2 = 40 runs of 8 s, every one."""
+    thresholds: docs/performance.md).  Quick: 4 phase spreads x 5 densities x 2 draws of 8 s, the
+    heatmap at 3 densities for the first draw, the thresholds by bisection (about 28 runs of 40)."""
     if quick:
         return PackingPlan([0.0, np.pi / 2, np.pi, 2 * np.pi], [1.5, 2.5, 3.5, 4.5, 5.5], draws=2,
-                           duration_s=8.0)
+                           duration_s=8.0, heatmap_rho=[1.5, 3.5, 5.5], heatmap_draws=1)
     rho = np.round(np.r_[0.5, np.arange(1.0, 4.01, 0.25), np.arange(4.5, 6.51, 0.5)], 10)
     return PackingPlan(np.linspace(0, 2 * np.pi, 13), rho, draws=5,
                        heatmap_rho=np.round(np.arange(0.5, 6.51, 1.0), 10), heatmap_draws=2)
@@ -759,7 +760,8 @@ def stages(quick: bool) -> tuple[PackingPlan, ...]:
     first 1, 2, 2), in full mode the phase spreads thinned too (7, 13, 13)."""
     p = plan(quick)
     if quick:
-        return tuple(PackingPlan(p.phi_max_rad, p.rho_tilde, draws=k, duration_s=p.duration_s) for k in (1, p.draws))
+        return tuple(PackingPlan(p.phi_max_rad, p.rho_tilde, draws=k, duration_s=p.duration_s, heatmap_rho=p.heatmap_rho,
+                                 heatmap_draws=1) for k in (1, p.draws))
     looks = ((p.phi_max_rad[::2], 2, 1), (p.phi_max_rad, 3, p.heatmap_draws), (p.phi_max_rad, p.draws, p.heatmap_draws))
     return tuple(PackingPlan(phi, p.rho_tilde, draws=k, duration_s=p.duration_s, heatmap_rho=p.heatmap_rho,
                              heatmap_draws=h) for phi, k, h in looks)
