@@ -102,13 +102,18 @@ def _impulse_panel(ex, ds, s: dict) -> None:
         order = np.argsort(dp, kind="stable")
         r2 = {r["drag_N_s_per_m"]: r["r2"]["value"] for r in s["impulse"].get("by_drag", [])}
         for k, c in enumerate(ds["impulse_drag"].values):
+            if not np.isfinite(ds["impulse_drag_all"].values[k]).any():  # no runs (failed, or not run)
+                continue
             m = np.nanmean(ds["impulse_drag_all"].values[k], axis=1)
             top = np.nanmax(m)
             if np.isfinite(top) and top > 0:
                 rr = r2.get(float(c))
                 ex.plot(dp[order] / np.pi, m[order] / top, "o-", ms=3,
                         label=f"{c:g} N s/m" + ("" if rr is None else f", R^2 {rr:.2f}"))
-        ex.legend(fontsize=6, title="linear drag per link", title_fontsize=6)
+        if ex.get_legend_handles_labels()[0]:
+            ex.legend(fontsize=6, title="linear drag per link", title_fontsize=6)
+        else:  # the impulse runs were not run (the claim they would explain does not fail) or all failed
+            ex.text(0.5, 0.5, "no impulse runs", ha="center", va="center", transform=ex.transAxes, fontsize=8)
     ex.set_xlabel("|dphi| / pi")
     ex.set_ylabel("impulse over 2 periods / its largest")
     ex.set_title("(e) contact impulse against detuning, by drag (default 2)", fontsize=9)

@@ -81,12 +81,26 @@ The constants, the plan and the case ids live in :mod:`._sensitivity_design`;
 the dataset is assembled one factor group at a time (the ``_data_*`` steps)
 and summarised the same way (the ``_summary_*`` steps and
 :func:`_groups_summary`).
+
+A factor group that feeds explanations runs only when one of them is needed
+(:func:`needed_groups`: the claim it explains fails in the output folder, or
+its verdict is unknown there: :meth:`~._registry.StudyContext.needs_explanation`);
+a claim that holds, is undecided or has no result cannot be ``explained``.  A
+skipped group keeps its variables and cases, filled with NaN, and runs nothing;
+the dataset's ``skipped_factor_groups`` attribute (a JSON list) names it, the
+summary's ``skipped_factor_groups`` and ``skipped_cases`` carry it on, its table
+rows read ``no result`` (:data:`NOT_RUN`) and its explanations are not judged
+(shown None, :data:`~._explanations._protocol.NOT_RUN`).  The two xi = 1 groups
+feed the table only and always run.
 """
 
 from __future__ import annotations
 
 import functools
+import json
 import math
+import warnings
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from typing import Any
 
@@ -100,16 +114,40 @@ from ..params import SwimmerGeometry
 from ..sweep import Grid
 from . import _analysis as C
 from ._criteria import CENTRAL, LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M, R2_MIN, WIDTH_TOL
-from ._explanations import EXPLANATIONS
+from ._explanations import EXPLANATIONS, results_by_case
 from ._gaits import equal_amplitude_beta
 from ._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, Study, StudyContext, register
-from ._runners import BODY_LENGTH_M, PAIR_STOP, PERIOD_S, group_point, pair_point
+from ._runners import BODY_LENGTH_M, PAIR_STOP, PERIOD_S, RECORD_HZ, group_point, pair_point
 from ._sensitivity_design import (  # noqa: F401 - the study's constants, re-exported
     BETA_DEG, CONFINEMENT_S, DEFAULT_BODY_M, DEFAULT_S, DURATIONS_S, FLUID_DENSITIES, IMPULSE_DRAG_DEFAULT,
     IMPULSE_DRAGS_N_S_PER_M, LEFT_OUT, LONG_S, MODEL_DEFAULTS, MODEL_LEVELS, PAIR_SPACING_M, PAPER_RANGE_HIGH,
     SWIM_DRAG_N_S_PER_M, SWIM_MIN_SPEED_M_S, THIN_BODY_M, WINDOWS, CaseId, CaseSet, Plan, confinement_case,
     group_case, group_cases, impulse_case, impulse_drags, pair_cases, plan, spaced_channel_m, xi32_durations)
 from ._shared import group_part, group_sweep, impulse_sweep
+
+
+FACTOR_GROUPS: dict[CaseSet, str] = {
+    CaseSet.XI32: "xi32", CaseSet.LINKS: "links", CaseSet.LINKS_X: "links", CaseSet.LINKS_GUIDED: "links",
+    CaseSet.LINKS_GUIDED_X: "links", CaseSet.CONFINEMENT: "confinement", CaseSet.GROUPS: "groups",
+    CaseSet.SWIM: "swimming", CaseSet.IMPULSE: "impulse"}
+"""The factor group (the ``_data_*`` step) that makes the cases of each case set: ``xi32``
+(:func:`_data_xi32`), ``links`` (:func:`_data_links_equal_a` and :func:`_data_links_guided`),
+``confinement``, ``groups``, ``swimming``, ``impulse``.  The xi = 1 cases (:func:`_data_xi1_model`,
+:func:`_data_xi1_windows`) feed no explanation, only the table: they always run."""
+
+SKIPPABLE_GROUPS: tuple[str, ...] = tuple(dict.fromkeys(FACTOR_GROUPS.values()))
+"""The factor groups that run only for a needed explanation, in the order the dataset makes them."""
+
+NOT_RUN = "not run (the claim it would explain does not fail)"
+"""The table's reason for the rows of a skipped factor group (verdict ``no result``)."""
+
+
+def needed_groups(needs: Callable[[str, str], bool], explanations: Iterable = EXPLANATIONS) -> frozenset[str]:
+    """The factor groups to run: those that make a case some needed explanation reads (``needs(study,
+    claim)``, e.g. :meth:`~._registry.StudyContext.needs_explanation`).  An explanation reads only the
+    cases it declares (:class:`~._explanations.CaseExplanation`), so its declared cases name its groups."""
+    return frozenset(FACTOR_GROUPS[c.case_set] for e in explanations if needs(e.study, e.claim)
+                     for c in e.cases if c.case_set in FACTOR_GROUPS)
 
 
 def _timestep(n_links: int) -> float:
@@ -169,10 +207,16 @@ class _Runs:
     p: Plan
     dphis: np.ndarray
     A3: float
+    skipped: frozenset[str] = frozenset()
+    """The factor groups not run (:func:`needed_groups`): their cases are NaN rows, made without a run."""
 
     @property
     def seed(self) -> int:
         return self.ctx.config.seed
+
+    def runs(self, group: str) -> bool:
+        """Whether factor ``group`` runs (else its steps make NaN rows and call no sweep or lone swimmer)."""
+        return group not in self.skipped
 
     def nan_rows(self) -> list[tuple]:
         return [(math.nan,) * 3] * len(self.dphis)
@@ -253,14 +297,16 @@ def _data_xi32(r: _Runs) -> list[_Case]:
     for n in r.p.xi32_links:
         durations = xi32_durations(n)
         dur = max(durations)
-        fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=dur,
-                               stop=None if dur == LONG_S else PAIR_STOP)
-        g = Grid(points=[{"waves_per_body": 1.5, "n_links": n, "timestep_s": _timestep(n), "dphi_rad": float(d)}
-                         for d in r.dphis], seed=r.seed)
-        sw = r.ctx.sweep(f"xi32-N{n}", fn, g).isel(replicate=0)
-        amp = float(r.ctx.lone_swimmer(n_links=n, waves_per_body=1.5)["amplitude_m"])
+        sw, amp = None, math.nan
+        if r.runs("xi32"):
+            fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=dur,
+                                   stop=None if dur == LONG_S else PAIR_STOP)
+            g = Grid(points=[{"waves_per_body": 1.5, "n_links": n, "timestep_s": _timestep(n),
+                              "dphi_rad": float(d)} for d in r.dphis], seed=r.seed)
+            sw = r.ctx.sweep(f"xi32-N{n}", fn, g).isel(replicate=0)
+            amp = float(r.ctx.lone_swimmer(n_links=n, waves_per_body=1.5)["amplitude_m"])
         for D in durations:
-            rows = r.steady_rows(sw, 0, BODY_LENGTH_M / 1.5, amp, cut_s=D)
+            rows = r.nan_rows() if sw is None else r.steady_rows(sw, 0, BODY_LENGTH_M / 1.5, amp, cut_s=D)
             out.append(r.case(CaseId.of(CaseSet.XI32, n_links=n, duration_s=D), "links per body N at xi = 3/2",
                               f"N = {n}, {D:g} s" + (" (default)" if n == 3 else ""), rows, default=n == 3,
                               n_links=n, amp=amp, xi=1.5))
@@ -269,7 +315,10 @@ def _data_xi32(r: _Runs) -> list[_Case]:
 
 def _equal_a_gaits(r: _Runs, heading_guide: bool) -> list[tuple[int, float, float]]:
     """``(N, beta, A)`` per N of the plan: beta at which the free N-link swimmer (with its yaw recoil
-    removed if ``heading_guide``) has the 3-link swimmer's A; the free 3-link body keeps its 45 deg."""
+    removed if ``heading_guide``) has the 3-link swimmer's A; the free 3-link body keeps its 45 deg.
+    NaN beta and A (no run) when the links group is skipped."""
+    if not r.runs("links"):
+        return [(n, math.nan, math.nan) for n in r.p.links]
     out = []
     for n in r.p.links:
         if n == 3 and not heading_guide:
@@ -286,20 +335,25 @@ def _equal_a_gaits(r: _Runs, heading_guide: bool) -> list[tuple[int, float, floa
 
 def _link_cases(r: _Runs, sweep, gaits, sets: tuple[tuple[CaseSet, str, str], ...]) -> list[_Case]:
     """Per N of ``gaits``: the case judged with lambda = L and with lambda_x (``sets``: (case set,
-    factor, level with ``{n}``) for each)."""
+    factor, level with ``{n}``) for each); NaN rows and lambda_x where ``sweep`` is None (not run)."""
     (free, f_free, l_free), (along_x, f_x, l_x) = sets
     out = []
     for i, (n, b, a) in enumerate(gaits):
         first = i * len(r.dphis)
         out.append(r.case(CaseId.of(free, n_links=n), f_free, l_free.format(n=n),
-                          r.steady_rows(sweep, first, BODY_LENGTH_M, a), n_links=n, beta=b, amp=a))
-        lx = r.wavelength_x(sweep, first)
+                          r.nan_rows() if sweep is None else r.steady_rows(sweep, first, BODY_LENGTH_M, a),
+                          n_links=n, beta=b, amp=a))
+        lx = math.nan if sweep is None else r.wavelength_x(sweep, first)
         out.append(r.case(CaseId.of(along_x, n_links=n), f_x, l_x.format(n=n),
-                          r.steady_rows(sweep, first, lx, a), n_links=n, beta=b, amp=a, lam=lx))
+                          r.nan_rows() if sweep is None else r.steady_rows(sweep, first, lx, a),
+                          n_links=n, beta=b, amp=a, lam=lx))
     return out
 
 
 def _link_sweep(r: _Runs, part: str, gaits, heading_guide: bool):
+    """The equal-A pair runs of ``gaits``, one per (N, dphi); None (no run) when the links group is skipped."""
+    if not r.runs("links"):
+        return None
     extra = {"heading_guide": True} if heading_guide else {}
     pts = [{"n_links": n, "amplitude_rad": b, "timestep_s": _timestep(n), "waves_per_body": 1.0, **extra,
             "dphi_rad": float(d)} for n, b, _ in gaits for d in r.dphis]
@@ -331,23 +385,29 @@ def _data_confinement(r: _Runs) -> tuple[dict, dict]:
     w0 = DEFAULT_BODY_M
     r_edge = round(PAPER_RANGE_HIGH * (r.A3 + w0 / 2) / r.A3, 6)
     ratios = tuple(r.p.confinement_d_over_2A) + (r_edge,)
-    fnc = functools.partial(pair_point, duration_s=CONFINEMENT_S, amplitude_m=r.A3, stop=PAIR_STOP)
-    gc = Grid(axes={"body_width_m": [w0, THIN_BODY_M], "d_over_2A": list(ratios),
-                    "dx0_over_lambda": list(r.p.confinement_starts)}, seed=r.seed)
-    conf = r.ctx.sweep("confinement", fnc, gc).isel(replicate=0)
-    conf_final = np.where(conf["run_failed"].values, np.nan, conf["dx_final_over_lambda"].values)
+    if r.runs("confinement"):
+        fnc = functools.partial(pair_point, duration_s=CONFINEMENT_S, amplitude_m=r.A3, stop=PAIR_STOP)
+        gc = Grid(axes={"body_width_m": [w0, THIN_BODY_M], "d_over_2A": list(ratios),
+                        "dx0_over_lambda": list(r.p.confinement_starts)}, seed=r.seed)
+        conf = r.ctx.sweep("confinement", fnc, gc).isel(replicate=0)
+        conf_final = np.where(conf["run_failed"].values, np.nan, conf["dx_final_over_lambda"].values)
+        time, series = conf["time"].values, conf["dx_over_lambda"].values
+    else:  # not run: NaN on the runs' axes (pair_point records at RECORD_HZ)
+        time = np.round(np.arange(int(round(CONFINEMENT_S * RECORD_HZ)) + 1) / RECORD_HZ, 12)
+        conf_final = np.full((2, len(ratios), len(r.p.confinement_starts)), np.nan)
+        series = np.full(conf_final.shape + (len(time),), np.nan)
     one = {"units": "1"}
     data = {
         "conf_dx_final_over_lambda": (("body_width", "d_over_2A", "dx0"), conf_final, {
             **one, "long_name": "confinement runs: final dx/lambda (mean of the last 3 periods)"}),
-        "conf_dx_over_lambda": (("body_width", "d_over_2A", "dx0", "time"), conf["dx_over_lambda"].values, {
+        "conf_dx_over_lambda": (("body_width", "d_over_2A", "dx0", "time"), series, {
             **one, "long_name": "confinement runs: dx/lambda over time"}),
     }
     coords = {
         "body_width": ("body_width", [w0, THIN_BODY_M], {"units": "m", "long_name": "link width w"}),
         "d_over_2A": ("d_over_2A", list(ratios), {**one, "long_name": "wall spacing over 2 A (centre-line A)"}),
         "dx0": ("dx0", list(r.p.confinement_starts), {**one, "long_name": "initial dx0/lambda"}),
-        "time": ("time", conf["time"].values, {"units": "s"}),
+        "time": ("time", time, {"units": "s"}),
     }
     return data, coords
 
@@ -365,10 +425,13 @@ _GROUP_FIELDS = {
 
 def _data_groups(r: _Runs) -> tuple[dict, dict]:
     """groups: lateral spacing of neighbours (the same phases and draws in two channels; the groups study's
-    own runs where the channel is its own); (data variables, coordinates) per neighbour pair."""
+    own runs where the channel is its own); (data variables, coordinates) per neighbour pair (all NaN when
+    the groups group is skipped)."""
     gdphis = list(r.p.group_dphi_rad)
 
     def group_runs(n: int, w: float) -> list[xr.Dataset]:
+        if not r.runs("groups"):
+            return []
         fn, grid = group_sweep(n, gdphis, r.p.group_draws, r.seed, channel_width_m=w)
         shared = w == {2: PAIR_CHANNEL_M, **C.GROUP_CHANNEL_M}[n]  # the groups study's own runs
         sw = (r.ctx.shared_sweep if shared else r.ctx.sweep)(group_part(n, w), fn, grid)
@@ -378,6 +441,9 @@ def _data_groups(r: _Runs) -> tuple[dict, dict]:
     recs = [[rec for run in group_runs(n, w) for rec in C.group_records(C.trajectory(run, BODY_LENGTH_M), r.A3)]
             for n, w, _ in cases]
     n_nb = max(1, max(len(x) for x in recs))
+    if not r.runs("groups"):  # not run: as many neighbour pairs as the runs would give (n - 1 per run)
+        n_nb = max((n - 1) * group_sweep(n, gdphis, r.p.group_draws, r.seed, channel_width_m=w)[1].n_runs
+                   for n, w, _ in cases)
     values = {f: np.full((len(cases), n_nb), np.nan) for f in _GROUP_FIELDS}
     for i, rows in enumerate(recs):
         for k, rec in enumerate(rows):
@@ -396,23 +462,32 @@ def _data_groups(r: _Runs) -> tuple[dict, dict]:
 
 def _data_swimming(r: _Runs) -> tuple[list[_Case], dict]:
     """swimming: strength of the anisotropic drag (fluid density) and the linear drag; (cases, the
-    pairs' speed at the stronger linear drag)."""
+    pairs' speed at the stronger linear drag); NaN rows when the swimming group is skipped."""
+    if not r.runs("swimming"):
+        return _swimming_cases(r, [r.nan_rows()] * len(FLUID_DENSITIES), r.nan_rows(), np.full(len(r.dphis), np.nan))
     fns = functools.partial(pair_point, duration_s=DEFAULT_S, stop=PAIR_STOP)
     gs = Grid(axes={"ground": ["swimming"], "fluid_density_kg_m3": list(FLUID_DENSITIES), "dphi_rad": list(r.dphis)},
               seed=r.seed)
     swim = r.ctx.sweep("swimming", fns, gs).isel(replicate=0, ground=0)
-    out = [r.case(CaseId.of(CaseSet.SWIM, fluid_density_kg_m3=rho), "anisotropic drag (swimming ground)",
-                  f"fluid density {rho:g} kg/m^3" + (" (default)" if k == 0 else ""),
-                  r.pair_point_rows([swim.isel(fluid_density_kg_m3=k, dphi_rad=j) for j in range(len(r.dphis))]),
-                  default=k == 0)
-           for k, rho in enumerate(FLUID_DENSITIES)]
+    by_density = [r.pair_point_rows([swim.isel(fluid_density_kg_m3=k, dphi_rad=j) for j in range(len(r.dphis))])
+                  for k in range(len(FLUID_DENSITIES))]
     gsd = Grid(points=[{"ground": "swimming", "swim_drag_N_s_per_m": SWIM_DRAG_N_S_PER_M, "dphi_rad": float(d)}
                        for d in r.dphis], seed=r.seed)
     swd = r.ctx.sweep("swimming-drag", fns, gsd).isel(replicate=0)
+    speed = np.where(swd["run_failed"].values, np.nan, swd["speed_m_s"].values)
+    return _swimming_cases(r, by_density, r.pair_point_rows([swd.isel(point=j) for j in range(len(r.dphis))]),
+                           speed)
+
+
+def _swimming_cases(r: _Runs, by_density, drag_rows, speed) -> tuple[list[_Case], dict]:
+    """The swimming cases from their rows (per fluid density; at the stronger linear drag) and the pairs'
+    speed at the stronger drag."""
+    out = [r.case(CaseId.of(CaseSet.SWIM, fluid_density_kg_m3=rho), "anisotropic drag (swimming ground)",
+                  f"fluid density {rho:g} kg/m^3" + (" (default)" if k == 0 else ""), rows, default=k == 0)
+           for k, (rho, rows) in enumerate(zip(FLUID_DENSITIES, by_density))]
     out.append(r.case(CaseId.of(CaseSet.SWIM, swim_drag_N_s_per_m=SWIM_DRAG_N_S_PER_M),
                       "linear drag of the swimming ground", f"{SWIM_DRAG_N_S_PER_M:g} N s/m per link (default 0.1)",
-                      r.pair_point_rows([swd.isel(point=j) for j in range(len(r.dphis))])))
-    speed = np.where(swd["run_failed"].values, np.nan, swd["speed_m_s"].values)
+                      drag_rows))
     return out, {"swim_drag_pair_speed": (("dphi",), speed, {
         "units": "m/s", "long_name": f"swimming pairs with {SWIM_DRAG_N_S_PER_M:g} N s/m linear drag: speed "
                                     "toward -x over the last 3 periods"})}
@@ -422,14 +497,16 @@ def _data_impulse(r: _Runs) -> tuple[dict, dict]:
     """potential: the contact impulse over the first two periods (the potential study's runs) and the same
     runs per linear drag of the ground; (data variables, coordinates)."""
     idphis, iphi0 = list(r.p.impulse_dphi_rad), list(r.p.impulse_phi0_rad)
-    imp = r.ctx.shared_sweep("impulse", *impulse_sweep(idphis, iphi0, r.seed)).isel(replicate=0)
-    impulse = np.nanmean(np.where(imp["run_failed"].values, np.nan, imp["impulse_2T_Ns"].values), axis=1)
-    impd = r.ctx.sweep("impulse-drag", *impulse_sweep(idphis, iphi0, r.seed,
-                                                      drag_N_s_per_m=IMPULSE_DRAGS_N_S_PER_M)).isel(replicate=0)
     drags = list(impulse_drags())
     imp_by_drag = np.full((len(drags), len(idphis), len(iphi0)), np.nan)
     escape_by_drag = np.full_like(imp_by_drag, np.nan)
-    for k, c in enumerate(drags):
+    impulse = np.full(len(idphis), np.nan)
+    if r.runs("impulse"):
+        imp = r.ctx.shared_sweep("impulse", *impulse_sweep(idphis, iphi0, r.seed)).isel(replicate=0)
+        impulse = np.nanmean(np.where(imp["run_failed"].values, np.nan, imp["impulse_2T_Ns"].values), axis=1)
+        impd = r.ctx.sweep("impulse-drag", *impulse_sweep(idphis, iphi0, r.seed,
+                                                          drag_N_s_per_m=IMPULSE_DRAGS_N_S_PER_M)).isel(replicate=0)
+    for k, c in enumerate(drags if r.runs("impulse") else ()):
         run = imp if c == IMPULSE_DRAG_DEFAULT else impd.isel(drag_N_s_per_m=IMPULSE_DRAGS_N_S_PER_M.index(c))
         bad = run["run_failed"].values
         imp_by_drag[k] = np.where(bad, np.nan, run["impulse_2T_Ns"].values)
@@ -490,7 +567,8 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """The sensitivity runs, one factor group at a time (the ``_data_*`` steps), as one dataset; the pair
     cases along ``case`` in the order of :func:`~._sensitivity_design.pair_cases` (checked)."""
     dphis = np.asarray(p.dphi_rad, float)
-    r = _Runs(ctx, p, dphis, float(ctx.lone_swimmer()["amplitude_m"]))
+    skipped = frozenset(SKIPPABLE_GROUPS) - needed_groups(ctx.needs_explanation)
+    r = _Runs(ctx, p, dphis, float(ctx.lone_swimmer()["amplitude_m"]), skipped)
     cases = (_data_xi1_model(r) + _data_xi1_windows(r) + _data_xi32(r) + _data_links_equal_a(r)
              + _data_links_guided(r))
     conf_data, conf_coords = _data_confinement(r)
@@ -509,7 +587,8 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                 "time": conf_coords["time"], **group_coords},
         attrs={"title": "model sensitivity: claims against the model choices the paper leaves open",
                "channel_width_m": PAIR_CHANNEL_M, "n_dphi": len(dphis), "steady_rule": C.STEADY_RULE,
-               "slope_method": C.SLOPE_METHOD},
+               "slope_method": C.SLOPE_METHOD,
+               "skipped_factor_groups": json.dumps([g for g in SKIPPABLE_GROUPS if g in skipped])},
     )
 
 
@@ -581,9 +660,10 @@ def _broadens(ratios, widths, high=PAPER_RANGE_HIGH) -> bool | None:
     return bool(np.nanmax(w[inside]) > WIDTH_TOL and grows)
 
 
-def _summary_cases(ds: xr.Dataset) -> tuple[dict[str, dict], list[dict]]:
+def _summary_cases(ds: xr.Dataset, skipped: frozenset[str] = frozenset()) -> tuple[dict[str, dict], list[dict]]:
     """Per pair case (keyed by its display label): its ``case_id``, the line fit and the pairs verdict;
-    the table rows of the cases judged by the pairs criterion (not the link sets)."""
+    the table rows of the cases judged by the pairs criterion (not the link sets; ``no result``, not run,
+    for a case of a ``skipped`` factor group)."""
     dphi = ds["dphi"].values
     open_ = np.abs(dphi) < np.pi - 1e-9
     table, cases = [], {}
@@ -605,11 +685,25 @@ def _summary_cases(ds: xr.Dataset) -> tuple[dict[str, dict], list[dict]]:
                  "follows_line_verdict": line_verdict(fit["slope"], fit["rms"])}
         cases[f"{claim}: {factor}: {level}"] = entry
         if cid.case_set.value not in LINK_SETS:
-            table.append({"claim": CLAIM_LABELS[claim], "factor": factor, "level": level,
-                          "verdict": entry["follows_line_verdict"],
-                          "key number": f"slope {fit['slope']:.2f}, RMS {fit['rms']:.3f} lambda, "
-                                        f"{entry['n_steady']}/{entry['n_runs']} steady"})
+            table += _not_run([{"claim": CLAIM_LABELS[claim], "factor": factor, "level": level,
+                                "verdict": entry["follows_line_verdict"],
+                                "key number": f"slope {fit['slope']:.2f}, RMS {fit['rms']:.3f} lambda, "
+                                              f"{entry['n_steady']}/{entry['n_runs']} steady"}],
+                              FACTOR_GROUPS.get(cid.case_set) in skipped)
     return cases, table
+
+
+def _not_run(rows: list[dict], skipped: bool) -> list[dict]:
+    """Table ``rows`` as they stand, or, for a ``skipped`` factor group, with verdict ``no result`` and
+    the reason :data:`NOT_RUN` (in ``key number`` and ``reason``)."""
+    if not skipped:
+        return rows
+    return [{**t, "verdict": NO_RESULT, "key number": NOT_RUN, "reason": NOT_RUN} for t in rows]
+
+
+def skipped_groups(ds: xr.Dataset) -> frozenset[str]:
+    """The factor groups the dataset did not run (its ``skipped_factor_groups`` attribute; none if absent)."""
+    return frozenset(json.loads(ds.attrs.get("skipped_factor_groups") or "[]"))
 
 
 def _summary_link_sets(cases: dict[str, dict]) -> tuple[dict[str, dict], list[dict]]:
@@ -678,10 +772,11 @@ def _summary_impulse(ds: xr.Dataset) -> tuple[dict[str, Any], list[dict]]:
         big = np.abs(idphi) >= np.pi / 2 - 1e-9
         for k, c in enumerate(ds["impulse_drag"].values):
             allv = ds["impulse_drag_all"].values[k]
-            f, ok, verdict = _linear(idphi, np.nanmean(allv, axis=1))
-            with np.errstate(invalid="ignore", divide="ignore"):
+            with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows: failed or not run (NaN)
+                f, ok, verdict = _linear(idphi, np.nanmean(allv, axis=1))
                 spread = float(np.nanmedian((np.nanmax(allv, 1) / np.nanmin(allv, 1))[big]))
-            esc = float(np.nanmean(ds["impulse_drag_escape"].values[k][big]))
+                esc = float(np.nanmean(ds["impulse_drag_escape"].values[k][big]))
             pot_drag.append({"case_id": str(impulse_case(float(c))), "drag_N_s_per_m": float(c),
                              "default": bool(c == IMPULSE_DRAG_DEFAULT),
                              "slope_Ns_per_rad": f.slope.to_dict(), "r2": f.r2.to_dict(), "linear": ok,
@@ -782,16 +877,25 @@ def _group_table(groups: dict[str, dict]) -> list[dict]:
 
 def summary(ds: xr.Dataset) -> dict:
     """Pure: per case the verdict by its claim's criterion and the key numbers (the ``_summary_*`` steps,
-    every per-case entry with its ``case_id``); the table."""
-    cases, table = _summary_cases(ds)
+    every per-case entry with its ``case_id``); the table (``no result``, :data:`NOT_RUN`, for the rows
+    of a skipped factor group); ``skipped_factor_groups`` and the ids of their cases, ``skipped_cases``
+    (whose explanations are then not judged: :data:`~._explanations._protocol.NOT_RUN`)."""
+    skipped = skipped_groups(ds)
+    cases, table = _summary_cases(ds, skipped)
     link_sets, link_rows = _summary_link_sets(cases)
     pot, pot_rows = _summary_impulse(ds)
     conf, conf_rows = _summary_confinement(ds)
     groups = _groups_summary(ds)
-    return {"table": table + link_rows + pot_rows + conf_rows + _group_table(groups), "cases": cases,
+    table += (_not_run(link_rows, "links" in skipped) + _not_run(pot_rows, "impulse" in skipped)
+              + _not_run(conf_rows, "confinement" in skipped) + _not_run(_group_table(groups), "groups" in skipped))
+    out = {"cases": cases, "groups": groups, "confinement": conf, "impulse": pot}
+    skipped_cases = sorted(str(c) for c in results_by_case(out) if FACTOR_GROUPS.get(c.case_set) in skipped)
+    return {"table": table, "cases": cases,
             "links_equal_A": link_sets.get("links"), "links_sets": link_sets,
             "confinement": conf, "impulse": pot,
             "groups": groups,
+            "skipped_factor_groups": [g for g in SKIPPABLE_GROUPS if g in skipped],
+            "skipped_cases": skipped_cases,
             "swim_drag_pair_speed_m_s": _finite_mean(ds["swim_drag_pair_speed"].values),
             "impulse_Ns": ds["impulse"].values,
             "amplitude_3_links_m": float(ds["amplitude_3_links"]),

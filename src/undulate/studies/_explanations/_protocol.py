@@ -22,6 +22,11 @@ imported, and reading an undeclared case fails when the check runs
 (:class:`UnknownCaseError`); a declared case missing from a summary (a plan
 without it) reads as None, and the judge reports the cause as not shown
 (False: this plan has no runs that could show it).
+
+A declared case among the summary's ``skipped_cases`` (its factor group was not
+run because the claim it explains does not fail:
+:func:`undulate.studies.sensitivity.needed_groups`) is no evidence either way:
+the check then returns ``(None, NOT_RUN, None)`` without calling ``judge``.
 """
 
 from __future__ import annotations
@@ -35,7 +40,11 @@ from typing import Any
 from .._registry import Explanation
 from .._sensitivity_design import CaseId, CaseSet, UnknownCaseError, known_cases
 
-__all__ = ["CaseExplanation", "CaseResults", "Shown", "results_by_case", "all_of", "negate", "number", "state_word"]
+__all__ = ["CaseExplanation", "CaseResults", "NOT_RUN", "Shown", "results_by_case", "all_of", "negate", "number",
+           "state_word"]
+
+NOT_RUN = "not run: the claim it explains does not fail in this reproduction"
+"""The measured text of an explanation whose cases the sensitivity study did not run (``skipped_cases``)."""
 
 Shown = tuple[bool | None, str, Any]
 """What a check returns: whether the runs show the cause (True), refute it (False) or leave it undecided
@@ -149,5 +158,12 @@ class CaseExplanation(Explanation):
         object.__setattr__(self, "check", functools.partial(_check, self.judge, tuple(self.cases)))
 
 
+def skipped_cases(summary: dict[str, Any]) -> frozenset[CaseId]:
+    """The cases the summary's study did not run (its ``skipped_cases``; none if absent)."""
+    return frozenset(CaseId.parse(c) for c in summary.get("skipped_cases") or ())
+
+
 def _check(judge: Callable[[CaseResults], Shown], cases: tuple[CaseId, ...], summary: dict[str, Any]) -> Shown:
+    if skipped_cases(summary) & set(cases):  # not run: no evidence either way
+        return None, NOT_RUN, None
     return judge(CaseResults(summary, cases))

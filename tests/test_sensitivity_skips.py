@@ -1,0 +1,185 @@
+"""The sensitivity study runs a factor group only for an explanation that is needed (the claim it explains
+fails, or its verdict is unknown); a skipped group is NaN rows made without a run, its table rows read
+``no result`` and its explanations are not judged (shown None).  No simulation runs here."""
+
+from __future__ import annotations
+
+import json
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from undulate.studies import sensitivity as S
+from undulate.studies._explanations import EXPLANATIONS, MODULES
+from undulate.studies._explanations import groups as XG
+from undulate.studies._explanations import impulse as XI
+from undulate.studies._explanations._protocol import NOT_RUN
+from undulate.studies._registry import NO_RESULT, explain
+from undulate.studies._sensitivity_design import CaseSet, pair_cases, plan, planned_cases
+
+A3 = 0.05
+
+
+class FakeContext:
+    """Records every sweep and lone swimmer asked for; answers the default lone swimmer only."""
+
+    def __init__(self, not_needed: set[str]):
+        self.not_needed = not_needed  # explanation studies whose claims hold
+        self.calls: list[tuple] = []
+        self.config = SimpleNamespace(seed=0, quick=True)
+
+    def needs_explanation(self, study: str, claim: str) -> bool:
+        return study not in self.not_needed
+
+    def sweep(self, part, *args, **kw):
+        self.calls.append(("sweep", part))
+        raise AssertionError(f"sweep {part} ran")
+
+    def shared_sweep(self, part, *args, **kw):
+        self.calls.append(("shared_sweep", part))
+        raise AssertionError(f"shared sweep {part} ran")
+
+    def lone_swimmer(self, **kw):
+        self.calls.append(("lone_swimmer", tuple(sorted(kw.items()))))
+        if kw:
+            raise AssertionError(f"lone swimmer {kw} ran")
+        return {"amplitude_m": A3}
+
+
+def _xi1_nan(r):
+    """The xi = 1 steps (always run) without their runs: their cases as NaN rows."""
+    return [r.case(c, "f", str(c), r.nan_rows()) for c in pair_cases(r.p) if c.case_set is CaseSet.XI1]
+
+
+def _stub_running_groups(monkeypatch):
+    """Stub the steps that would run here (xi = 1 and the needed groups) so that no simulation runs; the
+    skipped groups' steps stay the real ones."""
+    import dataclasses
+
+    monkeypatch.setattr(S, "_data_xi1_model", lambda r: _xi1_nan(r)[:len(S.MODEL_LEVELS)])
+    monkeypatch.setattr(S, "_data_xi1_windows", lambda r: _xi1_nan(r)[len(S.MODEL_LEVELS):])
+    everything = frozenset(S.SKIPPABLE_GROUPS)
+    for name in ("_data_xi32", "_data_links_equal_a", "_data_links_guided", "_data_confinement",
+                 "_data_groups", "_data_swimming", "_data_impulse"):
+        real = getattr(S, name)
+        # a needed group: its real step on a copy told every group is skipped (NaN, no run)
+        monkeypatch.setattr(S, name, lambda r, real=real: real(r) if _skipped_here(real, r)
+                            else real(dataclasses.replace(r, skipped=everything)))
+
+
+_GROUP_OF_STEP = {"_data_xi32": "xi32", "_data_links_equal_a": "links", "_data_links_guided": "links",
+                  "_data_confinement": "confinement", "_data_groups": "groups", "_data_swimming": "swimming",
+                  "_data_impulse": "impulse"}
+
+
+def _skipped_here(step, r) -> bool:
+    return _GROUP_OF_STEP[step.__name__] in r.skipped
+
+
+def test_the_groups_each_explanation_module_needs():
+    """Which factor groups each explanation module's cases come from (its declared cases)."""
+    expected = {"xi32": {"xi32"}, "links": {"links"}, "confinement": {"confinement"}, "groups": {"groups"},
+                "swimming": {"swimming"}, "impulse": {"impulse"}}
+    for m in MODULES:
+        got = S.needed_groups(lambda study, claim: True, m.EXPLANATIONS)
+        assert got == expected[m.__name__.rsplit(".", 1)[1]], m.__name__
+    assert S.needed_groups(lambda study, claim: True) == frozenset(S.SKIPPABLE_GROUPS)
+    assert S.needed_groups(lambda study, claim: False) == frozenset()
+    # every case the study makes, but the xi = 1 ones, belongs to a skippable group
+    for quick in (True, False):
+        for c in planned_cases(plan(quick)):
+            assert (c.case_set in S.FACTOR_GROUPS) == (c.case_set is not CaseSet.XI1)
+
+
+def test_needed_groups_follow_the_claims_that_fail():
+    holds = {("groups", e.claim) for e in XG.EXPLANATIONS} | {("potential", e.claim) for e in XI.EXPLANATIONS}
+    got = S.needed_groups(lambda study, claim: (study, claim) not in holds)
+    assert got == {"xi32", "links", "confinement", "swimming"}
+    # one of the two groups claims failing is enough to run the groups
+    one = S.needed_groups(lambda study, claim: claim == XG.EXPLANATIONS[1].claim)
+    assert one == {"groups"}
+
+
+def test_skipped_groups_run_nothing_and_keep_their_cases(monkeypatch):
+    _stub_running_groups(monkeypatch)
+    ctx = FakeContext(not_needed={"groups", "potential"})
+    p = plan(True)
+    ds = S.dataset(ctx, p)
+    assert ctx.calls == [("lone_swimmer", ())]  # the stubs stand for the needed groups' runs
+    assert json.loads(ds.attrs["skipped_factor_groups"]) == ["groups", "impulse"]
+    assert list(ds["case_id"].values) == [str(c) for c in pair_cases(p)]
+    assert ds["impulse_drag_all"].shape == (len(ds["impulse_drag"]), len(p.impulse_dphi_rad),
+                                            len(p.impulse_phi0_rad))
+    assert np.isnan(ds["impulse"].values).all() and np.isnan(ds["group_dx_over_lambda"].values).all()
+    assert ds.sizes["group_case"] == 5
+    assert ds.sizes["neighbour"] == 3 * p.group_draws  # four swimmers: 3 neighbour pairs per draw
+
+
+def test_a_fully_skipped_study_summarises_without_claims(monkeypatch):
+    import warnings
+
+    _stub_running_groups(monkeypatch)
+    ctx = FakeContext(not_needed={e.study for e in EXPLANATIONS})
+    p = plan(True)
+    ds = S.dataset(ctx, p)
+    assert ctx.calls == [("lone_swimmer", ())]
+    assert json.loads(ds.attrs["skipped_factor_groups"]) == list(S.SKIPPABLE_GROUPS)
+    assert ds["conf_dx_over_lambda"].shape[-1] == ds.sizes["time"] > 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        s = S.summary(ds)
+    assert s["skipped_factor_groups"] == list(S.SKIPPABLE_GROUPS)
+    assert s["skipped_cases"] and all("xi1" not in c for c in s["skipped_cases"])
+    for t in s["table"]:
+        if t["claim"] != S.CLAIM_LABELS["xi1"]:
+            assert t["verdict"] == NO_RESULT and t["reason"] == S.NOT_RUN, t
+    rows = explain("sensitivity", EXPLANATIONS, s)
+    assert len(rows) == len(EXPLANATIONS)
+    for row in rows:
+        assert row["shown"] is None and row["measured"] == NOT_RUN and row["value"] is None, row
+    # the figure draws NaN groups
+    import matplotlib
+
+    matplotlib.use("Agg")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        fig = S.figure(ds)
+    assert fig is not None
+
+
+def test_a_skipped_group_is_not_run_even_where_its_nan_rows_would_refute():
+    """The confinement judge reads NaN widths as 'not closed in range' (False); a skipped group must give
+    None with the not-run text, not False."""
+    from undulate.studies._explanations import confinement as XC
+
+    d = {"case_id": str(XC.DEFAULT_WIDTH), "body_width_m": 0.015, "d_over_2A": [0.9, 1.2],
+         "central_width_over_lambda": [math.nan, math.nan], "model_opening_d_over_2A": 1.3,
+         "broadens_centreline_A": None}
+    t = {**d, "case_id": str(XC.THIN), "body_width_m": 0.003}
+    summary = {"confinement": {"15 mm": d, "3 mm": t}}
+    e = XC.EXPLANATIONS[0]
+    assert e.check(summary)[0] is False  # what NaN rows alone would say
+    summary["skipped_cases"] = [str(XC.DEFAULT_WIDTH), str(XC.THIN)]
+    assert e.check(summary) == (None, NOT_RUN, None)
+
+
+@pytest.mark.parametrize("group", S.SKIPPABLE_GROUPS)
+def test_each_group_marks_only_its_rows(group, monkeypatch):
+    _stub_running_groups(monkeypatch)
+    not_needed = {e.study for e in EXPLANATIONS if S.needed_groups(lambda s, c: True, (e,)) == {group}}
+    ds = S.dataset(FakeContext(not_needed=not_needed), plan(True))
+    assert json.loads(ds.attrs["skipped_factor_groups"]) == [group]
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        s = S.summary(ds)
+    rows = explain("sensitivity", EXPLANATIONS, s)
+    for e, row in zip(EXPLANATIONS, rows):
+        mine = S.needed_groups(lambda s_, c: True, (e,)) == {group}
+        assert (row["measured"] == NOT_RUN) == mine, (group, e.claim)
+        if mine:
+            assert row["shown"] is None
+    assert any(t.get("reason") == S.NOT_RUN for t in s["table"])
