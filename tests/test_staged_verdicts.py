@@ -172,18 +172,24 @@ def test_an_undecided_claim_adds_stages_and_reuses_runs(tmp_path, staged, monkey
 
 
 def test_a_claim_the_cap_cannot_decide_stops_for_futility(tmp_path, staged, monkeypatch):
-    """The true mean 0 sits on the boundary: the first look's interval straddles it with the estimate so
-    near that even the cap's 4x runs would not decide it.  No stage is added; the claim stays undecided,
-    with the runs it would need (a futility stop never says holds or fails)."""
+    """Quick mode: the true mean 0 sits on the boundary, so the first look's interval straddles it with
+    the estimate so near that even the cap's 2x runs would not decide it.  No stage is added; the claim
+    stays undecided, with the runs it would need (a futility stop never says holds or fails)."""
     from undulate.studies import run_study
 
     monkeypatch.setattr(staged, "REGION", (0.0, 5.0))
-    run_study("_staged", tmp_path, workers=1, progress=False)
+    monkeypatch.setattr(staged, "STAGE_POINTS", (6, 12))  # quick mode's two looks (strides 2, 1)
+    run_study("_staged", tmp_path, quick=True, workers=1, progress=False)
     doc = _doc(tmp_path, "_staged")
     claim = doc["claims"][0]
     assert claim["verdict"] == UNDECIDED and claim["runs_needed"] > 0
-    assert claim["growth_needed"] > 4
+    assert claim["growth_needed"] > 2
     assert [s["stage"] for s in doc["stages"]] == [1] and doc["stages"][0]["futile"] == [claim["claim"]]
+    # full mode decides: it runs to its cap while the claim is undecided, futile or not
+    monkeypatch.setattr(staged, "STAGE_POINTS", (6, 12, 24))
+    run_study("_staged", tmp_path / "full", workers=1, progress=False)
+    looks = _doc(tmp_path / "full", "_staged")["stages"]
+    assert looks[-1]["verdicts"] != {claim["claim"]: UNDECIDED} or len(looks) == 3
 
 
 @pytest.mark.parametrize("region", [(-2.0, 2.0), (1.5, 3.0), (-3.0, -1.2)])

@@ -557,7 +557,7 @@ def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
 
 def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], growth_left: float) -> list[str]:
     """What another stage may still decide after a look: undecided claims, except those whose interval
-    would need more than ``growth_left`` times the runs it rests on (the mode's cap cannot decide them:
+    would need more than ``growth_left`` times the runs it rests on (quick mode's cap cannot decide them:
     a futility stop, which never turns a claim into ``holds`` or ``fails``), and explanations whose claim
     fails (the others are moot: :meth:`StudyContext.needs_explanation`)."""
     def decidable(c: dict[str, Any]) -> bool:
@@ -569,12 +569,15 @@ def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], grow
 
 
 def _growth_left(n_plans: int, look: int, quick: bool) -> float:
-    """How many times more runs the cap holds than look ``look`` (1-based) of ``n_plans``: the stride of
-    that look when the study's stages follow :mod:`._stages` (``n_plans`` strides), else unbounded."""
+    """How many times more runs the quick cap holds than look ``look`` (1-based) of ``n_plans``: the
+    stride of that look when the study's stages follow :mod:`._stages` (``n_plans`` strides), else
+    unbounded.  Full mode is unbounded: it decides, so it runs to its cap while a claim is undecided
+    (the 1/sqrt(n) estimate assumes the value stays put, and a full-mode claim whose estimate sat on its
+    boundary after 13 of 49 runs was decided by all 49)."""
     from ._stages import strides
 
     s = strides(quick)
-    return float(s[look - 1]) if n_plans == len(s) else math.inf
+    return float(s[look - 1]) if quick and n_plans == len(s) else math.inf
 
 
 def _claim_verdicts(out_dir: Path, config: StudyConfig) -> dict[tuple[str, str], str]:
