@@ -358,6 +358,7 @@ class StudyContext:
         self.progress = progress
         self.sweeps: list[dict[str, Any]] = []
         self.failures: list[str] = []
+        self._verdicts: dict[tuple[str, str], str] | None = None
 
     def needs_explanation(self, study: str, claim: str) -> bool:
         """Whether an explanation of ``study``'s ``claim`` can change its verdict: True when that claim
@@ -365,7 +366,9 @@ class StudyContext:
         explaining study run on its own).  A claim that holds, is undecided or has no result cannot be
         ``explained`` (:mod:`undulate.claims`), so its explanation is moot: an explaining study need not
         run for it, and it never keeps a study's stages going."""
-        verdict = _claim_verdicts(Path(self.config.out_dir), self.config).get((study, claim))
+        if self._verdicts is None:  # read once: the other studies' files do not change during this one
+            self._verdicts = _claim_verdicts(Path(self.config.out_dir), self.config)
+        verdict = self._verdicts.get((study, claim))
         return verdict is None or verdict == FAILS
 
     def sweep_dir(self, part: str, folder: str | None = None) -> Path:
