@@ -105,7 +105,7 @@ def test_reproduce_with_another_seed_recomputes_the_study(tmp_path, pendulum_stu
     doc = json.loads((tmp_path / "_pendulum.json").read_text())
     assert doc["identity"]["seed"] == 1 and doc["summary"] != s0
     claims = json.loads((tmp_path / "claims.json").read_text())
-    assert claims["claims"] == [] and set(claims["counts"]) == {"holds", "explained", "fails", "no result"}
+    assert claims["claims"] == [] and set(claims["counts"]) == {"holds", "explained", "undecided", "fails", "no result"}
 
 
 # ---- every registered study in quick mode ------------------------------------------

@@ -300,7 +300,7 @@ def test_the_paper_and_prx_claims_are_two_tables_with_their_own_counts(tables_re
         browser.close()
     assert [r[0] for r in m["paper"]] == ["alpha", "alpha", "beta", "beta"]  # no PRX row in the paper's table
     assert [r[0] for r in m["prx"]] == ["sync"] * 3
-    assert m["paperIntro"].startswith("2 of the paper's 4 claims hold, 1 is undecided (beta: the central state")
+    assert m["paperIntro"].startswith("2 of the paper's 4 claims hold, 1 is undecided (beta)")
     assert m["paperIntro"].rstrip().endswith("and 1 fails.")
     assert m["prxIntro"].startswith("1 of the 3 PRX 2021 claims judged against our controllers holds")
     assert "controller" in m["prxHead"]

@@ -18,6 +18,8 @@ import xarray as xr
 from undulate import studies
 from undulate.studies import _runners, basins, confinement, packing, potential
 
+pytestmark = pytest.mark.usefixtures("whole_plans")  # the physics of the whole quick plan, in one look
+
 MINE = ("packing", "basins", "confinement", "potential", "swimming")
 
 

@@ -13,6 +13,8 @@ from undulate.studies import names, run_study
 from undulate.studies import _analysis as C
 from undulate.studies._analysis import group_records
 
+pytestmark = pytest.mark.usefixtures("whole_plans")  # the physics of the whole quick plan, in one look
+
 
 def _run(tmp_path_factory, name):
     out = tmp_path_factory.mktemp(name)
@@ -60,7 +62,7 @@ def test_pairs_quick(pairs_run):
     assert ds["dx_steady"].attrs["units"] == "m" and ds["dx"].dims == ("xi", "dphi", "time")
     assert summary["n_runs"] == 36 and summary["n_failed"] == 0
     doc = json.loads((out / "pairs.json").read_text())
-    assert doc["n_failed"] == 0 and {c["verdict"] for c in doc["claims"]} <= {"holds", "fails"}
+    assert doc["n_failed"] == 0 and {c["verdict"] for c in doc["claims"]} <= {"holds", "fails", "undecided"}
     assert 0 <= summary["n_steady"] <= 36 and "steady_rule" in summary and "slope_method" in summary
     per = summary["per_xi"]
     assert set(per) == {"0", "0.75", "1", "1.5"}

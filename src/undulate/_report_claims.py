@@ -242,8 +242,8 @@ def _n(k: int, one: str, many: str) -> str:
 
 def summary_sentence(rows: list[dict[str, Any]], owner: str) -> str:
     """One sentence saying what held among ``rows`` (``owner``: e.g. "the paper's {n} claims"),
-    naming the undecided claims, e.g. "12 of the paper's 17 claims hold, 3 are explained by a
-    demonstrated cause, 2 are undecided (pairs: ...; links: ...)."."""
+    naming the studies of the undecided claims, e.g. "12 of the paper's 17 claims hold, 3 are explained
+    by a demonstrated cause, 2 are undecided (pairs, groups)." (rows below name the boundaries)."""
     k = counts(rows)
     n = len(rows)
     if n == 0:
@@ -255,7 +255,11 @@ def summary_sentence(rows: list[dict[str, Any]], owner: str) -> str:
     if k["explained"]:
         parts.append(f"{k['explained']} {'is' if k['explained'] == 1 else 'are'} explained by a demonstrated cause")
     if k["undecided"]:
-        names = "; ".join(f"{r['study']}: {clip(r.get('claim'), 12)}" for r in rows if r.get("verdict") == "undecided")
+        per_study: dict[str, int] = {}
+        for r in rows:
+            if r.get("verdict") == "undecided":
+                per_study[str(r["study"])] = per_study.get(str(r["study"]), 0) + 1
+        names = ", ".join(st if m == 1 else f"{m} of {st}" for st, m in per_study.items())
         parts.append(f"{k['undecided']} {'is' if k['undecided'] == 1 else 'are'} undecided ({names})")
     if k["fails"]:
         parts.append(_n(k["fails"], "fails", "fail"))
