@@ -123,7 +123,10 @@ def test_every_registered_study_in_quick_mode(tmp_path):
         for k, v in ds.variables.items():
             if v.dtype.kind in "iufc":
                 assert "units" in v.attrs, (name, k)
-        judged = [c for c in doc["claims"] if c["verdict"] in ("holds", "fails")]
+        judged = [c for c in doc["claims"] if c["verdict"] in ("holds", "fails", "undecided")]
+        # an undecided claim names the boundary its interval straddles
+        assert all("straddles" in c["reason"] or "overlaps" in c["reason"]
+                   for c in judged if c["verdict"] == "undecided"), (name, judged)
         # the one designed "no result": phase-interaction where the measured H is zero at every held dphi
         # (free pairs that stop touching), never for want of runs
         unjudged = [c for c in doc["claims"] if c not in judged]
