@@ -152,12 +152,8 @@ _MEASURE_CLAIMS = """() => {
 }"""
 
 
-def test_claims_table_fits_the_screen_and_links_each_claims_own_section(claims_report):
-    """At 1366 x 768 no cell of the claims table is taller than the screen (nor than a quarter of it:
-    a screen shows at least four rows) or holds long text; every
-    in-page link of the table lands on an element; every explained or failing claim has its own section
-    (outside the table) with its whole explanation and a loaded evidence figure, linked from its row."""
-    out, rows = claims_report
+def _measure(out, script: str):
+    """``script``'s result on ``out/index.html`` in headless Chromium at :data:`VIEWPORT`."""
     chromium = ensure_chromium()
     from playwright.sync_api import sync_playwright
 
@@ -165,8 +161,18 @@ def test_claims_table_fits_the_screen_and_links_each_claims_own_section(claims_r
         browser = p.chromium.launch(executable_path=chromium, headless=True, args=CHROMIUM_ARGS)
         page = browser.new_page(viewport=VIEWPORT)
         page.goto((out / "index.html").as_uri(), wait_until="load")
-        m = page.evaluate(_MEASURE_CLAIMS)
+        m = page.evaluate(script)
         browser.close()
+    return m
+
+
+def test_claims_table_fits_the_screen_and_links_each_claims_own_section(claims_report):
+    """At 1366 x 768 no cell of the claims table is taller than the screen (nor than a quarter of it:
+    a screen shows at least four rows) or holds long text; every
+    in-page link of the table lands on an element; every explained or failing claim has its own section
+    (outside the table) with its whole explanation and a loaded evidence figure, linked from its row."""
+    out, rows = claims_report
+    m = _measure(out, _MEASURE_CLAIMS)
     tallest = max(c["h"] for c in m["cells"])
     assert tallest <= VIEWPORT["height"], f"a claims-table cell is {tallest:.0f} px tall"
     assert tallest <= VIEWPORT["height"] / 4, f"a {tallest:.0f} px cell: fewer than four rows fit the screen"
@@ -289,15 +295,7 @@ def test_the_paper_and_prx_claims_are_two_tables_with_their_own_counts(tables_re
     assert [r["reference"] for r in doc["claims"]] == ["paper"] * 4 + ["prx2021"] * 3  # old rows: the paper's
     assert [r["runs_needed"] for r in doc["claims"] if r["verdict"] == "undecided"] == [37, 52]
 
-    chromium = ensure_chromium()
-    from playwright.sync_api import sync_playwright
-
-    with sync_playwright() as p:
-        browser = p.chromium.launch(executable_path=chromium, headless=True, args=CHROMIUM_ARGS)
-        page = browser.new_page(viewport=VIEWPORT)
-        page.goto((out / "index.html").as_uri(), wait_until="load")
-        m = page.evaluate(_MEASURE_TABLES)
-        browser.close()
+    m = _measure(out, _MEASURE_TABLES)
     assert [r[0] for r in m["paper"]] == ["alpha", "alpha", "beta", "beta"]  # no PRX row in the paper's table
     assert [r[0] for r in m["prx"]] == ["sync"] * 3
     assert m["paperIntro"].startswith("2 of the paper's 4 claims hold, 1 is undecided (beta)")
