@@ -151,7 +151,7 @@ def claims_table(rows: list[dict[str, Any]], ids: list[str], statuses: list[dict
     naming the controller each claim was judged against (taken from the claim's text)."""
     ctl_head = "<th>controller</th>" if controller else ""
     out = [(f"<table class='claims'><thead><tr><th>study</th>{ctl_head}<th>claim</th>"
-            "<th>measured (95 % interval)</th><th>verdict</th><th>cause</th></tr></thead><tbody>")]
+            "<th>measured (interval; 95 % over the looks)</th><th>verdict</th><th>cause</th></tr></thead><tbody>")]
     by_study: dict[str, list[tuple[dict, str]]] = {}
     for r, a in zip(rows, ids):
         by_study.setdefault(r["study"], []).append((r, a))

@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["Estimate", "LineFit", "line_fit", "rank_correlation", "rms", "std", "mean", "bootstrap",
-           "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level", "look_levels", "Check", "decide"]
+           "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level", "look_levels", "interval_note", "Check", "decide"]
 
 CONFIDENCE = 0.95
 """The family-wise confidence of every claim's verdict: ``holds`` means 95 %."""
@@ -67,6 +67,16 @@ def at_level(confidence: float) -> Iterator[float]:
         yield float(confidence)
     finally:
         _LEVEL.reset(token)
+
+
+def interval_note(at: float | None = None) -> str:
+    """How a measured text names intervals formed at level ``at`` (an estimate's ``level``; default: the
+    level now): "95 % intervals" for a single look, else that level with the family-wise 95 % it keeps,
+    e.g. "97 % intervals, 95 % over the looks"."""
+    lv = level() if at is None else float(at)
+    if abs(lv - CONFIDENCE) < 1e-12:
+        return f"{100 * CONFIDENCE:g} % intervals"
+    return f"{100 * lv:.3g} % intervals, {100 * CONFIDENCE:g} % over the looks"
 
 
 def look_levels(n_looks: int, confidence: float = CONFIDENCE) -> tuple[float, ...]:

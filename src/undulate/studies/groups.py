@@ -197,7 +197,7 @@ def _group_follows(size: str) -> Callable[[dict], Verdict]:
         g, pair = s["per_group_size"][size], s["per_group_size"]["2"]
         slope, rms, rms2 = E(g["slope"]), E(g["rms_residual_over_lambda"]), E(pair["rms_residual_over_lambda"])
         measured = (f"slope {slope:.3f}, RMS residual {rms:.3f} lambda vs {rms2:.3f} lambda for pairs at the "
-                    f"same dphi ({g['n_neighbour_pairs']} neighbour pairs; 95 % intervals)")
+                    f"same dphi ({g['n_neighbour_pairs']} neighbour pairs; {stats.interval_note(slope.level)})")
         value = {"slope": g["slope"], "rms_residual_over_lambda": g["rms_residual_over_lambda"],
                  "pairs_rms_residual_over_lambda": pair["rms_residual_over_lambda"]}
         if not (slope.has_interval and rms.has_interval and rms2.has_interval):

@@ -715,7 +715,7 @@ def _threshold_falls(s: dict) -> Verdict:
                 + ", ".join(f"{f:.2f}: {t:.3g}" for f, t in zip(s["phi_max_rad"], thr) if t.finite)
                 + ("; above the densest grid point at phi_max = 0" if s["threshold_above_grid"][0] else "")
                 + (f"; {s['n_diverged']} of {s['n_runs']} runs diverged" if s["n_diverged"] else "")
-                + f"; Spearman rho {rho:+.2f} (95 % intervals)")
+                + f"; Spearman rho {rho:+.2f} ({stats.interval_note(rho.level)})")
     value = {"spearman": s["spearman_threshold_vs_phi_max"], "largest_rise": rise}
     if not rho.has_interval or rise is None or not np.isfinite(rise):
         return Verdict.none("fewer than 3 thresholds within the density grid (no rank correlation interval)",

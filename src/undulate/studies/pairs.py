@@ -189,7 +189,7 @@ def _follows_line(key: str) -> Callable[[dict], Verdict]:
         v = s["per_xi"][key]
         slope, rms = E(v["slope"]), E(v["rms_residual_over_lambda"])
         measured = (f"slope {slope:.3f}, RMS residual {rms:.3f} lambda, {v['n_steady']}/{v['n_runs']} runs "
-                    "steady (95 % intervals)")
+                    f"steady ({stats.interval_note(slope.level)})")
         value = {"slope": v["slope"], "rms_residual_over_lambda": v["rms_residual_over_lambda"]}
         if not (slope.has_interval and rms.has_interval):
             return Verdict.none(f"no interval for the slope or the RMS at xi = {key} "

@@ -411,7 +411,7 @@ E = stats.Estimate.from_dict
 def _impulse_linear(s: dict) -> Verdict:
     f = s["impulse_fit"]
     a, r2 = E(f["slope_Ns_per_rad"]), E(f["r2"])
-    measured = f"fit impulse = a|dphi| + b: a = {a:.3g} N s/rad, R^2 = {r2:.2f} (95 % intervals)"
+    measured = f"fit impulse = a|dphi| + b: a = {a:.3g} N s/rad, R^2 = {r2:.2f} ({stats.interval_note(r2.level)})"
     value = {"slope_Ns_per_rad": f["slope_Ns_per_rad"], "r2": f["r2"]}
     if not r2.has_interval:
         return Verdict.none("no interval for R^2 (fewer than 3 dphi)", measured, value)
@@ -432,7 +432,8 @@ def _harmonic(s: dict) -> Verdict:
 
 def _k_falls(s: dict) -> Verdict:
     rho = {b: E(v["spearman_k_vs_d"]) for b, v in s["per_beta"].items()}
-    measured = "Spearman rank correlation of k with d per beta (95 % intervals): " + ", ".join(
+    note = stats.interval_note(next(iter(rho.values())).level if rho else None)
+    measured = f"Spearman rank correlation of k with d per beta ({note}): " + ", ".join(
         f"{b} deg: {r:+.2f}" for b, r in rho.items())
     value = {b: r.to_dict() for b, r in rho.items()}
     if not rho or any(not r.finite for r in rho.values()):
@@ -443,7 +444,7 @@ def _k_falls(s: dict) -> Verdict:
 def _collapse(s: dict) -> Verdict:
     a, m = E(s["collapse_rms_log10k_vs_d_over_2A"]), E(s["collapse_rms_log10k_vs_d_m"])
     measured = (f"scatter of log10 k about one curve: {a:.2f} decades against d/2A, {m:.2f} against d "
-                "(95 % intervals)")
+                f"({stats.interval_note(a.level)})")
     value = {"against_d_over_2A": a.to_dict(), "against_d": m.to_dict()}
     if not (a.finite and m.finite):
         return Verdict.none("too few stiffnesses for the collapse fit", measured, value)

@@ -145,7 +145,7 @@ def _like_viscous(s: dict) -> Verdict:
     v, w = s["modes"]["viscous"], s["modes"]["swimming"]
     sv, rv, sw, rw = E(v["slope"]), E(v["rms_residual_over_lambda"]), E(w["slope"]), E(w["rms_residual_over_lambda"])
     measured = (f"lone swimmer {s['lone_swimmer_speed_m_s'] * 1e3:.1f} mm/s head first; slope / RMS residual: "
-                f"swimming {sw:.2f} / {rw:.3f} lambda, not swimming {sv:.2f} / {rv:.3f} lambda (95 % intervals)")
+                f"swimming {sw:.2f} / {rw:.3f} lambda, not swimming {sv:.2f} / {rv:.3f} lambda ({stats.interval_note(sw.level)})")
     value = {"swimming": {"slope": w["slope"], "rms": w["rms_residual_over_lambda"]},
              "viscous": {"slope": v["slope"], "rms": v["rms_residual_over_lambda"]}}
     if not (sw.has_interval and rw.has_interval):
