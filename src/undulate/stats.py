@@ -40,7 +40,7 @@ from typing import Any
 import numpy as np
 
 __all__ = ["Estimate", "LineFit", "line_fit", "rank_correlation", "rms", "std", "mean", "bootstrap",
-           "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level", "look_levels", "interval_note", "Check", "decide"]
+           "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level", "look_levels", "interval_note", "Check", "decide", "all_of"]
 
 CONFIDENCE = 0.95
 """The family-wise confidence of every claim's verdict: ``holds`` means 95 %."""
@@ -273,14 +273,19 @@ def _within(e: Estimate, lo: float, hi: float, what: str) -> Check:
     return Check(None, f"{head} straddles {bounds} (region {region})", n, None if n is None else n / e.n)
 
 
-def decide(checks: Sequence[Check]) -> bool | None:
-    """Several criteria of one claim: False if any fails, else None if any is undecided, else True."""
-    states = [c.state for c in checks]
-    if False in states:
+def all_of(*states: bool | None) -> bool | None:
+    """Three-valued AND: False if any state is False, else None if any is None (undecided), else True."""
+    states_ = [None if s is None else bool(s) for s in states]
+    if False in states_:
         return False
-    if None in states:
+    if None in states_:
         return None
     return True
+
+
+def decide(checks: Sequence[Check]) -> bool | None:
+    """Several criteria of one claim: False if any fails, else None if any is undecided, else True."""
+    return all_of(*(c.state for c in checks))
 
 
 def _clean(*arrays) -> tuple[np.ndarray, ...]:

@@ -25,6 +25,7 @@ import xarray as xr
 from .. import stats, theory
 from ..observables import lateral_ranks, period_average, steady_state, wrap_angle
 from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, STEADY_TOL, STEADY_WINDOW  # noqa: F401 - re-exported
+from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL
 from ._runners import BODY_LENGTH_M, PERIOD_S
 
 __all__ = [
@@ -59,6 +60,7 @@ __all__ = [
     "GROUP_RMS_TOL",
     "group_follows_line",
     "group_follows_line_checks",
+    "line_checks",
 ]
 
 GROUP_DRAWS = {True: 8, False: 40}
@@ -449,6 +451,14 @@ def sweep_runs(sweep: xr.Dataset):
     for k in range(flat.sizes["run"]):
         r = flat.isel(run=k)
         yield None if bool(r["run_failed"]) else r
+
+
+def line_checks(slope: stats.Estimate, rms: stats.Estimate, who: str = "") -> list[stats.Check]:
+    """"Follows the compatibility line" (the pairs criterion) as checks: the slope's interval within
+    1 +- :data:`LINE_SLOPE_TOL`, the RMS residual's below :data:`LINE_RMS_TOL` lambda (``who``: whose,
+    e.g. "swimming pairs' ", in the checks' texts)."""
+    return [slope.within(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL, f"{who}slope"),
+            rms.below(LINE_RMS_TOL, f"{who}RMS residual (lambda)")]
 
 
 def group_follows_line_checks(slope: stats.Estimate, rms: stats.Estimate,

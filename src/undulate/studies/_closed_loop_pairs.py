@@ -100,10 +100,10 @@ def pair_plan(quick: bool) -> dict[str, Any]:
 
 def pair_stages(quick: bool) -> tuple[dict[str, Any], ...]:
     """:func:`pair_plan` in looks (:mod:`._stages`): quick 6, 12 initial phase differences; full 6, 12, 24."""
-    from ._stages import thinned
+    from ._stages import strides, thinned
 
     p = pair_plan(quick)
-    return tuple({**p, "dphi0_rad": list(d)} for d in thinned(p["dphi0_rad"], (2, 1) if quick else (4, 2, 1)))
+    return tuple({**p, "dphi0_rad": list(d)} for d in thinned(p["dphi0_rad"], strides(quick)))
 
 
 def closed_loop_pairs_sweep(dphi0_rad: Sequence[float], duration_s: float, seed: int) -> tuple[Callable, Grid]:

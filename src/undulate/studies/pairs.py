@@ -194,8 +194,7 @@ def _follows_line(key: str) -> Callable[[dict], Verdict]:
         if not (slope.has_interval and rms.has_interval):
             return Verdict.none(f"no interval for the slope or the RMS at xi = {key} "
                                 f"({v['n_runs'] - v['n_failed']} runs with a result)", value=value)
-        return Verdict.of([slope.within(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL, "slope"),
-                           rms.below(LINE_RMS_TOL, "RMS residual (lambda)")], measured, value)
+        return Verdict.of(C.line_checks(slope, rms), measured, value)
     return judge
 
 

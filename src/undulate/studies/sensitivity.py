@@ -602,8 +602,7 @@ def _line(y, dphi) -> dict[str, Any]:
 def line_checks(slope: stats.Estimate, rms: stats.Estimate) -> list[stats.Check]:
     """The pairs study's criterion as :class:`~undulate.stats.Check` s: the slope's interval within
     1 +- LINE_SLOPE_TOL, the RMS residual's below LINE_RMS_TOL lambda."""
-    return [slope.within(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL, "slope"),
-            rms.below(LINE_RMS_TOL, "RMS residual (lambda)")]
+    return C.line_checks(slope, rms)
 
 
 def follows_line(slope: stats.Estimate, rms: stats.Estimate) -> bool | None:

@@ -29,7 +29,7 @@ import numpy as np
 from .. import stats, theory
 from ..params import Gait, SwimmerGeometry
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
-from ._analysis import SLOPE_METHOD, compatibility_fit, rms
+from ._analysis import SLOPE_METHOD, compatibility_fit, line_checks, rms
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._stages import strides, thinned
 from ._runners import PAIR_STOP, pair_point
@@ -150,8 +150,7 @@ def _like_viscous(s: dict) -> Verdict:
              "viscous": {"slope": v["slope"], "rms": v["rms_residual_over_lambda"]}}
     if not (sw.has_interval and rw.has_interval):
         return Verdict.none("no interval for the swimming pairs' slope or RMS", measured, value)
-    return Verdict.of([sw.within(1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL, "swimming pairs' slope"),
-                       rw.below(LINE_RMS_TOL, "swimming pairs' RMS residual (lambda)")], measured, value)
+    return Verdict.of(line_checks(sw, rw, "swimming pairs' "), measured, value)
 
 
 CLAIMS = (

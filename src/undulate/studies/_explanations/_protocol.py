@@ -37,6 +37,7 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, field
 from typing import Any
 
+from ... import stats
 from .._registry import Explanation
 from .._sensitivity_design import CaseId, CaseSet, UnknownCaseError, known_cases
 
@@ -51,15 +52,9 @@ Shown = tuple[bool | None, str, Any]
 (None), the evidence as text, and as numbers."""
 
 
-def all_of(*conditions: bool | None) -> bool | None:
-    """Three-valued AND of an explanation's conditions: False if one is decided against the cause, else
-    None if one is undecided (or has no number), else True."""
-    states = [None if c is None else bool(c) for c in conditions]
-    if False in states:
-        return False
-    if None in states:
-        return None
-    return True
+all_of = stats.all_of
+"""Three-valued AND of an explanation's conditions (:func:`undulate.stats.all_of`): False if one is decided
+against the cause, else None if one is undecided (or has no number), else True."""
 
 
 def negate(condition: bool | None) -> bool | None:
