@@ -8,13 +8,17 @@ function, a study around its dataset) opens a meter around it and reads
 what the meter collected.  Never read by the physics.
 
 Light: imports neither MuJoCo nor the simulator (sweep workers that never
-simulate do not pay for them).  One process-wide set of meters: a meter
-also collects what other threads simulate while it is open.
+simulate do not pay for them).  The open meters are a context variable: a
+meter collects what its own thread simulates, and what threads started in a
+copy of its context do (:func:`undulate.reproduce.reproduce` runs studies
+side by side that way: each study's meter sees its own physics, a meter
+around the whole reproduction sees all of it).
 """
 
 from __future__ import annotations
 
 import contextlib
+import contextvars
 from collections.abc import Iterator
 
 __all__ = ["Tally", "meter", "report"]
@@ -35,22 +39,23 @@ class Tally:
         return self.seconds, self.steps
 
 
-_OPEN: list[Tally] = []
+_OPEN: contextvars.ContextVar[tuple[Tally, ...]] = contextvars.ContextVar("undulate_physics_meters", default=())
 
 
 @contextlib.contextmanager
 def meter() -> Iterator[Tally]:
-    """A :class:`Tally` of the physics simulated while the ``with`` block runs (nested meters each count it)."""
+    """A :class:`Tally` of the physics this context simulates while the ``with`` block runs (nested
+    meters each count it)."""
     tally = Tally()
-    _OPEN.append(tally)
+    token = _OPEN.set(_OPEN.get() + (tally,))
     try:
         yield tally
     finally:
-        _OPEN.remove(tally)  # by identity (Tally has no __eq__)
+        _OPEN.reset(token)
 
 
 def report(seconds: float, steps: int) -> None:
-    """Add one simulation's physics time to every open meter."""
-    for tally in _OPEN:
+    """Add one simulation's physics time to every meter open in this context."""
+    for tally in _OPEN.get():
         tally.add(seconds, steps)
 

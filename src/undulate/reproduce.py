@@ -17,12 +17,18 @@ import math
 import time
 import traceback
 from pathlib import Path
-from typing import Callable
+from typing import Any, Callable
 
 from ._io import atomic_output
 from ._source import SourceChangedError
 
 __all__ = ["reproduce", "ANIMATIONS"]
+
+#: How many studies a reproduction runs at once (threads sharing one pool of worker processes): while one
+#: study summarises, judges and draws (in this process), the other's runs keep the workers busy.
+SIDE_BY_SIDE = 2
+
+_ANIMATIONS_JOB = "(animations)"
 
 #: The report's animations: (file stem, caption, scene keyword arguments, duration s).
 ANIMATIONS = (
@@ -116,12 +122,16 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
 
 def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None = None, seed: int = 0,
               studies: list[str] | None = None, log: Callable[[str], None] = print,
-              animation_s: float | None = None, workers: int | None = None) -> tuple[Path, list[dict]]:
+              animation_s: float | None = None, workers: int | None = None,
+              side_by_side: int = SIDE_BY_SIDE) -> tuple[Path, list[dict]]:
     """Run every registered study (or ``studies``) and write ``out_dir/index.html``.
 
     ``animation_s`` overrides the simulated duration of each animation (s).
     ``workers``: local worker processes (default: every core this process may
     use); one pool of them stays warm across every study's sweeps.
+    ``side_by_side``: studies run at once (threads sharing that pool; an explaining study waits for
+    the studies it explains).  Results do not depend on it: every run's result is a function of its
+    parameters and seed, and each study judges its own runs.
 
     Returns the report path and the per-study statuses (``name``, ``ok``,
     ``wall_s``, ``error``, ``reused``).
@@ -132,11 +142,60 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
 
     StudyConfig(out_dir=Path(out_dir), quick=quick, scheduler=scheduler, seed=seed, workers=workers)  # validate first
     with warm_workers():
-        return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers)
+        return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers,
+                          side_by_side)
+
+
+def _dependencies(registry, names: list[str]) -> dict[str, set[str]]:
+    """``name -> the studies among names it must wait for``: those whose claims it explains (an
+    explaining study reads their verdicts, :meth:`undulate.studies.StudyContext.needs_explanation`)."""
+    return {n: {e.study for e in registry.describe(n).explanations} & set(names) - {n} for n in names}
+
+
+def _side_by_side(todo: list[str], deps: dict[str, set[str]], one: Callable[[str], Any],
+                  finished: Callable[[str, Any], None], at_once: int) -> None:
+    """Run ``one(name)`` for every name of ``todo``, at most ``at_once`` at a time on threads, each
+    only once the jobs it depends on (``deps``, among ``todo``) have finished; ``finished(name,
+    result)`` is called here, in this thread, as each ends.  Among the jobs ready to start, those that
+    waited for others (an explaining study: the longest, and last to become ready) go first, then
+    ``todo``'s order.  Threads start in a copy of this context (a physics meter open here sees what
+    they simulate).  An interrupt (Ctrl-C, a changed source) stops the sweeps in flight
+    (:func:`undulate.sweep._executors.stop_sweeps`) and is raised once their threads end."""
+    import contextvars
+    from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
+
+    from .sweep._executors import stop_sweeps
+
+    if at_once == 1:
+        for name in todo:
+            finished(name, one(name))
+        return
+    waiting, running, done = list(todo), {}, set()
+    with ThreadPoolExecutor(max_workers=at_once, thread_name_prefix="undulate-study") as threads:
+        try:
+            while waiting or running:
+                ready = [n for n in waiting if not (deps.get(n, set()) & (set(todo) - done))]
+                if not ready and not running:  # a cycle among the dependencies: take them in order
+                    ready = waiting[:1]
+                ready.sort(key=lambda n: not deps.get(n))  # stable: todo's order within each kind
+                for name in ready[: at_once - len(running)]:
+                    waiting.remove(name)
+                    running[threads.submit(contextvars.copy_context().run, one, name)] = name
+                finished_now, _ = wait(running, return_when=FIRST_COMPLETED)
+                for fut in finished_now:
+                    name = running.pop(fut)
+                    done.add(name)
+                    finished(name, fut.result())
+        except BaseException:
+            stop_sweeps()
+            for fut in running:
+                fut.cancel()
+            wait(running)
+            raise
 
 
 def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, log, animation_s,
-               workers) -> tuple[Path, list[dict]]:
+               workers, side_by_side: int = SIDE_BY_SIDE) -> tuple[Path, list[dict]]:
     from .report import write_report
 
     out.mkdir(parents=True, exist_ok=True)
@@ -146,36 +205,58 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
         registry.describe(n)  # unknown names fail before any work
     state = _load_state(out, mode, seed)
     t_all = time.perf_counter()
-    statuses = []
+    results: dict[str, dict] = {}
+    todo: list[str] = []
     for i, name in enumerate(names, 1):
         prev = state["studies"].get(name, {})
         if _study_done(out, name, quick, seed):
             log(f"[{i}/{len(names)}] {name}: done earlier ({prev.get('wall_s', float('nan')):.1f} s), kept")
-            statuses.append({"name": name, "ok": True, "wall_s": prev.get("wall_s"), "error": None, "reused": True})
-            continue
-        log(f"[{i}/{len(names)}] {name}: running ({mode})")
+            results[name] = {"name": name, "ok": True, "wall_s": prev.get("wall_s"), "error": None, "reused": True}
+        else:
+            todo.append(name)
+    number = {n: i for i, n in enumerate(names, 1)}
+
+    def one(name: str) -> dict:
+        log(f"[{number[name]}/{len(names)}] {name}: running ({mode})")
         t0 = time.perf_counter()
         try:
             registry.run_study(name, out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
             st = {"name": name, "ok": True, "wall_s": time.perf_counter() - t0, "error": None, "reused": False}
-            log(f"[{i}/{len(names)}] {name}: done in {st['wall_s']:.1f} s")
+            log(f"[{number[name]}/{len(names)}] {name}: done in {st['wall_s']:.1f} s")
         except (KeyboardInterrupt, SourceChangedError):  # the code changed under us: nothing after is attributable
             raise
         except Exception as e:  # a failed study is reported, the others go on
             st = {"name": name, "ok": False, "wall_s": time.perf_counter() - t0,
                   "error": f"{type(e).__name__}: {e}", "reused": False,
                   "traceback": traceback.format_exc()}
-            log(f"[{i}/{len(names)}] {name}: FAILED: {st['error']}")
-        statuses.append(st)
-        state["studies"][name] = {k: v for k, v in st.items() if k != "reused"}
+            log(f"[{number[name]}/{len(names)}] {name}: FAILED: {st['error']}")
+        return st
+
+    anims: list[dict] = []
+
+    def job(name: str) -> Any:
+        if name == _ANIMATIONS_JOB:
+            return _animations(out, animation_s, log, None if scheduler is not None else workers)
+        return one(name)
+
+    def finished(name: str, result: Any) -> None:
+        if name == _ANIMATIONS_JOB:
+            anims.extend(result)
+            return
+        results[name] = result
+        state["studies"][name] = {k: v for k, v in result.items() if k != "reused"}
         _save_state(out, state)
 
-    anims = _animations(out, animation_s, log, None if scheduler is not None else workers)
-    total = time.perf_counter() - t_all
+    # the animations are one more job, beside the last studies (they use the same worker pool)
+    _side_by_side(todo + [_ANIMATIONS_JOB], _dependencies(registry, names), job, finished, max(1, int(side_by_side)))
+    statuses = [results[n] for n in names]
     from .claims import collect, write_claims_json
 
     write_claims_json(out, collect(out, [s["name"] for s in statuses if s.get("ok")]))
-    path = write_report(out, statuses, mode=mode, animations=anims,
-                        total_wall_s=sum(s["wall_s"] or 0 for s in statuses))
+    total = time.perf_counter() - t_all
+    # wall time spent on this folder's reproduction: this run's and that of earlier runs it resumes
+    state["wall_s"] = float(state.get("wall_s", 0.0)) + total if todo else state.get("wall_s")
+    _save_state(out, state)
+    path = write_report(out, statuses, mode=mode, animations=anims, total_wall_s=state.get("wall_s"))
     log(f"wrote {path} ({total:.0f} s this run)")
     return path, statuses

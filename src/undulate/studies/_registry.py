@@ -44,6 +44,7 @@ import math
 import os
 import pkgutil
 import sys
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
@@ -345,6 +346,19 @@ SERIAL_BELOW = 4
 """Sweeps of fewer runs than this run in this process (starting worker processes costs more)."""
 
 
+_STORE_LOCKS: dict[str, threading.Lock] = {}
+_STORE_LOCKS_GUARD = threading.Lock()
+
+
+def _store_lock(store: Path) -> threading.Lock:
+    """The lock of one sweep store in this process: studies that run side by side on threads
+    (:func:`undulate.reproduce.reproduce`) and share a store (``OUT/.sweeps/_shared``, ``_lone``) take
+    turns, so the second reuses what the first computed instead of computing it again beside it."""
+    key = str(Path(store).resolve())
+    with _STORE_LOCKS_GUARD:
+        return _STORE_LOCKS.setdefault(key, threading.Lock())
+
+
 class StudyContext:
     """What a study's ``dataset`` step gets: cached sweeps and shared quantities.
 
@@ -398,8 +412,9 @@ class StudyContext:
 
         out = where or self.sweep_dir(part)
         workers = 1 if self.config.scheduler is None and grid.n_runs < SERIAL_BELOW else self.config.workers
-        res: SweepResult = run_sweep(fn, grid, out, scheduler=self.config.scheduler, workers=workers,
-                                     progress=self.progress, batched=batched)
+        with _store_lock(out):  # studies run side by side share stores (_shared, _lone): one sweep at a time
+            res: SweepResult = run_sweep(fn, grid, out, scheduler=self.config.scheduler, workers=workers,
+                                         progress=self.progress, batched=batched)
         try:
             rel = str(out.relative_to(self.config.out_dir))
         except ValueError:
@@ -516,11 +531,13 @@ def _write_all(name: str, ds: xr.Dataset, figure: Figure, doc: dict[str, Any], o
     return out_dir / f"{name}.nc"
 
 
-def _timing(ctx: StudyContext, here: _physics.Tally) -> dict[str, Any]:
+def _timing(ctx: StudyContext, here: _physics.Tally, thread_cpu_s: float) -> dict[str, Any]:
     """Physics time of a study: inside ``mujoco.rollout`` in this process (``here``: serial sweeps
-    and direct simulations) plus what its sweeps' worker processes report.  Measured, not a result."""
+    and direct simulations) plus what its sweeps' worker processes report; ``thread_cpu_s``: the CPU
+    time of the thread that ran the study here (its serial runs, summaries, judging, figure, files).
+    Measured, not a result."""
     away = [s["timing"] for s in ctx.sweeps if s.get("timing", {}).get("executor") not in (None, "serial")]
-    return {"physics_s": here.seconds + sum(t["physics_s"] for t in away),
+    return {"physics_s": here.seconds + sum(t["physics_s"] for t in away), "thread_cpu_s": thread_cpu_s,
             "steps": here.steps + sum(t["steps"] for t in away),
             "physics_in_workers_s": sum(t["physics_s"] for t in away),
             "runs_in_workers_wall_s": sum(t["runs_wall_s"] for t in away),
@@ -610,7 +627,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     """
     from .. import _physics
 
-    t0 = time.perf_counter()
+    t0, cpu0 = time.perf_counter(), time.thread_time()
     ctx = StudyContext(config, name, progress=progress)
     plans = stage_plans(info, config.quick)
     levels = stats.look_levels(len(plans))
@@ -636,6 +653,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
                 break
     _check_units(name, ds)
     figure = info.figure(ds)
+    timing = _timing(ctx, here, time.thread_time() - cpu0)  # the files' writing is left out
     doc = {
         "study": name,
         "summary": summary,
@@ -647,7 +665,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
         "sweeps": ctx.sweeps,
         "n_computed": sum(s["n_computed"] for s in ctx.sweeps),
         "wall_s": time.perf_counter() - t0,
-        "timing": _timing(ctx, here),
+        "timing": timing,
         "config": config.to_dict(),
         "identity": identity(name, config),
         "provenance": provenance(),

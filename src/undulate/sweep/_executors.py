@@ -11,6 +11,7 @@ import atexit
 import contextlib
 import multiprocessing
 import os
+import threading
 from collections import deque
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
@@ -43,6 +44,7 @@ def default_workers() -> int:
 def run_serial(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost) -> None:
     """In this process, one chunk after the other: the reference executor."""
     for chunk in chunks:
+        _check_stop()
         on_done(chunk, run_chunk(chunk))
 
 
@@ -68,6 +70,7 @@ def run_local(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost, *, work
     health = _Health()
     pending: deque[Chunk] = deque(chunks)
     while pending:
+        _check_stop()
         suspects = _run_pool(ctx, workers, pending, on_done, health)
         if suspects:
             _quarantine(ctx, suspects, on_done, on_lost, health)
@@ -101,6 +104,24 @@ def _new_pool(ctx, workers: int) -> ProcessPoolExecutor:
 
 # ---- one warm pool for a series of sweeps --------------------------------
 _WARM: dict[str, Any] = {"depth": 0, "pool": None, "workers": 0}
+_WARM_LOCK = threading.RLock()  # sweeps of studies run side by side (threads) share the warm pool
+_STOP = threading.Event()
+
+
+def stop_sweeps() -> None:
+    """Make every local sweep in flight in this process stop at its next chunk (raising
+    KeyboardInterrupt there) and stop the warm pool's processes: a reproduction interrupted while
+    studies run side by side on threads (:func:`undulate.reproduce.reproduce`)."""
+    _STOP.set()
+    with _WARM_LOCK:
+        pool = _WARM["pool"]
+    if pool is not None:
+        _stop_now(pool)
+
+
+def _check_stop() -> None:
+    if _STOP.is_set():
+        raise KeyboardInterrupt("the sweeps were stopped")
 
 
 @contextlib.contextmanager
@@ -118,17 +139,24 @@ def warm_workers() -> Iterator[None]:
     sweep starts a fresh one; nesting is allowed (the outermost exit stops
     the pool).
     """
-    _WARM["depth"] += 1
+    with _WARM_LOCK:
+        _WARM["depth"] += 1
+        if _WARM["depth"] == 1:
+            _STOP.clear()
     try:
         yield
     finally:
-        _WARM["depth"] -= 1
-        if _WARM["depth"] == 0:
+        with _WARM_LOCK:
+            _WARM["depth"] -= 1
+            last = _WARM["depth"] == 0
+        if last:
             _drop_warm(wait=True)
+            _STOP.clear()
 
 
 def _drop_warm(wait: bool = False) -> None:
-    pool, _WARM["pool"], _WARM["workers"] = _WARM["pool"], None, 0
+    with _WARM_LOCK:
+        pool, _WARM["pool"], _WARM["workers"] = _WARM["pool"], None, 0
     if pool is not None:
         pool.shutdown(wait=wait, cancel_futures=True)
 
@@ -138,17 +166,18 @@ atexit.register(_drop_warm)
 
 def _acquire_pool(ctx, workers: int) -> tuple[ProcessPoolExecutor, bool]:
     """A pool of at least ``workers`` processes and whether it is the shared warm one."""
-    if _WARM["depth"] == 0:
-        return _new_pool(ctx, workers), False
-    pool = _WARM["pool"]
-    if pool is not None and (getattr(pool, "_broken", False) or getattr(pool, "_shutdown_thread", False)
-                             or _WARM["workers"] < workers):
-        _drop_warm()  # a worker died while it waited, or more processes are wanted now
-        pool = None
-    if pool is None:
-        pool = _new_pool(ctx, workers)
-        _WARM["pool"], _WARM["workers"] = pool, workers
-    return pool, True
+    with _WARM_LOCK:
+        if _WARM["depth"] == 0:
+            return _new_pool(ctx, workers), False
+        pool = _WARM["pool"]
+        if pool is not None and (getattr(pool, "_broken", False) or getattr(pool, "_shutdown_thread", False)
+                                 or _WARM["workers"] < workers):
+            _drop_warm()  # a worker died while it waited, or more processes are wanted now
+            pool = None
+        if pool is None:
+            pool = _new_pool(ctx, workers)
+            _WARM["pool"], _WARM["workers"] = pool, workers
+        return pool, True
 
 
 @contextlib.contextmanager
@@ -169,8 +198,10 @@ def _held_pool(ctx, workers: int) -> Iterator[tuple[ProcessPoolExecutor, dict]]:
     finally:
         if not warm:
             pool.shutdown(wait=not state["broken"], cancel_futures=True)
-        elif (state["broken"] or getattr(pool, "_broken", False)) and _WARM["pool"] is pool:
-            _drop_warm()
+        else:
+            with _WARM_LOCK:
+                if (state["broken"] or getattr(pool, "_broken", False)) and _WARM["pool"] is pool:
+                    _drop_warm()
 
 
 @contextlib.contextmanager
@@ -195,6 +226,7 @@ def _drain(pool, workers: int, pending: deque[Chunk], on_done: OnDone, health: _
     inflight: dict[Future, Chunk] = {}
     broken: list[Chunk] = []
     while (pending or inflight) and not broken:
+        _check_stop()
         while pending and len(inflight) < 2 * workers:
             chunk = pending.popleft()
             inflight[pool.submit(run_chunk, chunk)] = chunk
@@ -225,6 +257,7 @@ def _quarantine(ctx, chunks: list[Chunk], on_done: OnDone, on_lost: OnLost, heal
     queue: deque[Chunk] = deque(replace(c, runs=(r,)) for c in chunks for r in c.runs)
     deaths: dict[str, int] = {}
     while queue:
+        _check_stop()
         pool = _new_pool(ctx, 1)
         try:
             while queue:
