@@ -157,8 +157,8 @@ def _side_by_side(todo: list[str], deps: dict[str, set[str]], one: Callable[[str
     """Run ``one(name)`` for every name of ``todo``, at most ``at_once`` at a time on threads, each
     only once the jobs it depends on (``deps``, among ``todo``) have finished; ``finished(name,
     result)`` is called here, in this thread, as each ends.  Among the jobs ready to start, those that
-    waited for others (an explaining study: the longest, and last to become ready) go first, then
-    ``todo``'s order.  Threads start in a copy of this context (a physics meter open here sees what
+    waited for others go first (an explaining study: the longest), then those others wait for (so that
+    it starts early), then the rest, each kind in ``todo``'s order.  Threads start in a copy of this context (a physics meter open here sees what
     they simulate).  An interrupt (Ctrl-C, a changed source) stops the sweeps in flight
     (:func:`undulate.sweep._executors.stop_sweeps`) and is raised once their threads end."""
     import contextvars
@@ -171,13 +171,14 @@ def _side_by_side(todo: list[str], deps: dict[str, set[str]], one: Callable[[str
             finished(name, one(name))
         return
     waiting, running, done = list(todo), {}, set()
+    feeds = set().union(*deps.values()) if deps else set()
     with ThreadPoolExecutor(max_workers=at_once, thread_name_prefix="undulate-study") as threads:
         try:
             while waiting or running:
                 ready = [n for n in waiting if not (deps.get(n, set()) & (set(todo) - done))]
                 if not ready and not running:  # a cycle among the dependencies: take them in order
                     ready = waiting[:1]
-                ready.sort(key=lambda n: not deps.get(n))  # stable: todo's order within each kind
+                ready.sort(key=lambda n: 0 if deps.get(n) else 1 if n in feeds else 2)  # stable within each
                 for name in ready[: at_once - len(running)]:
                     waiting.remove(name)
                     running[threads.submit(contextvars.copy_context().run, one, name)] = name

@@ -198,13 +198,23 @@ def spaced_channel_m(n_swimmers: int) -> float:
     return round(PAIR_CHANNEL_M + (int(n_swimmers) - 2) * PAIR_SPACING_M, 6)
 
 
+QUICK_THINNING = 2
+"""Quick mode runs the sensitivity study in one look, on every second value of the quick grids (the first
+look of the groups and potential studies, whose runs it shares): its explanations matter only for claims
+that fail, and a quick reader waits for them least."""
+
+
 def plan(quick: bool) -> Plan:
-    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, 3 confinement starts; full: 17 dphi (step
-    pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's design
+    """Quick: every second one of the paper's nine dphi (5), xi = 3/2 at N = 3 and 8, 3 confinement
+    starts, the groups' and impulse grids thinned the same way (:data:`QUICK_THINNING`); full: 17 dphi
+    (step pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's design
     (:func:`._analysis.group_phases`, :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of
-    four swimmers; full 33 dphi and 40 draws), so that only the channel differs."""
-    if quick:
-        return Plan(tuple(float(p) for p in C.paper_phases()))
+    four swimmers, thinned to 5 and 4; full 33 dphi and 40 draws), so that only the channel differs."""
+    if quick:  # one look (the explanations are what a quick reader can wait for least): every second value
+        whole, k = Plan(tuple(float(p) for p in C.paper_phases())), QUICK_THINNING
+        return Plan(whole.dphi_rad[::k], group_dphi_rad=whole.group_dphi_rad[::k],
+                    group_draws=max(1, whole.group_draws // k), impulse_dphi_rad=whole.impulse_dphi_rad[::k],
+                    impulse_phi0_rad=whole.impulse_phi0_rad[::k])
     impulse_dphi, impulse_phi0 = _impulse_grid(False)
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
                 confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),
