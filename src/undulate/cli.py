@@ -293,6 +293,10 @@ def reproduce(
     seed: int = typer.Option(0, help="Base random seed."),
     only: Optional[str] = typer.Option(None, "--only", help="Comma-separated study names (default: all)."),
     workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
+    beyond_paper: Optional[bool] = typer.Option(
+        None, "--beyond-paper/--paper-only",
+        help="Also run the studies beyond the paper (the PRX 2021 synchronization comparisons). "
+             "Default: in --full mode, not in --quick mode."),
 ) -> None:
     """Reproduce the paper: every study, animations, and OUT/index.html."""
     from . import studies as registry
@@ -312,7 +316,7 @@ def reproduce(
         _fail(str(e), 2)
     try:
         path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
-                                 log=lambda m: typer.echo(m), workers=workers)
+                                 log=lambda m: typer.echo(m), workers=workers, beyond_paper=beyond_paper)
     except SourceChangedError as e:
         _fail(str(e), 1)
     failed = [s["name"] for s in statuses if not s["ok"]]

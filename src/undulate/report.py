@@ -91,9 +91,11 @@ def _load_docs(out: Path, statuses: list[dict[str, Any]]) -> dict[str, dict]:
     return docs
 
 
-def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None, beyond: bool = False) -> list[str]:
+def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None, beyond: bool = False,
+          not_run: list[str] | None = None) -> list[str]:
     """The document head, the title and the one-line status of the run (``beyond``: the page has
-    the table of claims beyond the paper)."""
+    the table of claims beyond the paper; ``not_run``: registered studies beyond the paper that this
+    reproduction did not run)."""
     n_ok = sum(1 for s in statuses if s.get("ok"))
     failed = [s["name"] for s in statuses if not s.get("ok")]
     return ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
@@ -106,7 +108,10 @@ def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None,
             + " Contents: <a href='#claims'>the paper's claims</a>"
             + (" · <a href='#claims-prx2021'>beyond the paper (PRX 2021)</a>" if beyond else "")
             + " · <a href='#claim-details'>the claims one by one</a>"
-            + " · <a href='#studies'>studies</a> · <a href='#provenance'>provenance</a>.</p>"]
+            + " · <a href='#studies'>studies</a> · <a href='#provenance'>provenance</a>.</p>"]  + (
+        [f"<p>Not run here, beyond the paper: {_esc(', '.join(not_run))} (the PRX 2021 comparisons; "
+         "<code>undulate reproduce --full</code> runs them, as does <code>--beyond-paper</code> in quick "
+         "mode).</p>"] if not_run else [])
 
 
 def _animations(out: Path, animations: list[dict[str, str]] | None) -> list[str]:
@@ -241,7 +246,11 @@ def write_report(out_dir: str | Path, statuses: list[dict[str, Any]], *, mode: s
     statuses = [{**st, "reference": st.get("reference") or _reference(st["name"])} for st in statuses]
     beyond = any(reference_of(r) != "paper" for r in rows) or any(
         not st.get("ok") and st["reference"] != "paper" for st in statuses)
-    parts = _head(mode, statuses, total_wall_s, beyond)
+    from .studies import describe, names
+
+    ran = {st["name"] for st in statuses}
+    not_run = [n for n in names() if n not in ran and describe(n).reference != "paper"]
+    parts = _head(mode, statuses, total_wall_s, beyond, not_run)
     parts += claims_part(rows, statuses, out)
     parts += _animations(out, animations)
     parts.append("<h2 id='studies'>Studies</h2>")

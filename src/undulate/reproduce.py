@@ -123,8 +123,13 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
 def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None = None, seed: int = 0,
               studies: list[str] | None = None, log: Callable[[str], None] = print,
               animation_s: float | None = None, workers: int | None = None,
-              side_by_side: int = SIDE_BY_SIDE) -> tuple[Path, list[dict]]:
+              side_by_side: int = SIDE_BY_SIDE, beyond_paper: bool | None = None) -> tuple[Path, list[dict]]:
     """Run every registered study (or ``studies``) and write ``out_dir/index.html``.
+
+    ``beyond_paper``: also run the studies beyond the reproduced paper (``Study.reference`` not
+    ``"paper"``: the PRX 2021 synchronization comparisons).  Default: in full mode, not in quick mode
+    (quick is the paper's claims in the time a reader waits; the page says what was left out).
+    Ignored when ``studies`` names the studies.
 
     ``animation_s`` overrides the simulated duration of each animation (s).
     ``workers``: local worker processes (default: every core this process may
@@ -141,6 +146,9 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     from .sweep import warm_workers
 
     StudyConfig(out_dir=Path(out_dir), quick=quick, scheduler=scheduler, seed=seed, workers=workers)  # validate first
+    if studies is None:
+        beyond = (not quick) if beyond_paper is None else bool(beyond_paper)
+        studies = [n for n in registry.names() if beyond or registry.describe(n).reference == "paper"]
     with warm_workers():
         return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers,
                           side_by_side)
