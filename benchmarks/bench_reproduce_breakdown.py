@@ -70,6 +70,25 @@ def _table(rows: list[dict], total: dict) -> str:
     return head + "\n".join(line(r) for r in rows + [total]) + "\n"
 
 
+def _reference_us_per_step(n_steps: int = 20000) -> float:
+    """This machine's speed now: CPU microseconds per ``mj_step`` of a fixed scene (four default
+    swimmers in the 0.22 m channel), one process.  Printed before and after the run: a shared or
+    throttled machine steps the same scene 1.5x slower at some times than at others, and the
+    reproduction's wall time moves with it."""
+    import mujoco
+    import numpy as np
+
+    from undulate import scene as S
+    from undulate.params import Channel, Scene
+
+    model = S.build(Scene(phases_rad=tuple(np.linspace(0.0, 1.5, 4)), channel=Channel(width_m=0.22))).model
+    data = mujoco.MjData(model)
+    t0 = time.process_time()
+    for _ in range(n_steps):
+        mujoco.mj_step(model, data)
+    return 1e6 * (time.process_time() - t0) / n_steps
+
+
 def _cpu() -> float:
     """CPU seconds of this process and its reaped children so far."""
     me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -96,6 +115,8 @@ def main() -> None:
         tmp = tempfile.TemporaryDirectory(prefix="undulate-breakdown-")
         out = Path(tmp.name)
     print(f"load average before: {os.getloadavg()}", flush=True)
+    ref_before = _reference_us_per_step()
+    print(f"reference step (4 swimmers, one process) before: {ref_before:.1f} us", flush=True)
     cpu0 = _cpu()
     t0 = time.perf_counter()
     kw = {"workers": args.workers} if args.workers else {}
@@ -124,9 +145,12 @@ def main() -> None:
     title = (f"`undulate reproduce --{mode}`, {workers} worker(s), {cores} cores: "
              f"{wall:.0f} s end to end; CPU {cpu:.0f} core-s of {wall * cores:.0f} "
              f"({100 * cpu / (wall * cores):.0f} % busy), physics {phys:.0f} core-s ({100 * phys / max(cpu, 1e-9):.0f} % of the CPU)")
+    title += f"; reference step {ref_before:.1f} us before the run (4 swimmers, one process)"
     text = title + "\n\n" + _table(rows, total)
     print("\n" + text, flush=True)
     print(f"load average after: {os.getloadavg()}", flush=True)
+    print(f"reference step (4 swimmers, one process) before / after: {ref_before:.1f} / {_reference_us_per_step():.1f} us",
+          flush=True)
     failed = [s["name"] for s in statuses if not s["ok"]]
     if failed:
         print(f"FAILED studies: {failed}")

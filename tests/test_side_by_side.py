@@ -184,3 +184,28 @@ def test_side_by_side_gives_the_results_of_one_at_a_time(tmp_path, swing_studies
     assert state["wall_s"] > 0 and set(state["studies"]) == set(names)
     claims = json.loads((two / "claims.json").read_text())
     assert claims["counts"]["holds"] == 3
+
+
+# ---- which studies a reproduction runs ------------------------------------------------------
+@pytest.mark.parametrize("quick,beyond,expect_prx", [(True, None, False), (False, None, True), (True, True, True),
+                                                     (False, False, False)])
+def test_quick_reproduces_the_paper_and_full_goes_beyond(monkeypatch, tmp_path, quick, beyond, expect_prx):
+    import undulate.reproduce as rp
+
+    calls = []
+    monkeypatch.setattr(rp, "_reproduce", lambda registry, out, q, sch, seed, names, *a: calls.append(names))
+    rp.reproduce(tmp_path, quick=quick, beyond_paper=beyond, log=lambda m: None)
+    prx = [n for n in studies.names() if studies.describe(n).reference == "prx2021"]
+    assert prx and all((n in calls[0]) == expect_prx for n in prx)
+    assert [n for n in calls[0] if n not in prx] == [n for n in studies.names() if n not in prx]
+    # naming the studies overrides it
+    rp.reproduce(tmp_path, quick=quick, beyond_paper=beyond, studies=[prx[0]], log=lambda m: None)
+    assert calls[1] == [prx[0]]
+
+
+def test_the_page_says_which_studies_beyond_the_paper_were_not_run(tmp_path):
+    from undulate.report import write_report
+
+    path = write_report(tmp_path, [], mode="quick")
+    text = path.read_text()
+    assert "Not run here, beyond the paper" in text and "synchronization-groups" in text and "--beyond-paper" in text
