@@ -166,12 +166,13 @@ def test_groups_explanation_needs_default_failing_and_the_pairs_spacing_meeting_
 @pytest.mark.parametrize("quick", [True, False])
 def test_groups_cases_rerun_the_groups_studys_own_design(quick):
     """Only the channel may differ from the groups study: the same phases (and reference pairs) and the
-    same number of random draws of four, in quick and in full mode."""
+    same number of random draws of four, in quick mode those of its first look (the sensitivity study's
+    one look), in full mode its plan."""
     from undulate.studies import groups
 
-    g, p = groups.plan(quick), S.plan(quick)
+    g, p = (groups.stages(True)[0] if quick else groups.plan(False)), S.plan(quick)
     assert p.group_dphi_rad == g.dphi_rad and p.group_draws == g.draws
-    assert len(p.group_dphi_rad) == (9 if quick else 33)
+    assert (len(p.group_dphi_rad), p.group_draws) == ((5, 4) if quick else (33, 40))
 
 
 @pytest.mark.parametrize("quick", [True, False])
@@ -180,9 +181,9 @@ def test_impulse_cases_rerun_the_potential_studys_own_design(quick):
     and full), so the sensitivity study's default row is the claim's own number; only the drag varies."""
     from undulate.studies import potential
 
-    pot, p = potential.plan(quick), S.plan(quick)
-    assert list(p.impulse_dphi_rad) == pot.impulse_dphi and list(p.impulse_phi0_rad) == pot.impulse_phi0
-    assert (len(p.impulse_dphi_rad), len(p.impulse_phi0_rad)) == ((9, 4) if quick else (37, 8))
+    pot, p = (potential.stages(True)[0] if quick else potential.plan(False)), S.plan(quick)
+    assert list(p.impulse_dphi_rad) == list(pot.impulse_dphi) and list(p.impulse_phi0_rad) == list(pot.impulse_phi0)
+    assert (len(p.impulse_dphi_rad), len(p.impulse_phi0_rad)) == ((5, 2) if quick else (37, 8))
 
 
 def test_spaced_channel_adds_the_pairs_spacing_per_extra_swimmer():
