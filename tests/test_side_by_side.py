@@ -209,3 +209,39 @@ def test_the_page_says_which_studies_beyond_the_paper_were_not_run(tmp_path):
     path = write_report(tmp_path, [], mode="quick")
     text = path.read_text()
     assert "Not run here, beyond the paper" in text and "synchronization-groups" in text and "--beyond-paper" in text
+
+
+def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resumes(tmp_path):
+    """SIGINT while two studies run: the sweeps in flight stop at their next chunk, the command exits
+    130 within seconds, no worker process is left, and the same command then finishes the job."""
+    import os
+    import signal
+    import subprocess
+
+    out = tmp_path / "r"
+    cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only", "pairs,groups",
+           "--workers", "2"]
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    lines, deadline = [], time.time() + 240
+    while time.time() < deadline:
+        line = proc.stdout.readline()
+        lines.append(line)
+        if sum("running (quick)" in x for x in lines) == 2 and "to compute on 2 local processes" in line:
+            break
+    time.sleep(2.0)  # both studies have runs in flight
+    t0 = time.time()
+    os.kill(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C reaches the command
+    rest, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 130, "".join(lines) + rest
+    assert time.time() - t0 < 30
+    assert "sweep interrupted" in rest  # the sweep in flight stopped and said how to resume
+    # no process of its session is left (the worker pool was stopped)
+    for _ in range(50):  # the worker processes see their parent gone and end within moments
+        left = subprocess.run(["ps", "-o", "pid=,args=", "-s", str(proc.pid)], capture_output=True, text=True).stdout
+        if not left.strip():
+            break
+        time.sleep(0.1)
+    assert not left.strip(), left
+    r = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
+    assert r.returncode == 0, r.stdout + r.stderr
+    assert (out / "pairs.json").exists() and (out / "groups.json").exists() and (out / "index.html").exists()

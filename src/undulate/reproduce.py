@@ -146,12 +146,26 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     from .sweep import warm_workers
 
     StudyConfig(out_dir=Path(out_dir), quick=quick, scheduler=scheduler, seed=seed, workers=workers)  # validate first
+    log = _one_line_at_a_time(log)
     if studies is None:
         beyond = (not quick) if beyond_paper is None else bool(beyond_paper)
         studies = [n for n in registry.names() if beyond or registry.describe(n).reference == "paper"]
     with warm_workers():
         return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers,
                           side_by_side)
+
+
+def _one_line_at_a_time(log: Callable[[str], None]) -> Callable[[str], None]:
+    """``log`` behind a lock: studies side by side log from two threads, and ``print`` writes a line
+    and its newline apart."""
+    import threading
+
+    lock = threading.Lock()
+
+    def logged(message: str) -> None:
+        with lock:
+            log(message)
+    return logged
 
 
 def _dependencies(registry, names: list[str]) -> dict[str, set[str]]:
