@@ -223,18 +223,22 @@ def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resume
            "--workers", "2"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True)
     lines, deadline = [], time.time() + 240
-    while time.time() < deadline:
+    while time.time() < deadline:  # both studies started, and a sweep is handing runs to the workers
         line = proc.stdout.readline()
-        lines.append(line)
-        if sum("running (quick)" in x for x in lines) == 2 and "to compute on 2 local processes" in line:
+        if not line:
             break
-    time.sleep(2.0)  # both studies have runs in flight
+        lines.append(line)
+        if (sum("running (quick)" in x for x in lines) == 2
+                and any("to compute on 2 local processes" in x for x in lines)):
+            break
+    assert proc.poll() is None, "".join(lines)
     t0 = time.time()
     os.kill(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C reaches the command
     rest, _ = proc.communicate(timeout=60)
     assert proc.returncode == 130, "".join(lines) + rest
     assert time.time() - t0 < 30
     assert "sweep interrupted" in rest  # the sweep in flight stopped and said how to resume
+    assert "aborted" in rest.splitlines()
     # no process of its session is left (the worker pool was stopped)
     for _ in range(50):  # the worker processes see their parent gone and end within moments
         left = subprocess.run(["ps", "-o", "pid=,args=", "-s", str(proc.pid)], capture_output=True, text=True).stdout
