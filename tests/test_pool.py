@@ -78,3 +78,41 @@ def test_a_crash_inside_a_warm_pool_is_isolated_as_without_it(tmp_path):
     (f,) = res.failures
     assert f.point["damping_Nms"] == -1.0 and f.error.startswith("WorkerLost")
     assert res.n_computed == 5 and after.ok
+
+
+def test_a_sweep_that_wants_more_processes_never_takes_the_pool_from_a_sweep_beside_it(tmp_path):
+    """Studies side by side (threads) share the warm pool: a sweep asking for more processes than it
+    has runs on the pool there is while another thread's sweep holds it (dropping it would cancel that
+    sweep's runs), and grows it once nobody holds it."""
+    import threading
+
+    grid = Grid(axes={"damping_Nms": [0.05, 0.1, 0.2, 0.3], "length_m": [0.3, 0.5]}, replicates=2, seed=3)
+    ref = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "serial", workers=1, progress=False)
+    results, errors = {}, []
+
+    def sweep(name, workers):
+        try:
+            results[name] = run_sweep(sweep_funcs.pendulum, grid, tmp_path / name, workers=workers, batch=1,
+                                      progress=False)
+        except BaseException as e:  # noqa: BLE001 - reported below
+            errors.append(e)
+
+    with warm_workers():
+        run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": [0, 1]}), tmp_path / "w", workers=2, batch=1,
+                  progress=False)  # the warm pool: two processes
+        a = threading.Thread(target=sweep, args=("a", 2))
+        a.start()
+        while _executors._WARM["users"] == 0 and a.is_alive():
+            time.sleep(0.001)
+        b = threading.Thread(target=sweep, args=("b", 3))  # wants three while "a" holds the pool
+        b.start()
+        a.join()
+        b.join()
+        assert _executors._WARM["users"] == 0
+        grown = run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": list(range(6))}), tmp_path / "g", workers=3,
+                          batch=1, progress=False)
+        assert _executors._WARM["workers"] == 3 and grown.ok  # nobody held it: grown
+    assert errors == []
+    for name in ("a", "b"):
+        assert results[name].ok
+        xr.testing.assert_identical(sweep_funcs.result_data(results[name].dataset), sweep_funcs.result_data(ref.dataset))

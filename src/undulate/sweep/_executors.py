@@ -103,7 +103,7 @@ def _new_pool(ctx, workers: int) -> ProcessPoolExecutor:
 
 
 # ---- one warm pool for a series of sweeps --------------------------------
-_WARM: dict[str, Any] = {"depth": 0, "pool": None, "workers": 0}
+_WARM: dict[str, Any] = {"depth": 0, "pool": None, "workers": 0, "users": 0}
 _WARM_LOCK = threading.RLock()  # sweeps of studies run side by side (threads) share the warm pool
 _STOP = threading.Event()
 
@@ -155,7 +155,7 @@ def warm_workers() -> Iterator[None]:
 
 
 def _drop_warm(wait: bool = False) -> None:
-    with _WARM_LOCK:
+    with _WARM_LOCK:  # "users" stays: the sweeps holding the old pool still release it
         pool, _WARM["pool"], _WARM["workers"] = _WARM["pool"], None, 0
     if pool is not None:
         pool.shutdown(wait=wait, cancel_futures=True)
@@ -170,13 +170,16 @@ def _acquire_pool(ctx, workers: int) -> tuple[ProcessPoolExecutor, bool]:
         if _WARM["depth"] == 0:
             return _new_pool(ctx, workers), False
         pool = _WARM["pool"]
-        if pool is not None and (getattr(pool, "_broken", False) or getattr(pool, "_shutdown_thread", False)
-                                 or _WARM["workers"] < workers):
-            _drop_warm()  # a worker died while it waited, or more processes are wanted now
+        dead = pool is not None and (getattr(pool, "_broken", False) or getattr(pool, "_shutdown_thread", False))
+        # more processes are wanted now: grow the pool, unless a sweep of another thread holds it (then
+        # this sweep runs on the processes there are: results never depend on the number of workers)
+        if dead or (pool is not None and _WARM["workers"] < workers and _WARM["users"] == 0):
+            _drop_warm()
             pool = None
         if pool is None:
             pool = _new_pool(ctx, workers)
             _WARM["pool"], _WARM["workers"] = pool, workers
+        _WARM["users"] += 1
         return pool, True
 
 
@@ -200,6 +203,7 @@ def _held_pool(ctx, workers: int) -> Iterator[tuple[ProcessPoolExecutor, dict]]:
             pool.shutdown(wait=not state["broken"], cancel_futures=True)
         else:
             with _WARM_LOCK:
+                _WARM["users"] -= 1
                 if (state["broken"] or getattr(pool, "_broken", False)) and _WARM["pool"] is pool:
                     _drop_warm()
 
