@@ -350,8 +350,6 @@ def main(argv: list[str] | None = None) -> int:
         else:
             typer.echo(f"error: {msg.splitlines()[0] if msg else e}", err=True)
         return getattr(e, "exit_code", 2)
-    if rv == 130:  # typer hands back Ctrl-C as exit code 130, silently, outside standalone mode
-        typer.echo("aborted", err=True)
     return rv if isinstance(rv, int) else 0
 
 
