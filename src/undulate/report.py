@@ -98,6 +98,9 @@ def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None,
     reproduction did not run)."""
     n_ok = sum(1 for s in statuses if s.get("ok"))
     failed = [s["name"] for s in statuses if not s.get("ok")]
+    left_out = ([f"<p>Not run here, beyond the paper: {_esc(', '.join(not_run))} (the PRX 2021 comparisons; "
+                 "<code>undulate reproduce --full</code> runs them, as does <code>--beyond-paper</code> in "
+                 "quick mode).</p>"] if not_run else [])
     return ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
             "<meta name='viewport' content='width=device-width, initial-scale=1'>",
             f"<title>undulate reproduction ({_esc(mode)})</title><style>{_CSS}</style></head><body>",
@@ -108,10 +111,7 @@ def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None,
             + " Contents: <a href='#claims'>the paper's claims</a>"
             + (" · <a href='#claims-prx2021'>beyond the paper (PRX 2021)</a>" if beyond else "")
             + " · <a href='#claim-details'>the claims one by one</a>"
-            + " · <a href='#studies'>studies</a> · <a href='#provenance'>provenance</a>.</p>"]  + (
-        [f"<p>Not run here, beyond the paper: {_esc(', '.join(not_run))} (the PRX 2021 comparisons; "
-         "<code>undulate reproduce --full</code> runs them, as does <code>--beyond-paper</code> in quick "
-         "mode).</p>"] if not_run else [])
+            + " · <a href='#studies'>studies</a> · <a href='#provenance'>provenance</a>.</p>"] + left_out
 
 
 def _animations(out: Path, animations: list[dict[str, str]] | None) -> list[str]:

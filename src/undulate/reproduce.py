@@ -180,9 +180,10 @@ def _side_by_side(todo: list[str], deps: dict[str, set[str]], one: Callable[[str
     only once the jobs it depends on (``deps``, among ``todo``) have finished; ``finished(name,
     result)`` is called here, in this thread, as each ends.  Among the jobs ready to start, those that
     waited for others go first (an explaining study: the longest), then those others wait for (so that
-    it starts early), then the rest, each kind in ``todo``'s order.  Threads start in a copy of this context (a physics meter open here sees what
-    they simulate).  An interrupt (Ctrl-C, a changed source) stops the sweeps in flight
-    (:func:`undulate.sweep._executors.stop_sweeps`) and is raised once their threads end."""
+    it starts early), then the rest, each kind in ``todo``'s order.  Threads start in a copy of this
+    context (a physics meter open here sees what they simulate).  An interrupt (Ctrl-C, a changed
+    source) stops the sweeps in flight (:func:`undulate.sweep._executors.stop_sweeps`) and is raised
+    once their threads end."""
     import contextvars
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 

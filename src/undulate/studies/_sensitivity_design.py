@@ -13,6 +13,7 @@ those, and an explanation may name no other (:class:`UnknownCaseError`).
 
 from __future__ import annotations
 
+import dataclasses
 import enum
 import functools
 from dataclasses import dataclass
@@ -21,6 +22,7 @@ from ..errors import UndulateError
 from ..params import SwimmerGeometry
 from . import _analysis as C
 from ._criteria import PAIR_CHANNEL_M
+from ._stages import QUICK_STRIDES
 from ._gaits import BETA_DEG  # noqa: F401 - the 3-link joint amplitude, re-exported
 
 __all__ = ["FACTORS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_cases", "pair_cases", "plan",
@@ -198,10 +200,20 @@ def spaced_channel_m(n_swimmers: int) -> float:
     return round(PAIR_CHANNEL_M + (int(n_swimmers) - 2) * PAIR_SPACING_M, 6)
 
 
-QUICK_THINNING = 2
-"""Quick mode runs the sensitivity study in one look, on every second value of the quick grids (the first
-look of the groups and potential studies, whose runs it shares): its explanations matter only for claims
-that fail, and a quick reader waits for them least."""
+QUICK_THINNING = QUICK_STRIDES[0]
+"""Quick mode runs the sensitivity study in one look, on the grids of the first quick look of the groups
+and potential studies, whose runs it shares (every second value): its explanations matter only for
+claims that fail, and a quick reader waits for them least."""
+
+
+def thinned_plan(p: Plan, k: int, k_dphi: int | None = None) -> Plan:
+    """``p`` on every ``k``-th value of its groups' and impulse grids and ``k_dphi``-th (default ``k``)
+    of its pair phases, with ``1/k`` of its random draws of four: a look of the plan (its values are
+    ``p``'s, bitwise, so the runs are the shared ones)."""
+    k_dphi = k if k_dphi is None else k_dphi
+    return dataclasses.replace(p, dphi_rad=p.dphi_rad[::k_dphi], group_dphi_rad=p.group_dphi_rad[::k],
+                               group_draws=max(1, p.group_draws // k), impulse_dphi_rad=p.impulse_dphi_rad[::k],
+                               impulse_phi0_rad=p.impulse_phi0_rad[::k])
 
 
 def plan(quick: bool) -> Plan:
@@ -210,11 +222,8 @@ def plan(quick: bool) -> Plan:
     (step pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's design
     (:func:`._analysis.group_phases`, :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of
     four swimmers, thinned to 5 and 4; full 33 dphi and 40 draws), so that only the channel differs."""
-    if quick:  # one look (the explanations are what a quick reader can wait for least): every second value
-        whole, k = Plan(tuple(float(p) for p in C.paper_phases())), QUICK_THINNING
-        return Plan(whole.dphi_rad[::k], group_dphi_rad=whole.group_dphi_rad[::k],
-                    group_draws=max(1, whole.group_draws // k), impulse_dphi_rad=whole.impulse_dphi_rad[::k],
-                    impulse_phi0_rad=whole.impulse_phi0_rad[::k])
+    if quick:  # one look, on the groups' and potential's first quick look
+        return thinned_plan(Plan(tuple(float(p) for p in C.paper_phases())), QUICK_THINNING)
     impulse_dphi, impulse_phi0 = _impulse_grid(False)
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
                 confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),

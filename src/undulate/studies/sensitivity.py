@@ -915,18 +915,13 @@ def stages(quick: bool) -> tuple[Plan, ...]:
     """The plan in looks, in step with the studies whose runs it shares (groups, potential): the pair
     phases, the groups' phases and draws and the impulse grid thinned (:mod:`._stages`).  Quick mode:
     one look, the quick plan (:data:`~._sensitivity_design.QUICK_THINNING`)."""
-    import dataclasses
-
-    from ._stages import strides, thinned
+    from ._sensitivity_design import thinned_plan
+    from ._stages import strides
 
     if quick:  # one look: the quick plan is already the groups' and potential's first look
         return (plan(True),)
-    p, s = plan(quick), strides(quick)
-    return tuple(dataclasses.replace(p, dphi_rad=d, group_dphi_rad=g, group_draws=max(1, p.group_draws // k),
-                                     impulse_dphi_rad=i, impulse_phi0_rad=f)
-                 for k, d, g, i, f in zip(s, thinned(p.dphi_rad, (2, 1, 1)),
-                                          thinned(p.group_dphi_rad, s), thinned(p.impulse_dphi_rad, s),
-                                          thinned(p.impulse_phi0_rad, s)))
+    p = plan(False)
+    return tuple(thinned_plan(p, k, k_dphi) for k, k_dphi in zip(strides(False), (2, 1, 1)))
 
 
 register(Study(
