@@ -23,6 +23,7 @@ from __future__ import annotations
 import ast
 import functools
 import hashlib
+import os
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
@@ -34,6 +35,10 @@ __all__ = ["PACKAGE", "module_files", "import_graph", "find_cycle", "closure", "
 
 PACKAGE = "undulate"
 _ROOT = Path(__file__).resolve().parent
+BACKEND_MODULES = {"warp": ("undulate._warp", "undulate._warp_kernels")}
+"""The modules of each optional stepping backend.  :func:`code_hash` counts those of the session's
+backend only (``UNDULATE_BACKEND``, :func:`undulate.simulation.use_backend`): an edit to the Warp
+backend does not invalidate results of the MuJoCo one, and a Warp result names its backend's code."""
 
 
 def module_files(root: Path = _ROOT) -> dict[str, Path]:
@@ -209,6 +214,9 @@ def code_hash(fn: Callable) -> str:
     files = module_files()
     mods = function_modules(fn)
     own = closure([m for m in mods if m in files])
+    optional = {m for ms in BACKEND_MODULES.values() for m in ms}
+    own = (own - optional) | (set(BACKEND_MODULES.get(os.environ.get("UNDULATE_BACKEND", ""), ())) & set(files)
+                              if own & optional else set())
     paths: dict[str, Path] = {m: files[m] for m in own}
     for m in mods:
         if m not in files:

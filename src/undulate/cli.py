@@ -36,6 +36,11 @@ app = typer.Typer(
 )
 
 
+_BACKEND_HELP = ("Physics engine: mujoco (MuJoCo's C engine on the CPU, float64) or warp (MuJoCo Warp: a "
+                 "study's runs become the worlds of one GPU model, float32; needs pip install 'undulate[gpu]').")
+_DEVICE_HELP = "The warp backend's device: cuda or cpu (default: cuda if present). Only with --backend warp."
+
+
 @app.command()
 def simulate(
     phases: str = typer.Option("0,90", help="Gait phase of each swimmer, DEGREES, comma-separated; their count is the number of swimmers (side by side, laterally in contact)."),
@@ -59,6 +64,8 @@ def simulate(
     out: Path = typer.Option(Path("run.nc"), "--out", "-o", help="Output netCDF file."),
     estimate: bool = typer.Option(False, "--estimate", help="Only print the estimated compute time (measured on about a second of this run's first steps, extrapolated to --duration) and exit; writes nothing."),
     quiet: bool = typer.Option(False, "--quiet", "-q", help="Do not print the summary or the progress bar."),
+    backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
+    device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
 ) -> None:
     """Simulate swimmers side by side in a channel and write a netCDF trajectory.
 
@@ -70,7 +77,8 @@ def simulate(
                        frequency=frequency, channel_width=channel_width, dx0=dx0, separating_force=separating_force,
                        body_length=body_length, width=width, controller=controller, coupling=coupling,
                        control_rate=control_rate, hold_x=hold_x, heading_guide=heading_guide)
-        options = _sim_options(duration=duration, timestep=timestep, sample_rate=sample_rate)
+        options = _sim_options(duration=duration, timestep=timestep, sample_rate=sample_rate, backend=backend,
+                               device=device)
         check_writable("--out", out)
         if out.suffix.lower() != ".nc":
             raise ParameterError("--out", "a path ending in .nc (netCDF)", str(out))
@@ -139,14 +147,42 @@ def _separating_forces(separating_force: float, n: int) -> tuple[float, ...] | N
     return (-separating_force, separating_force) + (0.0,) * (n - 2)
 
 
-def _sim_options(*, duration: float, timestep: float | None, sample_rate: float):
+def _sim_options(*, duration: float, timestep: float | None, sample_rate: float, backend: str = "mujoco",
+                 device: str | None = None):
     from .params import SimOptions
+    from .simulation import check_backend
 
+    _check_backend(backend, device)
     try:
-        return SimOptions(duration_s=duration, timestep_s=timestep, sample_rate_hz=sample_rate)
+        options = SimOptions(duration_s=duration, timestep_s=timestep, sample_rate_hz=sample_rate,
+                             backend=backend, device=device)
+        check_backend(options)  # the warp extra and the device, checked before anything is written
+        return options
     except ParameterError as e:
         raise _cli_name(e, {"duration_s": "--duration (s)", "timestep_s": "--timestep (s)",
-                            "sample_rate_hz": "--sample-rate (Hz)"}) from None
+                            "sample_rate_hz": "--sample-rate (Hz)", "backend": "--backend",
+                            "device": "--device"}) from None
+
+
+def _check_backend(backend: str, device: str | None) -> None:
+    """``--backend`` and ``--device``, validated (ParameterError naming the option)."""
+    if backend not in ("mujoco", "warp"):
+        raise ParameterError("--backend", "mujoco or warp", backend)
+    if device is not None and device not in ("cpu", "cuda"):
+        raise ParameterError("--device", "cuda or cpu", device)
+    if device is not None and backend != "warp":
+        raise ParameterError("--device", "given only with --backend warp (mujoco steps on the CPU)", device)
+
+
+def _use_backend(backend: str, device: str | None) -> None:
+    """``study``'s and ``reproduce``'s ``--backend``: the default of every run they start."""
+    from .simulation import use_backend
+
+    _check_backend(backend, device)
+    try:
+        use_backend(backend, device)
+    except ParameterError as e:
+        raise _cli_name(e, {"backend": "--backend", "device": "--device"}) from None
 
 
 def _print_estimate(scene, options, out: Path) -> None:
@@ -268,12 +304,15 @@ def study(
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
     seed: int = typer.Option(0, help="Base random seed."),
     workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
+    backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
+    device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
 ) -> None:
     """Run one paper study: writes OUT/NAME.nc, OUT/NAME.png (+ .pdf) and OUT/NAME.json."""
     from . import studies
 
     try:
         _check_workers(workers, scheduler)
+        _use_backend(backend, device)
         out_path = Path(out)
         if out_path.exists() and not out_path.is_dir():
             raise ParameterError("--out", "a directory", str(out))
@@ -297,6 +336,8 @@ def reproduce(
         None, "--beyond-paper/--paper-only",
         help="Also run the studies beyond the paper (the PRX 2021 synchronization comparisons). "
              "Default: in --full mode, not in --quick mode."),
+    backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
+    device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
 ) -> None:
     """Reproduce the paper: every study, animations, and OUT/index.html."""
     from . import studies as registry
@@ -304,6 +345,7 @@ def reproduce(
 
     try:
         _check_workers(workers, scheduler)
+        _use_backend(backend, device)
         if out.exists() and not out.is_dir():
             raise ParameterError("--out", "a directory", str(out))
         names = None

@@ -624,6 +624,19 @@ class SimOptions(_Params):
     O(dt) (0.3 mm/s at dt = 2 ms, i.e. 0.1 % of L per period); RK4 removes
     it (tests/test_simulation.py)."""
 
+    backend: str | None = None
+    """Which engine steps the scenes: ``"mujoco"`` (MuJoCo's C engine through
+    ``mujoco.rollout``, float64, on the CPU) or ``"warp"`` (MuJoCo Warp: every
+    scene of a batch is one world of one model, float32, on a GPU or on Warp's
+    CPU device; the ``gpu`` extra).  None: the session's default
+    (:func:`undulate.simulation.use_backend`, the CLI's ``--backend``, or the
+    environment variable ``UNDULATE_BACKEND``; else ``"mujoco"``).  The dataset
+    records the one used (attrs ``backend``, ``device``, ``precision``)."""
+    device: str | None = None
+    """The Warp backend's device: ``"cuda"`` or ``"cpu"`` (None: the session's
+    default, ``UNDULATE_DEVICE``, else ``"cuda"`` where there is one).  Left out
+    for the ``"mujoco"`` backend, which steps on the CPU."""
+
     record: tuple[str, ...] | None = None
     """Variables to record (names of :data:`undulate.schema.RECORDABLE`), or
     None for all.  Recording fewer saves memory and file size; without
@@ -632,6 +645,7 @@ class SimOptions(_Params):
 
     MAX_TIMESTEP_S = 0.004
     RECORDABLE = _schema.RECORDABLE
+    BACKENDS = ("mujoco", "warp")
 
     @property
     def recorded(self) -> tuple[str, ...]:
@@ -655,6 +669,12 @@ class SimOptions(_Params):
             raise ParameterError("solver", "'auto', 'newton', 'cg' or 'pgs'", self.solver)
         if self.integrator not in ("implicitfast", "rk4"):
             raise ParameterError("integrator", "'implicitfast' or 'rk4'", self.integrator)
+        if self.backend not in (None, *self.BACKENDS):
+            raise ParameterError("backend", "'mujoco' or 'warp' (or None: the session's default)", self.backend)
+        if self.device not in (None, "cpu", "cuda"):
+            raise ParameterError("device", "'cuda' or 'cpu' (or None: the default)", self.device)
+        if self.device is not None and self.backend == "mujoco":
+            raise ParameterError("device", "left out with backend 'mujoco' (it steps on the CPU)", self.device)
         if self.record is not None:
             rec = (self.record,) if isinstance(self.record, str) else tuple(self.record)
             bad = [v for v in rec if v not in self.RECORDABLE]

@@ -148,7 +148,8 @@ def _root_frame_in_link(n_links: int, link_length_m: float) -> float:
     return (n_links / 2 - root_link(n_links)) * link_length_m
 
 
-def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None) -> mujoco.MjSpec:
+def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None,
+                 servo: str = "pid") -> mujoco.MjSpec:
     """One swimmer (body along +x, root link centred at the origin) as an ``MjSpec``.
 
     Names (before the attach prefix): bodies ``link0..link{N-1}``, root
@@ -180,7 +181,7 @@ def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None) -
     """
     spec = mujoco.MjSpec()
     _build_links(spec.worldbody, scene, timestep_s)
-    _add_servos(spec, scene)
+    _add_servos(spec, scene, servo)
     # the perturbation force, spread equally over the links: F/N along world x at each link's centre
     if not (scene.forces_N is not None if push is None else push):
         return spec
@@ -263,20 +264,38 @@ def _add_link_geoms(body, scene: Scene, timestep_s: float, k: int, lo: float) ->
                       group=3, mass=0, fluid_ellipsoid=1)
 
 
-def _add_servos(spec: mujoco.MjSpec, scene: Scene) -> None:
-    """A PID position servo on every body joint, and the heading guide's actuator if the scene has one."""
+SERVO_MODELS = ("pid", "affine")
+"""How a servo is expressed in MuJoCo: ``"pid"`` (default; MuJoCo's ``pid`` actuator, inputs
+``[pos, vel]``, the set-point slew-limited inside it) or ``"affine"`` (a position actuator with
+velocity gain: force ``kp u - kp q - kv qdot``, one input ``u = q* + (kv / kp) qdot*``, the set-point
+``q*`` slew-limited by the caller).  With no integral term the two give the same force; MuJoCo Warp
+(:mod:`undulate._warp`) has no ``pid`` actuator and steps the affine one."""
+
+
+def _add_servos(spec: mujoco.MjSpec, scene: Scene, servo: str = "pid") -> None:
+    """A position servo on every body joint (``servo``: :data:`SERVO_MODELS`), and the heading guide's
+    actuator if the scene has one."""
     sv = scene.servo
+    if servo not in SERVO_MODELS:
+        raise ValueError(f"servo model {servo!r} (allowed: {SERVO_MODELS})")
+
+    def add(a, kp, kv, ki=-1.0, imax=-1.0, slewmax=-1.0):
+        if servo == "pid":
+            a.set_to_pid(kp=kp, kv=kv, ki=ki, imax=imax, slewmax=slewmax)
+        else:
+            a.set_to_position(kp=kp, kv=kv)
+
     for i in range(scene.geometry.n_links - 1):
         a = spec.add_actuator(name=f"servo{i}", target=f"j{i}", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        a.set_to_pid(kp=sv.kp_Nm_per_rad, kv=sv.kd_Nms_per_rad,
-                     ki=sv.ki_Nm_per_rad_s if sv.ki_Nm_per_rad_s > 0 else -1,
-                     imax=sv.integral_limit_rad_s if sv.ki_Nm_per_rad_s > 0 else -1,
-                     slewmax=sv.max_speed_rad_s if sv.max_speed_rad_s > 0 else -1)
+        add(a, sv.kp_Nm_per_rad, sv.kd_Nms_per_rad,
+            ki=sv.ki_Nm_per_rad_s if sv.ki_Nm_per_rad_s > 0 else -1,
+            imax=sv.integral_limit_rad_s if sv.ki_Nm_per_rad_s > 0 else -1,
+            slewmax=sv.max_speed_rad_s if sv.max_speed_rad_s > 0 else -1)
         a.forcelimited = True
         a.forcerange = [-sv.torque_limit_Nm, sv.torque_limit_Nm]
     if scene.heading_guide:  # Scene.heading_guide: a stiff PD actuator on the root yaw (set-point, rate)
         a = spec.add_actuator(name="headguide", target="yaw", trntype=mujoco.mjtTrn.mjTRN_JOINT)
-        a.set_to_pid(kp=HEADING_GUIDE_KP_NM_PER_RAD, kv=HEADING_GUIDE_KV_NMS_PER_RAD, ki=-1, imax=-1, slewmax=-1)
+        add(a, HEADING_GUIDE_KP_NM_PER_RAD, HEADING_GUIDE_KV_NMS_PER_RAD)
 
 
 MAX_AUTO_TIMESTEP_S = 0.002
@@ -439,7 +458,7 @@ class CompiledScene:
 
 
 def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True, push: bool | None = None,
-               loads: bool | None = None) -> tuple[mujoco.MjSpec, tuple[str, ...]]:
+               loads: bool | None = None, servo: str = "pid") -> tuple[mujoco.MjSpec, tuple[str, ...]]:
     """The full scene: channel walls plus ``scene.n_swimmers`` attached swimmers.
 
     ``pair_sensors=False`` leaves out the swimmer-swimmer contact-force
@@ -485,7 +504,7 @@ def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True, pu
         walls += ["wall_end_lo", "wall_end_hi"]
 
     xs, ys = scene.initial_x_m(), scene.initial_y_m()
-    one = swimmer_spec(scene, timestep_s, push=push)
+    one = swimmer_spec(scene, timestep_s, push=push, servo=servo)
     spec.copy_during_attach = True  # attach the same swimmer N times
     L = g.length_m
     for j in range(scene.n_swimmers):
@@ -520,15 +539,16 @@ def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True, pu
 
 
 def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool = True,
-          push: bool | None = None, loads: bool | None = None) -> CompiledScene:
+          push: bool | None = None, loads: bool | None = None, servo: str = "pid") -> CompiledScene:
     """Compile ``scene`` (time step: ``timestep_s``, or :func:`auto_timestep`)
     and resolve every address by name.  ``pair_sensors``: see :func:`scene_spec`
-    (without them ``index.sens_pair`` is empty)."""
+    (without them ``index.sens_pair`` is empty).  ``servo``: :data:`SERVO_MODELS` (with
+    ``"affine"``, ``index.ctrl_vel`` repeats ``ctrl_pos``: the servo has one input)."""
     if timestep_s is None:
         timestep_s = auto_timestep(scene)
     push = scene.forces_N is not None if push is None else push
     loads = scene.controller.closed_loop if loads is None else loads
-    spec, walls = scene_spec(scene, timestep_s, pair_sensors=pair_sensors, push=push, loads=loads)
+    spec, walls = scene_spec(scene, timestep_s, pair_sensors=pair_sensors, push=push, loads=loads, servo=servo)
     model = spec.compile()
     n, nj = scene.n_swimmers, scene.geometry.n_links - 1
 
@@ -554,11 +574,11 @@ def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool =
         sens_load=np.array([[sadr(f"s{j}_load{i}") for i in range(nj)] for j in range(n)]
                            if loads else np.zeros((n, 0)), dtype=int).reshape(n, -1),
         ctrl_pos=np.array([[cadr(f"s{j}_servo{i}") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
-        ctrl_vel=np.array([[cadr(f"s{j}_servo{i}") + 1 for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
+        ctrl_vel=np.array([[cadr(f"s{j}_servo{i}") + (servo == "pid") for i in range(nj)] for j in range(n)], dtype=int).reshape(n, nj),
         ctrl_push=np.array([[cadr(f"s{j}_push{k}") for k in range(nj + 1)] for j in range(n)] if push
                            else np.zeros((n, 0)), dtype=int),
         sens_com=np.array([sadr(f"s{j}_com") for j in range(n)], dtype=int),
-        ctrl_heading=np.array([[cadr(f"s{j}_headguide"), cadr(f"s{j}_headguide") + 1] for j in range(n)]
+        ctrl_heading=np.array([[cadr(f"s{j}_headguide"), cadr(f"s{j}_headguide") + (servo == "pid")] for j in range(n)]
                               if scene.heading_guide else np.zeros((n, 0)), dtype=int),
         sens_pair=np.array([sadr(f"pair{j}_force") for j in range(n - 1 if pair_sensors else 0)], dtype=int),
         sens_wall=np.array([sadr(f"{w}_force") for w in walls], dtype=int),

@@ -21,6 +21,7 @@ time-integral over the run (every step contributes).
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import logging
@@ -54,9 +55,72 @@ RK4_DAMPING_STEP = 1.0
 """``rate dt`` allowed for the servo damping under ``rk4`` (its real-axis stability limit is 2.79)."""
 
 
+BACKEND_ENV, DEVICE_ENV = "UNDULATE_BACKEND", "UNDULATE_DEVICE"
+
+
+def use_backend(backend: str | None, device: str | None = None) -> None:
+    """Make ``backend`` (``"mujoco"`` or ``"warp"``; None: back to ``"mujoco"``) and ``device`` the
+    default of every :class:`SimOptions` that leaves them out, in this process and the worker
+    processes it starts (it sets the environment variables ``UNDULATE_BACKEND`` and
+    ``UNDULATE_DEVICE``).  The ``warp`` backend is checked here: its extra must be installed and
+    the device present."""
+    SimOptions(backend=backend, device=device)  # validated as options are
+    if backend == "warp":
+        from . import _warp
+
+        device = _warp.resolve_device(device)
+    for var, value in ((BACKEND_ENV, backend), (DEVICE_ENV, device)):
+        if value is None:
+            os.environ.pop(var, None)
+        else:
+            os.environ[var] = value
+
+
+def default_backend() -> tuple[str, str | None]:
+    """The session's default ``(backend, device)`` (:func:`use_backend`)."""
+    backend = os.environ.get(BACKEND_ENV) or "mujoco"
+    if backend not in SimOptions.BACKENDS:
+        raise ParameterError(BACKEND_ENV, "'mujoco' or 'warp' (environment variable)", backend)
+    return backend, (os.environ.get(DEVICE_ENV) or None) if backend == "warp" else None
+
+
+def check_backend(options: SimOptions) -> SimOptions:
+    """``options`` with a concrete backend and device (:func:`default_backend` where left out); a
+    ParameterError if the Warp backend's extra or device is missing."""
+    return _resolve_backend(options)
+
+
+def _resolve_backend(options: SimOptions) -> SimOptions:
+    if options.backend is not None and (options.backend == "mujoco" or options.device is not None):
+        if options.backend == "warp":
+            from . import _warp
+
+            _warp.resolve_device(options.device)  # the extra and the device are there
+        return options
+    backend, device = (options.backend, options.device) if options.backend is not None else default_backend()
+    if backend == "warp":
+        from . import _warp
+
+        device = _warp.resolve_device(options.device or device)
+    return dataclasses.replace(options, backend=backend, device=device)
+
+
+def backend_attrs(options: SimOptions) -> dict[str, str]:
+    """What stepped a run (resolved ``options``): ``backend``, ``device``, ``precision`` and, for
+    Warp, the versions of mujoco-warp and warp-lang (Dataset attrs, sweep identity)."""
+    if options.backend != "warp":
+        return {"backend": "mujoco", "device": "cpu", "precision": "float64"}
+    from . import _warp
+
+    return {"backend": "warp", "device": options.device or "", "precision": _warp.PRECISION,
+            "backend_versions": _warp.versions()}
+
+
 def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
-    """``options`` with a concrete time step: the explicit one, or the
-    time-step rule's (:func:`undulate.scene.auto_timestep`) for ``scene``."""
+    """``options`` with a concrete time step (the explicit one, or the
+    time-step rule's, :func:`undulate.scene.auto_timestep`, for ``scene``) and
+    a concrete backend and device (:func:`default_backend` where left out)."""
+    options = _resolve_backend(options)
     if options.timestep_s is not None:
         return options
     dt = auto_timestep(scene)
@@ -70,16 +134,17 @@ def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
 
 
 def compile_scene(scene: Scene, options: SimOptions, *, push: bool | None = None,
-                  loads: bool | None = None) -> CompiledScene:
+                  loads: bool | None = None, servo: str = "pid") -> CompiledScene:
     """Build the model for ``scene`` with the solver settings the runner needs
     (``options.timestep_s`` must be resolved: :func:`resolve_options`).
     ``push``: include the perturbation-force actuators (default: only if
     ``scene.forces_N`` is set; see :func:`undulate.scene.swimmer_spec`);
     ``loads``: servo-torque sensors for a closed-loop controller (default: if
-    the scene's controller is closed-loop)."""
+    the scene's controller is closed-loop); ``servo``: how the servos are expressed
+    (:data:`undulate.scene.SERVO_MODELS`; the Warp backend steps ``"affine"``)."""
     options = resolve_options(scene, options)
     cs = build(scene, options.timestep_s, pair_sensors="contact_force_pair" in options.recorded, push=push,
-               loads=loads)
+               loads=loads, servo=servo)
     m = cs.model
     solver = options.solver
     if solver == "auto":  # Newton at any size: MuJoCo 3.17's sparse Newton is correct (docs/contact.md §5)
@@ -535,7 +600,14 @@ class _Stepper:
         self.q0, self.nstate = _state_layout(m0)
         ix = bt.compiled[0].index
         self.pair_adr, self.wall_adr, self.md = ix.sens_pair, ix.sens_wall, ix.sens_mindist
-        self.runner = _WarmRollout([c.model for c in bt.compiled], nthread)
+        if bt.options.backend == "warp":
+            from . import _warp
+
+            affine = [compile_scene(c.scene, bt.options, push=c.index.ctrl_push.size > 0,
+                                    loads=c.index.sens_load.size > 0, servo="affine") for c in bt.compiled]
+            self.runner = _warp.WarpRollout(bt.compiled, affine, bt.options, bt.options.device)
+        else:
+            self.runner = _WarmRollout([c.model for c in bt.compiled], nthread)
         state0, sens0 = np.empty((nb, self.nstate)), np.empty((nb, m0.nsensordata))
         for b, cs in enumerate(bt.compiled):
             state0[b], sens0[b] = _initial_state(cs.model)
@@ -688,6 +760,17 @@ def simulate_batch(
     record what the call cost; the same is reported to the open physics meters
     (:func:`undulate._physics.meter`).
     """
+    g = _gathering()
+    if g is not None and out is None and controller is None and progress is None and start is None and (
+            stop is None or not callable(stop) or len(scenes) == 1):
+        return g.submit(list(scenes), options, stop)
+    return _simulate_batch_now(scenes, options, nthread=nthread, out=out, controller=controller, stop=stop,
+                               progress=progress, start=start)
+
+
+def _simulate_batch_now(scenes, options, *, nthread=0, out=None, controller=None, stop=None, progress=None,
+                        start=None):
+    """:func:`simulate_batch` in this call, never gathered."""
     bt = _plan_batch(scenes, options, out, controller)
     starts = _starts(bt, start)
     clock = _Clock()
@@ -994,7 +1077,146 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=R
             "conventions": "heads toward -x; body wave travels +x; dx = x_upper - x_lower, "
                            "dphi = phi_upper - phi_lower; compatibility dx = lambda dphi / 2pi",
             "config": json.dumps(config),
+            **backend_attrs(options),
             **{f"provenance_{k}": v for k, v in provenance().items()},
         },
     )
     return ds
+
+
+class _NoStop:
+    """The stopping rule of a scene that has none, in a gathered batch (it never ends a run)."""
+
+    rule = ""
+
+    def __call__(self, blocks):
+        return None
+
+
+class _Request:
+    def __init__(self, scenes, options, stop):
+        self.scenes, self.options, self.stop = scenes, options, stop
+        self.result = self.error = None
+        self.done = False
+        self.physics = (0.0, 0)
+
+    def rules(self) -> list:
+        if self.stop is None:
+            return [_NoStop() for _ in self.scenes]
+        return [self.stop] if callable(self.stop) else list(self.stop)
+
+
+class Gather:
+    """Runs the simulations of several threads as one batch: every thread's
+    :func:`simulate_batch` call waits until each live thread has either called it or finished,
+    then the calls are stepped together, one batch per structure and options (on the Warp
+    backend: one world per scene).  Each call returns its own Datasets, each bitwise what the
+    same batch would give (:func:`simulate_batch`: a scene's run does not depend on the others,
+    on the MuJoCo backend bitwise, on Warp to float32 rounding of the solver's reductions).
+
+    Used by the sweep runner for the Warp backend (:func:`undulate.sweep.run_sweep`): a study's
+    runs, each in its own thread, reach the GPU together.  Calls with ``out``, ``controller``,
+    ``progress`` or ``start`` run at once, alone.  If a gathered batch fails (one scene diverges),
+    its calls are run again one at a time so that only the failing one raises."""
+
+    def __init__(self, n_threads: int):
+        import threading
+
+        self.live = int(n_threads)
+        self.pending: list[_Request] = []
+        self.cond = threading.Condition()
+        self.batches: list[int] = []  # scenes per batch stepped (for reports and tests)
+
+    def submit(self, scenes, options, stop) -> list[xr.Dataset]:
+        req = _Request(scenes, options or SimOptions(), stop)
+        with self.cond:
+            self.pending.append(req)
+            if len(self.pending) < self.live:
+                while not req.done:
+                    self.cond.wait()
+                flush = None
+            else:
+                flush, self.pending = self.pending, []
+        if flush is not None:
+            self._run(flush)
+        if req.error is not None:
+            raise req.error
+        _physics.report(*req.physics)
+        return req.result
+
+    def thread_done(self) -> None:
+        """A thread leaves: its calls are all made (call once per thread, also when it raised)."""
+        with self.cond:
+            self.live -= 1
+            flush = None
+            if self.pending and len(self.pending) >= self.live:
+                flush, self.pending = self.pending, []
+        if flush is not None:
+            self._run(flush)
+
+    def _run(self, reqs: list[_Request]) -> None:
+        import contextvars
+
+        try:
+            for group in _gather_groups(reqs):
+                scenes = [sc for r in group for sc in r.scenes]
+                rules = [rule for r in group for rule in r.rules()]
+                self.batches.append(len(scenes))
+                try:
+                    with _physics.meter() as tally:  # this batch's physics, shared among its calls
+                        dss = contextvars.Context().run(_simulate_batch_now, scenes, group[0].options, stop=rules)
+                except Exception:  # noqa: BLE001 - isolate the failing call
+                    for r in group:
+                        try:
+                            with _physics.meter() as tally:
+                                r.result = contextvars.Context().run(_simulate_batch_now, r.scenes, r.options,
+                                                                     stop=r.stop)
+                            r.physics = tally.read()
+                        except Exception as e:  # noqa: BLE001
+                            r.error = e
+                    continue
+                sec, steps = tally.read()
+                i = 0
+                for r in group:
+                    n = len(r.scenes)
+                    r.result, i = dss[i:i + n], i + n
+                    r.physics = (sec * n / len(scenes), steps * n // len(scenes))
+        except BaseException as e:  # noqa: BLE001 - every waiting thread must learn of it
+            for r in reqs:
+                if r.result is None and r.error is None:
+                    r.error = e
+        finally:
+            with self.cond:
+                for r in reqs:
+                    r.done = True
+                self.cond.notify_all()
+
+
+def _gather_groups(reqs: list[_Request]) -> list[list[_Request]]:
+    """Calls that can be stepped as one batch: same resolved options and one structure (the
+    compiled models' sizes), and for closed-loop scenes one gait, controller and link count."""
+    keys = []
+    for r in reqs:
+        opts = [resolve_options(sc, r.options) for sc in r.scenes]
+        o = opts[0]
+        cs = compile_scene(r.scenes[0], o, push=any(sc.forces_N is not None for sc in r.scenes))
+        m = cs.model
+        closed = r.scenes[0].controller.closed_loop
+        keys.append((json.dumps(o.to_dict(), sort_keys=True, default=str), len({x.timestep_s for x in opts}) == 1,
+                     (m.nq, m.nv, m.nu, m.na, m.nsensordata, m.ngeom), r.scenes[0].forces_N is not None,
+                     repr((r.scenes[0].gait, r.scenes[0].controller, r.scenes[0].geometry.n_links)) if closed else ""))
+    out = []
+    for key in dict.fromkeys(keys):
+        group = [r for r, k in zip(reqs, keys) if k == key]
+        if not key[1]:  # a call whose own scenes need different time steps: alone (it raises there)
+            out += [[r] for r in group]
+        else:
+            out.append(group)
+    return out
+
+
+
+def _gathering() -> "Gather | None":
+    import threading
+
+    return getattr(threading.current_thread(), "undulate_gather", None)

@@ -389,7 +389,7 @@ class StudyContext:
         """The store of sweep ``part``: ``OUT/.sweeps/FOLDER/PART-{quick|full}-seedS`` (``FOLDER``: the
         study's name unless given)."""
         return (Path(self.config.out_dir) / ".sweeps" / (folder or self.name)
-                / f"{part}-{self.config.mode}-seed{self.config.seed}")
+                / f"{part}-{self.config.mode}-seed{self.config.seed}{_backend_suffix()}")
 
     def shared_sweep(self, part: str, fn: Callable, grid: Grid, *, batched: bool = False) -> xr.Dataset:
         """:meth:`sweep` in the store every study of this output folder shares,
@@ -443,11 +443,20 @@ class StudyContext:
         if heading_guide:  # Scene.heading_guide (the yaw recoil removed)
             point["heading_guide"] = True
             key += "-headingguide"
-        out = Path(self.config.out_dir) / ".sweeps" / "_lone" / key
+        out = Path(self.config.out_dir) / ".sweeps" / "_lone" / (key + _backend_suffix())
         ds = self.sweep(f"lone {key}", lone_swimmer, Grid(points=[point], seed=0), where=out)
         if bool(ds["run_failed"].any()):
             raise UndulateError(f"study {self.name!r}: the free swimmer {key} failed: {self.failures[-1]}")
         return ds.isel(point=0, replicate=0)
+
+
+def _backend_suffix() -> str:
+    """``""`` for the MuJoCo backend, ``"-warp-DEVICE"`` for Warp: the two backends' stores live
+    side by side in one output folder (their runs are never served for each other)."""
+    from ..simulation import default_backend
+
+    backend, device = default_backend()
+    return "" if backend == "mujoco" else f"-{backend}-{device or 'default'}"
 
 
 def _jsonable(obj: Any) -> Any:
@@ -485,10 +494,12 @@ def identity(name: str, config: StudyConfig) -> dict[str, Any]:
     claims that fail: :meth:`StudyContext.needs_explanation`)."""
     from .._source import code_hash
     from ..provenance import package_version
+    from ..sweep._store import backend_identity
 
     info = describe(name)
     ident = {"study": name, "quick": bool(config.quick), "seed": int(config.seed),
-             "undulate_version": package_version("undulate"), "code": code_hash(info.dataset)}
+             "undulate_version": package_version("undulate"), "code": code_hash(info.dataset),
+             "backend": backend_identity()}
     if info.explanations:  # which explanations it runs for depends on the verdicts it explains
         known = _claim_verdicts(Path(config.out_dir), config)
         ident["explains"] = [list(t) for t in sorted({(e.study, e.claim, known.get((e.study, e.claim), "unknown"))

@@ -141,6 +141,22 @@ def function_id(fn: Callable) -> str:
     return f"{function_name(fn)}({', '.join(f'{k}={v}' for k, v in args.items())})"
 
 
+def backend_identity() -> str:
+    """The session's default stepping backend as a sweep's identity records it: ``"mujoco"``, or
+    ``"warp DEVICE float32 (mujoco-warp X, warp-lang Y)"`` (:func:`undulate.simulation.use_backend`).
+    Runs of one backend are never served for another."""
+    from ..simulation import backend_attrs, default_backend
+    from ..params import SimOptions
+
+    backend, device = default_backend()
+    if backend == "mujoco":
+        return "mujoco"
+    from .. import _warp
+
+    a = backend_attrs(SimOptions(backend=backend, device=_warp.resolve_device(device)))
+    return f"warp {a['device']} {a['precision']} ({a['backend_versions']})"
+
+
 def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:
     """What a sweep is: the function (fully bound call), the hash of the code that
     computes a run (:func:`undulate._source.code_hash`), the package version, the grid."""
@@ -152,6 +168,7 @@ def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:
         "function": function_id(fn),
         "function_name": function_name(fn),
         "code": code_hash(fn),
+        "backend": backend_identity(),
         "undulate_version": package_version("undulate"),
         "batched": bool(batched),
         "grid": grid.to_dict(),
@@ -159,7 +176,7 @@ def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:
 
 
 #: Manifest keys whose change makes the stored runs stale (recomputed, not refused).
-RESULT_KEYS = ("format", "function", "code", "undulate_version")
+RESULT_KEYS = ("format", "function", "code", "backend", "undulate_version")
 
 
 def _stale(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
@@ -319,7 +336,7 @@ def _run_meta(run: Run) -> dict[str, Any]:
 def run_provenance(manifest: dict[str, Any]) -> dict[str, Any]:
     """What each run file records about the code that computed it (with host and time added
     when it is written)."""
-    return {k: manifest.get(k) for k in ("function", "code", "undulate_version")}
+    return {k: manifest.get(k) for k in ("function", "code", "backend", "undulate_version")}
 
 
 def check_output(ds: Any, grid_names: Sequence[str]) -> xr.Dataset:

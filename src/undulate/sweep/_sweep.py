@@ -111,6 +111,10 @@ class SweepResult:
         return self
 
 
+GATHER_MAX = 4096
+"""Most runs of one task on the Warp backend (one thread each; their scenes become worlds)."""
+
+
 def _auto_chunk(n_todo: int, workers: int) -> int:
     return max(1, min(MAX_AUTO_CHUNK, math.ceil(n_todo / (max(workers, 1) * CHUNKS_PER_WORKER))))
 
@@ -244,6 +248,7 @@ def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, s
     Returns the outcome counts (``OK``, ``FAILED``, ``EXISTS``) and the timing
     (executor, the runs' own wall and physics seconds, scene-steps)."""
     client, own_client = None, False
+    gather = scheduler is None and store.manifest.get("backend", "mujoco") != "mujoco"
     if scheduler is not None and todo:
         client, own_client = _executors.connect(scheduler)
     try:
@@ -252,13 +257,19 @@ def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, s
             threads = _executors.dask_threads(client)
             n_workers = threads or 8  # workers still starting: assume a few for the chunk size
             where = f"Dask at {client.scheduler.address} ({threads} worker threads now)"
+        elif gather:
+            n_workers = 1
+            where = "this process, each task's runs stepped together as Warp worlds"
         else:
             n_workers = min(workers or _executors.default_workers(), max(len(todo), 1))
             where = "this process" if n_workers == 1 else f"{n_workers} local processes"
-        size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
+        if gather:  # the runs reach the device together: one task of up to GATHER_MAX runs
+            size = batch or min(GATHER_MAX, max(len(todo), 1))
+        else:
+            size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
         run_prov = tuple(run_provenance(store.manifest).items())
         chunks = [
-            Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov)
+            Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov, gather)
             for i in range(0, len(todo), size)
         ]
         bar = Progress(len(runs), len(runs) - len(todo), enabled=progress, stream=stream)

@@ -48,6 +48,9 @@ class Chunk:
     batched: bool = False
     provenance: tuple[tuple[str, str], ...] = ()
     """The sweep's run provenance (function call, code hash, version), stored in each run file."""
+    gather: bool = False
+    """Run the chunk's runs on threads whose simulations are stepped together
+    (:class:`undulate.simulation.Gather`: the Warp backend's worlds)."""
 
 
 def init_local_worker() -> None:
@@ -74,6 +77,8 @@ def run_chunk(chunk: Chunk) -> list[Outcome]:
             todo.append(run)
     if chunk.batched:
         out += _run_batched(chunk, runs_dir, todo)
+    elif chunk.gather and len(todo) > 1:
+        out += _run_gathered(chunk, runs_dir, todo)
     else:
         for run in todo:
             out.append(_run_one(chunk, runs_dir, run, lambda r: chunk.fn(dict(r.point), r.seed)))
@@ -92,6 +97,37 @@ def _run_one(chunk: Chunk, runs_dir: Path, run: Run, compute: Callable[[Run], ob
             tm = _timing(time.perf_counter() - t0, physics)
             return Outcome(run.key, FAILED, rec["error"], tm["wall_s"], tm["physics_s"], tm["steps"])
     return Outcome(run.key, OK, "", time.perf_counter() - t0, tm["physics_s"], tm["steps"])
+
+
+def _run_gathered(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outcome]:
+    """Every run on its own thread, their simulations stepped together
+    (:class:`undulate.simulation.Gather`); each run saved as it finishes, as :func:`_run_one` does."""
+    import contextvars
+    import threading
+
+    from ..simulation import Gather
+
+    gather = Gather(len(runs))
+    outcomes: list[Outcome | None] = [None] * len(runs)
+
+    def work(i: int, run: Run) -> None:
+        try:
+            outcomes[i] = _run_one(chunk, runs_dir, run, lambda r: chunk.fn(dict(r.point), r.seed))
+        finally:
+            gather.thread_done()
+
+    threads = []
+    for i, run in enumerate(runs):
+        t = threading.Thread(target=contextvars.copy_context().run, args=(work, i, run), daemon=True,
+                             name=f"undulate-run-{run.key}")
+        t.undulate_gather = gather
+        threads.append(t)
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return [o if o is not None else Outcome(r.key, FAILED, "the run's thread ended without a result")
+            for o, r in zip(outcomes, runs)]
 
 
 def _run_batched(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outcome]:

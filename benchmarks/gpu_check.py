@@ -1,0 +1,216 @@
+"""The GPU check (issue 37): one prepared run on a GPU machine, every figure in one go.
+
+    python benchmarks/gpu_check.py OUTDIR [--budget-s 450] [--skip-full]
+
+Run by ``benchmarks/gpu_check.sh`` (which installs the carried wheels first).  Prints one JSON line
+per measurement as it goes and keeps ``OUTDIR/gpu_check.json`` up to date, so a run cut short still
+leaves what it measured.  In order:
+
+1. **Agreement** -- the default pair over 5 s and a jammed 50-swimmer pack over 2 s, Warp on CUDA
+   against the MuJoCo backend (float64, CPU) on the same machine: max |dx|, penetration.  The first
+   Warp call compiles the kernels: its time is reported apart (``compile_s``).
+2. **Throughput** -- world-steps per second against the number of worlds, for the pair
+   (1 024 / 8 192 / 32 768 worlds) and the pack (64 / 512): on the device alone (the CUDA graph of
+   one step, launched per step) and end to end (controls up, every step's state and sensors down,
+   as :func:`undulate.simulation.simulate_batch` pays it).
+3. **Reproductions** -- ``undulate reproduce --quick`` on the MuJoCo backend with every core, then
+   ``--backend warp``, each a fresh folder: wall time, runs, claims and verdicts; the verdicts are
+   compared claim by claim.  Then ``--full --backend warp`` with what is left of the budget.
+
+Every step has a time limit taken from ``--budget-s`` so the whole check ends in time.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+T0 = time.perf_counter()
+RESULTS: dict = {}
+OUT: Path = Path(".")
+DEVICE = "cuda"
+SMALL = False  # --dry-run: tiny sizes, to check the script itself on Warp's CPU device
+
+
+def say(key: str, value) -> None:
+    RESULTS[key] = value
+    print(json.dumps({key: value, "t_s": round(time.perf_counter() - T0, 1)}), flush=True)
+    (OUT / "gpu_check.json").write_text(json.dumps(RESULTS, indent=1, default=str))
+
+
+def left(budget: float) -> float:
+    return budget - (time.perf_counter() - T0)
+
+
+def agreement() -> None:
+    import numpy as np
+
+    from undulate import Scene, SimOptions, simulate
+    from undulate._warp import device_name
+    from undulate.studies.packing import _pack
+
+    say("device", device_name(DEVICE))
+    t = time.perf_counter()
+    simulate(Scene(phases_rad=(0.0, math.pi / 2)), SimOptions(duration_s=0.05, backend="warp", device=DEVICE))
+    say("pair.compile_s", time.perf_counter() - t)
+    sc = Scene(phases_rad=(0.0, math.pi / 2))
+    t = time.perf_counter()
+    pair_s = 0.2 if SMALL else 5.0
+    a = simulate(sc, SimOptions(duration_s=pair_s))
+    cpu_s = time.perf_counter() - t
+    t = time.perf_counter()
+    b = simulate(sc, SimOptions(duration_s=pair_s, backend="warp", device=DEVICE))
+    say("pair.agreement_5s", {"max_dx_m": float(np.abs(a["x"].values - b["x"].values).max()),
+                              "max_dy_m": float(np.abs(a["y"].values - b["y"].values).max()),
+                              "penetration_max_m": float(b["penetration"].max()),
+                              "cpu_s": cpu_s, "warp_s": time.perf_counter() - t})
+    pack = _pack({"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}, amplitude_m=0.05226, base_seed=0,
+                 n_swimmers=50)[0]
+    opts = dict(duration_s=0.2 if SMALL else 2.0, sample_rate_hz=10.0, record=("x", "y", "penetration"))
+    t = time.perf_counter()
+    simulate(pack, SimOptions(**{**opts, "duration_s": 0.1}, backend="warp", device=DEVICE))
+    say("pack.compile_s", time.perf_counter() - t)
+    t = time.perf_counter()
+    a = simulate(pack, SimOptions(**opts))
+    cpu_s = time.perf_counter() - t
+    t = time.perf_counter()
+    b = simulate(pack, SimOptions(**opts, backend="warp", device=DEVICE))
+    say("pack.agreement_2s", {"max_dx_m": float(np.abs(a["x"].values - b["x"].values).max()),
+                              "penetration_max_m": float(b["penetration"].max()),
+                              "penetration_max_cpu_m": float(a["penetration"].max()),
+                              "cpu_s": cpu_s, "warp_s": time.perf_counter() - t})
+
+
+def throughput(budget: float) -> None:
+    import numpy as np
+
+    from undulate import Scene, SimOptions
+    from undulate._warp import WarpRollout, _device_seconds
+    from undulate.simulation import _initial_state, compile_scene, resolve_options
+    from undulate.studies.packing import _pack
+
+    pack = _pack({"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}, amplitude_m=0.05226, base_seed=0,
+                 n_swimmers=50)[0]
+    cases = [("pair", Scene(phases_rad=(0.0, math.pi / 2)), (1024, 8192, 32768), 200),
+             ("pack", pack, (64, 512), 100)]
+    if SMALL:
+        cases = [(n, sc, (2, 4), 5) for n, sc, _, _ in cases]
+    for name, sc, worlds, k in cases:
+        opts = resolve_options(sc, SimOptions(duration_s=1.0, backend="warp", device=DEVICE,
+                                              record=("x", "y", "penetration") if name == "pack" else None))
+        cs = compile_scene(sc, opts)
+        aff = compile_scene(sc, opts, servo="affine")
+        s0, _ = _initial_state(cs.model)
+        u1 = cs.controls(np.arange(k) * opts.timestep_s)
+        for nw in worlds:
+            if left(budget) < 30:
+                say(f"{name}.worlds_{nw}", "skipped: budget")
+                continue
+            try:
+                r = WarpRollout([cs] * nw, [aff] * nw, opts, DEVICE)
+                cur = np.tile(s0, (nw, 1))
+                u = np.broadcast_to(u1, (nw, k, u1.shape[1]))
+                st = np.empty((nw, k, s0.size))
+                sd = np.empty((nw, k, cs.model.nsensordata))
+                r.rollout(cur, u, st, sd, k)  # graph capture
+                t = time.perf_counter()
+                r.rollout(cur, u, st, sd, k)
+                e2e = time.perf_counter() - t
+                dev = _device_seconds(r.groups[0], k)
+                say(f"{name}.worlds_{nw}", {"steps": k, "device_world_steps_per_s": nw * k / dev,
+                                            "end_to_end_world_steps_per_s": nw * k / e2e,
+                                            "device_s_per_step": dev / k})
+                r.close()
+                del st, sd
+            except Exception as e:  # noqa: BLE001 - report and go on
+                say(f"{name}.worlds_{nw}", f"error: {type(e).__name__}: {e}"[:500])
+
+
+def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
+    out = OUT / f"repro-{tag}"
+    cmd = [sys.executable, "-c", "import sys; from undulate.cli import main; sys.exit(main(sys.argv[1:]))",
+           "reproduce", "--out", str(out), *args]
+    stats = OUT / f"repro-{tag}.warp-first-steps.jsonl"
+    env = {**env, "UNDULATE_WARP_STATS": str(stats)}
+    t = time.perf_counter()
+    try:
+        r = subprocess.run(cmd, capture_output=True, text=True, timeout=max(10.0, timeout), env=env)
+        rc, tail = r.returncode, (r.stdout + r.stderr)[-3000:]
+    except subprocess.TimeoutExpired as e:
+        rc = "timeout"
+        tail = ((e.stdout or b"").decode() if isinstance(e.stdout, bytes) else (e.stdout or ""))[-3000:]
+    wall = time.perf_counter() - t
+    (OUT / f"repro-{tag}.log").write_text(tail)
+    rec = {"args": args, "rc": rc, "wall_s": wall}
+    if stats.exists():  # Warp models' first steps: kernel compilation (unless cached) and graph capture
+        firsts = [json.loads(x) for x in stats.read_text().splitlines() if x.strip()]
+        rec["warp_models"] = len(firsts)
+        rec["warp_first_steps_s"] = sum(x["first_step_s"] for x in firsts)
+    claims = out / "claims.json"
+    if claims.exists():
+        c = json.loads(claims.read_text())
+        rec["verdicts"] = {f"{x.get('study')}:{x.get('claim')}": x.get("verdict") for x in c.get("claims", [])}
+    state = out / "reproduce.json"
+    if state.exists():
+        st = json.loads(state.read_text())
+        rec["studies"] = {k: {"ok": v.get("ok"), "wall_s": v.get("wall_s")} for k, v in st.get("studies", {}).items()}
+    return rec
+
+
+def reproductions(budget: float, skip_full: bool) -> None:
+    base = {k: v for k, v in os.environ.items() if k not in ("UNDULATE_BACKEND", "UNDULATE_DEVICE")}
+    cpu = _reproduce("quick-cpu", ["--quick"], min(150.0, left(budget) - 200), base)
+    say("reproduce.quick.mujoco_cpu", {k: v for k, v in cpu.items() if k != "verdicts"})
+    gpu = _reproduce("quick-warp", ["--quick", "--backend", "warp", "--device", DEVICE],
+                     left(budget) - (5 if skip_full else 60), base)
+    say("reproduce.quick.warp", {k: v for k, v in gpu.items() if k != "verdicts"})
+    a, b = cpu.get("verdicts", {}), gpu.get("verdicts", {})
+    say("reproduce.quick.verdicts", {"mujoco_cpu": a, "warp": b,
+                                     "differ": {k: [a.get(k), b.get(k)] for k in sorted(set(a) | set(b))
+                                                if a.get(k) != b.get(k)}})
+    if not skip_full and left(budget) > 40:
+        full = _reproduce("full-warp", ["--full", "--backend", "warp", "--device", DEVICE], left(budget) - 5, base)
+        say("reproduce.full.warp", full)
+
+
+def main() -> None:
+    global OUT, DEVICE, SMALL
+    p = argparse.ArgumentParser()
+    p.add_argument("out")
+    p.add_argument("--budget-s", type=float, default=450.0)
+    p.add_argument("--skip-full", action="store_true")
+    p.add_argument("--only", default="agreement,throughput,reproduce")
+    p.add_argument("--device", default="cuda")
+    p.add_argument("--dry-run", action="store_true", help="tiny sizes (a check of this script)")
+    a = p.parse_args()
+    DEVICE, SMALL = a.device, a.dry_run
+    OUT = Path(a.out)
+    OUT.mkdir(parents=True, exist_ok=True)
+    import mujoco
+
+    from undulate._warp import versions
+
+    say("versions", {"python": sys.version.split()[0], "mujoco": mujoco.__version__, "warp": versions(),
+                     "cores": os.cpu_count()})
+    steps = a.only.split(",")
+    for name, fn in (("agreement", lambda: agreement()), ("throughput", lambda: throughput(a.budget_s)),
+                     ("reproduce", lambda: reproductions(a.budget_s, a.skip_full))):
+        if name not in steps:
+            continue
+        try:
+            fn()
+        except Exception as e:  # noqa: BLE001 - one failed step does not lose the others
+            import traceback
+
+            say(f"{name}.error", traceback.format_exc()[-2000:])
+    say("total_s", time.perf_counter() - T0)
+
+
+if __name__ == "__main__":
+    main()

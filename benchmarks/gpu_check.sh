@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# The GPU check of issue 37, prepared to run once on a GPU machine without a package registry.
+#
+#   benchmarks/gpu_check.sh OUTDIR [gpu_check.py options, e.g. --budget-s 450 --skip-full]
+#
+# Python packages the machine lacks (mujoco 3.17.0 for its Python, mujoco-warp, warp-lang, h5netcdf, ...)
+# come as one xz tarball of an unpacked site directory, possibly split in parts (docs/gpu.md says how it
+# is made): set UNDULATE_SITE_PARTS to the parts, in order.  Without it the packages must be importable.
+# Prints as it goes; the figures go to OUTDIR/gpu_check.json (kept up to date), the reproductions' logs
+# beside it.
+set -u
+OUTDIR=${1:?usage: benchmarks/gpu_check.sh OUTDIR [options]}
+shift
+HERE=$(cd "$(dirname "$0")/.." && pwd)
+mkdir -p "$OUTDIR"
+if [ -n "${UNDULATE_SITE_PARTS:-}" ]; then
+    SITE=${UNDULATE_SITE_DIR:-/tmp/undulate-site}
+    mkdir -p "$SITE"
+    t=$(date +%s)
+    # shellcheck disable=SC2086
+    cat $UNDULATE_SITE_PARTS | xz -d | tar x -C "$SITE" || { echo "gpu_check: unpacking the site failed"; exit 3; }
+    echo "gpu_check: site unpacked in $(( $(date +%s) - t )) s"
+    export PYTHONPATH="$SITE:$HERE/src${PYTHONPATH:+:$PYTHONPATH}"
+else
+    export PYTHONPATH="$HERE/src${PYTHONPATH:+:$PYTHONPATH}"
+fi
+export PYTHONUNBUFFERED=1 MUJOCO_GL=${MUJOCO_GL:-egl}
+nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader 2>/dev/null | sed 's/^/gpu_check: /'
+python3 -c "import warp, mujoco_warp, mujoco, undulate; print('gpu_check: imports ok, mujoco', mujoco.__version__)" \
+    || { echo "gpu_check: the packages do not import"; exit 3; }
+exec python3 "$HERE/benchmarks/gpu_check.py" "$OUTDIR" "$@"

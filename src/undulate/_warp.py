@@ -1,0 +1,468 @@
+"""The MuJoCo Warp backend: every scene of a batch is one world of a Warp model.
+
+:class:`WarpRollout` has the interface of :class:`undulate.simulation._WarmRollout` (step every
+scene ``nstep`` steps from the given FULLPHYSICS states under the given controls, into per-step
+state and sensor arrays), so the recorder, the stopping rules, the divergence checks and the
+checkpoints of :mod:`undulate.simulation` are shared by both backends.  Each call uploads the
+states and the chunk's control table, steps the worlds on the device (one CUDA graph per step
+on a GPU), records every step's positions, velocities and sensors on the device and downloads
+them once.
+
+What differs from the MuJoCo (CPU) backend, and why the results still agree
+(tests/test_warp.py, docs/gpu.md):
+
+* **Servos.**  MuJoCo Warp 4.0 has no ``pid`` actuator.  The Warp model expresses each servo as
+  an affine position servo (:data:`undulate.scene.SERVO_MODELS`), and the set-point slew limit
+  that MuJoCo's ``pid`` applies inside the step (``Servo.max_speed_rad_s``) is applied here to the
+  set-point stream, step by step, with the same rule: the slew state moves toward the command by
+  at most ``slewmax dt`` per step.  On the CPU the two expressions agree to 1e-16 m over 3000
+  steps; the slew state is carried in the FULLPHYSICS ``act`` slots as MuJoCo's is.
+  Servos with an integral term (``ki > 0``) are refused.
+* **DIAGEXACT** (exact constraint regularisation) is not in MuJoCo Warp 4.0: the Warp model steps
+  without it.
+* **Precision**: float32 on the device; the clock is kept in float64 on the host.
+* **Capacities**: contacts and constraint rows per world, and the contact sensors' match
+  buffer, are sized from the scene (:func:`capacities`); an overflow raises
+  :class:`~undulate.errors.CapacityError` naming the capacity instead of a per-step print.
+* **Per-world parameters**: scenes of one structure that differ in a parameter MuJoCo Warp can
+  batch (channel width, drag, gains, contact stiffness, ...) share one Warp model with that field
+  given per world; scenes that differ in anything else are stepped as separate Warp models.
+"""
+
+from __future__ import annotations
+
+import functools
+import os
+import threading
+import time
+from collections.abc import Sequence
+
+import mujoco
+import numpy as np
+
+from .errors import ParameterError, UndulateError
+
+__all__ = ["WarpRollout", "available", "require", "capacities", "CapacityError", "DEVICES", "PRECISION"]
+
+DEVICES = ("cpu", "cuda")
+"""Devices the Warp backend steps on (``SimOptions.device``; None: ``cuda`` if present, else ``cpu``)."""
+PRECISION = "float32"
+"""The Warp backend's floating-point precision (recorded in provenance)."""
+
+EXTRA_HINT = "pip install 'undulate[gpu]' (mujoco-warp and warp-lang)"
+
+
+class CapacityError(UndulateError):
+    """A Warp world needed more contacts, constraint rows or sensor matches than were allocated."""
+
+
+_LOCK = threading.Lock()
+_DEVICE_LOCK = threading.RLock()
+
+
+@functools.lru_cache(maxsize=1)
+def _modules():
+    import warp as wp
+
+    wp.config.quiet = True  # before mujoco_warp's import initialises Warp: no banner, no per-module lines
+    if hasattr(wp, "LOG_WARNING"):
+        wp.config.log_level = wp.LOG_WARNING
+    import mujoco_warp as mjw
+
+    return wp, mjw
+
+
+def available() -> bool:
+    """Whether the ``gpu`` extra (mujoco-warp, warp-lang) is importable."""
+    try:
+        _modules()
+    except ImportError:
+        return False
+    return True
+
+
+def require():
+    """``(warp, mujoco_warp)``, or a ParameterError naming the extra to install."""
+    try:
+        return _modules()
+    except ImportError:
+        raise ParameterError("backend", f"'mujoco', or 'warp' once the gpu extra is installed: {EXTRA_HINT}",
+                             "warp") from None
+
+
+def versions() -> str:
+    """``"mujoco-warp X, warp-lang Y"`` (provenance)."""
+    from .provenance import package_version
+
+    return f"mujoco-warp {package_version('mujoco-warp', '?')}, warp-lang {package_version('warp-lang', '?')}"
+
+
+def resolve_device(device: str | None) -> str:
+    """``device`` checked against what this machine has (None: ``cuda`` if present, else ``cpu``)."""
+    wp, _ = require()
+    with _LOCK:
+        wp.init()
+    if device is None:
+        return "cuda" if wp.is_cuda_available() else "cpu"
+    if device not in DEVICES:
+        raise ParameterError("device", "'cpu' or 'cuda'", device)
+    if device == "cuda" and not wp.is_cuda_available():
+        raise ParameterError("device", "'cpu' on this machine (no CUDA device is visible to Warp)", device)
+    return device
+
+
+def device_name(device: str) -> str:
+    """The device's own name (e.g. 'NVIDIA H100 80GB HBM3', or the CPU's)."""
+    wp, _ = require()
+    return str(wp.get_device(device).name)
+
+
+def capacities(mjm: mujoco.MjModel) -> dict[str, int]:
+    """Per-world capacities for a scene: contacts (``nconmax``), constraint rows (``njmax``) and
+    the contact sensors' match buffer (``contact_sensor_maxmatch``).
+
+    Every colliding geom of a swimmer can touch its two lateral neighbours' geoms along its
+    length and a wall; capsule pairs and capsule-plane pairs make at most 2 contacts each.
+    The bound used is 6 contacts per colliding geom plus 16; a pyramidal friction cone of
+    dimension 3 adds 4 rows per contact, plus one row per joint limit."""
+    colliding = int(((mjm.geom_contype != 0) | (mjm.geom_conaffinity != 0)).sum())
+    nconmax = 6 * colliding + 16
+    rows = 2 * (int(mjm.geom_condim.max()) - 1) if mjm.ngeom else 4
+    njmax = rows * nconmax + int(mjm.njnt) + 16
+    return {"nconmax": nconmax, "njmax": njmax, "contact_sensor_maxmatch": nconmax}
+
+
+_IGNORED = {"name_", "names", "text", "stat", "paths", "signature"}
+
+
+def _array_fields(mjm: mujoco.MjModel) -> list[str]:
+    out = []
+    for name in dir(mjm):
+        if name.startswith("_") or any(name.startswith(p) for p in _IGNORED):
+            continue
+        try:
+            v = getattr(mjm, name)
+        except Exception:  # noqa: BLE001
+            continue
+        if isinstance(v, np.ndarray) and v.dtype.kind in "fiub":
+            out.append(name)
+    return out
+
+
+_OPT_FIELDS = ("timestep", "tolerance", "ls_tolerance", "noslip_tolerance", "ccd_tolerance", "gravity",
+               "wind", "magnetic", "density", "viscosity", "impratio", "o_margin", "o_solref", "o_solimp",
+               "o_friction", "integrator", "cone", "jacobian", "solver", "iterations", "ls_iterations",
+               "noslip_iterations", "ccd_iterations", "disableflags", "enableflags")
+
+
+def _plan_worlds(models: Sequence[mujoco.MjModel]):
+    """Split the worlds into groups that share one Warp model: worlds may differ only in fields
+    that MuJoCo Warp batches per world.  Returns ``[(indices, {field: stacked values})]`` and the
+    option fields that are batched (per group, in the same dict under ``"opt." + name``)."""
+    _, mjw = require()
+    import dataclasses
+
+    from mujoco_warp._src import types as _types  # the field specs: "*" marks a per-world field
+
+    fields_w = dataclasses.fields(_types.Model)
+    known = {f.name for f in fields_w}  # MjModel fields MuJoCo Warp does not carry (bvh_aabb...) do not matter
+    batchable = {f.name for f in fields_w
+                 if getattr(getattr(f.type, "shape", None), "__getitem__", None) and f.type.shape
+                 and f.type.shape[0] == "*"}
+    opt_batchable = {f.name for f in dataclasses.fields(_types.Option)
+                     if getattr(f.type, "shape", None) and f.type.shape[0] == "*"}
+    m0 = models[0]
+    fields = _array_fields(m0)
+    differ: dict[str, np.ndarray] = {}
+    for name in fields:
+        if name not in known:
+            continue
+        ref = getattr(m0, name)
+        same = [np.array_equal(getattr(m, name), ref) for m in models[1:]]
+        if not all(same):
+            differ[name] = np.stack([getattr(m, name) for m in models])
+    opt_differ: dict[str, np.ndarray] = {}
+    for name in _OPT_FIELDS:
+        vals = [np.asarray(getattr(m.opt, name)) for m in models]
+        if not all(np.array_equal(v, vals[0]) for v in vals[1:]):
+            opt_differ[name] = np.stack(vals)
+    split = [n for n in differ if n not in batchable] + [f"opt.{n}" for n in opt_differ if n not in opt_batchable]
+    # worlds that agree on every field that cannot be batched share one Warp model
+    keys = []
+    for b in range(len(models)):
+        parts = [differ[n][b].tobytes() for n in split if not n.startswith("opt.")]
+        parts += [opt_differ[n[4:]][b].tobytes() for n in split if n.startswith("opt.")]
+        keys.append(b"|".join(parts))
+    groups = []
+    for key in dict.fromkeys(keys):
+        idx = np.array([b for b, k in enumerate(keys) if k == key])
+        per_world = {n: v[idx] for n, v in differ.items() if n in batchable}
+        per_world.update({f"opt.{n}": v[idx] for n, v in opt_differ.items() if n in opt_batchable})
+        groups.append((idx, per_world))
+    return groups
+
+
+class _Servos:
+    """The CPU model's ``pid`` servos expressed as the Warp model's affine servos, and the set-point
+    slew limit applied to the control stream (:mod:`undulate._warp`'s docstring)."""
+
+    def __init__(self, cpu: mujoco.MjModel, aff: mujoco.MjModel, dt: float):
+        src_pos, src_vel, dst, act, rate, ratio, copy_src, copy_dst = [], [], [], [], [], [], [], []
+        for i in range(cpu.nactuator):
+            name = mujoco.mj_id2name(cpu, mujoco.mjtObj.mjOBJ_ACTUATOR, i)
+            j = mujoco.mj_name2id(aff, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
+            c, c2 = int(cpu.actuator_ctrladr[i]), int(aff.actuator_ctrladr[j])
+            if cpu.actuator_dyntype[i] == mujoco.mjtDyn.mjDYN_PID:
+                kp, kv = -float(cpu.actuator_biasprm[i, 1]), -float(cpu.actuator_biasprm[i, 2])
+                if cpu.actuator_actnum[i] > 1 or float(cpu.actuator_dynprm[i, 0]) > 0:
+                    raise ParameterError("servo", "without an integral term (ki <= 0) on the 'warp' backend "
+                                         "(MuJoCo Warp has no pid actuator)", name)
+                src_pos.append(c)
+                src_vel.append(c + 1)
+                dst.append(c2)
+                ratio.append(kv / kp)
+                slew = float(cpu.actuator_dynprm[i, 1])
+                act.append(int(cpu.actuator_actadr[i]) if cpu.actuator_actnum[i] == 1 else -1)
+                rate.append(slew * dt if slew > 0 and cpu.actuator_actnum[i] == 1 else np.inf)
+            else:
+                copy_src.append(c)
+                copy_dst.append(c2)
+        self.src_pos, self.src_vel, self.dst = np.array(src_pos, int), np.array(src_vel, int), np.array(dst, int)
+        self.act, self.rate, self.ratio = np.array(act, int), np.array(rate), np.array(ratio)
+        self.copy_src, self.copy_dst = np.array(copy_src, int), np.array(copy_dst, int)
+        self.nu = aff.nu
+
+    def table(self, u: np.ndarray, act0: np.ndarray):
+        """Controls ``u`` (nb, k, nu of the CPU model) -> the Warp model's (k, nb, nu) float32 table,
+        and the slew states after every step (nb, k, nservo).  ``act0``: the slew states at the
+        start (nb, nservo; NaN where a servo has none)."""
+        nb, k = u.shape[:2]
+        out = np.zeros((k, nb, self.nu), np.float32)
+        out[:, :, self.copy_dst] = u[:, :, self.copy_src].transpose(1, 0, 2)
+        target = u[:, :, self.src_pos]
+        finite = np.isfinite(self.rate)
+        s = np.where(finite, act0, 0.0)
+        slewed = np.empty_like(target)
+        if finite.any():
+            r = np.where(finite, self.rate, 0.0)
+            for i in range(k):  # MuJoCo's rule: the slew state moves toward the command by <= slewmax dt
+                s = np.where(finite, s + np.clip(target[:, i] - s, -r, r), target[:, i])
+                slewed[:, i] = s
+        else:
+            slewed[:] = target
+        out[:, :, self.dst] = (slewed + self.ratio * u[:, :, self.src_vel]).transpose(1, 0, 2)
+        return out, slewed
+
+
+def _kernels():
+    from . import _warp_kernels as k
+
+    return k.set_ctrl, k.record, k.incr
+
+
+_KERNELS = None
+
+
+class _Group:
+    """One Warp model and its worlds (the scenes ``idx`` of the batch)."""
+
+    def __init__(self, mjm: mujoco.MjModel, idx: np.ndarray, per_world: dict, device: str):
+        wp, mjw = require()
+        global _KERNELS
+        self.idx, self.device = idx, device
+        nw = len(idx)
+        cap = capacities(mjm)
+        self.cap = cap
+        with wp.ScopedDevice(device):
+            batch = {n: nw for n in per_world if not n.startswith("opt.")}
+            m = mjw.put_model(mjm, batch_sizes=batch)
+            for name, v in per_world.items():
+                owner, attr = (m.opt, name[4:]) if name.startswith("opt.") else (m, name)
+                cur = getattr(owner, attr)
+                inner = tuple(getattr(cur.dtype, "_shape_", ()))
+                setattr(owner, attr, wp.array(np.ascontiguousarray(v, dtype=np.float64 if v.dtype.kind == "f" else v.dtype)
+                                              .reshape((nw,) + tuple(cur.shape[1:]) + inner), dtype=cur.dtype))
+            m.opt.warn_overflow = 0
+            m.opt.contact_sensor_maxmatch = cap["contact_sensor_maxmatch"]
+            mjd = mujoco.MjData(mjm)
+            mujoco.mj_forward(mjm, mjd)
+            self.d = mjw.put_data(mjm, mjd, nworld=nw, nconmax=cap["nconmax"], njmax=cap["njmax"])
+            self.m = m
+            if _KERNELS is None:
+                _KERNELS = _kernels()
+            self.k = wp.zeros(1, dtype=int)
+        self.graph = None
+        self.bufs = None
+        self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
+
+    def _buffers(self, k: int):
+        wp, _ = require()
+        nw = len(self.idx)
+        if self.bufs is None or self.bufs[0].shape[0] != k:
+            with wp.ScopedDevice(self.device):
+                self.bufs = (wp.zeros((k, nw, self.nu), dtype=float),
+                             wp.zeros((k, nw, self.nq), dtype=float), wp.zeros((k, nw, self.nv), dtype=float),
+                             wp.zeros((k, nw, self.ns), dtype=float))
+            self.graph = None
+        return self.bufs
+
+    def _one_step(self):
+        wp, mjw = require()
+        set_ctrl, record, incr = _KERNELS
+        table, oq, ov, os_ = self.bufs
+        nw = len(self.idx)
+        if table.shape[2]:
+            wp.launch(set_ctrl, dim=(nw, table.shape[2]), inputs=[table, self.k, self.d.ctrl])
+        mjw.step(self.m, self.d)
+        wp.launch(record, dim=nw, inputs=[self.d.qpos, self.d.qvel, self.d.sensordata, self.k, oq, ov, os_])
+        wp.launch(incr, dim=1, inputs=[self.k])
+
+    def run(self, qpos, qvel, warm, table: np.ndarray, nstep: int):
+        """Step the group's worlds ``nstep`` steps from (qpos, qvel, warm start) under ``table``
+        (nstep, nw, nu); returns per-step qpos, qvel, sensors (nw, nstep, ...) float64, the warm
+        starts after, and the overflow bitmask per world."""
+        wp, _ = require()
+        with wp.ScopedDevice(self.device):
+            tab, oq, ov, os_ = self._buffers(nstep)
+            self.d.qpos.assign(qpos.astype(np.float32))
+            self.d.qvel.assign(qvel.astype(np.float32))
+            self.d.qacc_warmstart.assign(warm.astype(np.float32))
+            if tab.shape[2]:
+                tab.assign(table)
+            self.k.zero_()
+            if self.device == "cpu":
+                for _ in range(nstep):
+                    self._one_step()
+            else:
+                if self.graph is None:  # the first step compiles the kernels; then one graph per step
+                    t0 = time.perf_counter()
+                    self._one_step()
+                    wp.synchronize()
+                    _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
+                    self.d.qpos.assign(qpos.astype(np.float32))
+                    self.d.qvel.assign(qvel.astype(np.float32))
+                    self.d.qacc_warmstart.assign(warm.astype(np.float32))
+                    self.k.zero_()
+                    with wp.ScopedCapture() as cap:
+                        self._one_step()
+                    self.graph = cap.graph
+                for _ in range(nstep):
+                    wp.capture_launch(self.graph)
+            wp.synchronize()
+            q = oq.numpy().transpose(1, 0, 2).astype(np.float64)
+            v = ov.numpy().transpose(1, 0, 2).astype(np.float64)
+            s = os_.numpy().transpose(1, 0, 2).astype(np.float64)
+            return q, v, s, self.d.qacc_warmstart.numpy().astype(np.float64), self.d.overflow.numpy()
+
+
+def _device_seconds(group: "_Group", nstep: int) -> float:
+    """Seconds the device takes for ``nstep`` steps of ``group``'s worlds alone (no transfers; a
+    benchmark: benchmarks/gpu_check.py)."""
+    import time
+
+    wp, _ = require()
+    with _DEVICE_LOCK, wp.ScopedDevice(group.device):
+        group._buffers(nstep)
+        group.k.zero_()
+        wp.synchronize()
+        t = time.perf_counter()
+        for _ in range(nstep):
+            if group.graph is not None:
+                wp.capture_launch(group.graph)
+            else:
+                group._one_step()
+        wp.synchronize()
+        return time.perf_counter() - t
+
+
+def _note_first_step(seconds: float, nworld: int, nv: int) -> None:
+    """The first step of a Warp model (kernel compilation unless cached, then the graph capture):
+    appended as a JSON line to the file ``UNDULATE_WARP_STATS`` names, if set (benchmarks/gpu_check.py
+    reports compile time apart from stepping with it)."""
+    path = os.environ.get("UNDULATE_WARP_STATS")
+    if path:
+        import json
+
+        with open(path, "a", encoding="utf-8") as f:
+            f.write(json.dumps({"first_step_s": seconds, "nworld": nworld, "nv": nv}) + "\n")
+
+
+_OVERFLOW_NAMES = {"NEFC": "njmax (constraint rows per world)", "NJMAX_NNZ": "njmax_nnz",
+                   "BROADPHASE": "nconmax (broadphase pairs)", "NARROWPHASE": "nconmax (contacts per world)",
+                   "CONTACT_MATCH": "contact_sensor_maxmatch (contacts a contact sensor may match)",
+                   "CCD": "ccd iterations", "NVMAX": "nvmax", "EPA_HORIZON": "EPA horizon"}
+
+
+class WarpRollout:
+    """Steps a batch's scenes as the worlds of MuJoCo Warp models (the interface of
+    :class:`undulate.simulation._WarmRollout`: ``rollout``, ``warm``, ``close``)."""
+
+    def __init__(self, compiled, affine, options, device: str):
+        require()
+        self.device = device
+        cpu0 = compiled[0].model
+        self.nq, self.nv, self.na = cpu0.nq, cpu0.nv, cpu0.na
+        nstate = mujoco.mj_stateSize(cpu0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+        if nstate != 1 + cpu0.nq + cpu0.nv + cpu0.na:
+            raise ParameterError("backend", "'mujoco' for this scene (its state has parts the Warp backend "
+                                 "does not carry)", "warp")
+        self.servos = _Servos(cpu0, affine[0].model, options.timestep_s)
+        models = []
+        for a in affine:
+            mjm = a.model
+            mjm.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
+            models.append(mjm)
+        with _DEVICE_LOCK:
+            self.groups = [_Group(models[idx[0]], idx, per_world, device)
+                           for idx, per_world in _plan_worlds(models)]
+        self.warm = np.zeros((len(compiled), cpu0.nv))
+        self._dt = float(options.timestep_s)
+
+    def rollout(self, cur: np.ndarray, u: np.ndarray, st: np.ndarray, sd: np.ndarray, nstep: int,
+                active: np.ndarray | None = None):
+        """Step every scene ``nstep`` steps from ``cur`` (nb, nstate FULLPHYSICS) under controls ``u``
+        (nb, nstep, nu), into ``st`` (nb, nstep, nstate) and ``sd`` (nb, nstep, nsensordata).
+        Scenes outside ``active`` stay at ``cur`` (their sensor rows zero)."""
+        nq, nv, na = self.nq, self.nv, self.na
+        q0, v0, a0 = 1, 1 + nq, 1 + nq + nv
+        act_idx = self.servos.act
+        act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if na else 0.0, np.nan)
+        table, slewed = self.servos.table(u[:, :nstep], act0)
+        dt_t = cur[:, :1] + 0.0  # the clock stays float64 on the host
+        for g in self.groups:
+            idx = g.idx
+            with _DEVICE_LOCK:  # one thread at a time on the device (graph capture, the default stream)
+                q, v, s, warm, overflow = g.run(cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx],
+                                                np.ascontiguousarray(table[:, idx]), nstep)
+            if overflow.any():
+                self._overflow(idx, overflow)
+            st[idx, :nstep, q0:q0 + nq] = q
+            st[idx, :nstep, v0:v0 + nv] = v
+            sd[idx, :nstep] = s
+            self.warm[idx] = warm
+        if na:
+            st[:, :nstep, a0:] = cur[:, None, a0:]
+            has = act_idx >= 0
+            st[:, :nstep, a0 + act_idx[has]] = slewed[:, :, has]
+        st[:, :nstep, 0] = dt_t + self._dt * (1 + np.arange(nstep))[None]
+        if active is not None:
+            st[~active], sd[~active] = cur[~active, None], 0.0
+        return st, sd
+
+    def _overflow(self, idx, overflow) -> None:
+        _, mjw = require()
+        from mujoco_warp._src.types import OverflowType
+
+        w = int(np.flatnonzero(overflow)[0])
+        bits = int(overflow[w])
+        names = [_OVERFLOW_NAMES.get(f.name, f.name) for f in OverflowType
+                 if f.name not in ("NONE", "ALL") and bits & int(f) and f.value]
+        cap = self.groups[0].cap
+        raise CapacityError(
+            f"MuJoCo Warp world {int(idx[w])} overflowed: {', '.join(names)} "
+            f"(allocated per world: nconmax {cap['nconmax']}, njmax {cap['njmax']}, "
+            f"contact_sensor_maxmatch {cap['contact_sensor_maxmatch']}); the results would be wrong, "
+            f"so the run stops (undulate._warp.capacities sizes them from the scene)")
+
+    def close(self) -> None:
+        self.groups = []

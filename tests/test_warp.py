@@ -1,0 +1,215 @@
+"""The MuJoCo Warp backend (undulate._warp) against the MuJoCo backend, on Warp's CPU device.
+
+CI has no GPU: these tests step MuJoCo Warp's kernels on the CPU (compiled once per machine and
+cached under ~/.cache/warp; the first test pays ~40 s for it).  The same code steps on CUDA in
+benchmarks/gpu_check.sh.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from undulate import Scene, SimOptions
+from undulate.errors import ParameterError
+from undulate.scene import build
+from undulate.simulation import resolve_options, simulate, simulate_batch
+
+warp = pytest.importorskip("warp", reason="the gpu extra (mujoco-warp, warp-lang) is not installed")
+pytest.importorskip("mujoco_warp")
+
+WARP = dict(backend="warp", device="cpu")
+
+
+def _max_dx(a, b, var="x") -> float:
+    return float(np.abs(a[var].values - b[var].values).max())
+
+
+def test_affine_servo_with_slew_on_the_stream_equals_mujocos_pid():
+    """The Warp model's servo (affine position servo, set-point slew applied to the control stream)
+    is MuJoCo's pid servo: both stepped by CPU MuJoCo agree to rounding over 3000 steps, start
+    included (where the 6 rad/s slew limit acts)."""
+    import mujoco
+
+    from undulate._warp import _Servos
+
+    sc = Scene(phases_rad=(0.0, 1.57))
+    dt = resolve_options(sc, SimOptions(duration_s=2)).timestep_s
+    pid, aff = build(sc, dt), build(sc, dt, servo="affine")
+    k = 3000
+    u = pid.controls(np.arange(k) * dt)
+    servos = _Servos(pid.model, aff.model, dt)
+    table, slewed = servos.table(u[None], np.zeros((1, len(servos.act))))
+    da, db = mujoco.MjData(pid.model), mujoco.MjData(aff.model)
+    worst_q = worst_act = 0.0
+    for i in range(k):
+        da.ctrl[:] = u[i]
+        db.ctrl[:] = table[i, 0]
+        mujoco.mj_step(pid.model, da)
+        mujoco.mj_step(aff.model, db)
+        worst_q = max(worst_q, float(np.abs(da.qpos - db.qpos).max()))
+        worst_act = max(worst_act, float(np.abs(da.act - slewed[0, i]).max()))
+    assert worst_act < 1e-6  # float32 table: the slew states as MuJoCo's act
+    assert worst_q < 1e-5  # m / rad, over 2 s (float32 set-points)
+    # the slew limit did act at the start (a straight body told to take the gait's shape)
+    assert np.abs(np.diff(slewed[0], axis=0)).max() <= 6.0 * dt * (1 + 1e-9)
+    assert np.abs(u[1:, servos.src_pos] - slewed[0, 1:]).max() > 0.1
+
+
+def test_pair_agrees_with_mujoco_over_5_s():
+    """The default pair, 5 s: centres within 1 mm of the MuJoCo backend (float32, no DIAGEXACT)."""
+    sc = Scene(phases_rad=(0.0, math.pi / 2))
+    a = simulate(sc, SimOptions(duration_s=5.0))
+    b = simulate(sc, SimOptions(duration_s=5.0, **WARP))
+    assert b.attrs["backend"] == "warp" and b.attrs["device"] == "cpu" and b.attrs["precision"] == "float32"
+    assert a.attrs["backend"] == "mujoco" and a.attrs["precision"] == "float64"
+    assert _max_dx(a, b, "x") < 1e-3 and _max_dx(a, b, "y") < 1e-3
+    assert _max_dx(a, b, "joint_angle") < 2e-3  # rad
+    assert float(b["penetration"].max()) < 1e-3  # the contact model's 1 mm rule
+    # the pair touches: the contact force is there on both, within 5 % of the peak
+    fa, fb = a["contact_force_pair"].values, b["contact_force_pair"].values
+    assert fa.max() > 1.0 and np.abs(fa - fb).max() < 0.05 * fa.max()
+
+
+def _without_diagexact(monkeypatch):
+    """Build scenes without MuJoCo's exact constraint regularisation (DIAGEXACT), as the Warp model is."""
+    import mujoco
+
+    import undulate.scene as scene_module
+
+    real = scene_module.scene_spec
+
+    def spec(*args, **kw):
+        sp, walls = real(*args, **kw)
+        sp.option.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
+        return sp, walls
+
+    monkeypatch.setattr(scene_module, "scene_spec", spec)
+
+
+def test_a_group_of_4_agrees_with_mujoco_within_its_own_sensitivity(monkeypatch):
+    """Four swimmers (phases j pi/3), 5 s.  Until a contact event near t = 2.3 s the Warp run is within
+    0.2 mm of MuJoCo's (both without DIAGEXACT).  That event amplifies any perturbation: float32 then
+    moves the centres by ~3 mm, while DIAGEXACT alone moves MuJoCo's own run by ~15 mm.  The test
+    asserts both: agreement before the event, and Warp's difference after it below the one
+    MuJoCo's own regularisation option makes (docs/gpu.md)."""
+    sc = Scene(phases_rad=tuple(j * math.pi / 3 for j in range(4)))
+    opts = dict(duration_s=5.0, sample_rate_hz=10.0)
+    exact = simulate(sc, SimOptions(**opts))
+    w = simulate(sc, SimOptions(**opts, **WARP))
+    _without_diagexact(monkeypatch)
+    plain = simulate(sc, SimOptions(**opts))
+    t = plain["time"].values
+    d_warp = np.abs(w["x"].values - plain["x"].values).max(axis=1)
+    d_diag = np.abs(exact["x"].values - plain["x"].values).max(axis=1)
+    assert d_warp[t <= 2.0].max() < 1e-3
+    assert d_warp.max() < 5e-3
+    assert d_warp.max() < d_diag.max()
+    assert float(w["penetration"].max()) < 1e-3
+
+
+def test_a_jammed_pack_keeps_the_1_mm_rule():
+    """A jammed 50-swimmer pack (rho~ = 3, the packing study's densest) for 2 s: no contact deeper
+    than 1 mm, no capacity overflow (undulate._warp.capacities), and the pack stays in the channel."""
+    from undulate.studies.packing import _pack
+
+    sc = _pack({"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}, amplitude_m=0.05226, base_seed=0,
+               n_swimmers=50)[0]
+    ds = simulate(sc, SimOptions(duration_s=2.0, sample_rate_hz=10.0, record=("y", "penetration"), **WARP))
+    assert float(ds["penetration"].max()) <= 1e-3
+    half = sc.channel.width_m / 2
+    assert float(np.abs(ds["y"]).max()) < half
+
+
+def test_a_batch_of_different_channels_is_one_warp_model_with_per_world_fields():
+    """Scenes that differ in channel width and drag share one Warp model (the fields given per world);
+    each world equals its scene stepped alone on the MuJoCo backend."""
+    from undulate import _warp
+    from undulate.params import Channel, Ground
+
+    scenes = [Scene(phases_rad=(0.0, 1.0), channel=Channel(width_m=w), ground=Ground(drag_N_s_per_m=g))
+              for w, g in ((0.13, 1.0), (0.12, 1.5), (0.14, 1.0))]
+    opts = SimOptions(duration_s=1.0)
+    ref = [simulate(sc, opts) for sc in scenes]
+    from undulate.simulation import compile_scene
+
+    aff = [compile_scene(sc, resolve_options(sc, opts), servo="affine") for sc in scenes]
+    groups = _warp._plan_worlds([a.model for a in aff])
+    assert len(groups) == 1 and "geom_pos" in groups[0][1] and "opt.viscosity" in groups[0][1]
+    got = simulate_batch(scenes, SimOptions(duration_s=1.0, **WARP))
+    for r, g in zip(ref, got):
+        assert _max_dx(r, g, "y") < 2e-4
+
+
+def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_path, monkeypatch):
+    """On the Warp backend a sweep's runs are gathered into one batch (one world each); its store
+    records the backend, and switching backend recomputes instead of reusing."""
+    from undulate import simulation
+    from undulate.studies._runners import pair_point
+    from undulate.sweep import Grid, run_sweep
+
+    fn = functools.partial(pair_point, duration_s=6.5)
+    grid = Grid(points=[{"dphi_rad": d} for d in (0.0, 2.0)], seed=0)
+    cpu = run_sweep(fn, grid, tmp_path / "s", workers=1, progress=False)
+    assert cpu.identity["backend"] == "mujoco"
+    batches = []
+    real = simulation.Gather._run
+    monkeypatch.setattr(simulation.Gather, "_run", lambda self, reqs: (batches.append(len(reqs)), real(self, reqs)))
+    monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+    monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
+    gpu = run_sweep(fn, grid, tmp_path / "s", progress=False)
+    assert gpu.identity["backend"].startswith("warp cpu float32")
+    assert gpu.n_computed == 2 and gpu.n_reused == 0 and gpu.stale  # the MuJoCo runs were not served
+    assert batches == [2]  # both runs' simulations in one batch
+    a = cpu.dataset["dx_final_over_lambda"].values
+    b = gpu.dataset["dx_final_over_lambda"].values
+    assert np.abs(a - b).max() < 1e-3  # lambda
+
+
+def test_options_validate_backend_and_device():
+    with pytest.raises(ParameterError, match="backend"):
+        SimOptions(backend="jax")
+    with pytest.raises(ParameterError, match="device"):
+        SimOptions(backend="warp", device="tpu")
+    with pytest.raises(ParameterError, match="device"):
+        SimOptions(backend="mujoco", device="cuda")
+    if not warp.is_cuda_available():
+        with pytest.raises(ParameterError, match="no CUDA device"):
+            simulate(Scene(), SimOptions(duration_s=0.1, backend="warp", device="cuda"))
+
+
+def test_code_hash_counts_the_selected_backend_only(monkeypatch):
+    from undulate._source import code_hash
+    from undulate.studies._runners import pair_point
+
+    monkeypatch.delenv("UNDULATE_BACKEND", raising=False)
+    cpu = code_hash(pair_point)
+    monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+    assert code_hash(pair_point) != cpu
+
+
+def test_backend_warp_without_the_extra_is_one_line_and_exit_2(tmp_path):
+    """A machine without mujoco-warp: `--backend warp` names the extra, exit 2, no traceback, no file."""
+    code = ("import sys, builtins\n"
+            "real = builtins.__import__\n"
+            "def imp(name, *a, **k):\n"
+            "    if name.split('.')[0] in ('warp', 'mujoco_warp'):\n"
+            "        raise ImportError(name)\n"
+            "    return real(name, *a, **k)\n"
+            "builtins.__import__ = imp\n"
+            "from undulate.cli import main\n"
+            "sys.exit(main(sys.argv[1:]))\n")
+    out = tmp_path / "run.nc"
+    for args in (["simulate", "--duration", "0.1", "--backend", "warp", "--out", str(out)],
+                 ["study", "pairs", "--backend", "warp", "--out", str(tmp_path / "r")]):
+        r = subprocess.run([sys.executable, "-c", code, *args], capture_output=True, text=True, timeout=120)
+        assert r.returncode == 2, r.stderr
+        lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+        assert len(lines) == 1 and "--backend" in lines[0] and "undulate[gpu]" in lines[0], r.stderr
+        assert "Traceback" not in r.stderr
+    assert not out.exists() and not (tmp_path / "r").exists()
