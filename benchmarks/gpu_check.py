@@ -35,6 +35,7 @@ T0 = time.perf_counter()
 RESULTS: dict = {}
 OUT: Path = Path(".")
 DEVICE = "cuda"
+STUDIES = ""  # --studies: reproduce these only (comma-separated)
 SMALL = False  # --dry-run: tiny sizes, to check the script itself on Warp's CPU device
 
 
@@ -165,9 +166,10 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
 
 def reproductions(budget: float, skip_full: bool) -> None:
     base = {k: v for k, v in os.environ.items() if k not in ("UNDULATE_BACKEND", "UNDULATE_DEVICE")}
-    cpu = _reproduce("quick-cpu", ["--quick"], min(150.0, left(budget) - 200), base)
+    only = ["--only", STUDIES] if STUDIES else []
+    cpu = _reproduce("quick-cpu", ["--quick", *only], min(150.0, left(budget) - 200), base)
     say("reproduce.quick.mujoco_cpu", {k: v for k, v in cpu.items() if k != "verdicts"})
-    gpu = _reproduce("quick-warp", ["--quick", "--backend", "warp", "--device", DEVICE],
+    gpu = _reproduce("quick-warp", ["--quick", *only, "--backend", "warp", "--device", DEVICE],
                      left(budget) - (5 if skip_full else 60), base)
     say("reproduce.quick.warp", {k: v for k, v in gpu.items() if k != "verdicts"})
     a, b = cpu.get("verdicts", {}), gpu.get("verdicts", {})
@@ -180,16 +182,17 @@ def reproductions(budget: float, skip_full: bool) -> None:
 
 
 def main() -> None:
-    global OUT, DEVICE, SMALL
+    global OUT, DEVICE, SMALL, STUDIES
     p = argparse.ArgumentParser()
     p.add_argument("out")
     p.add_argument("--budget-s", type=float, default=450.0)
     p.add_argument("--skip-full", action="store_true")
     p.add_argument("--only", default="agreement,throughput,reproduce")
     p.add_argument("--device", default="cuda")
+    p.add_argument("--studies", default="", help="reproduce only these studies (comma-separated)")
     p.add_argument("--dry-run", action="store_true", help="tiny sizes (a check of this script)")
     a = p.parse_args()
-    DEVICE, SMALL = a.device, a.dry_run
+    DEVICE, SMALL, STUDIES = a.device, a.dry_run, a.studies
     OUT = Path(a.out)
     OUT.mkdir(parents=True, exist_ok=True)
     import mujoco

@@ -24,7 +24,7 @@ if [ -n "${UNDULATE_SITE_PARTS:-}" ]; then
 else
     export PYTHONPATH="$HERE/src${PYTHONPATH:+:$PYTHONPATH}"
 fi
-export PYTHONUNBUFFERED=1 MUJOCO_GL=${MUJOCO_GL:-egl}
+export PYTHONUNBUFFERED=1
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader 2>/dev/null | sed 's/^/gpu_check: /'
 python3 -c "import warp, mujoco_warp, mujoco, undulate; print('gpu_check: imports ok, mujoco', mujoco.__version__)" \
     || { echo "gpu_check: the packages do not import"; exit 3; }

@@ -266,7 +266,12 @@ _KERNELS = None
 class _Group:
     """One Warp model and its worlds (the scenes ``idx`` of the batch)."""
 
-    def __init__(self, mjm: mujoco.MjModel, idx: np.ndarray, per_world: dict, device: str):
+    # Data fields MuJoCo Warp never recomputes for the static (world-body) geoms and sites: taken per
+    # world from each world's own model (the walls of a channel whose width differs per world)
+    STATIC_DATA = ("geom_xpos", "geom_xmat", "site_xpos", "site_xmat", "xpos", "xquat", "xmat", "xipos", "ximat")
+
+    def __init__(self, mjm: mujoco.MjModel, idx: np.ndarray, per_world: dict, device: str,
+                 models: Sequence[mujoco.MjModel] | None = None):
         wp, mjw = require()
         global _KERNELS
         self.idx, self.device = idx, device
@@ -287,6 +292,19 @@ class _Group:
             mjd = mujoco.MjData(mjm)
             mujoco.mj_forward(mjm, mjd)
             self.d = mjw.put_data(mjm, mjd, nworld=nw, nconmax=cap["nconmax"], njmax=cap["njmax"])
+            if per_world and models is not None:
+                datas = []
+                for mw in models:
+                    dw = mujoco.MjData(mw)
+                    mujoco.mj_forward(mw, dw)
+                    datas.append(dw)
+                for name in self.STATIC_DATA:
+                    arr = getattr(self.d, name, None)
+                    if arr is None:
+                        continue
+                    inner = tuple(getattr(arr.dtype, "_shape_", ()))
+                    v = np.stack([getattr(dw, name) for dw in datas]).reshape((nw,) + tuple(arr.shape[1:]) + inner)
+                    setattr(self.d, name, wp.array(v.astype(np.float32), dtype=arr.dtype))
             self.m = m
             if _KERNELS is None:
                 _KERNELS = _kernels()
@@ -413,7 +431,7 @@ class WarpRollout:
             mjm.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
             models.append(mjm)
         with _DEVICE_LOCK:
-            self.groups = [_Group(models[idx[0]], idx, per_world, device)
+            self.groups = [_Group(models[idx[0]], idx, per_world, device, [models[i] for i in idx])
                            for idx, per_world in _plan_worlds(models)]
         self.warm = np.zeros((len(compiled), cpu0.nv))
         self._dt = float(options.timestep_s)
