@@ -131,20 +131,25 @@ def test_a_batch_of_different_channels_is_one_warp_model_with_per_world_fields()
     agrees with its scene stepped alone on the MuJoCo backend (a wall left at the first world's width
     moved a pair by 4.7 mm)."""
     from undulate import _warp
-    from undulate.params import Channel, Ground
+    from undulate.params import Channel, ContactModel, Ground, Servo
 
-    scenes = [Scene(phases_rad=(0.0, 1.0), channel=Channel(width_m=w), ground=Ground(drag_N_s_per_m=g))
-              for w, g in ((0.13, 1.0), (0.12, 1.5), (0.14, 1.0))]
-    opts = SimOptions(duration_s=1.0)
+    scenes = [Scene(phases_rad=(0.0, 1.0), channel=Channel(width_m=w), ground=Ground(drag_N_s_per_m=g),
+                    servo=Servo(kp_Nm_per_rad=kp), contact=ContactModel(timeconst_s=tc))
+              for w, g, kp, tc in ((0.13, 1.0, 10.0, None), (0.12, 1.5, 10.0, None), (0.14, 1.0, 8.0, None),
+                                   (0.13, 1.0, 10.0, 0.004))]
+    opts = SimOptions(duration_s=0.5)
     ref = [simulate(sc, opts) for sc in scenes]
     from undulate.simulation import compile_scene
 
     aff = [compile_scene(sc, resolve_options(sc, opts), servo="affine") for sc in scenes]
     groups = _warp._plan_worlds([a.model for a in aff])
-    assert len(groups) == 1 and "geom_pos" in groups[0][1] and "opt.viscosity" in groups[0][1]
-    got = simulate_batch(scenes, SimOptions(duration_s=1.0, **WARP))
-    for r, g in zip(ref, got):
-        assert _max_dx(r, g, "y") < 2e-4
+    assert len(groups) == 1 and {"geom_pos", "opt.viscosity", "actuator_gainprm",
+                                 "geom_solref"} <= set(groups[0][1])
+    got = simulate_batch(scenes, SimOptions(duration_s=0.5, **WARP))
+    for sc, r, g in zip(scenes, ref, got):
+        alone = simulate(sc, SimOptions(duration_s=0.5, **WARP))
+        assert _max_dx(alone, g, "y") < 1e-9 and _max_dx(alone, g, "x") < 1e-9  # its world is its run alone
+        assert _max_dx(r, g, "y") < 1e-3
 
 
 def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_path, monkeypatch):

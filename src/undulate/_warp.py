@@ -206,7 +206,10 @@ class _Servos:
     """The CPU model's ``pid`` servos expressed as the Warp model's affine servos, and the set-point
     slew limit applied to the control stream (:mod:`undulate._warp`'s docstring)."""
 
-    def __init__(self, cpu: mujoco.MjModel, aff: mujoco.MjModel, dt: float):
+    def __init__(self, cpu: mujoco.MjModel, aff: mujoco.MjModel, dt: float,
+                 others: Sequence[mujoco.MjModel] = ()):
+        """``cpu``: the first scene's model; ``others``: every scene's (gains and slew rates may
+        differ per scene: ``ratio`` and ``rate`` get one row per scene)."""
         src_pos, src_vel, dst, act, rate, ratio, copy_src, copy_dst = [], [], [], [], [], [], [], []
         for i in range(cpu.nactuator):
             name = mujoco.mj_id2name(cpu, mujoco.mjtObj.mjOBJ_ACTUATOR, i)
@@ -231,6 +234,11 @@ class _Servos:
         self.act, self.rate, self.ratio = np.array(act, int), np.array(rate), np.array(ratio)
         self.copy_src, self.copy_dst = np.array(copy_src, int), np.array(copy_dst, int)
         self.nu = aff.nu
+        if others:  # per scene: kv / kp and slewmax dt of each servo
+            pid = np.array([i for i in range(cpu.nactuator) if cpu.actuator_dyntype[i] == mujoco.mjtDyn.mjDYN_PID])
+            self.ratio = np.stack([m.actuator_biasprm[pid, 2] / m.actuator_biasprm[pid, 1] for m in others])
+            self.rate = np.stack([np.where((m.actuator_dynprm[pid, 1] > 0) & (m.actuator_actnum[pid] == 1),
+                                           m.actuator_dynprm[pid, 1] * dt, np.inf) for m in others])
 
     def table(self, u: np.ndarray, act0: np.ndarray):
         """Controls ``u`` (nb, k, nu of the CPU model) -> the Warp model's (k, nb, nu) float32 table,
@@ -240,17 +248,19 @@ class _Servos:
         out = np.zeros((k, nb, self.nu), np.float32)
         out[:, :, self.copy_dst] = u[:, :, self.copy_src].transpose(1, 0, 2)
         target = u[:, :, self.src_pos]
-        finite = np.isfinite(self.rate)
+        rate = np.broadcast_to(self.rate, (nb, len(self.src_pos)))
+        ratio = np.broadcast_to(self.ratio, (nb, len(self.src_pos)))
+        finite = np.isfinite(rate)
         s = np.where(finite, act0, 0.0)
         slewed = np.empty_like(target)
         if finite.any():
-            r = np.where(finite, self.rate, 0.0)
+            r = np.where(finite, rate, 0.0)
             for i in range(k):  # MuJoCo's rule: the slew state moves toward the command by <= slewmax dt
                 s = np.where(finite, s + np.clip(target[:, i] - s, -r, r), target[:, i])
                 slewed[:, i] = s
         else:
             slewed[:] = target
-        out[:, :, self.dst] = (slewed + self.ratio * u[:, :, self.src_vel]).transpose(1, 0, 2)
+        out[:, :, self.dst] = (slewed + ratio[:, None] * u[:, :, self.src_vel]).transpose(1, 0, 2)
         return out, slewed
 
 
@@ -424,7 +434,7 @@ class WarpRollout:
         if nstate != 1 + cpu0.nq + cpu0.nv + cpu0.na:
             raise ParameterError("backend", "'mujoco' for this scene (its state has parts the Warp backend "
                                  "does not carry)", "warp")
-        self.servos = _Servos(cpu0, affine[0].model, options.timestep_s)
+        self.servos = _Servos(cpu0, affine[0].model, options.timestep_s, [c.model for c in compiled])
         models = []
         for a in affine:
             mjm = a.model
