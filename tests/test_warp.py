@@ -30,35 +30,38 @@ def _max_dx(a, b, var="x") -> float:
     return float(np.abs(a[var].values - b[var].values).max())
 
 
-def test_affine_servo_with_slew_on_the_stream_equals_mujocos_pid():
+@pytest.mark.parametrize("heading_guide", [False, True])
+def test_affine_servo_with_slew_on_the_stream_equals_mujocos_pid(heading_guide):
     """The Warp model's servo (affine position servo, set-point slew applied to the control stream)
     is MuJoCo's pid servo: both stepped by CPU MuJoCo agree to rounding over 3000 steps, start
-    included (where the 6 rad/s slew limit acts)."""
+    included (where the 6 rad/s slew limit acts); also the heading guide's pid (no slew state)."""
     import mujoco
 
     from undulate._warp import _Servos
 
-    sc = Scene(phases_rad=(0.0, 1.57))
+    sc = Scene(phases_rad=(0.0, 1.57), heading_guide=heading_guide)
     dt = resolve_options(sc, SimOptions(duration_s=2)).timestep_s
     pid, aff = build(sc, dt), build(sc, dt, servo="affine")
     k = 3000
     u = pid.controls(np.arange(k) * dt)
-    servos = _Servos(pid.model, aff.model, dt)
+    servos = _Servos(pid.model, aff.model, dt, [pid.model])
     table, slewed = servos.table(u[None], np.zeros((1, len(servos.act))))
     da, db = mujoco.MjData(pid.model), mujoco.MjData(aff.model)
     worst_q = worst_act = 0.0
+    has = servos.act >= 0  # the servos with a slew state (the heading guide has none)
+    order = np.argsort(servos.act[has])
     for i in range(k):
         da.ctrl[:] = u[i]
         db.ctrl[:] = table[i, 0]
         mujoco.mj_step(pid.model, da)
         mujoco.mj_step(aff.model, db)
         worst_q = max(worst_q, float(np.abs(da.qpos - db.qpos).max()))
-        worst_act = max(worst_act, float(np.abs(da.act - slewed[0, i]).max()))
+        worst_act = max(worst_act, float(np.abs(da.act - slewed[0, i][has][order]).max()))
     assert worst_act < 1e-6  # float32 table: the slew states as MuJoCo's act
     assert worst_q < 1e-5  # m / rad, over 2 s (float32 set-points)
     # the slew limit did act at the start (a straight body told to take the gait's shape)
-    assert np.abs(np.diff(slewed[0], axis=0)).max() <= 6.0 * dt * (1 + 1e-9)
-    assert np.abs(u[1:, servos.src_pos] - slewed[0, 1:]).max() > 0.1
+    assert np.abs(np.diff(slewed[0][:, has], axis=0)).max() <= 6.0 * dt * (1 + 1e-9)
+    assert np.abs(u[1:, servos.src_pos[has]] - slewed[0, 1:][:, has]).max() > 0.1
 
 
 def test_pair_agrees_with_mujoco_over_5_s():
@@ -90,6 +93,17 @@ def _without_diagexact(monkeypatch):
         return sp, walls
 
     monkeypatch.setattr(scene_module, "scene_spec", spec)
+
+
+def test_a_closed_loop_controller_steps_on_warp():
+    """A self-oscillating pair (closed loop: the controller senses between control periods, each period
+    one Warp call) agrees with the MuJoCo backend."""
+    from undulate.params import ControllerParams
+
+    sc = Scene(phases_rad=(0.0, 1.57), controller=ControllerParams(kind="self-oscillating"))
+    a = simulate(sc, SimOptions(duration_s=0.5))
+    b = simulate(sc, SimOptions(duration_s=0.5, **WARP))
+    assert _max_dx(a, b, "x") < 1e-3 and _max_dx(a, b, "joint_angle") < 5e-3
 
 
 def test_a_group_of_4_agrees_with_mujoco_within_its_own_sensitivity(monkeypatch):

@@ -215,7 +215,7 @@ class _Servos:
             name = mujoco.mj_id2name(cpu, mujoco.mjtObj.mjOBJ_ACTUATOR, i)
             j = mujoco.mj_name2id(aff, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
             c, c2 = int(cpu.actuator_ctrladr[i]), int(aff.actuator_ctrladr[j])
-            if cpu.actuator_dyntype[i] == mujoco.mjtDyn.mjDYN_PID:
+            if cpu.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_PID:  # a pid servo (with or without slew state)
                 kp, kv = -float(cpu.actuator_biasprm[i, 1]), -float(cpu.actuator_biasprm[i, 2])
                 if cpu.actuator_actnum[i] > 1 or float(cpu.actuator_dynprm[i, 0]) > 0:
                     raise ParameterError("servo", "without an integral term (ki <= 0) on the 'warp' backend "
@@ -235,7 +235,7 @@ class _Servos:
         self.copy_src, self.copy_dst = np.array(copy_src, int), np.array(copy_dst, int)
         self.nu = aff.nu
         if others:  # per scene: kv / kp and slewmax dt of each servo
-            pid = np.array([i for i in range(cpu.nactuator) if cpu.actuator_dyntype[i] == mujoco.mjtDyn.mjDYN_PID])
+            pid = np.array([i for i in range(cpu.nactuator) if cpu.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_PID])
             self.ratio = np.stack([m.actuator_biasprm[pid, 2] / m.actuator_biasprm[pid, 1] for m in others])
             self.rate = np.stack([np.where((m.actuator_dynprm[pid, 1] > 0) & (m.actuator_actnum[pid] == 1),
                                            m.actuator_dynprm[pid, 1] * dt, np.inf) for m in others])
