@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # The GPU check of issue 37, prepared to run once on a GPU machine without a package registry.
 #
-#   benchmarks/gpu_check.sh OUTDIR [gpu_check.py options, e.g. --budget-s 450 --skip-full]
+#   benchmarks/gpu_check.sh OUTDIR [bench_gpu_check.py options, e.g. --budget-s 450 --skip-full]
 #
 # Python packages the machine lacks (mujoco 3.17.0 for its Python, mujoco-warp, warp-lang, h5netcdf, ...)
 # come as one xz tarball of an unpacked site directory, possibly split in parts (docs/gpu.md says how it
@@ -28,4 +28,4 @@ export PYTHONUNBUFFERED=1
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader 2>/dev/null | sed 's/^/gpu_check: /'
 python3 -c "import warp, mujoco_warp, mujoco, undulate; print('gpu_check: imports ok, mujoco', mujoco.__version__)" \
     || { echo "gpu_check: the packages do not import"; exit 3; }
-exec python3 "$HERE/benchmarks/gpu_check.py" "$OUTDIR" "$@"
+exec python3 "$HERE/benchmarks/bench_gpu_check.py" "$OUTDIR" "$@"

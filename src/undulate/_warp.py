@@ -385,7 +385,7 @@ class _Group:
 
 def _device_seconds(group: "_Group", nstep: int) -> float:
     """Seconds the device takes for ``nstep`` steps of ``group``'s worlds alone (no transfers; a
-    benchmark: benchmarks/gpu_check.py)."""
+    benchmark: benchmarks/bench_gpu_check.py)."""
     import time
 
     wp, _ = require()
@@ -405,7 +405,7 @@ def _device_seconds(group: "_Group", nstep: int) -> float:
 
 def _note_first_step(seconds: float, nworld: int, nv: int) -> None:
     """The first step of a Warp model (kernel compilation unless cached, then the graph capture):
-    appended as a JSON line to the file ``UNDULATE_WARP_STATS`` names, if set (benchmarks/gpu_check.py
+    appended as a JSON line to the file ``UNDULATE_WARP_STATS`` names, if set (benchmarks/bench_gpu_check.py
     reports compile time apart from stepping with it)."""
     path = os.environ.get("UNDULATE_WARP_STATS")
     if path:

@@ -1,6 +1,6 @@
 """The GPU check (issue 37): one prepared run on a GPU machine, every figure in one go.
 
-    python benchmarks/gpu_check.py OUTDIR [--budget-s 450] [--skip-full]
+    python benchmarks/bench_gpu_check.py OUTDIR [--budget-s 450] [--skip-full]
 
 Run by ``benchmarks/gpu_check.sh`` (which installs the carried wheels first).  Prints one JSON line
 per measurement as it goes and keeps ``OUTDIR/gpu_check.json`` up to date, so a run cut short still
