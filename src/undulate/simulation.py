@@ -12,6 +12,13 @@ carried from one ``rollout`` call to the next (:class:`_WarmRollout`): results
 are bitwise independent of the chunk size and of batching, and equal to a
 plain ``mj_step`` loop from a fresh ``MjData`` (``tests/test_simulation.py``).
 
+Two engines step the scenes (``SimOptions.backend``): MuJoCo's C engine
+(the default; everything above holds bitwise) and MuJoCo Warp
+(:mod:`undulate._warp`: every scene of a batch one world of one model, on a
+GPU or Warp's CPU device, float32; agreement with the default engine is
+measured in docs/gpu.md, not bitwise).  :class:`Gather` lets the runs of a
+sweep, each on its own thread, reach Warp as one batch.
+
 Recorded variables: :mod:`undulate.schema` (names, dims, units, long
 names; shared with the robot logger and the tracker).
 
