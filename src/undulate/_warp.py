@@ -4,8 +4,8 @@
 scene ``nstep`` steps from the given FULLPHYSICS states under the given controls, into per-step
 state and sensor arrays), so the recorder, the stopping rules, the divergence checks and the
 checkpoints of :mod:`undulate.simulation` are shared by both backends.  Each call uploads the
-states and the chunk's control table, steps the worlds on the device (one CUDA graph per step
-on a GPU), records every step's positions, velocities and sensors on the device and downloads
+states and the chunk's control table, steps the worlds on the device (one captured graph per step,
+on a GPU and on Warp's CPU device), records every step's positions, velocities and sensors on the device and downloads
 them once.
 
 What differs from the MuJoCo (CPU) backend, and why the results still agree
@@ -358,24 +358,20 @@ class _Group:
             if tab.shape[2]:
                 tab.assign(table)
             self.k.zero_()
-            if self.device == "cpu":
-                for _ in range(nstep):
+            if self.graph is None:  # the first step compiles the kernels; then one captured graph per step
+                t0 = time.perf_counter()  # (on CUDA and on Warp's CPU device alike: on the CPU the graph
+                self._one_step()  # saves Warp's per-launch Python, 5x a pair's stepping)
+                wp.synchronize()
+                _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
+                self.d.qpos.assign(qpos.astype(np.float32))
+                self.d.qvel.assign(qvel.astype(np.float32))
+                self.d.qacc_warmstart.assign(warm.astype(np.float32))
+                self.k.zero_()
+                with wp.ScopedCapture() as cap:
                     self._one_step()
-            else:
-                if self.graph is None:  # the first step compiles the kernels; then one graph per step
-                    t0 = time.perf_counter()
-                    self._one_step()
-                    wp.synchronize()
-                    _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
-                    self.d.qpos.assign(qpos.astype(np.float32))
-                    self.d.qvel.assign(qvel.astype(np.float32))
-                    self.d.qacc_warmstart.assign(warm.astype(np.float32))
-                    self.k.zero_()
-                    with wp.ScopedCapture() as cap:
-                        self._one_step()
-                    self.graph = cap.graph
-                for _ in range(nstep):
-                    wp.capture_launch(self.graph)
+                self.graph = cap.graph
+            for _ in range(nstep):
+                wp.capture_launch(self.graph)
             wp.synchronize()
             q = oq.numpy().transpose(1, 0, 2).astype(np.float64)
             v = ov.numpy().transpose(1, 0, 2).astype(np.float64)
