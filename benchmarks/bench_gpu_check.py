@@ -53,7 +53,7 @@ def agreement() -> None:
     import numpy as np
 
     from undulate import Scene, SimOptions, simulate
-    from undulate._warp import device_name
+    from undulate.simulation._warp import device_name
     from undulate.studies.packing import _pack
 
     say("device", device_name(DEVICE))
@@ -92,7 +92,7 @@ def throughput(budget: float) -> None:
     import numpy as np
 
     from undulate import Scene, SimOptions
-    from undulate._warp import WarpRollout, _device_seconds
+    from undulate.simulation._warp import WarpRollout, _device_seconds
     from undulate.simulation import _initial_state, compile_scene, resolve_options
     from undulate.studies.packing import _pack
 
@@ -197,7 +197,7 @@ def main() -> None:
     OUT.mkdir(parents=True, exist_ok=True)
     import mujoco
 
-    from undulate._warp import versions
+    from undulate.simulation._warp import versions
 
     say("versions", {"python": sys.version.split()[0], "mujoco": mujoco.__version__, "warp": versions(),
                      "cores": os.cpu_count()})

@@ -1,4 +1,4 @@
-"""The MuJoCo Warp backend (undulate._warp) against the MuJoCo backend, on Warp's CPU device.
+"""The MuJoCo Warp backend (undulate.simulation._warp) against the MuJoCo backend, on Warp's CPU device.
 
 CI has no GPU: these tests step MuJoCo Warp's kernels on the CPU (compiled once per machine and
 cached under ~/.cache/warp; the first test pays ~40 s for it).  The same code steps on CUDA in
@@ -37,7 +37,7 @@ def test_affine_servo_with_slew_on_the_stream_equals_mujocos_pid(heading_guide):
     included (where the 6 rad/s slew limit acts); also the heading guide's pid (no slew state)."""
     import mujoco
 
-    from undulate._warp import _Servos
+    from undulate.simulation._warp import _Servos
 
     sc = Scene(phases_rad=(0.0, 1.57), heading_guide=heading_guide)
     dt = resolve_options(sc, SimOptions(duration_s=2)).timestep_s
@@ -128,7 +128,7 @@ def test_a_group_of_4_agrees_with_mujoco_within_its_own_sensitivity(monkeypatch)
 
 def test_a_jammed_pack_keeps_the_1_mm_rule():
     """A jammed 50-swimmer pack (rho~ = 3, the packing study's densest) for 2 s: no contact deeper
-    than 1 mm, no capacity overflow (undulate._warp.capacities), and the pack stays in the channel."""
+    than 1 mm, no capacity overflow (undulate.simulation._warp.capacities), and the pack stays in the channel."""
     from undulate.studies.packing import _pack
 
     sc = _pack({"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}, amplitude_m=0.05226, base_seed=0,
@@ -144,7 +144,7 @@ def test_a_batch_of_different_channels_is_one_warp_model_with_per_world_fields()
     and the static walls' poses per world in the Data: MuJoCo Warp never recomputes them); each world
     agrees with its scene stepped alone on the MuJoCo backend (a wall left at the first world's width
     moved a pair by 4.7 mm)."""
-    from undulate import _warp
+    from undulate.simulation import _warp
     from undulate.params import Channel, ContactModel, Ground, Servo
 
     scenes = [Scene(phases_rad=(0.0, 1.0), channel=Channel(width_m=w), ground=Ground(drag_N_s_per_m=g),

@@ -35,7 +35,7 @@ __all__ = ["PACKAGE", "module_files", "import_graph", "find_cycle", "closure", "
 
 PACKAGE = "undulate"
 _ROOT = Path(__file__).resolve().parent
-BACKEND_MODULES = {"warp": ("undulate._warp", "undulate._warp_kernels")}
+BACKEND_MODULES = {"warp": ("undulate.simulation._warp", "undulate.simulation._warp_kernels")}
 """The modules of each optional stepping backend.  :func:`code_hash` counts those of the session's
 backend only (``UNDULATE_BACKEND``, :func:`undulate.simulation.use_backend`): an edit to the Warp
 backend does not invalidate results of the MuJoCo one, and a Warp result names its backend's code."""

@@ -269,7 +269,7 @@ SERVO_MODELS = ("pid", "affine")
 ``[pos, vel]``, the set-point slew-limited inside it) or ``"affine"`` (a position actuator with
 velocity gain: force ``kp u - kp q - kv qdot``, one input ``u = q* + (kv / kp) qdot*``, the set-point
 ``q*`` slew-limited by the caller).  With no integral term the two give the same force; MuJoCo Warp
-(:mod:`undulate._warp`) has no ``pid`` actuator and steps the affine one."""
+(:mod:`undulate.simulation._warp`) has no ``pid`` actuator and steps the affine one."""
 
 
 def _add_servos(spec: mujoco.MjSpec, scene: Scene, servo: str = "pid") -> None:

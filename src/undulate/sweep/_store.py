@@ -151,7 +151,7 @@ def backend_identity() -> str:
     backend, device = default_backend()
     if backend == "mujoco":
         return "mujoco"
-    from .. import _warp
+    from ..simulation import _warp
 
     a = backend_attrs(SimOptions(backend=backend, device=_warp.resolve_device(device)))
     return f"warp {a['device']} {a['precision']} ({a['backend_versions']})"

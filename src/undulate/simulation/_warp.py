@@ -40,7 +40,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from .errors import ParameterError, UndulateError
+from ..errors import ParameterError, UndulateError
 
 __all__ = ["WarpRollout", "available", "require", "capacities", "CapacityError", "DEVICES", "PRECISION"]
 
@@ -92,7 +92,7 @@ def require():
 
 def versions() -> str:
     """``"mujoco-warp X, warp-lang Y"`` (provenance)."""
-    from .provenance import package_version
+    from ..provenance import package_version
 
     return f"mujoco-warp {package_version('mujoco-warp', '?')}, warp-lang {package_version('warp-lang', '?')}"
 
@@ -204,7 +204,7 @@ def _plan_worlds(models: Sequence[mujoco.MjModel]):
 
 class _Servos:
     """The CPU model's ``pid`` servos expressed as the Warp model's affine servos, and the set-point
-    slew limit applied to the control stream (:mod:`undulate._warp`'s docstring)."""
+    slew limit applied to the control stream (:mod:`undulate.simulation._warp`'s docstring)."""
 
     def __init__(self, cpu: mujoco.MjModel, aff: mujoco.MjModel, dt: float,
                  others: Sequence[mujoco.MjModel] = ()):
@@ -486,7 +486,7 @@ class WarpRollout:
             f"MuJoCo Warp world {int(idx[w])} overflowed: {', '.join(names)} "
             f"(allocated per world: nconmax {cap['nconmax']}, njmax {cap['njmax']}, "
             f"contact_sensor_maxmatch {cap['contact_sensor_maxmatch']}); the results would be wrong, "
-            f"so the run stops (undulate._warp.capacities sizes them from the scene)")
+            f"so the run stops (undulate.simulation._warp.capacities sizes them from the scene)")
 
     def close(self) -> None:
         self.groups = []

@@ -1,0 +1,70 @@
+"""Which engine steps a run: the session's default backend and device, and what a Dataset records
+about them (:mod:`undulate.simulation`)."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+from ..errors import ParameterError
+from ..params import SimOptions
+
+BACKEND_ENV, DEVICE_ENV = "UNDULATE_BACKEND", "UNDULATE_DEVICE"
+
+
+def use_backend(backend: str | None, device: str | None = None) -> None:
+    """Make ``backend`` (``"mujoco"`` or ``"warp"``; None: back to ``"mujoco"``) and ``device`` the
+    default of every :class:`SimOptions` that leaves them out, in this process and the worker
+    processes it starts (it sets the environment variables ``UNDULATE_BACKEND`` and
+    ``UNDULATE_DEVICE``).  The ``warp`` backend is checked here: its extra must be installed and
+    the device present."""
+    SimOptions(backend=backend, device=device)  # validated as options are
+    if backend == "warp":
+        from . import _warp
+
+        device = _warp.resolve_device(device)
+    for var, value in ((BACKEND_ENV, backend), (DEVICE_ENV, device)):
+        if value is None:
+            os.environ.pop(var, None)
+        else:
+            os.environ[var] = value
+
+
+def default_backend() -> tuple[str, str | None]:
+    """The session's default ``(backend, device)`` (:func:`use_backend`)."""
+    backend = os.environ.get(BACKEND_ENV) or "mujoco"
+    if backend not in SimOptions.BACKENDS:
+        raise ParameterError(BACKEND_ENV, "'mujoco' or 'warp' (environment variable)", backend)
+    return backend, (os.environ.get(DEVICE_ENV) or None) if backend == "warp" else None
+
+
+def check_backend(options: SimOptions) -> SimOptions:
+    """``options`` with a concrete backend and device (:func:`default_backend` where left out); a
+    ParameterError if the Warp backend's extra or device is missing."""
+    return _resolve_backend(options)
+
+
+def _resolve_backend(options: SimOptions) -> SimOptions:
+    if options.backend is not None and (options.backend == "mujoco" or options.device is not None):
+        if options.backend == "warp":
+            from . import _warp
+
+            _warp.resolve_device(options.device)  # the extra and the device are there
+        return options
+    backend, device = (options.backend, options.device) if options.backend is not None else default_backend()
+    if backend == "warp":
+        from . import _warp
+
+        device = _warp.resolve_device(options.device or device)
+    return dataclasses.replace(options, backend=backend, device=device)
+
+
+def backend_attrs(options: SimOptions) -> dict[str, str]:
+    """What stepped a run (resolved ``options``): ``backend``, ``device``, ``precision`` and, for
+    Warp, the versions of mujoco-warp and warp-lang (Dataset attrs, sweep identity)."""
+    if options.backend != "warp":
+        return {"backend": "mujoco", "device": "cpu", "precision": "float64"}
+    from . import _warp
+
+    return {"backend": "warp", "device": options.device or "", "precision": _warp.PRECISION,
+            "backend_versions": _warp.versions()}

@@ -1,0 +1,151 @@
+"""Runs of several threads stepped as one batch (:class:`Gather`): how a sweep's runs reach the Warp
+backend as the worlds of one model."""
+
+from __future__ import annotations
+
+import json
+
+import xarray as xr
+
+from .. import _physics
+from ..params import SimOptions
+from ._compile import compile_scene, resolve_options
+
+class _NoStop:
+    """The stopping rule of a scene that has none, in a gathered batch (it never ends a run)."""
+
+    rule = ""
+
+    def __call__(self, blocks):
+        return None
+
+
+class _Request:
+    def __init__(self, scenes, options, stop, run):
+        self.scenes, self.options, self.stop, self.run = scenes, options, stop, run
+        self.result = self.error = None
+        self.done = False
+        self.physics = (0.0, 0)
+
+    def rules(self) -> list:
+        if self.stop is None:
+            return [_NoStop() for _ in self.scenes]
+        return [self.stop] if callable(self.stop) else list(self.stop)
+
+
+class Gather:
+    """Runs the simulations of several threads as one batch: every thread's
+    :func:`simulate_batch` call waits until each live thread has either called it or finished,
+    then the calls are stepped together, one batch per structure and options (on the Warp
+    backend: one world per scene).  Each call returns its own Datasets, each bitwise what the
+    same batch would give (:func:`simulate_batch`: a scene's run does not depend on the others,
+    on the MuJoCo backend bitwise, on Warp to float32 rounding of the solver's reductions).
+
+    Used by the sweep runner for the Warp backend (:func:`undulate.sweep.run_sweep`): a study's
+    runs, each in its own thread, reach the GPU together.  Calls with ``out``, ``controller``,
+    ``progress`` or ``start`` run at once, alone.  If a gathered batch fails (one scene diverges),
+    its calls are run again one at a time so that only the failing one raises."""
+
+    def __init__(self, n_threads: int):
+        import threading
+
+        self.live = int(n_threads)
+        self.pending: list[_Request] = []
+        self.cond = threading.Condition()
+        self.batches: list[int] = []  # scenes per batch stepped (for reports and tests)
+
+    def submit(self, scenes, options, stop, run) -> list[xr.Dataset]:
+        """Wait for the other threads, then step the calls together; ``run(scenes, options, stop=)``
+        steps one batch now (:func:`undulate.simulation._simulate_batch_now`)."""
+        req = _Request(scenes, options or SimOptions(), stop, run)
+        with self.cond:
+            self.pending.append(req)
+            if len(self.pending) < self.live:
+                while not req.done:
+                    self.cond.wait()
+                flush = None
+            else:
+                flush, self.pending = self.pending, []
+        if flush is not None:
+            self._run(flush)
+        if req.error is not None:
+            raise req.error
+        _physics.report(*req.physics)
+        return req.result
+
+    def thread_done(self) -> None:
+        """A thread leaves: its calls are all made (call once per thread, also when it raised)."""
+        with self.cond:
+            self.live -= 1
+            flush = None
+            if self.pending and len(self.pending) >= self.live:
+                flush, self.pending = self.pending, []
+        if flush is not None:
+            self._run(flush)
+
+    def _run(self, reqs: list[_Request]) -> None:
+        import contextvars
+
+        try:
+            for group in _gather_groups(reqs):
+                scenes = [sc for r in group for sc in r.scenes]
+                rules = [rule for r in group for rule in r.rules()]
+                self.batches.append(len(scenes))
+                try:
+                    with _physics.meter() as tally:  # this batch's physics, shared among its calls
+                        dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules)
+                except Exception:  # noqa: BLE001 - isolate the failing call
+                    for r in group:
+                        try:
+                            with _physics.meter() as tally:
+                                r.result = contextvars.Context().run(r.run, r.scenes, r.options,
+                                                                     stop=r.stop)
+                            r.physics = tally.read()
+                        except Exception as e:  # noqa: BLE001
+                            r.error = e
+                    continue
+                sec, steps = tally.read()
+                i = 0
+                for r in group:
+                    n = len(r.scenes)
+                    r.result, i = dss[i:i + n], i + n
+                    r.physics = (sec * n / len(scenes), steps * n // len(scenes))
+        except BaseException as e:  # noqa: BLE001 - every waiting thread must learn of it
+            for r in reqs:
+                if r.result is None and r.error is None:
+                    r.error = e
+        finally:
+            with self.cond:
+                for r in reqs:
+                    r.done = True
+                self.cond.notify_all()
+
+
+def _gather_groups(reqs: list[_Request]) -> list[list[_Request]]:
+    """Calls that can be stepped as one batch: same resolved options and one structure (the
+    compiled models' sizes), and for closed-loop scenes one gait, controller and link count."""
+    keys = []
+    for r in reqs:
+        opts = [resolve_options(sc, r.options) for sc in r.scenes]
+        o = opts[0]
+        cs = compile_scene(r.scenes[0], o, push=any(sc.forces_N is not None for sc in r.scenes))
+        m = cs.model
+        closed = r.scenes[0].controller.closed_loop
+        keys.append((json.dumps(o.to_dict(), sort_keys=True, default=str), len({x.timestep_s for x in opts}) == 1,
+                     (m.nq, m.nv, m.nu, m.na, m.nsensordata, m.ngeom), r.scenes[0].forces_N is not None,
+                     repr((r.scenes[0].gait, r.scenes[0].controller, r.scenes[0].geometry.n_links)) if closed else ""))
+    out = []
+    for key in dict.fromkeys(keys):
+        group = [r for r, k in zip(reqs, keys) if k == key]
+        if not key[1]:  # a call whose own scenes need different time steps: alone (it raises there)
+            out += [[r] for r in group]
+        else:
+            out.append(group)
+    return out
+
+
+
+def _gathering() -> "Gather | None":
+    import threading
+
+    return getattr(threading.current_thread(), "undulate_gather", None)

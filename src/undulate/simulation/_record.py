@@ -1,0 +1,325 @@
+"""What a run records: sample blocks from states and sensors (:func:`_sample_vars`), the Dataset
+(:func:`_to_dataset`), and the recorders that keep them in memory or stream them to netCDF."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import functools
+import json
+import os
+import shutil
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+import xarray as xr
+
+from ..errors import ParameterError
+from ..params import SimOptions
+from ..schema import scene_attrs, variable
+from ..scene import CompiledScene, root_link, root_offset_m
+from ._backend import backend_attrs
+
+if TYPE_CHECKING:
+    from . import _Batch
+
+RECORDABLE = SimOptions.RECORDABLE
+"""Variables a run can record (``SimOptions.record``)."""
+
+
+def _per_sample_bytes(cs: CompiledScene, record: Sequence[str]) -> int:
+    """Bytes one recorded sample of one scene takes (float64), time included."""
+    sc = cs.scene
+    n, nj, nn = sc.n_swimmers, sc.geometry.n_links - 1, sc.geometry.n_links + 1
+    size = {"x": n, "y": n, "heading": n, "node_x": n * nn, "node_y": n * nn, "joint_angle": n * nj,
+            "joint_command": n * nj, "joint_error": n * nj, "contact_force_pair": max(0, n - 1),
+            "contact_force_wall": len(cs.index.wall_names), "penetration": 1, "gait_phase": n}
+    return 8 * (1 + sum(size[v] for v in record))
+
+
+def _memory_available_bytes() -> int:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+
+
+def _check_fits(compiled: Sequence[CompiledScene], record: Sequence[str], n_samples: int,
+                outs: Sequence[Path] | None) -> None:
+    """Refuse, before stepping, a recording that cannot fit in memory or on disk."""
+    need = sum(_per_sample_bytes(c, record) for c in compiled) * (n_samples + 1)
+    gib = 2.0**30
+    if outs is None:
+        have = _memory_available_bytes()
+        if 2 * need > have:  # the samples plus the Dataset built from them
+            raise ParameterError(
+                "duration_s / sample_rate_hz (--duration / --sample-rate)",
+                f"small enough for the recording to fit in memory: it needs {2 * need / gib:.3g} GiB, "
+                f"{have / gib:.3g} GiB is available (stream it to a file with out=, or record fewer "
+                f"variables with SimOptions.record)", None)
+    else:
+        for path in outs:
+            free = shutil.disk_usage(Path(path).resolve().parent).free
+            if need > free:
+                raise ParameterError(
+                    "duration_s / sample_rate_hz (--duration / --sample-rate)",
+                    f"small enough for the recording to fit on disk: it needs {need / gib:.3g} GiB, "
+                    f"{free / gib:.3g} GiB is free at {Path(path).resolve().parent}", None)
+
+
+class _MemoryRecorder:
+    """Collects each chunk's samples; the Dataset is built once at the end."""
+
+    def __init__(self):
+        self.blocks: list[dict] = []
+
+    def add(self, block: dict) -> None:
+        self.blocks.append(block)
+
+    def finish(self, build) -> xr.Dataset:
+        merged = {k: np.concatenate([b[k] for b in self.blocks]) for k in self.blocks[0]}
+        self.blocks = []
+        return build(merged)
+
+
+class _NetCDFRecorder:
+    """Writes the samples through to a netCDF file (unlimited ``time``).
+
+    Chunks' samples are held until about :attr:`FLUSH_BYTES` have gathered and
+    then appended in one write (each h5netcdf append costs ~1 ms per variable:
+    appending every rollout chunk took a third of a long pair run), so memory
+    stays bounded by that much plus one chunk.  The file is written to a
+    temporary path beside ``path`` (:func:`undulate._io.temporary_path`) and
+    fsync-ed and renamed into place by :meth:`finish`; :meth:`abort` removes it.
+    """
+
+    FLUSH_BYTES = 1 << 20
+
+    def __init__(self, path: Path):
+        from .. import _io
+
+        self.path = Path(path)
+        self.tmp = _io.temporary_path(self.path)
+        self.file = None
+        self.pending: list[dict] = []
+        self.pending_bytes = 0
+
+    def add(self, block: dict, build) -> None:
+        if self.file is None:  # the first block defines the file: variables, attrs, coordinates
+            import h5netcdf
+
+            ds = build(block)
+            # HDF5 chunks of ~1 MiB along time: chunking by the first block's shape would make one
+            # chunk per few samples, and HDF5's chunk index (held in memory) would grow with the run
+            enc = {name: {"chunksizes": (max(1, 2**17 // max(1, int(np.prod(v.shape[1:])))),
+                                         *(max(1, n) for n in v.shape[1:]))}  # HDF5: no empty chunk sides
+                   for name, v in ds.variables.items() if v.dims[:1] == ("time",)}
+            ds.to_netcdf(self.tmp, engine="h5netcdf", unlimited_dims=["time"], encoding=enc)
+            self.file = h5netcdf.File(self.tmp, "a")  # kept open: reopening per chunk leaks memory
+            self.appended = [n for n, v in self.file.variables.items() if v.dimensions[:1] == ("time",)]
+            return
+        self.pending.append(block)
+        self.pending_bytes += sum(np.asarray(block[n]).nbytes for n in self.appended)
+        if self.pending_bytes >= self.FLUSH_BYTES:
+            self._flush()
+
+    def _flush(self) -> None:
+        if not self.pending:
+            return
+        f = self.file
+        n0 = f.dimensions["time"].size
+        k = sum(len(b["time"]) for b in self.pending)
+        f.resize_dimension("time", n0 + k)
+        for name in self.appended:
+            f.variables[name][n0:n0 + k, ...] = np.concatenate([np.asarray(b[name]) for b in self.pending])
+        self.pending, self.pending_bytes = [], 0
+
+    def _close(self) -> None:
+        if self.file is not None:
+            self.file.close()
+            self.file = None
+
+    def finish(self) -> xr.Dataset:
+        if self.file is not None:
+            self._flush()
+        self._close()
+        from .. import _io
+
+        _io.commit(self.tmp, self.path)
+        return xr.open_dataset(self.path, engine="h5netcdf")
+
+    def abort(self) -> None:
+        self.pending = []
+        self._close()
+        from .. import _io
+
+        _io.discard(self.tmp)
+
+
+def _outs(out, nb: int) -> list[Path] | None:
+    if out is None:
+        return None
+    paths = [Path(out)] if isinstance(out, (str, os.PathLike)) else [Path(p) for p in out]
+    if len(paths) != nb:
+        raise ParameterError("out", f"{nb} path(s), one per scene", out)
+    for p_ in paths:
+        if p_.suffix.lower() != ".nc":
+            raise ParameterError("out", "a path ending in .nc (netCDF)", str(p_))
+        if not p_.resolve().parent.is_dir():
+            raise ParameterError("out", "a path in an existing directory", str(p_))
+    return paths
+
+
+class _Recorders:
+    """One recorder per scene of a batch (in memory, or streamed to its ``out`` file) and the stopping
+    rule that sees every block recorded (one for the batch, or one per scene)."""
+
+    def __init__(self, bt: _Batch, stop):
+        self.bt, self.stop = bt, stop
+        self.per_scene = stop is not None and not callable(stop)
+        if self.per_scene:
+            self.stop = list(stop)
+            if len(self.stop) != bt.nb or not all(callable(r) for r in self.stop):
+                raise ParameterError("stop", f"a stopping rule, or one per scene ({bt.nb} callables)", stop)
+        self.reasons: list[str | None] = [None] * bt.nb
+        self.recorders = [_MemoryRecorder() for _ in range(bt.nb)] if bt.outs is None else \
+            [_NetCDFRecorder(p_) for p_ in bt.outs]
+        self.builders = [functools.partial(_to_dataset, cs, bt.options, record=bt.options.recorded,
+                                           timestep_auto=bt.requested.timestep_s is None,
+                                           control_rate_hz=None if bt.ctl is None else 1.0 / (bt.tick * bt.dt),
+                                           controller_kind=None if bt.ctl is None else bt.ctl.kind)
+                         for cs in bt.compiled]
+
+    def rule(self, b: int) -> str:
+        """The stopping rule of scene ``b``, as text ("" without one)."""
+        r = self.stop[b] if self.per_scene else self.stop
+        return "" if r is None else str(getattr(r, "rule", repr(r)))
+
+    def record(self, blocks: list[dict | None]) -> bool:
+        """Record one block per scene still stepped (None: a scene that has stopped); whether every
+        scene has now stopped (its reason in :attr:`reasons`)."""
+        for b, block in enumerate(blocks):
+            if block is not None:
+                self.recorders[b].add(block) if self.bt.outs is None else self.recorders[b].add(block, self.builders[b])
+        if self.stop is None:
+            return False
+        if not self.per_scene:
+            reason = self.stop(blocks)
+            self.reasons = [reason] * len(blocks)
+            return bool(reason)
+        for b, block in enumerate(blocks):
+            if block is not None and self.reasons[b] is None:
+                self.reasons[b] = self.stop[b]([block]) or None
+        return all(r is not None for r in self.reasons)
+
+    def finish(self) -> list[xr.Dataset]:
+        """One Dataset per scene (built in memory, or opened from its file)."""
+        return [r.finish(self.builders[b]) if self.bt.outs is None else r.finish()
+                for b, r in enumerate(self.recorders)]
+
+    def abort(self) -> None:
+        """After a failure: remove the files being streamed (nothing to do in memory)."""
+        if self.bt.outs is not None:
+            for r in self.recorders:
+                r.abort()
+
+
+def _link_angles(yaw: np.ndarray, joints: np.ndarray, root: int) -> np.ndarray:
+    """World orientation of each link's body axis (head->tail), rad.
+
+    ``yaw``: (..., ) orientation of the root link ``root``; ``joints``:
+    (..., N-1) -> (..., N).
+    """
+    c = np.concatenate([np.zeros_like(joints[..., :1]), np.cumsum(joints, axis=-1)], axis=-1)
+    return yaw[..., None] + c - c[..., root:root + 1]
+
+
+def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record, cmd=None, phase=None) -> dict:
+    """The recorded variables of a block of samples (leading axis: time) as arrays.
+
+    ``cmd``, ``phase``: the commanded joint angles and gait phases at the samples
+    (closed-loop controllers); None: the open-loop gait's."""
+    sc, ix = cs.scene, cs.index
+    g = sc.geometry
+    out = {"time": t}
+    rl = root_link(g.n_links)
+    xs0, ys0 = sc.initial_x_m() - g.length_m / 2 + root_offset_m(sc), sc.initial_y_m()
+    root = qpos[:, ix.qpos_root]  # (T, n, 3): the body's midpoint and root-link orientation, plus the offset
+    if sc.hold_x:  # no x joint (Scene.hold_x): the midpoint stays at its initial x
+        root = root.copy()
+        root[..., 0] = 0.0
+    alpha = qpos[:, ix.qpos_joint]  # (T, n, nj)
+    theta = _link_angles(root[..., 2], alpha, rl)  # (T, n, N)
+    l = g.link_length_m
+    # the head tip: back from the root frame (the body's midpoint) along the root link and the head-side links
+    cx, cy = np.cos(theta), np.sin(theta)
+    a = root_offset_m(sc) - rl * l  # the root frame's distance behind the root link's head end
+    rx = root[..., 0] + xs0 - a * cx[..., rl] - l * cx[..., :rl].sum(axis=-1)
+    ry = root[..., 1] + ys0 - a * cy[..., rl] - l * cy[..., :rl].sum(axis=-1)
+    if "x" in record or "y" in record:
+        # centre of mass of equal links = mean of the link midpoints, at the recorded state itself (the
+        # subtree-COM sensor would read the state one step earlier)
+        hx = rx[..., None] + l * (np.cumsum(cx, axis=-1) - cx / 2)
+        hy = ry[..., None] + l * (np.cumsum(cy, axis=-1) - cy / 2)
+        out["x"], out["y"] = hx.mean(axis=-1), hy.mean(axis=-1)
+    if "heading" in record:
+        out["heading"] = theta.mean(axis=-1)
+    if "node_x" in record:
+        out["node_x"] = np.concatenate([rx[..., None], rx[..., None] + l * np.cumsum(cx, axis=-1)], axis=-1)
+    if "node_y" in record:
+        out["node_y"] = np.concatenate([ry[..., None], ry[..., None] + l * np.cumsum(cy, axis=-1)], axis=-1)
+    if cmd is None:
+        cmd = sc.gait.joint_angles(t, sc.phases_rad, g.n_links)
+    if phase is None:  # the open-loop gait: psi = 2 pi f t - phi (undulate.control)
+        phase = (2 * np.pi * sc.gait.frequency_hz) * np.asarray(t, dtype=float)[:, None] - np.asarray(sc.phases_rad)[None]
+    out["joint_angle"], out["joint_command"], out["joint_error"] = alpha, cmd, np.abs(alpha - cmd)
+    out["gait_phase"] = phase
+    out["contact_force_pair"], out["contact_force_wall"], out["penetration"] = fpair, fwall, pen
+    return {k: v for k, v in out.items() if k == "time" or k in record}
+
+
+def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=RECORDABLE,
+                timestep_auto: bool = False, control_rate_hz: float | None = None,
+                controller_kind: str | None = None) -> xr.Dataset:
+    from ..provenance import provenance
+
+    sc, ix = cs.scene, cs.index
+    g = sc.geometry
+    n, nj = sc.n_swimmers, g.n_links - 1
+    sps = options.steps_per_sample
+
+    config = {"scene": sc.to_dict(), "options": options.to_dict(), "timestep_auto": timestep_auto}
+    ds = xr.Dataset(
+        {name: variable(name, block[name]) for name in RECORDABLE if name in record},
+        coords={
+            "time": ("time", block["time"], {"units": "s", "long_name": "time"}),
+            "swimmer": ("swimmer", np.arange(n)),
+            "joint": ("joint", np.arange(nj)),
+            "node": ("node", np.arange(g.n_links + 1)),
+            "pair": ("pair", np.arange(max(0, n - 1))),
+            "wall": ("wall", list(ix.wall_names)),
+            "phase": ("swimmer", np.asarray(sc.phases_rad), {"units": "rad", "long_name": "gait phase phi"}),
+        },
+        attrs={
+            "title": "undulate simulation",
+            **scene_attrs(sc),
+            "timestep": options.timestep_s,
+            "timestep_units": "s",
+            "timestep_source": "auto (undulate.scene.auto_timestep)" if timestep_auto else "explicit",
+            "sample_interval": sps * options.timestep_s,
+            "controller": controller_kind or cs.scene.controller.kind,
+            "control_rate": control_rate_hz if control_rate_hz is not None else 0.0,
+            "control_rate_units": "Hz (0: open loop, set-points at every step)",
+            "conventions": "heads toward -x; body wave travels +x; dx = x_upper - x_lower, "
+                           "dphi = phi_upper - phi_lower; compatibility dx = lambda dphi / 2pi",
+            "config": json.dumps(config),
+            **backend_attrs(options),
+            **{f"provenance_{k}": v for k, v in provenance().items()},
+        },
+    )
+    return ds
