@@ -195,6 +195,23 @@ def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_p
         assert np.abs(gpu.dataset["x"].isel(point=i, replicate=0).values - alone).max() < 1e-9
 
 
+def test_a_capacity_overflow_stops_the_run_naming_the_capacity(monkeypatch, capfd):
+    """A contact sensor allowed fewer matches than the pair's contacts: the run stops with CapacityError
+    naming the capacity, not with wrong forces or one warning per step.  Contacts allocated below what
+    the first state has: CapacityError too, before stepping."""
+    from undulate.simulation import _warp
+
+    real = _warp.capacities
+    sc = Scene(phases_rad=(0.0, 1.57))
+    monkeypatch.setattr(_warp, "capacities", lambda m: {**real(m), "contact_sensor_maxmatch": 1})
+    with pytest.raises(_warp.CapacityError, match="contact_sensor_maxmatch"):
+        simulate(sc, SimOptions(duration_s=0.1, **WARP))
+    monkeypatch.setattr(_warp, "capacities", lambda m: {**real(m), "nconmax": 1})
+    with pytest.raises(_warp.CapacityError, match="nconmax"):
+        simulate(sc, SimOptions(duration_s=0.1, **WARP))
+    assert "overflow" not in capfd.readouterr().out.lower()  # no print from the kernels either
+
+
 def test_options_validate_backend_and_device():
     with pytest.raises(ParameterError, match="backend"):
         SimOptions(backend="jax")

@@ -301,7 +301,10 @@ class _Group:
             m.opt.contact_sensor_maxmatch = cap["contact_sensor_maxmatch"]
             mjd = mujoco.MjData(mjm)
             mujoco.mj_forward(mjm, mjd)
-            self.d = mjw.put_data(mjm, mjd, nworld=nw, nconmax=cap["nconmax"], njmax=cap["njmax"])
+            try:
+                self.d = mjw.put_data(mjm, mjd, nworld=nw, nconmax=cap["nconmax"], njmax=cap["njmax"])
+            except ValueError as e:  # the first state already needs more than was allocated
+                raise CapacityError(f"MuJoCo Warp: {e} at the start (allocated per world: {cap})") from None
             if per_world and models is not None:
                 datas = []
                 for mw in models:
