@@ -208,7 +208,7 @@ def main() -> None:
             continue
         try:
             fn()
-        except Exception as e:  # noqa: BLE001 - one failed step does not lose the others
+        except Exception:  # noqa: BLE001 - one failed step does not lose the others
             import traceback
 
             say(f"{name}.error", traceback.format_exc()[-2000:])

@@ -156,9 +156,9 @@ _OPT_FIELDS = ("timestep", "tolerance", "ls_tolerance", "noslip_tolerance", "ccd
 
 
 def _plan_worlds(models: Sequence[mujoco.MjModel]):
-    """Split the worlds into groups that share one Warp model: worlds may differ only in fields
-    that MuJoCo Warp batches per world.  Returns ``[(indices, {field: stacked values})]`` and the
-    option fields that are batched (per group, in the same dict under ``"opt." + name``)."""
+    """Split the worlds into groups that share one Warp model: worlds of a group differ only in
+    fields that MuJoCo Warp batches per world.  Returns ``[(indices, {field: per-world values})]``
+    (option fields under ``"opt." + name``).  MjModel fields MuJoCo Warp does not carry are ignored."""
     _, mjw = require()
     import dataclasses
 
