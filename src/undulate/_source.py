@@ -215,8 +215,9 @@ def code_hash(fn: Callable) -> str:
     mods = function_modules(fn)
     own = closure([m for m in mods if m in files])
     optional = {m for ms in BACKEND_MODULES.values() for m in ms}
-    own = (own - optional) | (set(BACKEND_MODULES.get(os.environ.get("UNDULATE_BACKEND", ""), ())) & set(files)
-                              if own & optional else set())
+    if own & optional:  # the code reaches the backends: count the session's own only
+        selected = set(BACKEND_MODULES.get(os.environ.get("UNDULATE_BACKEND", ""), ()))
+        own = (own - optional) | (selected & set(files))
     paths: dict[str, Path] = {m: files[m] for m in own}
     for m in mods:
         if m not in files:

@@ -45,12 +45,12 @@ from ..control import Controller, make_controller
 from ..schema import scene_attrs, variable  # noqa: F401  (importable from here as before)
 from ..scene import CompiledScene, auto_timestep, build, servo_damping_rate_per_s, snap_timestep
 from .._xrcompat import install as _lazy_dask
-from ._backend import (BACKEND_ENV, DEVICE_ENV, _resolve_backend, backend_attrs, check_backend,  # noqa: F401
+from ._backend import (BACKEND_ENV, DEVICE_ENV, backend_attrs, check_backend,  # noqa: F401
                        default_backend, use_backend)
 from ._checkpoint import Checkpoint, _starts
 from ._compile import RK4_DAMPING_STEP, compile_scene, controls, resolve_options  # noqa: F401
 from ._gather import Gather, _gathering
-from ._mujoco import _HUGE, _WarmRollout, _initial_state, _log_mujoco_warning, _state_layout  # noqa: F401
+from ._mujoco import _WarmRollout, _initial_state, _log_mujoco_warning, _state_layout  # noqa: F401
 from ._record import (RECORDABLE, _check_fits, _link_angles, _MemoryRecorder, _NetCDFRecorder,  # noqa: F401
                       _outs, _Recorders, _sample_vars, _to_dataset)
 
@@ -58,6 +58,9 @@ _lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
 
 __all__ = ["simulate", "simulate_batch", "Checkpoint", "compile_scene", "controls", "resolve_options", "RECORDABLE",
            "use_backend", "default_backend", "Gather"]
+
+
+_HUGE = 1e6  # |state entry| beyond this (m, rad, m/s, rad/s) means the integration blew up
 
 
 def _check_same_structure(compiled: Sequence[CompiledScene]) -> None:

@@ -41,21 +41,15 @@ def default_backend() -> tuple[str, str | None]:
 def check_backend(options: SimOptions) -> SimOptions:
     """``options`` with a concrete backend and device (:func:`default_backend` where left out); a
     ParameterError if the Warp backend's extra or device is missing."""
-    return _resolve_backend(options)
-
-
-def _resolve_backend(options: SimOptions) -> SimOptions:
-    if options.backend is not None and (options.backend == "mujoco" or options.device is not None):
-        if options.backend == "warp":
-            from . import _warp
-
-            _warp.resolve_device(options.device)  # the extra and the device are there
-        return options
     backend, device = (options.backend, options.device) if options.backend is not None else default_backend()
     if backend == "warp":
         from . import _warp
 
-        device = _warp.resolve_device(options.device or device)
+        device = _warp.resolve_device(options.device or device)  # the extra and the device are there
+    else:
+        device = None
+    if (backend, device) == (options.backend, options.device):
+        return options
     return dataclasses.replace(options, backend=backend, device=device)
 
 

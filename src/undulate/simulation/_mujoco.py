@@ -31,7 +31,6 @@ def _log_mujoco_warning(msg: str) -> None:
     _log.debug("MuJoCo: %s", msg)
 
 
-_HUGE = 1e6  # |state entry| beyond this (m, rad, m/s, rad/s) means the integration blew up
 
 
 class _WarmRollout:

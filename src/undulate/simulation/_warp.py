@@ -159,18 +159,18 @@ def _plan_worlds(models: Sequence[mujoco.MjModel]):
     """Split the worlds into groups that share one Warp model: worlds of a group differ only in
     fields that MuJoCo Warp batches per world.  Returns ``[(indices, {field: per-world values})]``
     (option fields under ``"opt." + name``).  MjModel fields MuJoCo Warp does not carry are ignored."""
-    _, mjw = require()
+    require()
     import dataclasses
 
     from mujoco_warp._src import types as _types  # the field specs: "*" marks a per-world field
 
     fields_w = dataclasses.fields(_types.Model)
     known = {f.name for f in fields_w}  # MjModel fields MuJoCo Warp does not carry (bvh_aabb...) do not matter
-    batchable = {f.name for f in fields_w
-                 if getattr(getattr(f.type, "shape", None), "__getitem__", None) and f.type.shape
-                 and f.type.shape[0] == "*"}
-    opt_batchable = {f.name for f in dataclasses.fields(_types.Option)
-                     if getattr(f.type, "shape", None) and f.type.shape[0] == "*"}
+    def per_world(f) -> bool:  # an array spec whose first dimension is "*"
+        return tuple(getattr(f.type, "shape", None) or ())[:1] == ("*",)
+
+    batchable = {f.name for f in fields_w if per_world(f)}
+    opt_batchable = {f.name for f in dataclasses.fields(_types.Option) if per_world(f)}
     m0 = models[0]
     fields = _array_fields(m0)
     differ: dict[str, np.ndarray] = {}
@@ -206,39 +206,31 @@ class _Servos:
     """The CPU model's ``pid`` servos expressed as the Warp model's affine servos, and the set-point
     slew limit applied to the control stream (:mod:`undulate.simulation._warp`'s docstring)."""
 
-    def __init__(self, cpu: mujoco.MjModel, aff: mujoco.MjModel, dt: float,
-                 others: Sequence[mujoco.MjModel] = ()):
-        """``cpu``: the first scene's model; ``others``: every scene's (gains and slew rates may
-        differ per scene: ``ratio`` and ``rate`` get one row per scene)."""
-        src_pos, src_vel, dst, act, rate, ratio, copy_src, copy_dst = [], [], [], [], [], [], [], []
-        for i in range(cpu.nactuator):
-            name = mujoco.mj_id2name(cpu, mujoco.mjtObj.mjOBJ_ACTUATOR, i)
-            j = mujoco.mj_name2id(aff, mujoco.mjtObj.mjOBJ_ACTUATOR, name)
-            c, c2 = int(cpu.actuator_ctrladr[i]), int(aff.actuator_ctrladr[j])
-            if cpu.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_PID:  # a pid servo (with or without slew state)
-                kp, kv = -float(cpu.actuator_biasprm[i, 1]), -float(cpu.actuator_biasprm[i, 2])
-                if cpu.actuator_actnum[i] > 1 or float(cpu.actuator_dynprm[i, 0]) > 0:
-                    raise ParameterError("servo", "without an integral term (ki <= 0) on the 'warp' backend "
-                                         "(MuJoCo Warp has no pid actuator)", name)
-                src_pos.append(c)
-                src_vel.append(c + 1)
-                dst.append(c2)
-                ratio.append(kv / kp)
-                slew = float(cpu.actuator_dynprm[i, 1])
-                act.append(int(cpu.actuator_actadr[i]) if cpu.actuator_actnum[i] == 1 else -1)
-                rate.append(slew * dt if slew > 0 and cpu.actuator_actnum[i] == 1 else np.inf)
-            else:
-                copy_src.append(c)
-                copy_dst.append(c2)
-        self.src_pos, self.src_vel, self.dst = np.array(src_pos, int), np.array(src_vel, int), np.array(dst, int)
-        self.act, self.rate, self.ratio = np.array(act, int), np.array(rate), np.array(ratio)
-        self.copy_src, self.copy_dst = np.array(copy_src, int), np.array(copy_dst, int)
+    def __init__(self, cpu: mujoco.MjModel, aff: mujoco.MjModel, dt: float, models: Sequence[mujoco.MjModel]):
+        """``cpu``: the first scene's model (the layout); ``models``: every scene's (gains and slew
+        rates may differ per scene: ``ratio`` and ``rate`` have one row per scene)."""
+        pid = [i for i in range(cpu.nactuator) if cpu.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_PID]
+        other = [i for i in range(cpu.nactuator) if i not in pid]
+        for i in pid:
+            if cpu.actuator_actnum[i] > 1 or float(cpu.actuator_dynprm[i, 0]) > 0:
+                raise ParameterError("servo", "without an integral term (ki <= 0) on the 'warp' backend "
+                                     "(MuJoCo Warp has no pid actuator)",
+                                     mujoco.mj_id2name(cpu, mujoco.mjtObj.mjOBJ_ACTUATOR, i))
+
+        def dst(i: int) -> int:  # the Warp model's input of CPU actuator i (same name)
+            return int(aff.actuator_ctrladr[aff.actuator(cpu.actuator(i).name).id])
+
+        adr = cpu.actuator_ctrladr
+        self.src_pos = np.array([adr[i] for i in pid], int)
+        self.src_vel = self.src_pos + 1
+        self.dst = np.array([dst(i) for i in pid], int)
+        self.act = np.array([cpu.actuator_actadr[i] if cpu.actuator_actnum[i] == 1 else -1 for i in pid], int)
+        self.copy_src, self.copy_dst = np.array([adr[i] for i in other], int), np.array([dst(i) for i in other], int)
         self.nu = aff.nu
-        if others:  # per scene: kv / kp and slewmax dt of each servo
-            pid = np.array([i for i in range(cpu.nactuator) if cpu.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_PID])
-            self.ratio = np.stack([m.actuator_biasprm[pid, 2] / m.actuator_biasprm[pid, 1] for m in others])
-            self.rate = np.stack([np.where((m.actuator_dynprm[pid, 1] > 0) & (m.actuator_actnum[pid] == 1),
-                                           m.actuator_dynprm[pid, 1] * dt, np.inf) for m in others])
+        pid = np.array(pid, int)
+        self.ratio = np.stack([m.actuator_biasprm[pid, 2] / m.actuator_biasprm[pid, 1] for m in models])  # kv / kp
+        self.rate = np.stack([np.where((m.actuator_dynprm[pid, 1] > 0) & (m.actuator_actnum[pid] == 1),
+                                       m.actuator_dynprm[pid, 1] * dt, np.inf) for m in models])  # slewmax dt
 
     def table(self, u: np.ndarray, act0: np.ndarray):
         """Controls ``u`` (nb, k, nu of the CPU model) -> the Warp model's (k, nb, nu) float32 table,
@@ -248,8 +240,7 @@ class _Servos:
         out = np.zeros((k, nb, self.nu), np.float32)
         out[:, :, self.copy_dst] = u[:, :, self.copy_src].transpose(1, 0, 2)
         target = u[:, :, self.src_pos]
-        rate = np.broadcast_to(self.rate, (nb, len(self.src_pos)))
-        ratio = np.broadcast_to(self.ratio, (nb, len(self.src_pos)))
+        rate, ratio = self.rate, self.ratio
         finite = np.isfinite(rate)
         s = np.where(finite, act0, 0.0)
         slewed = np.empty_like(target)
@@ -264,15 +255,6 @@ class _Servos:
         return out, slewed
 
 
-def _kernels():
-    from . import _warp_kernels as k
-
-    return k.set_ctrl, k.record, k.incr
-
-
-_KERNELS = None
-
-
 class _Group:
     """One Warp model and its worlds (the scenes ``idx`` of the batch)."""
 
@@ -283,7 +265,6 @@ class _Group:
     def __init__(self, mjm: mujoco.MjModel, idx: np.ndarray, per_world: dict, device: str,
                  models: Sequence[mujoco.MjModel] | None = None):
         wp, mjw = require()
-        global _KERNELS
         self.idx, self.device = idx, device
         nw = len(idx)
         cap = capacities(mjm)
@@ -319,8 +300,6 @@ class _Group:
                     v = np.stack([getattr(dw, name) for dw in datas]).reshape((nw,) + tuple(arr.shape[1:]) + inner)
                     setattr(self.d, name, wp.array(v.astype(np.float32), dtype=arr.dtype))
             self.m = m
-            if _KERNELS is None:
-                _KERNELS = _kernels()
             self.k = wp.zeros(1, dtype=int)
         self.graph = None
         self.bufs = None
@@ -339,7 +318,9 @@ class _Group:
 
     def _one_step(self):
         wp, mjw = require()
-        set_ctrl, record, incr = _KERNELS
+        from . import _warp_kernels as kernels
+
+        set_ctrl, record, incr = kernels.set_ctrl, kernels.record, kernels.incr
         table, oq, ov, os_ = self.bufs
         nw = len(self.idx)
         if table.shape[2]:
@@ -353,23 +334,24 @@ class _Group:
         (nstep, nw, nu); returns per-step qpos, qvel, sensors (nw, nstep, ...) float64, the warm
         starts after, and the overflow bitmask per world."""
         wp, _ = require()
-        with wp.ScopedDevice(self.device):
-            tab, oq, ov, os_ = self._buffers(nstep)
+
+        def start() -> None:  # the chunk's first state, and the step counter at 0
             self.d.qpos.assign(qpos.astype(np.float32))
             self.d.qvel.assign(qvel.astype(np.float32))
             self.d.qacc_warmstart.assign(warm.astype(np.float32))
+            self.k.zero_()
+
+        with wp.ScopedDevice(self.device):
+            tab, oq, ov, os_ = self._buffers(nstep)
             if tab.shape[2]:
                 tab.assign(table)
-            self.k.zero_()
+            start()
             if self.graph is None:  # the first step compiles the kernels; then one captured graph per step
                 t0 = time.perf_counter()  # (on CUDA and on Warp's CPU device alike: on the CPU the graph
                 self._one_step()  # saves Warp's per-launch Python, 5x a pair's stepping)
                 wp.synchronize()
                 _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
-                self.d.qpos.assign(qpos.astype(np.float32))
-                self.d.qvel.assign(qvel.astype(np.float32))
-                self.d.qacc_warmstart.assign(warm.astype(np.float32))
-                self.k.zero_()
+                start()  # the step above was for compiling: from the chunk's start again
                 with wp.ScopedCapture() as cap:
                     self._one_step()
                 self.graph = cap.graph
@@ -385,8 +367,6 @@ class _Group:
 def _device_seconds(group: "_Group", nstep: int) -> float:
     """Seconds the device takes for ``nstep`` steps of ``group``'s worlds alone (no transfers; a
     benchmark: benchmarks/bench_gpu_check.py)."""
-    import time
-
     wp, _ = require()
     with _DEVICE_LOCK, wp.ScopedDevice(group.device):
         group._buffers(nstep)
@@ -455,7 +435,7 @@ class WarpRollout:
         act_idx = self.servos.act
         act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if na else 0.0, np.nan)
         table, slewed = self.servos.table(u[:, :nstep], act0)
-        dt_t = cur[:, :1] + 0.0  # the clock stays float64 on the host
+        t0 = cur[:, :1]  # the clock stays float64 on the host
         for g in self.groups:
             idx = g.idx
             with _DEVICE_LOCK:  # one thread at a time on the device (graph capture, the default stream)
@@ -471,7 +451,7 @@ class WarpRollout:
             st[:, :nstep, a0:] = cur[:, None, a0:]
             has = act_idx >= 0
             st[:, :nstep, a0 + act_idx[has]] = slewed[:, :, has]
-        st[:, :nstep, 0] = dt_t + self._dt * (1 + np.arange(nstep))[None]
+        st[:, :nstep, 0] = t0 + self._dt * (1 + np.arange(nstep))[None]
         if active is not None:
             st[~active], sd[~active] = cur[~active, None], 0.0
         return st, sd
