@@ -281,3 +281,24 @@ def test_every_studys_stages_nest_and_end_at_its_plan(quick):
                     assert va <= vb, (name, key)
                 else:
                     assert va == vb, (name, key)
+
+
+def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, monkeypatch):
+    """The Warp backend steps the last stage's runs first (a stage costs a GPU about the same at any
+    number of worlds); the looks then read them from the stores and must be the staged plan's own:
+    the same stages, levels, runs and verdicts, with nothing computed at the looks."""
+    from undulate.studies import _registry, run_study
+
+    monkeypatch.setattr(staged, "REGION", (-1.0, 5.0))  # undecided at the first look: stages are added
+    run_study("_staged", tmp_path / "staged", workers=1, progress=False)
+    monkeypatch.setattr(_registry, "_prefetching", lambda: True)
+    run_study("_staged", tmp_path / "prefetched", workers=1, progress=False)
+    plain, pre = _doc(tmp_path / "staged", "_staged"), _doc(tmp_path / "prefetched", "_staged")
+    assert plain["prefetched"] is None
+    assert pre["prefetched"]["n_computed"] == pre["prefetched"]["n_runs"] == staged.STAGE_POINTS[-1]
+    keys = ("stage", "of", "confidence_level", "n_runs", "verdicts", "undecided", "futile")
+    assert [{k: s[k] for k in keys} for s in pre["stages"]] == [{k: s[k] for k in keys} for s in plain["stages"]]
+    assert len(plain["stages"]) >= 2 and all(s["n_computed"] == 0 for s in pre["stages"])
+    assert pre["claims"][0]["verdict"] == plain["claims"][0]["verdict"]
+    assert pre["summary"] == plain["summary"]
+    assert sum(1 for s in pre["sweeps"] if s.get("prefetch")) == 1

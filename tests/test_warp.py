@@ -195,6 +195,40 @@ def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_p
         assert np.abs(gpu.dataset["x"].isel(point=i, replicate=0).values - alone).max() < 1e-9
 
 
+def test_a_gather_of_two_structures_steps_them_side_by_side(monkeypatch):
+    """Threads whose scenes differ in structure (a pair, a group of 3) are gathered into one batch
+    per structure, each stepped on its own thread (on a GPU: its own stream); each result is its
+    run alone."""
+    import threading
+
+    from undulate import simulation
+
+    opts = SimOptions(duration_s=0.3, **WARP)
+    scenes = [Scene(phases_rad=(0.0, 1.0)), Scene(phases_rad=(0.0, 1.0, 2.0))]
+    gather = simulation.Gather(len(scenes))
+    where, got = [], {}
+    real = simulation.Gather._run_group
+    monkeypatch.setattr(simulation.Gather, "_run_group",
+                        lambda self, group: (where.append(threading.current_thread().name), real(self, group)))
+
+    def one(i):
+        try:
+            got[i] = simulate_batch([scenes[i]], opts)[0]
+        finally:
+            gather.thread_done()
+
+    threads = [threading.Thread(target=one, args=(i,)) for i in range(len(scenes))]
+    for t in threads:
+        t.undulate_gather = gather
+        t.start()
+    for t in threads:
+        t.join()
+    assert sorted(gather.batches) == [1, 1] and len(where) == 2
+    assert all(n.startswith("undulate-gather") for n in where)
+    for i, sc in enumerate(scenes):
+        assert _max_dx(simulate(sc, opts), got[i]) < 1e-9
+
+
 def test_a_capacity_overflow_stops_the_run_naming_the_capacity(monkeypatch, capfd):
     """A contact sensor allowed fewer matches than the pair's contacts: the run stops with CapacityError
     naming the capacity, not with wrong forces or one warning per step.  Contacts allocated below what

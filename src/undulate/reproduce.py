@@ -123,7 +123,7 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
 def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None = None, seed: int = 0,
               studies: list[str] | None = None, log: Callable[[str], None] = print,
               animation_s: float | None = None, workers: int | None = None,
-              side_by_side: int = SIDE_BY_SIDE, beyond_paper: bool | None = None) -> tuple[Path, list[dict]]:
+              side_by_side: int | None = None, beyond_paper: bool | None = None) -> tuple[Path, list[dict]]:
     """Run every registered study (or ``studies``) and write ``out_dir/index.html``.
 
     ``beyond_paper``: also run the studies beyond the reproduced paper (``Study.reference`` not
@@ -135,7 +135,9 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     ``workers``: local worker processes (default: every core this process may
     use); one pool of them stays warm across every study's sweeps.
     ``side_by_side``: studies run at once (threads sharing that pool; an explaining study waits for
-    the studies it explains).  Results do not depend on it: every run's result is a function of its
+    the studies it explains).  Default: :data:`SIDE_BY_SIDE` on the MuJoCo backend; on the Warp
+    backend every study at once, each stepping its worlds on its own stream of the device (a stage's
+    cost there hardly depends on its number of worlds, so studies gain by overlapping).  Results do not depend on it: every run's result is a function of its
     parameters and seed, and each study judges its own runs.
 
     Returns the report path and the per-study statuses (``name``, ``ok``,
@@ -150,6 +152,10 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     if studies is None:
         beyond = (not quick) if beyond_paper is None else bool(beyond_paper)
         studies = [n for n in registry.names() if beyond or registry.describe(n).reference == "paper"]
+    if side_by_side is None:
+        from .simulation import default_backend
+
+        side_by_side = len(studies) + 1 if default_backend()[0] == "warp" else SIDE_BY_SIDE  # + animations
     with warm_workers():
         return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers,
                           side_by_side)

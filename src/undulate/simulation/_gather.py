@@ -84,32 +84,16 @@ class Gather:
             self._run(flush)
 
     def _run(self, reqs: list[_Request]) -> None:
-        import contextvars
+        from concurrent.futures import ThreadPoolExecutor
 
         try:
-            for group in _gather_groups(reqs):
-                scenes = [sc for r in group for sc in r.scenes]
-                rules = [rule for r in group for rule in r.rules()]
-                self.batches.append(len(scenes))
-                try:
-                    with _physics.meter() as tally:  # this batch's physics, shared among its calls
-                        dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules)
-                except Exception:  # noqa: BLE001 - isolate the failing call
-                    for r in group:
-                        try:
-                            with _physics.meter() as tally:
-                                r.result = contextvars.Context().run(r.run, r.scenes, r.options,
-                                                                     stop=r.stop)
-                            r.physics = tally.read()
-                        except Exception as e:  # noqa: BLE001
-                            r.error = e
-                    continue
-                sec, steps = tally.read()
-                i = 0
-                for r in group:
-                    n = len(r.scenes)
-                    r.result, i = dss[i:i + n], i + n
-                    r.physics = (sec * n / len(scenes), steps * n // len(scenes))
+            groups = _gather_groups(reqs)
+            if len(groups) == 1:
+                self._run_group(groups[0])
+            else:  # one thread per structure: on a GPU each steps on its own stream, side by side
+                with ThreadPoolExecutor(len(groups), thread_name_prefix="undulate-gather") as pool:
+                    for f in [pool.submit(self._run_group, g) for g in groups]:
+                        f.result()
         except BaseException as e:  # noqa: BLE001 - every waiting thread must learn of it
             for r in reqs:
                 if r.result is None and r.error is None:
@@ -119,6 +103,33 @@ class Gather:
                 for r in reqs:
                     r.done = True
                 self.cond.notify_all()
+
+    def _run_group(self, group: list[_Request]) -> None:
+        """Step one group's calls as one batch; if it fails, each call alone (only the failing ones raise)."""
+        import contextvars
+
+        scenes = [sc for r in group for sc in r.scenes]
+        rules = [rule for r in group for rule in r.rules()]
+        with self.cond:
+            self.batches.append(len(scenes))
+        try:
+            with _physics.meter() as tally:  # this batch's physics, shared among its calls
+                dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules)
+        except Exception:  # noqa: BLE001 - isolate the failing call
+            for r in group:
+                try:
+                    with _physics.meter() as tally:
+                        r.result = contextvars.Context().run(r.run, r.scenes, r.options, stop=r.stop)
+                    r.physics = tally.read()
+                except Exception as e:  # noqa: BLE001
+                    r.error = e
+            return
+        sec, steps = tally.read()
+        i = 0
+        for r in group:
+            n = len(r.scenes)
+            r.result, i = dss[i:i + n], i + n
+            r.physics = (sec * n / len(scenes), steps * n // len(scenes))
 
 
 def _gather_groups(reqs: list[_Request]) -> list[list[_Request]]:

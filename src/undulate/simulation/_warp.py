@@ -301,6 +301,11 @@ class _Group:
                     setattr(self.d, name, wp.array(v.astype(np.float32), dtype=arr.dtype))
             self.m = m
             self.k = wp.zeros(1, dtype=int)
+            # its own stream on a GPU: the groups of threads running side by side (studies, gathered
+            # sweeps) overlap on the device instead of queueing on its default stream
+            # (UNDULATE_WARP_STREAMS=0: every group on the device's current stream, one thread at a time)
+            own = wp.get_device(device).is_cuda and os.environ.get("UNDULATE_WARP_STREAMS", "1") != "0"
+            self.stream = wp.Stream(device) if own else None
         self.graph = None
         self.bufs = None
         self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
@@ -334,34 +339,72 @@ class _Group:
         (nstep, nw, nu); returns per-step qpos, qvel, sensors (nw, nstep, ...) float64, the warm
         starts after, and the overflow bitmask per world."""
         wp, _ = require()
-
-        def start() -> None:  # the chunk's first state, and the step counter at 0
-            self.d.qpos.assign(qpos.astype(np.float32))
-            self.d.qvel.assign(qvel.astype(np.float32))
-            self.d.qacc_warmstart.assign(warm.astype(np.float32))
-            self.k.zero_()
-
+        host = [np.ascontiguousarray(x, dtype=np.float32) for x in (qpos, qvel, warm, table)]
         with wp.ScopedDevice(self.device):
-            tab, oq, ov, os_ = self._buffers(nstep)
-            if tab.shape[2]:
-                tab.assign(table)
-            start()
-            if self.graph is None:  # the first step compiles the kernels; then one captured graph per step
-                t0 = time.perf_counter()  # (on CUDA and on Warp's CPU device alike: on the CPU the graph
-                self._one_step()  # saves Warp's per-launch Python, 5x a pair's stepping)
-                wp.synchronize()
-                _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
-                start()  # the step above was for compiling: from the chunk's start again
-                with wp.ScopedCapture() as cap:
-                    self._one_step()
-                self.graph = cap.graph
-            for _ in range(nstep):
-                wp.capture_launch(self.graph)
-            wp.synchronize()
-            q = oq.numpy().transpose(1, 0, 2).astype(np.float64)
-            v = ov.numpy().transpose(1, 0, 2).astype(np.float64)
-            s = os_.numpy().transpose(1, 0, 2).astype(np.float64)
-            return q, v, s, self.d.qacc_warmstart.numpy().astype(np.float64), self.d.overflow.numpy()
+            if self.stream is None:  # Warp's CPU device (no streams): one thread steps at a time
+                with _DEVICE_LOCK:
+                    self._ready(nstep, host)
+                    self._launch(nstep, host)
+                    return self._download()
+            if self.graph is None or self.bufs[0].shape[0] != nstep:
+                with _DEVICE_LOCK, wp.ScopedStream(self.stream):  # allocation, compilation, capture
+                    self._ready(nstep, host)
+            # Then on this group's own stream, every call naming it: threads stepping other groups
+            # (studies side by side, gathered sweeps) overlap with it on the device.  (Warp's current
+            # stream is per device, not per thread: it is only changed under the lock above.)
+            self._launch(nstep, host)
+            return self._download()
+
+    def _upload(self, host) -> None:
+        """The chunk's first state (qpos, qvel, warm start) and control table, and the step counter
+        at 0, copied to the device on the group's stream."""
+        wp, _ = require()
+        for dst, src in zip((self.d.qpos, self.d.qvel, self.d.qacc_warmstart, self.bufs[0]), host):
+            if src.size:
+                wp.copy(dst, wp.array(src, dtype=float, device="cpu"), stream=self.stream)
+        wp.copy(self.k, wp.zeros(1, dtype=int, device="cpu"), stream=self.stream)
+
+    def _ready(self, nstep: int, host) -> None:
+        """The chunk's buffers, and on the first call the kernels compiled and the step captured."""
+        wp, _ = require()
+        self._buffers(nstep)
+        if self.graph is None:  # the first step compiles the kernels; then one captured graph per step
+            self._upload(host)  # (on CUDA and on Warp's CPU device alike: on the CPU the graph saves
+            t0 = time.perf_counter()  # Warp's per-launch Python, 5x a pair's stepping)
+            self._one_step()
+            self._sync()
+            _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
+            with wp.ScopedCapture(stream=self.stream) as cap:
+                self._one_step()
+            self.graph = cap.graph
+
+    def _launch(self, nstep: int, host) -> None:
+        """``nstep`` steps from the chunk's start (again, after a compiling step)."""
+        wp, _ = require()
+        self._upload(host)
+        for _ in range(nstep):
+            wp.capture_launch(self.graph, stream=self.stream)
+
+    def _sync(self) -> None:
+        """Wait for this group's work on the device (its stream only, on a GPU)."""
+        wp, _ = require()
+        if self.stream is not None:
+            self.stream.synchronize()
+        else:
+            wp.synchronize_device(self.device)
+
+    def _download(self):
+        """Per-step qpos, qvel, sensors (nw, nstep, ...) float64, warm starts and overflow bits."""
+        wp, _ = require()
+        pinned = self.stream is not None
+        srcs = (*self.bufs[1:], self.d.qacc_warmstart, self.d.overflow)
+        outs = [wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned) for a in srcs]
+        for o, a in zip(outs, srcs):
+            wp.copy(o, a, stream=self.stream)
+        self._sync()
+        q, v, s, warm, overflow = (o.numpy() for o in outs)
+        return (q.transpose(1, 0, 2).astype(np.float64), v.transpose(1, 0, 2).astype(np.float64),
+                s.transpose(1, 0, 2).astype(np.float64), warm.astype(np.float64), overflow.copy())
 
 
 def _device_seconds(group: "_Group", nstep: int) -> float:
@@ -375,7 +418,7 @@ def _device_seconds(group: "_Group", nstep: int) -> float:
         t = time.perf_counter()
         for _ in range(nstep):
             if group.graph is not None:
-                wp.capture_launch(group.graph)
+                wp.capture_launch(group.graph, stream=group.stream)
             else:
                 group._one_step()
         wp.synchronize()
@@ -438,9 +481,8 @@ class WarpRollout:
         t0 = cur[:, :1]  # the clock stays float64 on the host
         for g in self.groups:
             idx = g.idx
-            with _DEVICE_LOCK:  # one thread at a time on the device (graph capture, the default stream)
-                q, v, s, warm, overflow = g.run(cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx],
-                                                np.ascontiguousarray(table[:, idx]), nstep)
+            q, v, s, warm, overflow = g.run(cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx],
+                                            np.ascontiguousarray(table[:, idx]), nstep)
             if overflow.any():
                 self._overflow(idx, overflow)
             st[idx, :nstep, q0:q0 + nq] = q
