@@ -1,21 +1,26 @@
 """The GPU check (issue 37): one prepared run on a GPU machine, every figure in one go.
 
-    python benchmarks/bench_gpu_check.py OUTDIR [--budget-s 450] [--skip-full]
+    python benchmarks/bench_gpu_check.py OUTDIR [--budget-s 540] [--only STEPS] [--cpu-verdicts FILE]
 
 Run by ``benchmarks/gpu_check.sh`` (which installs the carried wheels first).  Prints one JSON line
 per measurement as it goes and keeps ``OUTDIR/gpu_check.json`` up to date, so a run cut short still
-leaves what it measured.  In order:
+leaves what it measured.  Steps, in the order ``--only`` gives (default: all, in this order):
 
-1. **Agreement** -- the default pair over 5 s and a jammed 50-swimmer pack over 2 s, Warp on CUDA
-   against the MuJoCo backend (float64, CPU) on the same machine: max |dx|, penetration.  The first
-   Warp call compiles the kernels: its time is reported apart (``compile_s``).
-2. **Throughput** -- world-steps per second against the number of worlds, for the pair
-   (1 024 / 8 192 / 32 768 worlds) and the pack (64 / 512): on the device alone (the CUDA graph of
-   one step, launched per step) and end to end (controls up, every step's state and sensors down,
-   as :func:`undulate.simulation.simulate_batch` pays it).
-3. **Reproductions** -- ``undulate reproduce --quick`` on the MuJoCo backend with every core, then
-   ``--backend warp``, each a fresh folder: wall time, runs, claims and verdicts; the verdicts are
-   compared claim by claim.  Then ``--full --backend warp`` with what is left of the budget.
+* ``pair`` -- the default pair over 5 s, Warp on the device against the MuJoCo backend (float64, CPU)
+  on the same machine: max |dx|, penetration.  The first Warp call compiles the kernels: its time is
+  reported apart (``compile_s``).
+* ``quick-warp``, ``full-warp`` -- ``undulate reproduce --quick`` / ``--full`` with ``--backend warp``,
+  each in a fresh folder: wall time, the Warp models' first steps (kernel compilation unless cached,
+  reported apart), per-study times and the verdicts, compared claim by claim with the MuJoCo
+  backend's (``--cpu-verdicts``: made elsewhere from the same commit, ``benchmarks/cpu_verdicts.py``;
+  without it quick mode is run here on every core first, step ``quick-cpu``).
+* ``quick-warp-warm`` -- quick again in a fresh folder with every kernel cached: its wall time is the
+  stepping's.
+* ``pair-throughput``, ``pack-throughput`` -- world-steps per second against the number of worlds,
+  for the pair (1 024 / 8 192 / 32 768 worlds) and a jammed 50-swimmer pack (64 / 512): on the
+  device alone (the CUDA graph of one step, launched per step) and end to end (controls up, every
+  step's state and sensors down, as :func:`undulate.simulation.simulate_batch` pays it).
+* ``pack`` -- the pack over 2 s against the MuJoCo backend: penetration (the 1 mm rule).
 
 Every step has a time limit taken from ``--budget-s`` so the whole check ends in time.
 """
@@ -36,6 +41,7 @@ RESULTS: dict = {}
 OUT: Path = Path(".")
 DEVICE = "cuda"
 STUDIES = ""  # --studies: reproduce these only (comma-separated)
+CPU_VERDICTS: str | None = None  # --cpu-verdicts
 SMALL = False  # --dry-run: tiny sizes, to check the script itself on Warp's CPU device
 
 
@@ -49,28 +55,40 @@ def left(budget: float) -> float:
     return budget - (time.perf_counter() - T0)
 
 
-def agreement() -> None:
+def agreement(which: str) -> None:
+    """``pair``: the default pair over 5 s; ``pack``: a jammed 50-swimmer pack over 2 s; Warp against
+    the MuJoCo backend.  If the pair fails on its own streams, the check goes on with
+    ``UNDULATE_WARP_STREAMS=0`` (one stream, one thread at a time) and says so."""
     import numpy as np
 
     from undulate import Scene, SimOptions, simulate
     from undulate.simulation._warp import device_name
     from undulate.studies.packing import _pack
 
-    say("device", device_name(DEVICE))
-    t = time.perf_counter()
-    simulate(Scene(phases_rad=(0.0, math.pi / 2)), SimOptions(duration_s=0.05, backend="warp", device=DEVICE))
-    say("pair.compile_s", time.perf_counter() - t)
-    sc = Scene(phases_rad=(0.0, math.pi / 2))
-    t = time.perf_counter()
-    pair_s = 0.2 if SMALL else 5.0
-    a = simulate(sc, SimOptions(duration_s=pair_s))
-    cpu_s = time.perf_counter() - t
-    t = time.perf_counter()
-    b = simulate(sc, SimOptions(duration_s=pair_s, backend="warp", device=DEVICE))
-    say("pair.agreement_5s", {"max_dx_m": float(np.abs(a["x"].values - b["x"].values).max()),
-                              "max_dy_m": float(np.abs(a["y"].values - b["y"].values).max()),
-                              "penetration_max_m": float(b["penetration"].max()),
-                              "cpu_s": cpu_s, "warp_s": time.perf_counter() - t})
+    if which == "pair":
+        say("device", device_name(DEVICE))
+        sc = Scene(phases_rad=(0.0, math.pi / 2))
+        t = time.perf_counter()
+        try:
+            simulate(sc, SimOptions(duration_s=0.05, backend="warp", device=DEVICE))
+        except Exception as e:  # noqa: BLE001 - the streams' path failed: fall back, and say so
+            say("pair.streams_error", f"{type(e).__name__}: {e}"[:800])
+            os.environ["UNDULATE_WARP_STREAMS"] = "0"
+            t = time.perf_counter()
+            simulate(sc, SimOptions(duration_s=0.05, backend="warp", device=DEVICE))
+        say("pair.compile_s", time.perf_counter() - t)
+        say("streams", os.environ.get("UNDULATE_WARP_STREAMS", "1") != "0")
+        t = time.perf_counter()
+        pair_s = 0.2 if SMALL else 5.0
+        a = simulate(sc, SimOptions(duration_s=pair_s))
+        cpu_s = time.perf_counter() - t
+        t = time.perf_counter()
+        b = simulate(sc, SimOptions(duration_s=pair_s, backend="warp", device=DEVICE))
+        say("pair.agreement_5s", {"max_dx_m": float(np.abs(a["x"].values - b["x"].values).max()),
+                                  "max_dy_m": float(np.abs(a["y"].values - b["y"].values).max()),
+                                  "penetration_max_m": float(b["penetration"].max()),
+                                  "cpu_s": cpu_s, "warp_s": time.perf_counter() - t})
+        return
     pack = _pack({"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}, amplitude_m=0.05226, base_seed=0,
                  n_swimmers=50)[0]
     opts = dict(duration_s=0.2 if SMALL else 2.0, sample_rate_hz=10.0, record=("x", "y", "penetration"))
@@ -88,7 +106,7 @@ def agreement() -> None:
                               "cpu_s": cpu_s, "warp_s": time.perf_counter() - t})
 
 
-def throughput(budget: float) -> None:
+def throughput(which: str, budget: float) -> None:
     import numpy as np
 
     from undulate import Scene, SimOptions
@@ -102,6 +120,7 @@ def throughput(budget: float) -> None:
              ("pack", pack, (64, 512), 100)]
     if SMALL:
         cases = [(n, sc, (2, 4), 5) for n, sc, _, _ in cases]
+    cases = [c for c in cases if c[0] == which]
     for name, sc, worlds, k in cases:
         opts = resolve_options(sc, SimOptions(duration_s=1.0, backend="warp", device=DEVICE,
                                               record=("x", "y", "penetration") if name == "pack" else None))
@@ -164,35 +183,66 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     return rec
 
 
-def reproductions(budget: float, skip_full: bool) -> None:
-    base = {k: v for k, v in os.environ.items() if k not in ("UNDULATE_BACKEND", "UNDULATE_DEVICE")}
+def _compare(tag: str, cpu: dict, gpu: dict) -> None:
+    a, b = cpu.get("verdicts", {}), gpu.get("verdicts", {})
+    say(f"reproduce.{tag}.verdicts", {"mujoco_cpu": a, "warp": b,
+                                      "differ": {k: [a.get(k), b.get(k)] for k in sorted(set(a) | set(b))
+                                                 if a.get(k) != b.get(k)}})
+
+
+def _cpu_reference(mode: str, budget: float, base: dict) -> dict:
+    """The MuJoCo backend's verdicts for ``mode``: from ``--cpu-verdicts`` (made elsewhere from the
+    same commit: MuJoCo's results are a function of the code, the parameters and the seed) or, in
+    quick mode without it, a run here on every core."""
+    if CPU_VERDICTS is not None:
+        ref = json.loads(Path(CPU_VERDICTS).read_text())
+        if mode in ref:
+            return ref[mode]
+    if mode != "quick":
+        return {}
     only = ["--only", STUDIES] if STUDIES else []
     cpu = _reproduce("quick-cpu", ["--quick", *only], min(150.0, left(budget) - 200), base)
     say("reproduce.quick.mujoco_cpu", {k: v for k, v in cpu.items() if k != "verdicts"})
-    gpu = _reproduce("quick-warp", ["--quick", *only, "--backend", "warp", "--device", DEVICE],
-                     left(budget) - (5 if skip_full else 60), base)
-    say("reproduce.quick.warp", {k: v for k, v in gpu.items() if k != "verdicts"})
-    a, b = cpu.get("verdicts", {}), gpu.get("verdicts", {})
-    say("reproduce.quick.verdicts", {"mujoco_cpu": a, "warp": b,
-                                     "differ": {k: [a.get(k), b.get(k)] for k in sorted(set(a) | set(b))
-                                                if a.get(k) != b.get(k)}})
-    if not skip_full and left(budget) > 40:
-        full = _reproduce("full-warp", ["--full", "--backend", "warp", "--device", DEVICE], left(budget) - 5, base)
-        say("reproduce.full.warp", full)
+    return cpu
+
+
+def reproduction(step: str, budget: float) -> None:
+    """One of the steps ``quick-cpu``, ``quick-warp``, ``quick-warp-warm`` (again in a fresh folder:
+    every kernel now cached, so its wall time is stepping), ``full-warp``."""
+    base = {k: v for k, v in os.environ.items() if k not in ("UNDULATE_BACKEND", "UNDULATE_DEVICE")}
+    only = ["--only", STUDIES] if STUDIES else []
+    if step == "quick-cpu":
+        _cpu_reference("quick", budget, base)
+        return
+    mode = "quick" if step.startswith("quick") else "full"
+    if left(budget) < 40:
+        say(f"reproduce.{step}", "skipped: budget")
+        return
+    reserve = {"quick-warp": 200.0, "full-warp": 10.0, "quick-warp-warm": 10.0}[step]
+    gpu = _reproduce(step, [f"--{mode}", *only, "--backend", "warp", "--device", DEVICE],
+                     max(40.0, left(budget) - reserve), base)
+    say(f"reproduce.{step}", {k: v for k, v in gpu.items() if k != "verdicts"})
+    _compare(step, _cpu_reference(mode, budget, base), gpu)
+
+
+STEPS = ("pair", "quick-warp", "full-warp", "quick-warp-warm", "pair-throughput", "pack", "pack-throughput")
 
 
 def main() -> None:
-    global OUT, DEVICE, SMALL, STUDIES
+    global OUT, DEVICE, SMALL, STUDIES, CPU_VERDICTS
     p = argparse.ArgumentParser()
     p.add_argument("out")
     p.add_argument("--budget-s", type=float, default=450.0)
     p.add_argument("--skip-full", action="store_true")
-    p.add_argument("--only", default="agreement,throughput,reproduce")
+    p.add_argument("--only", default=",".join(STEPS), help="steps, in this order: " + ", ".join(STEPS)
+                   + ", quick-cpu")
     p.add_argument("--device", default="cuda")
     p.add_argument("--studies", default="", help="reproduce only these studies (comma-separated)")
+    p.add_argument("--cpu-verdicts", default=None, help="JSON {mode: {verdicts: {...}}} of the MuJoCo "
+                   "backend's reproductions from this commit (benchmarks/cpu_verdicts.py)")
     p.add_argument("--dry-run", action="store_true", help="tiny sizes (a check of this script)")
     a = p.parse_args()
-    DEVICE, SMALL, STUDIES = a.device, a.dry_run, a.studies
+    DEVICE, SMALL, STUDIES, CPU_VERDICTS = a.device, a.dry_run, a.studies, a.cpu_verdicts
     OUT = Path(a.out)
     OUT.mkdir(parents=True, exist_ok=True)
     import mujoco
@@ -201,17 +251,18 @@ def main() -> None:
 
     say("versions", {"python": sys.version.split()[0], "mujoco": mujoco.__version__, "warp": versions(),
                      "cores": os.cpu_count()})
-    steps = a.only.split(",")
-    for name, fn in (("agreement", lambda: agreement()), ("throughput", lambda: throughput(a.budget_s)),
-                     ("reproduce", lambda: reproductions(a.budget_s, a.skip_full))):
-        if name not in steps:
-            continue
+    for step in [x for x in a.only.split(",") if x]:
         try:
-            fn()
+            if step in ("pair", "pack"):
+                agreement(step)
+            elif step.endswith("-throughput"):
+                throughput(step.split("-")[0], a.budget_s)
+            else:
+                reproduction(step, a.budget_s)
         except Exception:  # noqa: BLE001 - one failed step does not lose the others
             import traceback
 
-            say(f"{name}.error", traceback.format_exc()[-2000:])
+            say(f"{step}.error", traceback.format_exc()[-2000:])
     say("total_s", time.perf_counter() - T0)
 
 

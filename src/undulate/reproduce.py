@@ -79,7 +79,9 @@ def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: floa
         sc = Scene(phases_rad=tuple(math.radians(p) for p in kw["phases_deg"]),
                    channel=Channel(width_m=kw["channel_width_m"]))
         sc = Scene(phases_rad=sc.phases_rad, channel=sc.channel, dx0_m=kw["dx0_over_lambda"] * sc.wavelength_m)
-        ds = simulate(sc, SimOptions(duration_s=duration, sample_rate_hz=10))
+        # an illustration, one scene: stepped by MuJoCo on the CPU whatever the session's backend
+        # (one world is the GPU's slowest case, and each worker process would compile its kernels)
+        ds = simulate(sc, SimOptions(duration_s=duration, sample_rate_hz=10, backend="mujoco"))
         write_netcdf(ds, nc)
         animate(ds, gif, stride=1, fps=20, dpi=70, title=caption)  # twice real time
     return {"file": f"animations/{gif.name}", "data": f"animations/{nc.name}", "caption": caption}
