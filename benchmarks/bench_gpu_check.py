@@ -42,6 +42,7 @@ OUT: Path = Path(".")
 DEVICE = "cuda"
 STUDIES = ""  # --studies: reproduce these only (comma-separated)
 CPU_VERDICTS: str | None = None  # --cpu-verdicts
+REF: dict = {}  # mode -> the MuJoCo backend's reproduction (its verdicts)
 RUN_CPU = False  # step quick-cpu asked for: quick on the MuJoCo backend here, the reference
 SMALL = False  # --dry-run: tiny sizes, to check the script itself on Warp's CPU device
 
@@ -199,11 +200,14 @@ def _cpu_reference(mode: str, budget: float, base: dict) -> dict:
         ref = json.loads(Path(CPU_VERDICTS).read_text())
         if mode in ref:
             return ref[mode]
+    if mode in REF:
+        return REF[mode]
     if mode != "quick" or not RUN_CPU:
         return {}  # no reference here: the verdicts are compared afterwards, from the JSON
     only = ["--only", STUDIES] if STUDIES else []
     cpu = _reproduce("quick-cpu", ["--quick", *only], min(150.0, left(budget) - 200), base)
     say("reproduce.quick.mujoco_cpu", {k: v for k, v in cpu.items() if k != "verdicts"})
+    REF[mode] = cpu
     return cpu
 
 
