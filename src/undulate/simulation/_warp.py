@@ -389,7 +389,7 @@ class _Group:
         """Wait for this group's work on the device (its stream only, on a GPU)."""
         wp, _ = require()
         if self.stream is not None:
-            self.stream.synchronize()
+            wp.synchronize_stream(self.stream)
         else:
             wp.synchronize_device(self.device)
 
