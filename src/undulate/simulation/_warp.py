@@ -308,16 +308,24 @@ class _Group:
             self.stream = wp.Stream(device) if own else None
         self.graph = None
         self.bufs = None
+        self.stepped = False  # its kernels compiled (a first step taken)
         self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
 
     def _buffers(self, k: int):
+        """The chunk's buffers on the device (control table, per-step qpos, qvel, sensors) for at least
+        ``k`` steps, and their host mirrors (pinned on a GPU; with the warm starts and overflow bits).
+        They grow only: a shorter chunk reuses them and the captured graph (which names them), so a
+        run's last, shorter chunk needs no new capture."""
         wp, _ = require()
         nw = len(self.idx)
-        if self.bufs is None or self.bufs[0].shape[0] != k:
+        if self.bufs is None or self.bufs[0].shape[0] < k:
             with wp.ScopedDevice(self.device):
                 self.bufs = (wp.zeros((k, nw, self.nu), dtype=float),
                              wp.zeros((k, nw, self.nq), dtype=float), wp.zeros((k, nw, self.nv), dtype=float),
                              wp.zeros((k, nw, self.ns), dtype=float))
+                pinned = self.stream is not None
+                self.host = [wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
+                             for a in (*self.bufs[1:], self.d.qacc_warmstart, self.d.overflow)]
             self.graph = None
         return self.bufs
 
@@ -346,7 +354,7 @@ class _Group:
                     self._ready(nstep, host)
                     self._launch(nstep, host)
                     return self._download()
-            if self.graph is None or self.bufs[0].shape[0] != nstep:
+            if self.graph is None or self.bufs[0].shape[0] < nstep:
                 with _DEVICE_LOCK, wp.ScopedStream(self.stream):  # allocation, compilation, capture
                     self._ready(nstep, host)
             # Then on this group's own stream, every call naming it: threads stepping other groups
@@ -369,11 +377,13 @@ class _Group:
         wp, _ = require()
         self._buffers(nstep)
         if self.graph is None:  # the first step compiles the kernels; then one captured graph per step
-            self._upload(host)  # (on CUDA and on Warp's CPU device alike: on the CPU the graph saves
-            t0 = time.perf_counter()  # Warp's per-launch Python, 5x a pair's stepping)
-            self._one_step()
-            self._sync()
-            _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
+            if not self.stepped:  # (on CUDA and on Warp's CPU device alike: on the CPU the graph saves
+                self._upload(host)  # Warp's per-launch Python, 5x a pair's stepping)
+                t0 = time.perf_counter()
+                self._one_step()
+                self._sync()
+                _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
+                self.stepped = True
             with wp.ScopedCapture(stream=self.stream) as cap:
                 self._one_step()
             self.graph = cap.graph
@@ -382,29 +392,40 @@ class _Group:
         """``nstep`` steps from the chunk's start (again, after a compiling step)."""
         wp, _ = require()
         self._upload(host)
+        self._nstep = nstep
         for _ in range(nstep):
             wp.capture_launch(self.graph, stream=self.stream)
 
     def _sync(self) -> None:
-        """Wait for this group's work on the device (its stream only, on a GPU)."""
+        """Wait for this group's work on the device (its stream only, on a GPU).
+
+        On a GPU this calls Warp's native stream synchronisation: ``wp.synchronize_stream`` refuses
+        while *any* capture is active on the device, and another thread may be capturing its own
+        group's step (found on an H100: "Cannot synchronize stream while graph capture is active").
+        Captures here are thread-local (``wp.ScopedCapture``'s default mode), under which CUDA
+        forbids unsafe calls only in the capturing thread, so waiting for another stream is legal."""
         wp, _ = require()
-        if self.stream is not None:
-            wp.synchronize_stream(self.stream)
-        else:
+        if self.stream is None:
             wp.synchronize_device(self.device)
+            return
+        from warp._src.context import runtime  # warp-lang is pinned (the gpu extra)
+
+        if not runtime.core.wp_cuda_stream_synchronize(self.stream.cuda_stream):
+            raise RuntimeError(f"MuJoCo Warp: synchronizing a stream on {self.device} failed: "
+                               f"{runtime.get_error_string()}")
 
     def _download(self):
         """Per-step qpos, qvel, sensors (nw, nstep, ...) float64, warm starts and overflow bits."""
         wp, _ = require()
-        pinned = self.stream is not None
         srcs = (*self.bufs[1:], self.d.qacc_warmstart, self.d.overflow)
-        outs = [wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned) for a in srcs]
-        for o, a in zip(outs, srcs):
-            wp.copy(o, a, stream=self.stream)
+        rows = self._nstep * len(self.idx)
+        for i, (o, a) in enumerate(zip(self.host, srcs)):
+            wp.copy(o, a, stream=self.stream, count=rows * a.shape[2] if i < 3 else 0)  # the chunk's rows
         self._sync()
-        q, v, s, warm, overflow = (o.numpy() for o in outs)
-        return (q.transpose(1, 0, 2).astype(np.float64), v.transpose(1, 0, 2).astype(np.float64),
-                s.transpose(1, 0, 2).astype(np.float64), warm.astype(np.float64), overflow.copy())
+        q, v, s, warm, overflow = (o.numpy() for o in self.host)
+        k = self._nstep
+        return (q[:k].transpose(1, 0, 2).astype(np.float64), v[:k].transpose(1, 0, 2).astype(np.float64),
+                s[:k].transpose(1, 0, 2).astype(np.float64), warm.astype(np.float64), overflow.copy())
 
 
 def _device_seconds(group: "_Group", nstep: int) -> float:
