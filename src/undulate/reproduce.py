@@ -138,9 +138,10 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     use); one pool of them stays warm across every study's sweeps.
     ``side_by_side``: studies run at once (threads sharing that pool; an explaining study waits for
     the studies it explains).  Default: :data:`SIDE_BY_SIDE` on the MuJoCo backend; on the Warp
-    backend every study at once, each stepping its worlds on its own stream of the device (a stage's
-    cost there hardly depends on its number of worlds, so studies gain by overlapping).  Results do not depend on it: every run's result is a function of its
-    parameters and seed, and each study judges its own runs.
+    backend every study at once, each Warp model on its own stream of the device, so that their small
+    batches overlap there (a step costs a GPU about the same at any small number of worlds;
+    docs/gpu.md).  Results do not depend on it: every run's result is a function of its parameters
+    and seed, and each study judges its own runs.
 
     Returns the report path and the per-study statuses (``name``, ``ok``,
     ``wall_s``, ``error``, ``reused``).
