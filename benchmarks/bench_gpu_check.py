@@ -12,8 +12,9 @@ leaves what it measured.  Steps, in the order ``--only`` gives (default: all, in
 * ``quick-warp``, ``full-warp`` -- ``undulate reproduce --quick`` / ``--full`` with ``--backend warp``,
   each in a fresh folder: wall time, the Warp models' first steps (kernel compilation unless cached,
   reported apart), per-study times and the verdicts, compared claim by claim with the MuJoCo
-  backend's (``--cpu-verdicts``: made elsewhere from the same commit, ``benchmarks/cpu_verdicts.py``;
-  or step ``quick-cpu`` before them: quick on the MuJoCo backend here, with every core).
+  backend's (``--cpu-verdicts``: made elsewhere from the same commit by
+  ``benchmarks/bench_gpu_check_reference.py``; or step ``quick-cpu`` before them: quick on the MuJoCo
+  backend here, with every core).
 * ``quick-warp-warm`` -- quick again in a fresh folder with every kernel cached: its wall time is the
   stepping's.
 * ``pair-throughput``, ``pack-throughput`` -- world-steps per second against the number of worlds,
@@ -246,7 +247,7 @@ def main() -> None:
     p.add_argument("--device", default="cuda")
     p.add_argument("--studies", default="", help="reproduce only these studies (comma-separated)")
     p.add_argument("--cpu-verdicts", default=None, help="JSON {mode: {verdicts: {...}}} of the MuJoCo "
-                   "backend's reproductions from this commit (benchmarks/cpu_verdicts.py)")
+                   "backend's reproductions from this commit (benchmarks/bench_gpu_check_reference.py)")
     p.add_argument("--dry-run", action="store_true", help="tiny sizes (a check of this script)")
     a = p.parse_args()
     DEVICE, SMALL, STUDIES, CPU_VERDICTS = a.device, a.dry_run, a.studies, a.cpu_verdicts

@@ -1,6 +1,6 @@
 """The MuJoCo backend's verdicts of reproductions, as the GPU check compares them (issue 37).
 
-    python benchmarks/cpu_verdicts.py OUT.json quick=REPRO_DIR [full=REPRO_DIR ...]
+    python benchmarks/bench_gpu_check_reference.py OUT.json quick=REPRO_DIR [full=REPRO_DIR ...]
 
 Reads each reproduction folder's ``claims.json`` and ``reproduce.json`` and writes
 ``{mode: {"verdicts": {"study:claim": verdict}, "wall_s": ..., "commit": ...}}``: the reference
