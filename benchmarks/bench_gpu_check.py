@@ -45,6 +45,7 @@ STUDIES = ""  # --studies: reproduce these only (comma-separated)
 CPU_VERDICTS: str | None = None  # --cpu-verdicts
 REF: dict = {}  # mode -> the MuJoCo backend's reproduction (its verdicts)
 RUN_CPU = False  # step quick-cpu asked for: quick on the MuJoCo backend here, the reference
+SPS = 10  # steps per sample interval in the reduced throughput (a pair sampled at 10 Hz has 150)
 SMALL = False  # --dry-run: tiny sizes, to check the script itself on Warp's CPU device
 
 
@@ -113,7 +114,7 @@ def throughput(which: str, budget: float) -> None:
     import numpy as np
 
     from undulate import Scene, SimOptions
-    from undulate.simulation._warp import WarpRollout, _device_seconds
+    from undulate.simulation._warp import WarpRollout, _device_seconds, _Reduction
     from undulate.simulation import _initial_state, compile_scene, resolve_options
     from undulate.studies.packing import _pack
 
@@ -122,7 +123,7 @@ def throughput(which: str, budget: float) -> None:
     cases = [("pair", Scene(phases_rad=(0.0, math.pi / 2)), (1024, 8192, 32768), 200),
              ("pack", pack, (64, 512), 100)]
     if SMALL:
-        cases = [(n, sc, (2, 4), 5) for n, sc, _, _ in cases]
+        cases = [(n, sc, (2, 4), 10) for n, sc, _, _ in cases]
     cases = [c for c in cases if c[0] == which]
     for name, sc, worlds, k in cases:
         opts = resolve_options(sc, SimOptions(duration_s=1.0, backend="warp", device=DEVICE,
@@ -146,9 +147,20 @@ def throughput(which: str, budget: float) -> None:
                 r.rollout(cur, u, st, sd, k)
                 e2e = time.perf_counter() - t
                 dev = _device_seconds(r.groups[0], k)
+                r.close()
+                # reduced on the device (open-loop runs since 2026-11-26): one sample row in sps steps
+                ix = cs.index
+                red = _Reduction(SPS, ix.sens_pair, ix.sens_wall, ix.sens_mindist,
+                                 [sc.contact.max_penetration_m] * nw)
+                r = WarpRollout([cs] * nw, [aff] * nw, opts, DEVICE, reduce=red)
+                r.rollout_samples(cur, u, k)  # graph capture
+                t = time.perf_counter()
+                r.rollout_samples(cur, u, k)
+                e2e_red = time.perf_counter() - t
                 say(f"{name}.worlds_{nw}", {"steps": k, "device_world_steps_per_s": nw * k / dev,
                                             "end_to_end_world_steps_per_s": nw * k / e2e,
-                                            "device_s_per_step": dev / k})
+                                            "end_to_end_reduced_world_steps_per_s": nw * k / e2e_red,
+                                            "steps_per_sample": SPS, "device_s_per_step": dev / k})
                 r.close()
                 del st, sd
             except Exception as e:  # noqa: BLE001 - report and go on

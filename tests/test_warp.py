@@ -204,6 +204,47 @@ def test_chunks_of_any_length_give_the_same_run():
     assert _max_dx(one, cut) < 1e-9 and _max_dx(one, cut, "y") < 1e-9
 
 
+def test_reduced_on_the_device_equals_every_step_on_the_host(monkeypatch):
+    """Open-loop runs on Warp keep only each sample interval's state, deepest penetration and mean
+    forces on the device: the same Dataset as recording every step and reducing on the host (states
+    bitwise, forces and depths to float32 rounding), for a batch where one scene stops early."""
+    scenes = [Scene(phases_rad=(0.0, 1.0)), Scene(phases_rad=(0.0, 2.5), dx0_m=0.05)]
+    opts = SimOptions(duration_s=1.2, sample_rate_hz=20.0, chunk_steps=150, **WARP)
+    stop = [lambda blocks: "enough" if blocks and blocks[-1]["time"][-1] >= 0.5 else None,
+            lambda blocks: None]
+    got = simulate_batch(scenes, opts, stop=stop)
+    monkeypatch.setenv("UNDULATE_WARP_REDUCE", "0")
+    ref = simulate_batch(scenes, opts, stop=stop)
+    for g, r in zip(got, ref):
+        assert g.sizes == r.sizes and set(g.data_vars) == set(r.data_vars)
+        for name in r.data_vars:
+            a, b = g[name].values, r[name].values
+            if a.dtype.kind == "f":
+                np.testing.assert_allclose(a, b, rtol=2e-5, atol=1e-6, err_msg=name)
+            else:
+                assert (a == b).all(), name
+        assert _max_dx(g, r) == 0.0 and _max_dx(g, r, "y") == 0.0
+    assert got[0].sizes["time"] < got[1].sizes["time"]  # the first scene stopped early
+    assert float(got[1]["penetration"].max()) > 0  # in contact: depths and forces were compared
+
+
+def test_a_divergence_found_on_the_device_is_diagnosed_as_on_the_host(monkeypatch):
+    """A penetration bound crossed on the device stops the run with the host path's diagnosis, at the
+    same time."""
+    from undulate.errors import DivergenceError
+    from undulate.params import ContactModel
+
+    sc = Scene(phases_rad=(0.0, math.pi), contact=ContactModel(max_penetration_m=1e-5))
+    opts = SimOptions(duration_s=2.0, **WARP)
+    with pytest.raises(DivergenceError, match="time step") as dev:
+        simulate(sc, opts)
+    monkeypatch.setenv("UNDULATE_WARP_REDUCE", "0")
+    with pytest.raises(DivergenceError, match="time step") as host:
+        simulate(sc, opts)
+    t = [str(e.value).split(":")[0] for e in (dev, host)]
+    assert t[0] == t[1] and "interpenetration" in str(dev.value)
+
+
 def test_a_gather_of_two_structures_steps_them_side_by_side(monkeypatch):
     """Threads whose scenes differ in structure (a pair, a group of 3) are gathered into one batch
     per structure, each stepped on its own thread (on a GPU: its own stream); each result is its

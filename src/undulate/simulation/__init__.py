@@ -215,8 +215,12 @@ class _Stepper:
 
             affine = [compile_scene(c.scene, bt.options, push=c.index.ctrl_push.size > 0,
                                     loads=c.index.sens_load.size > 0, servo="affine") for c in bt.compiled]
-            self.runner = _warp.WarpRollout(bt.compiled, affine, bt.options, bt.options.device)
+            self.reduce = bt.ctl is None and os.environ.get("UNDULATE_WARP_REDUCE", "1") != "0"
+            red = _warp._Reduction(bt.sps, self.pair_adr, self.wall_adr, self.md,
+                                   [c.scene.contact.max_penetration_m for c in bt.compiled]) if self.reduce else None
+            self.runner = _warp.WarpRollout(bt.compiled, affine, bt.options, bt.options.device, reduce=red)
         else:
+            self.reduce = False
             self.runner = _WarmRollout([c.model for c in bt.compiled], nthread)
         state0, sens0 = np.empty((nb, self.nstate)), np.empty((nb, m0.nsensordata))
         for b, cs in enumerate(bt.compiled):
@@ -286,9 +290,46 @@ class _Stepper:
         self.last_sens = sd[:, k - 1].copy()
         return st, sd, cmd_rows, phase_rows
 
+    def _step_chunk_reduced(self, k: int, stepping: np.ndarray) -> list[dict | None]:
+        """:meth:`step_chunk` on the Warp backend in open loop: the device keeps each sample
+        interval's last state and sensors, deepest penetration, mean forces and the first bad step
+        (:meth:`undulate.simulation._warp.WarpRollout.rollout_samples`), so only those cross to the
+        host; the same blocks and the same divergence diagnoses as from every step."""
+        bt, q0, sps = self.bt, self.q0, self.bt.sps
+        active = None if stepping.all() else stepping
+        if self.bufs[2].shape[1] != k:
+            self.bufs = self._buffers(k)
+        ctrl_buf = self.bufs[2]
+        t = (self.done + np.arange(k)) * bt.dt
+        for b in (range(bt.nb) if active is None else np.flatnonzero(active)):
+            ctrl_buf[b] = controls(bt.compiled[b], t)
+        t0 = time.perf_counter()
+        st, sd, pn, fp, fw, bad_step, bad_kind = self.runner.rollout_samples(self.cur, ctrl_buf, k, active)
+        self.clock.seconds += time.perf_counter() - t0
+        self.clock.steps += int(stepping.sum()) * k
+        bad = np.flatnonzero((bad_step >= 0) & stepping)
+        if bad.size:
+            b = int(bad[0])
+            step = int(bad_step[b])
+            t_bad = float((self.done + 1 + step) * bt.dt)
+            if bad_kind[b] == 1:
+                what = "non-finite or huge state (NaN, inf or > 1e6)"
+            else:
+                what = (f"interpenetration beyond the "
+                        f"{bt.compiled[b].scene.contact.max_penetration_m * 1e3:g} mm bound")
+            raise _diagnose(bt.compiled[b], bt.options, t_bad, what)
+        self.cur = st[:, -1].copy()
+        self.last_sens = sd[:, -1].copy()
+        blocks = [self._block(b, self.done // sps + 1, st[b, :, q0:q0 + bt.m0.nq], sd[b], fp[b], fw[b], pn[b])
+                  if stepping[b] else None for b in range(bt.nb)]
+        self.done += k
+        return blocks
+
     def step_chunk(self, k: int, stepping: np.ndarray) -> list[dict | None]:
         """Step the scenes of mask ``stepping`` one chunk of ``k`` steps (a multiple of the sample
         interval); their sample blocks (None for a scene not stepped: it stays where it is)."""
+        if self.reduce:
+            return self._step_chunk_reduced(k, stepping)
         bt, q0, sps = self.bt, self.q0, self.bt.sps
         st, sd, cmd_rows, phase_rows = self._rollout(k, None if stepping.all() else stepping)
         depth = _depth_of(sd, self.md)

@@ -263,9 +263,10 @@ class _Group:
     STATIC_DATA = ("geom_xpos", "geom_xmat", "site_xpos", "site_xmat", "xpos", "xquat", "xmat", "xipos", "ximat")
 
     def __init__(self, mjm: mujoco.MjModel, idx: np.ndarray, per_world: dict, device: str,
-                 models: Sequence[mujoco.MjModel] | None = None):
+                 models: Sequence[mujoco.MjModel] | None = None, reduce: "_Reduction | None" = None):
         wp, mjw = require()
         self.idx, self.device = idx, device
+        self.reduce = None if reduce is None else reduce.on(device, idx)
         nw = len(idx)
         cap = capacities(mjm)
         self.cap = cap
@@ -312,17 +313,23 @@ class _Group:
         self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
 
     def _buffers(self, k: int):
-        """The chunk's buffers on the device (control table, per-step qpos, qvel, sensors) for at least
-        ``k`` steps, and their host mirrors (pinned on a GPU; with the warm starts and overflow bits).
-        They grow only: a shorter chunk reuses them and the captured graph (which names them), so a
-        run's last, shorter chunk needs no new capture."""
+        """The chunk's buffers on the device for at least ``k`` steps -- the control table, then what
+        each step leaves (:meth:`_rows`: every step's qpos, qvel and sensors; or, reducing, each
+        sample interval's) -- and their host mirrors (pinned on a GPU; with the warm starts, the
+        overflow bits and, reducing, the first bad step).  They grow only: a shorter chunk reuses
+        them and the captured graph (which names them), so a run's last, shorter chunk needs no new
+        capture."""
         wp, _ = require()
         nw = len(self.idx)
         if self.bufs is None or self.bufs[0].shape[0] < k:
+            r = self.reduce
+            rows = k if r is None else k // r.sps
             with wp.ScopedDevice(self.device):
-                self.bufs = (wp.zeros((k, nw, self.nu), dtype=float),
-                             wp.zeros((k, nw, self.nq), dtype=float), wp.zeros((k, nw, self.nv), dtype=float),
-                             wp.zeros((k, nw, self.ns), dtype=float))
+                out = [wp.zeros((rows, nw, n), dtype=float) for n in (self.nq, self.nv, self.ns)]
+                if r is not None:
+                    out += [wp.zeros((rows, nw), dtype=float), wp.zeros((rows, nw, len(r.pair_adr)), dtype=float),
+                            wp.zeros((rows, nw, len(r.wall_adr)), dtype=float), wp.zeros(nw, dtype=int)]
+                self.bufs = (wp.zeros((k, nw, self.nu), dtype=float), *out)
                 pinned = self.stream is not None
                 self.host = [wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
                              for a in (*self.bufs[1:], self.d.qacc_warmstart, self.d.overflow)]
@@ -333,19 +340,24 @@ class _Group:
         wp, mjw = require()
         from . import _warp_kernels as kernels
 
-        set_ctrl, record, incr = kernels.set_ctrl, kernels.record, kernels.incr
-        table, oq, ov, os_ = self.bufs
+        table, out = self.bufs[0], self.bufs[1:]
         nw = len(self.idx)
         if table.shape[2]:
-            wp.launch(set_ctrl, dim=(nw, table.shape[2]), inputs=[table, self.k, self.d.ctrl])
+            wp.launch(kernels.set_ctrl, dim=(nw, table.shape[2]), inputs=[table, self.k, self.d.ctrl])
         mjw.step(self.m, self.d)
-        wp.launch(record, dim=nw, inputs=[self.d.qpos, self.d.qvel, self.d.sensordata, self.k, oq, ov, os_])
-        wp.launch(incr, dim=1, inputs=[self.k])
+        r = self.reduce
+        if r is None:
+            wp.launch(kernels.record, dim=nw, inputs=[self.d.qpos, self.d.qvel, self.d.sensordata, self.k, *out])
+        else:
+            wp.launch(kernels.reduce, dim=nw, inputs=[self.d.qpos, self.d.qvel, self.d.sensordata, self.k, r.sps,
+                                                      r.pair_dev, r.wall_dev, r.md, r.maxpen_dev, *out])
+        wp.launch(kernels.incr, dim=1, inputs=[self.k])
 
     def run(self, qpos, qvel, warm, table: np.ndarray, nstep: int):
         """Step the group's worlds ``nstep`` steps from (qpos, qvel, warm start) under ``table``
-        (nstep, nw, nu); returns per-step qpos, qvel, sensors (nw, nstep, ...) float64, the warm
-        starts after, and the overflow bitmask per world."""
+        (nstep, nw, nu); returns what the steps left (per step, or reducing per sample interval:
+        qpos, qvel, sensors (nw, rows, ...) float64, then the depths, forces and first bad steps), the
+        warm starts after, and the overflow bitmask per world."""
         wp, _ = require()
         host = [np.ascontiguousarray(x, dtype=np.float32) for x in (qpos, qvel, warm, table)]
         with wp.ScopedDevice(self.device):
@@ -365,12 +377,14 @@ class _Group:
 
     def _upload(self, host) -> None:
         """The chunk's first state (qpos, qvel, warm start) and control table, and the step counter
-        at 0, copied to the device on the group's stream."""
+        (and, reducing, the first bad steps) at 0, copied to the device on the group's stream."""
         wp, _ = require()
         for dst, src in zip((self.d.qpos, self.d.qvel, self.d.qacc_warmstart, self.bufs[0]), host):
             if src.size:
                 wp.copy(dst, wp.array(src, dtype=float, device="cpu"), stream=self.stream)
         wp.copy(self.k, wp.zeros(1, dtype=int, device="cpu"), stream=self.stream)
+        if self.reduce is not None:
+            wp.copy(self.bufs[-1], wp.zeros(len(self.idx), dtype=int, device="cpu"), stream=self.stream)
 
     def _ready(self, nstep: int, host) -> None:
         """The chunk's buffers, and on the first call the kernels compiled and the step captured."""
@@ -415,17 +429,47 @@ class _Group:
                                f"{runtime.get_error_string()}")
 
     def _download(self):
-        """Per-step qpos, qvel, sensors (nw, nstep, ...) float64, warm starts and overflow bits."""
+        """What the chunk left, float64, rows first per world (:meth:`run`), then the warm starts and
+        overflow bits; only the chunk's rows cross to the host."""
         wp, _ = require()
         srcs = (*self.bufs[1:], self.d.qacc_warmstart, self.d.overflow)
-        rows = self._nstep * len(self.idx)
+        rows = self._nstep if self.reduce is None else self._nstep // self.reduce.sps
+        per_row = len(self.bufs) - 1 - (self.reduce is not None)  # buffers whose first axis is the row
         for i, (o, a) in enumerate(zip(self.host, srcs)):
-            wp.copy(o, a, stream=self.stream, count=rows * a.shape[2] if i < 3 else 0)  # the chunk's rows
+            n = rows * int(np.prod(a.shape[1:])) if i < per_row else 0
+            if a.size:
+                wp.copy(o, a, stream=self.stream, count=n)  # the chunk's rows (0: all)
         self._sync()
-        q, v, s, warm, overflow = (o.numpy() for o in self.host)
-        k = self._nstep
-        return (q[:k].transpose(1, 0, 2).astype(np.float64), v[:k].transpose(1, 0, 2).astype(np.float64),
-                s[:k].transpose(1, 0, 2).astype(np.float64), warm.astype(np.float64), overflow.copy())
+        out = []
+        for i, o in enumerate(self.host):
+            x = o.numpy()
+            if i < per_row:
+                x = x[:rows]
+                x = x.transpose(1, 0, *range(2, x.ndim))
+            out.append(x.astype(np.float64) if x.dtype.kind == "f" else x.copy())
+        return tuple(out)
+
+
+class _Reduction:
+    """What a group reduces on the device each step (:func:`undulate.simulation._warp_kernels.reduce`):
+    steps per sample interval, the pair and wall force sensors' addresses, the min-distance sensor's,
+    and each world's penetration bound (m)."""
+
+    def __init__(self, sps: int, pair_adr, wall_adr, md: int, maxpen_m):
+        self.sps, self.md = int(sps), int(md)
+        self.pair_adr = np.asarray(pair_adr, dtype=np.int32).ravel()
+        self.wall_adr = np.asarray(wall_adr, dtype=np.int32).ravel()
+        self.maxpen_m = np.asarray(maxpen_m, dtype=np.float32)
+
+    def on(self, device: str, idx: np.ndarray) -> "_Reduction":
+        """This reduction for the worlds ``idx`` of a group, with its arrays on ``device``."""
+        wp, _ = require()
+        r = _Reduction(self.sps, self.pair_adr, self.wall_adr, self.md, self.maxpen_m[idx])
+        with wp.ScopedDevice(device):
+            r.pair_dev = wp.array(r.pair_adr, dtype=int)
+            r.wall_dev = wp.array(r.wall_adr, dtype=int)
+            r.maxpen_dev = wp.array(r.maxpen_m, dtype=float)
+        return r
 
 
 def _device_seconds(group: "_Group", nstep: int) -> float:
@@ -468,9 +512,12 @@ class WarpRollout:
     """Steps a batch's scenes as the worlds of MuJoCo Warp models (the interface of
     :class:`undulate.simulation._WarmRollout`: ``rollout``, ``warm``, ``close``)."""
 
-    def __init__(self, compiled, affine, options, device: str):
+    def __init__(self, compiled, affine, options, device: str, reduce: "_Reduction | None" = None):
+        """``reduce``: reduce each chunk on the device (:meth:`rollout_samples`) instead of recording
+        every step (:meth:`rollout`)."""
         require()
         self.device = device
+        self.reduce = reduce
         cpu0 = compiled[0].model
         self.nq, self.nv, self.na = cpu0.nq, cpu0.nv, cpu0.na
         nstate = mujoco.mj_stateSize(cpu0, mujoco.mjtState.mjSTATE_FULLPHYSICS)
@@ -484,7 +531,7 @@ class WarpRollout:
             mjm.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
             models.append(mjm)
         with _DEVICE_LOCK:
-            self.groups = [_Group(models[idx[0]], idx, per_world, device, [models[i] for i in idx])
+            self.groups = [_Group(models[idx[0]], idx, per_world, device, [models[i] for i in idx], reduce)
                            for idx, per_world in _plan_worlds(models)]
         self.warm = np.zeros((len(compiled), cpu0.nv))
         self._dt = float(options.timestep_s)
@@ -518,6 +565,47 @@ class WarpRollout:
         if active is not None:
             st[~active], sd[~active] = cur[~active, None], 0.0
         return st, sd
+
+    def rollout_samples(self, cur: np.ndarray, u: np.ndarray, nstep: int, active: np.ndarray | None = None):
+        """Step every scene ``nstep`` steps (a multiple of the sample interval) from ``cur`` under
+        controls ``u``, reduced on the device: only what the recorder keeps comes back.  Returns the
+        FULLPHYSICS states (nb, ns, nstate) and sensors (nb, ns, nsensordata) at each interval's last
+        step, the interval's deepest penetration (nb, ns), mean pair and wall force magnitudes
+        (nb, ns, npair) and (nb, ns, nwall), and per scene the first bad step (-1: none) and what
+        was bad there (1 huge or non-finite state, 2 interpenetration beyond the bound).  Scenes
+        outside ``active`` stay at ``cur`` (their sensor rows zero, nothing bad)."""
+        r = self.reduce
+        sps = r.sps
+        nq, nv, na = self.nq, self.nv, self.na
+        q0, v0, a0 = 1, 1 + nq, 1 + nq + nv
+        nb, ns = cur.shape[0], nstep // sps
+        act_idx = self.servos.act
+        act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if na else 0.0, np.nan)
+        table, slewed = self.servos.table(u[:, :nstep], act0)
+        st = np.empty((nb, ns, cur.shape[1]))
+        sd = np.empty((nb, ns, self.groups[0].ns))
+        pn = np.empty((nb, ns))
+        fp, fw = np.empty((nb, ns, len(r.pair_adr))), np.empty((nb, ns, len(r.wall_adr)))
+        code = np.zeros(nb, dtype=np.int64)
+        for g in self.groups:
+            idx = g.idx
+            q, v, s, p, f_pair, f_wall, bad, warm, overflow = g.run(
+                cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx], np.ascontiguousarray(table[:, idx]), nstep)
+            if overflow.any():
+                self._overflow(idx, overflow)
+            st[idx, :, q0:q0 + nq], st[idx, :, v0:v0 + nv], sd[idx] = q, v, s
+            pn[idx], fp[idx], fw[idx], code[idx] = p, f_pair, f_wall, bad
+            self.warm[idx] = warm
+        rows = np.arange(sps - 1, nstep, sps)
+        if na:
+            st[:, :, a0:] = cur[:, None, a0:]
+            has = act_idx >= 0
+            st[:, :, a0 + act_idx[has]] = slewed[:, rows][:, :, has]
+        st[:, :, 0] = cur[:, :1] + self._dt * (1 + rows)[None]
+        if active is not None:
+            st[~active], sd[~active], pn[~active], code[~active] = cur[~active, None], 0.0, 0.0, 0
+            fp[~active], fw[~active] = 0.0, 0.0
+        return st, sd, pn, fp, fw, np.where(code > 0, code // 4 - 1, -1), code % 4
 
     def _overflow(self, idx, overflow) -> None:
         _, mjw = require()
