@@ -5,8 +5,10 @@ scene ``nstep`` steps from the given FULLPHYSICS states under the given controls
 state and sensor arrays), so the recorder, the stopping rules, the divergence checks and the
 checkpoints of :mod:`undulate.simulation` are shared by both backends.  Each call uploads the
 states and the chunk's control table, steps the worlds on the device (one captured graph per step,
-on a GPU and on Warp's CPU device), records every step's positions, velocities and sensors on the device and downloads
-them once.
+on a GPU and on Warp's CPU device, each Warp model on its own stream on a GPU) and downloads the
+chunk once.  Open-loop chunks are reduced on the device (:meth:`WarpRollout.rollout_samples`: each
+sample interval's last state and sensors, deepest penetration, mean contact forces and the first
+bad step), closed-loop ones record every step (their controllers sense at the control rate).
 
 What differs from the MuJoCo (CPU) backend, and why the results still agree
 (tests/test_warp.py, docs/gpu.md):
