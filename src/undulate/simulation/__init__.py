@@ -235,8 +235,11 @@ class _Stepper:
             self.done = int(round(starts[0].time_s / (bt.sps * bt.dt))) * bt.sps
 
     def _buffers(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every step's states, sensors and controls of a chunk of ``k`` steps (reduced on the device:
+        the controls only; the states and sensors come back one row per sample interval)."""
         nb, m0 = self.bt.nb, self.bt.m0
-        return np.empty((nb, k, self.nstate)), np.empty((nb, k, m0.nsensordata)), np.empty((nb, k, m0.nu))
+        n = 0 if self.reduce else k
+        return np.empty((nb, n, self.nstate)), np.empty((nb, n, m0.nsensordata)), np.empty((nb, k, m0.nu))
 
     def _forces(self, sd: np.ndarray, ns: int):
         """Interval means of the pair and wall forces and the interval's deepest penetration."""
@@ -271,7 +274,7 @@ class _Stepper:
         """Step ``k`` integrator steps from the current state: states, sensors, commands and phases at
         the recorded rows (None for the open-loop gait)."""
         bt, dt, sps = self.bt, self.bt.dt, self.bt.sps
-        if self.bufs[0].shape[1] != k:  # last, shorter chunk: contiguous buffers of its size
+        if self.bufs[2].shape[1] != k:  # last, shorter chunk: contiguous buffers of its size
             self.bufs = self._buffers(k)
         state_buf, sens_buf, ctrl_buf = self.bufs
         t = (self.done + np.arange(k)) * dt
