@@ -12,6 +12,13 @@ def set_ctrl(table: wp.array3d(dtype=float), k: wp.array(dtype=int), ctrl: wp.ar
     ctrl[w, j] = table[k[0], w, j]
 
 
+@wp.func
+def _copy_row(src: wp.array2d(dtype=float), w: int, dst: wp.array3d(dtype=float), i: int):
+    """dst[i, w, :] = src[w, :]."""
+    for c in range(src.shape[1]):
+        dst[i, w, c] = src[w, c]
+
+
 @wp.kernel
 def record(qpos: wp.array2d(dtype=float), qvel: wp.array2d(dtype=float), sens: wp.array2d(dtype=float),
            k: wp.array(dtype=int), out_q: wp.array3d(dtype=float), out_v: wp.array3d(dtype=float),
@@ -19,18 +26,39 @@ def record(qpos: wp.array2d(dtype=float), qvel: wp.array2d(dtype=float), sens: w
     """The state and sensors of every world after step k, into row k of the chunk's buffers."""
     w = wp.tid()
     i = k[0]
-    for j in range(qpos.shape[1]):
-        out_q[i, w, j] = qpos[w, j]
-    for j in range(qvel.shape[1]):
-        out_v[i, w, j] = qvel[w, j]
-    for j in range(sens.shape[1]):
-        out_s[i, w, j] = sens[w, j]
+    _copy_row(qpos, w, out_q, i)
+    _copy_row(qvel, w, out_v, i)
+    _copy_row(sens, w, out_s, i)
 
 
 @wp.kernel
 def incr(k: wp.array(dtype=int)):
     """The device-side step counter of a chunk (so one captured graph serves every step)."""
     k[0] = k[0] + 1
+
+
+@wp.func
+def _add_force_means(sens: wp.array2d(dtype=float), w: int, adr: wp.array(dtype=int), out: wp.array3d(dtype=float),
+                     j: int, first: bool, inv: float):
+    """out[j, w, p] (+)= |force sensor p| / sps: the magnitude of each 3-vector sensor at ``adr``,
+    accumulated into its sample interval's mean (set at the interval's first step)."""
+    for p in range(adr.shape[0]):
+        a = adr[p]
+        f = wp.sqrt(sens[w, a] * sens[w, a] + sens[w, a + 1] * sens[w, a + 1] + sens[w, a + 2] * sens[w, a + 2]) * inv
+        if first:
+            out[j, w, p] = f
+        else:
+            out[j, w, p] = out[j, w, p] + f
+
+
+@wp.func
+def _huge(x: wp.array2d(dtype=float), w: int) -> int:
+    """1 if a component of row w is non-finite or beyond 1e6 (the host's divergence bound), else 0."""
+    huge = int(0)
+    for c in range(x.shape[1]):
+        if not (wp.abs(x[w, c]) < 1.0e6):
+            huge = 1
+    return huge
 
 
 @wp.kernel
@@ -56,36 +84,14 @@ def reduce(qpos: wp.array2d(dtype=float), qvel: wp.array2d(dtype=float), sens: w
     else:
         pn[j, w] = wp.max(pn[j, w], depth)
     inv = 1.0 / float(sps)
-    for p in range(pair_adr.shape[0]):
-        a = pair_adr[p]
-        f = wp.sqrt(sens[w, a] * sens[w, a] + sens[w, a + 1] * sens[w, a + 1] + sens[w, a + 2] * sens[w, a + 2]) * inv
-        if first:
-            fp[j, w, p] = f
-        else:
-            fp[j, w, p] = fp[j, w, p] + f
-    for p in range(wall_adr.shape[0]):
-        a = wall_adr[p]
-        f = wp.sqrt(sens[w, a] * sens[w, a] + sens[w, a + 1] * sens[w, a + 1] + sens[w, a + 2] * sens[w, a + 2]) * inv
-        if first:
-            fw[j, w, p] = f
-        else:
-            fw[j, w, p] = fw[j, w, p] + f
+    _add_force_means(sens, w, pair_adr, fp, j, first, inv)
+    _add_force_means(sens, w, wall_adr, fw, j, first, inv)
     if bad[w] == 0:
-        huge = int(0)
-        for c in range(qpos.shape[1]):
-            if not (wp.abs(qpos[w, c]) < 1.0e6):
-                huge = 1
-        for c in range(qvel.shape[1]):
-            if not (wp.abs(qvel[w, c]) < 1.0e6):
-                huge = 1
-        if huge == 1:
+        if _huge(qpos, w) + _huge(qvel, w) > 0:
             bad[w] = 4 * (i + 1) + 1
         elif depth > maxpen[w]:
             bad[w] = 4 * (i + 1) + 2
     if i % sps == sps - 1:
-        for c in range(qpos.shape[1]):
-            out_q[j, w, c] = qpos[w, c]
-        for c in range(qvel.shape[1]):
-            out_v[j, w, c] = qvel[w, c]
-        for c in range(sens.shape[1]):
-            out_s[j, w, c] = sens[w, c]
+        _copy_row(qpos, w, out_q, j)
+        _copy_row(qvel, w, out_v, j)
+        _copy_row(sens, w, out_s, j)
