@@ -55,6 +55,11 @@ __all__ = [
     "GROUP_CHANNEL_M",
     "GROUP_DRAWS",
     "group_phases",
+    "group_cap_phases",
+    "refined",
+    "GROUP_CAP_REFINE",
+    "GROUP_CAP_DRAWS",
+    "IMPULSE_CAP_PHASES",
     "impulse_design",
     "GROUP_SLOPE_TOL",
     "GROUP_RMS_TOL",
@@ -66,9 +71,18 @@ __all__ = [
 GROUP_DRAWS = {True: 8, False: 40}
 """Random phase draws of the groups of four: quick mode (True) and full mode (False)."""
 GROUP_FULL_PHASES = 33
-"""dphi of the groups of three (and their reference pairs) in full mode: step pi/16 over [-pi, pi]."""
+"""dphi of the groups of three (and their reference pairs) in full mode: step pi/16 over [-pi, pi]
+(the groups study's third look; the sensitivity study reruns this design)."""
+GROUP_CAP_REFINE = 12
+"""Full mode's cap for the groups of three: every step of the :data:`GROUP_FULL_PHASES` grid cut into
+this many (385 dphi, step pi/192; :func:`group_cap_phases`)."""
+GROUP_CAP_DRAWS = 120
+"""Random phase draws of the groups of four at full mode's cap (the study's fourth look)."""
 IMPULSE_PHASES = {True: 9, False: 37}
 """dphi of the two-period contact-impulse runs over [-pi, pi] (both ends): quick mode (True), full (False)."""
+IMPULSE_CAP_PHASES = 73
+"""dphi of the contact-impulse runs at full mode's cap (the potential study's fourth look, step pi/36;
+every second one is :data:`IMPULSE_PHASES`'s full grid)."""
 IMPULSE_COMMON_PHASES = {True: 4, False: 8}
 """Common phases phi0 (swimmer 0's phase, equally spaced over [0, 2 pi)) the impulse is averaged over."""
 
@@ -97,6 +111,27 @@ def group_phases(quick: bool) -> np.ndarray:
     :data:`GROUP_FULL_PHASES` in full mode.  One design for the groups study and for every study that
     reruns its groups (``sensitivity``), so that those differ from it only in what they vary."""
     return paper_phases() if quick else phase_grid(GROUP_FULL_PHASES)
+
+
+def refined(grid: Sequence[float], k: int) -> np.ndarray:
+    """``grid`` with every step cut into ``k`` equal ones: ``refined(g, k)[::k]`` is ``g``, bitwise (a
+    finer ``linspace`` is not: its every ``k``-th value can differ from the coarse one in the last
+    bit, and the coarse grid's runs would not be found again in the content-keyed stores)."""
+    g = np.asarray(grid, float)
+    k = int(k)
+    if k < 1 or g.ndim != 1 or g.size < 2:
+        raise ValueError(f"refined needs a 1-D grid of >= 2 values and k >= 1, not {g.size} values, k = {k}")
+    frac = np.arange(k) / k
+    inner = (g[:-1, None] + frac[None, :] * np.diff(g)[:, None]).ravel()
+    out = np.append(inner, g[-1])
+    out[::k] = g
+    return out
+
+
+def group_cap_phases() -> np.ndarray:
+    """dphi (rad) of the groups of three at full mode's cap: :func:`group_phases` (full) refined by
+    :data:`GROUP_CAP_REFINE` (385 values over [-pi, pi])."""
+    return refined(group_phases(False), GROUP_CAP_REFINE)
 
 
 def impulse_design(quick: bool) -> tuple[np.ndarray, np.ndarray]:

@@ -56,7 +56,7 @@ from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, R2_MIN
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import strides, thinned
+from ._stages import strides
 from ..stopping import SteadyStop
 from ._runners import pair_point
 from ._shared import impulse_sweep
@@ -167,13 +167,14 @@ class PotentialPlan:
 
 
 def plan(quick: bool) -> PotentialPlan:
-    """Full: 37 dphi x 8 common phases; 3 beta x 9 d/2A (0.6 to 1.4) x 13 forces (5 mN to
-    0.5 N) = 351 runs.  Quick: 9 dphi x 4 phases; 3 x 3 x 5 = 45 runs.  The impulse grid is
-    :func:`._analysis.impulse_design`, shared with the studies that rerun these runs."""
+    """The mode's cap.  Full: 73 dphi (step pi/36) x 8 common phases; 3 beta x 17 d/2A (0.6 to 1.4, step
+    0.05) x 13 forces (5 mN to 0.5 N) = 663 force runs.  Quick: 9 dphi x 4 phases; 3 x 3 x 5 = 45 force
+    runs.  The third full look's impulse grid (37 x 8) is :func:`._analysis.impulse_design`, shared with
+    the studies that rerun these runs (``sensitivity``)."""
     dphi, phi0 = C.impulse_design(quick)
     if quick:
         return PotentialPlan(dphi, [30, 45, 60], [0.8, 1.0, 1.2], [0.02, 0.05, 0.1, 0.2, 0.3], impulse_phi0=phi0)
-    return PotentialPlan(dphi, [30, 45, 60], np.round(np.arange(0.6, 1.41, 0.1), 10),
+    return PotentialPlan(C.refined(dphi, 2), [30, 45, 60], np.round(np.arange(0.6, 1.41, 0.05), 10),
                          [0.005, 0.01, 0.02, 0.03, 0.04, 0.06, 0.08, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5],
                          impulse_phi0=phi0)
 
@@ -478,15 +479,21 @@ def figure(ds):
     return plot_potential(ds)
 
 
+FULL_LOOKS = ((8, 4, 4, 2), (4, 2, 2, 1), (2, 1, 2, 1), (1, 1, 1, 1))
+"""Full mode's looks: strides over the cap's (impulse dphi, common phases, d/2A, forces): 10 dphi x 2
+phases and 3 x 5 x 7 force runs; 19 x 4 and 3 x 9 x 13; 37 x 8 and 3 x 9 x 13; 73 x 8 and 3 x 17 x 13.
+The fourth look (the cap) is set by the runs the four claims needed at 0ca5397's third look, at 97 %
+(~57 dphi for the impulse R^2; ~30 stiffness fits; ~12 d/2A per beta for the rank correlation), not by
+where their estimates may go."""
+
+
 def stages(quick: bool) -> tuple[PotentialPlan, ...]:
-    """The plan in looks (:mod:`._stages`): the impulse grid (dphi and common phases) thinned; in full
-    mode also the confinements and forces (quick keeps its 3 x 5 force grid: a fit needs them)."""
-    p, s = plan(quick), strides(quick)
-    out = []
-    for k, dphi, phi0 in zip(s, thinned(p.impulse_dphi, s), thinned(p.impulse_phi0, s)):
-        d, f = (p.d_over_2A, p.forces_N) if quick else (p.d_over_2A[::max(1, k // 2)], p.forces_N[::max(1, k // 2)])
-        out.append(PotentialPlan(dphi, p.betas_deg, d, f, p.duration_s, impulse_phi0=phi0))
-    return tuple(out)
+    """The plan in looks (:mod:`._stages`).  Quick: the impulse grid (dphi and common phases) thinned,
+    the 3 x 5 force grid kept (a fit needs them).  Full: :data:`FULL_LOOKS`."""
+    p = plan(quick)
+    looks = ([(k, k, 1, 1) for k in strides(quick)] if quick else FULL_LOOKS)
+    return tuple(PotentialPlan(p.impulse_dphi[::a], p.betas_deg, p.d_over_2A[::c], p.forces_N[::d], p.duration_s,
+                               impulse_phi0=p.impulse_phi0[::b]) for a, b, c, d in looks)
 
 
 register(Study(
