@@ -187,9 +187,10 @@ def test_side_by_side_gives_the_results_of_one_at_a_time(tmp_path, swing_studies
 
 
 # ---- which studies a reproduction runs ------------------------------------------------------
-@pytest.mark.parametrize("quick,beyond,expect_prx", [(True, None, False), (False, None, True), (True, True, True),
-                                                     (False, False, False)])
-def test_quick_reproduces_the_paper_and_full_goes_beyond(monkeypatch, tmp_path, quick, beyond, expect_prx):
+@pytest.mark.parametrize("quick,beyond,expect_prx", [(True, None, False), (False, None, False), (True, True, True),
+                                                     (False, True, True), (False, False, False)])
+def test_a_reproduction_is_the_papers_and_beyond_paper_adds_the_prx_studies(monkeypatch, tmp_path, quick, beyond,
+                                                                            expect_prx):
     import undulate.reproduce as rp
 
     calls = []

@@ -283,6 +283,37 @@ def test_every_studys_stages_nest_and_end_at_its_plan(quick):
                     assert va == vb, (name, key)
 
 
+def test_refined_grids_keep_the_coarse_values_bitwise():
+    """A cap refined from a coarser grid holds that grid's values bitwise (a finer linspace does not:
+    385 over [-pi, pi] differs from 33 in the last bit), so its runs are found again in the stores."""
+    from undulate.studies import _analysis as C
+
+    g = C.phase_grid(33)
+    assert not np.array_equal(C.phase_grid(385)[::12], g)  # why refined exists
+    for k in (1, 2, 3, 12):
+        r = C.refined(g, k)
+        assert r.size == 32 * k + 1 and np.array_equal(r[::k], g)
+        assert np.allclose(np.diff(r), 2 * np.pi / (32 * k), rtol=0, atol=1e-12)
+    with pytest.raises(ValueError, match="refined"):
+        C.refined(g, 0)
+
+
+def test_the_sensitivity_study_reruns_a_look_of_the_groups_and_potential_caps():
+    """Full mode's caps grew past the grids the sensitivity study reruns (groups: 33 dphi and 40
+    draws; impulse: 37 dphi x 8 phases); those grids must stay a look of the cap, value for value,
+    so that the shared runs are computed once."""
+    from undulate.studies import _sensitivity_design as SD
+    from undulate.studies import groups, potential
+
+    sens = SD.plan(False)
+    g_looks = [(p.dphi_rad, p.draws) for p in groups.stages(False)]
+    assert (sens.group_dphi_rad, sens.group_draws) in g_looks
+    p_looks = [(tuple(p.impulse_dphi), tuple(p.impulse_phi0)) for p in potential.stages(False)]
+    assert (sens.impulse_dphi_rad, sens.impulse_phi0_rad) in p_looks
+    assert len(groups.plan(False).dphi_rad) > len(sens.group_dphi_rad)
+    assert len(potential.plan(False).impulse_dphi) > len(sens.impulse_dphi_rad)
+
+
 def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, monkeypatch):
     """The Warp backend steps the last stage's runs first (a stage costs a GPU about the same at any
     number of worlds); the looks then read them from the stores and must be the staged plan's own:

@@ -166,6 +166,18 @@ def test_potential(kw, index, verdict):
         assert "straddles" in r[index]["reason"] or "overlaps" in r[index]["reason"]
 
 
+def test_harmonic_runs_needed_count_the_fits_points_not_the_fits():
+    """Each dF = k (dx - dx0) fit's R^2 interval rests on its own forces, so more fits do not narrow the
+    median bounds; the runs that would decide it scale the fits' points (13 forces x 27 fits here)."""
+    s = potential_summary(fit_r2=(0.958, 0.897, 0.998))
+    s.update(n_fits=27, n_fit_points=351, fit_r2_level=0.97)
+    r = rows("potential", s)[1]
+    assert r["verdict"] == UNDECIDED
+    gap, half = 0.958 - 0.9, 0.958 - 0.897
+    assert r["runs_needed"] == math.ceil(351 * (half / gap) ** 2)
+    assert "97 % intervals, 95 % over the looks" in r["measured"]
+
+
 def test_potential_missing_numbers_are_no_result():
     s = potential_summary()
     s["impulse_fit"]["r2"] = stats.Estimate(math.nan).to_dict()

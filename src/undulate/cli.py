@@ -335,7 +335,7 @@ def reproduce(
     beyond_paper: Optional[bool] = typer.Option(
         None, "--beyond-paper/--paper-only",
         help="Also run the studies beyond the paper (the PRX 2021 synchronization comparisons). "
-             "Default: in --full mode, not in --quick mode."),
+             "Default: the paper's studies only."),
     backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
     device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
 ) -> None:

@@ -99,8 +99,7 @@ def _head(mode: str, statuses: list[dict[str, Any]], total_wall_s: float | None,
     n_ok = sum(1 for s in statuses if s.get("ok"))
     failed = [s["name"] for s in statuses if not s.get("ok")]
     left_out = ([f"<p>Not run here, beyond the paper: {_esc(', '.join(not_run))} (the PRX 2021 comparisons; "
-                 "<code>undulate reproduce --full</code> runs them, as does <code>--beyond-paper</code> in "
-                 "quick mode).</p>"] if not_run else [])
+                 "<code>--beyond-paper</code> runs them, in either mode).</p>"] if not_run else [])
     return ["<!DOCTYPE html><html lang='en'><head><meta charset='utf-8'>",
             "<meta name='viewport' content='width=device-width, initial-scale=1'>",
             f"<title>undulate reproduction ({_esc(mode)})</title><style>{_CSS}</style></head><body>",

@@ -214,6 +214,7 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
             "duration_s": p.duration_s,
             "impulse_fit_abs": list(fit_a),
             "wavelength_m": lam,
+            "interval_level": float(stats.level()),
         },
     )
     return ds
@@ -302,10 +303,12 @@ def _fit_vars(est: dict, n_used, lam: float) -> dict:
         "fit_r2": (("beta", "d_over_2A"), est["r2"][..., 0], {**one, "long_name": "R^2 of the fit"}),
         "stiffness_stderr": (("beta", "d_over_2A"), est["k"][..., 1], {
             "units": "N/m", "long_name": "standard error of k (linregress)"}),
-        "stiffness_ci95": (bound, est["k"][..., 2:], {"units": "N/m", "long_name": "95 % interval of k (t)"}),
+        "stiffness_ci95": (bound, est["k"][..., 2:], {
+            "units": "N/m", "long_name": "interval of k (t) at attrs['interval_level']"}),
         "dx0_ci95": (bound, est["dx0"][..., 2:] / lam, {
-            **one, "long_name": "95 % interval of dx0 / lambda (bootstrap)"}),
-        "fit_r2_ci95": (bound, est["r2"][..., 2:], {**one, "long_name": "95 % interval of R^2 (bootstrap)"}),
+            **one, "long_name": "interval of dx0 / lambda (bootstrap) at attrs['interval_level']"}),
+        "fit_r2_ci95": (bound, est["r2"][..., 2:], {
+            **one, "long_name": "interval of R^2 (bootstrap) at attrs['interval_level']"}),
         "fit_n": (("beta", "d_over_2A"), n_used, {**one, "long_name": "points in the fit"}),
     }
 
@@ -322,7 +325,7 @@ def _coords(p: PotentialPlan, amps, period_time) -> dict:
         "force": ("force", np.asarray(p.forces_N), {"units": "N", "long_name": "applied force dF"}),
         "period_time": ("period_time", period_time, {"units": "s", "long_name": "middle of the gait period"}),
         "channel_width": (("beta", "d_over_2A"), np.outer(2 * amps, R), {"units": "m", "long_name": "d"}),
-        "bound": ("bound", ["low", "high"], {"long_name": "bounds of a 95 % interval"}),
+        "bound": ("bound", ["low", "high"], {"long_name": "bounds of an interval at attrs['interval_level']"}),
     }
 
 
@@ -360,11 +363,12 @@ def summary(ds) -> dict[str, Any]:
     x_scaled = np.broadcast_to(R, k.shape)
     x_metres = ds["channel_width"].values
     sliding = x_scaled >= SLIDING_FROM - 1e-9
+    fit_level = float(ds.attrs.get("interval_level", stats.CONFIDENCE))
     per_beta = {}
     for i, b in enumerate(ds["beta"].values):
         ok = np.isfinite(k[i])
         def est(v, se, ci, unit=1.0):
-            return [stats.Estimate(a * unit, s_ * unit, lo * unit, hi * unit, int(n), m).to_dict()
+            return [stats.Estimate(a * unit, s_ * unit, lo * unit, hi * unit, int(n), m, fit_level).to_dict()
                     for a, s_, (lo, hi), n, m in zip(v, se, ci, ds["fit_n"].values[i],
                                                       [method] * len(v))]
 
@@ -393,6 +397,8 @@ def summary(ds) -> dict[str, Any]:
         "fit_r2_ci95_low_median": float(np.nanmedian(ds["fit_r2_ci95"].values[..., 0])),
         "fit_r2_ci95_high_median": float(np.nanmedian(ds["fit_r2_ci95"].values[..., 1])),
         "n_fits": int(np.isfinite(r2_all).sum()),
+        "n_fit_points": int(np.sum(np.where(np.isfinite(r2_all), ds["fit_n"].values, 0))),
+        "fit_r2_level": fit_level,
         "collapse_rms_log10k_vs_d_over_2A": _collapse_rms(x_scaled.ravel(), logk.ravel()).to_dict(),
         "collapse_rms_log10k_vs_d_m": _collapse_rms(x_metres.ravel(), logk.ravel()).to_dict(),
         "collapse_rms_log10k_vs_d_over_2A_sliding": _collapse_rms(x_scaled[sliding], logk[sliding]).to_dict(),
@@ -421,13 +427,17 @@ def _impulse_linear(s: dict) -> Verdict:
 
 def _harmonic(s: dict) -> Verdict:
     med, low, high = s["median_fit_r2"], s["fit_r2_ci95_low_median"], s["fit_r2_ci95_high_median"]
+    lv = float(s.get("fit_r2_level", stats.CONFIDENCE))
     measured = (f"median R^2 of the {s['n_fits']} dF = k (dx - dx0) fits {med:.3f} "
-                f"(medians of the 95 % bounds {low:.3f}, {high:.3f})")
+                f"(medians of the bounds {low:.3f}, {high:.3f}; {stats.interval_note(lv)})")
     value = {"median_r2": med, "median_r2_low": low, "median_r2_high": high}
     if s["n_fits"] == 0 or not (np.isfinite(low) and np.isfinite(high)):
         return Verdict.none("no fit with an R^2 interval", measured, value)
-    # the typical fit: the median R^2 with the medians of its bounds
-    typical = stats.Estimate(med, float("nan"), low, high, int(s["n_fits"]), "medians over the fits")
+    # the typical fit: the median R^2 with the medians of its bounds.  Each fit's interval rests on its
+    # own points (forces), so more fits do not narrow it: the runs that would decide it are counted on
+    # every point of the fits (more forces per fit), not on the number of fits.
+    typical = stats.Estimate(med, float("nan"), low, high, int(s.get("n_fit_points", s["n_fits"])),
+                             "medians over the fits", lv)
     return Verdict.of([typical.above(R2_MIN, "median R^2")], measured, value)
 
 
