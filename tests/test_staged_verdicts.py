@@ -314,6 +314,22 @@ def test_the_sensitivity_study_reruns_a_look_of_the_groups_and_potential_caps():
     assert len(potential.plan(False).impulse_dphi) > len(sens.impulse_dphi_rad)
 
 
+def test_bootstrap_estimates_carry_the_level_they_were_formed_at():
+    """Inside a look every interval is formed at the look's level, and the estimate must say so (its
+    measured text names the level): the potential study's collapse scatter and stiffness offset."""
+    from undulate.studies import potential
+
+    rng = np.random.default_rng(1)
+    x = np.repeat([0.6, 0.8, 1.0, 1.2, 1.4], 3)
+    logk = -x + 0.05 * rng.standard_normal(x.size)
+    forces = np.array([0.01, 0.02, 0.05, 0.1, 0.2])
+    with stats.at_level(0.975):
+        e = potential._collapse_rms(x, logk)
+        fit = potential.stiffness_fit(forces, 0.01 + forces / 5.0 + 1e-4 * rng.standard_normal(forces.size))
+    assert e.level == 0.975 and fit["dx0"].level == 0.975
+    assert "97.5 % intervals" in stats.interval_note(e.level)
+
+
 def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, monkeypatch):
     """The Warp backend steps the last stage's runs first (a stage costs a GPU about the same at any
     number of worlds); the looks then read them from the stores and must be the staged plan's own:

@@ -128,7 +128,8 @@ def stiffness_fit(dF, dx, valid=None, min_points: int = 3) -> dict[str, stats.Es
         return float(-cc / kk) if kk != 0 else float("nan")
 
     se, lo, hi = stats.bootstrap(dx0_of, x, f)
-    return {"k": fit.slope, "dx0": stats.Estimate(float(-c / k), se, lo, hi, int(f.size), "bootstrap percentile"),
+    return {"k": fit.slope, "dx0": stats.Estimate(float(-c / k), se, lo, hi, int(f.size), "bootstrap percentile",
+                                stats.level()),
             "r2": fit.r2}
 
 
@@ -345,7 +346,7 @@ def _collapse_rms(x, logk) -> stats.Estimate:
     ok = np.isfinite(x) & np.isfinite(logk)
     v = _collapse_rms_value(x, logk)
     se, lo, hi = stats.bootstrap(_collapse_rms_value, x[ok], logk[ok])
-    return stats.Estimate(v, se, lo, hi, int(ok.sum()), "bootstrap percentile")
+    return stats.Estimate(v, se, lo, hi, int(ok.sum()), "bootstrap percentile", stats.level())
 
 
 def summary(ds) -> dict[str, Any]:

@@ -301,7 +301,7 @@ def pair_summary(ds) -> dict[str, Any]:
         se, lo, hi = stats.bootstrap(_median, ratio)
         out["per_controller"][str(c)] = {
             "force_ratio": stats.Estimate(_median(ratio), se, lo, hi, int(ratio.size),
-                                          "median, bootstrap percentile").to_dict(),
+                                          "median, bootstrap percentile", stats.level()).to_dict(),
             "n_held": int((done & hsel).sum()),
             "n_free": int((done & ~hsel).sum()),
             "held_colliding": int((collide & done & hsel).sum()),
