@@ -298,22 +298,6 @@ def test_refined_grids_keep_the_coarse_values_bitwise():
         C.refined(g, 0)
 
 
-def test_the_sensitivity_study_reruns_a_look_of_the_groups_and_potential_caps():
-    """Full mode's caps grew past the grids the sensitivity study reruns (groups: 33 dphi and 40
-    draws; impulse: 37 dphi x 8 phases); those grids must stay a look of the cap, value for value,
-    so that the shared runs are computed once."""
-    from undulate.studies import _sensitivity_design as SD
-    from undulate.studies import groups, potential
-
-    sens = SD.plan(False)
-    g_looks = [(p.dphi_rad, p.draws) for p in groups.stages(False)]
-    assert (sens.group_dphi_rad, sens.group_draws) in g_looks
-    p_looks = [(tuple(p.impulse_dphi), tuple(p.impulse_phi0)) for p in potential.stages(False)]
-    assert (sens.impulse_dphi_rad, sens.impulse_phi0_rad) in p_looks
-    assert len(groups.plan(False).dphi_rad) > len(sens.group_dphi_rad)
-    assert len(potential.plan(False).impulse_dphi) > len(sens.impulse_dphi_rad)
-
-
 def test_bootstrap_estimates_carry_the_level_they_were_formed_at():
     """Inside a look every interval is formed at the look's level, and the estimate must say so (its
     measured text names the level): the potential study's collapse scatter and stiffness offset."""
