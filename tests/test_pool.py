@@ -77,7 +77,10 @@ def test_a_crash_inside_a_warm_pool_is_isolated_as_without_it(tmp_path):
                           workers=2, batch=1, progress=False)
     (f,) = res.failures
     assert f.point["damping_Nms"] == -1.0 and f.error.startswith("WorkerLost")
-    assert res.n_computed == 5 and after.ok
+    # every other run has its result, each computed once: a chunk that finished and wrote its runs just
+    # as the crash broke the pool is found in the store when the lost chunks are rerun (reused, not
+    # computed again), which happens or not with the timing of the crash
+    assert res.n_computed + res.n_reused == 5 and int(res.dataset["run_failed"].sum()) == 1 and after.ok
 
 
 def test_a_sweep_that_wants_more_processes_never_takes_the_pool_from_a_sweep_beside_it(tmp_path):
