@@ -92,8 +92,8 @@ def plan(quick: bool) -> Plan:
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Groups of three and four, and pairs over the same dphi range (the scatter they are compared with)."""
     seed = ctx.config.seed
-    two, three, four = (ctx.shared_sweep(group_part(n), *group_sweep(n, p.pairs if n == 2 else p.dphi_rad, p.draws, seed))
-                         for n in (2, 3, 4))
+    two, three, four = (ctx.shared_sweep(group_part(n), *group_sweep(n, p.pairs if n == 2 else p.dphi_rad,
+                                                                     p.draws, seed)) for n in (2, 3, 4))
     A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
     return groups_dataset({2: two, 3: three, 4: four}, A)
 
@@ -258,10 +258,8 @@ def stages(quick: bool) -> tuple[Plan, ...]:
     if quick:
         s = strides(quick)
         return tuple(Plan(d, max(1, p.draws // k)) for d, k in zip(thinned(p.dphi_rad, s), s))
-    looks = []
-    for d, draws in zip(thinned(p.dphi_rad, FULL_STRIDES), FULL_DRAWS):
-        looks.append(Plan(d, draws, d if len(d) <= len(p.pairs) else p.pairs))
-    return tuple(looks)
+    return tuple(Plan(d, draws, d if len(d) <= len(p.pairs) else p.pairs)
+                 for d, draws in zip(thinned(p.dphi_rad, FULL_STRIDES), FULL_DRAWS))
 
 
 register(Study(
