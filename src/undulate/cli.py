@@ -332,8 +332,8 @@ def reproduce(
     seed: int = typer.Option(0, help="Base random seed."),
     only: Optional[str] = typer.Option(None, "--only", help="Comma-separated study names (default: all)."),
     workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
-    beyond_paper: Optional[bool] = typer.Option(
-        None, "--beyond-paper/--paper-only",
+    beyond_paper: bool = typer.Option(
+        False, "--beyond-paper/--paper-only",
         help="Also run the studies beyond the paper (the PRX 2021 synchronization comparisons). "
              "Default: the paper's studies only."),
     backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),

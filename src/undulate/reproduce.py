@@ -125,12 +125,12 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
 def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None = None, seed: int = 0,
               studies: list[str] | None = None, log: Callable[[str], None] = print,
               animation_s: float | None = None, workers: int | None = None,
-              side_by_side: int | None = None, beyond_paper: bool | None = None) -> tuple[Path, list[dict]]:
+              side_by_side: int | None = None, beyond_paper: bool = False) -> tuple[Path, list[dict]]:
     """Run every registered study (or ``studies``) and write ``out_dir/index.html``.
 
     ``beyond_paper``: also run the studies beyond the reproduced paper (``Study.reference`` not
     ``"paper"``: the PRX 2021 synchronization comparisons, which judge our candidate controllers against
-    another paper).  Default: no, in either mode (a reproduction is the paper's claims, and full mode's
+    another paper).  Not by default, in either mode (a reproduction is the paper's claims, and full mode's
     15-minute budget on 2 cores is theirs; the page says what was left out).
     Ignored when ``studies`` names the studies.
 

@@ -428,7 +428,7 @@ def _impulse_linear(s: dict) -> Verdict:
 
 def _harmonic(s: dict) -> Verdict:
     med, low, high = s["median_fit_r2"], s["fit_r2_ci95_low_median"], s["fit_r2_ci95_high_median"]
-    lv = float(s.get("fit_r2_level", stats.CONFIDENCE))
+    lv = float(s["fit_r2_level"])
     measured = (f"median R^2 of the {s['n_fits']} dF = k (dx - dx0) fits {med:.3f} "
                 f"(medians of the bounds {low:.3f}, {high:.3f}; {stats.interval_note(lv)})")
     value = {"median_r2": med, "median_r2_low": low, "median_r2_high": high}
@@ -437,8 +437,7 @@ def _harmonic(s: dict) -> Verdict:
     # the typical fit: the median R^2 with the medians of its bounds.  Each fit's interval rests on its
     # own points (forces), so more fits do not narrow it: the runs that would decide it are counted on
     # every point of the fits (more forces per fit), not on the number of fits.
-    typical = stats.Estimate(med, float("nan"), low, high, int(s.get("n_fit_points", s["n_fits"])),
-                             "medians over the fits", lv)
+    typical = stats.Estimate(med, float("nan"), low, high, int(s["n_fit_points"]), "medians over the fits", lv)
     return Verdict.of([typical.above(R2_MIN, "median R^2")], measured, value)
 
 
