@@ -280,3 +280,25 @@ def test_the_continued_runs_identity_follows_the_stopped_runs_content():
     assert function_id(functools.partial(fn, resume=a)) != function_id(functools.partial(fn, resume=c))
     sr, end = a.get(point)
     assert len(sr["time"]) == 2 and end.time_s == 0.1  # the record up to the stop, NaN padding dropped
+
+
+@pytest.mark.slow
+def test_xi32_eight_link_pairs_stop_as_the_sensitivity_study_reads_them():
+    """The sensitivity study's N = 8, xi = 3/2 pairs run up to 60 s under PAIR_STOP and are cut at 30 s for
+    the explanation's 30 s case: both cases give the whole 60 s run's answers (cut at 30 s and whole) within
+    the steady tolerance, and the stopped run is that run's bitwise prefix."""
+    from undulate.studies.sensitivity import _cut, _pair_rows, _timestep
+
+    dphi = -math.pi / 2
+    point = {"dphi_rad": dphi, "waves_per_body": 1.5, "n_links": 8, "timestep_s": _timestep(8)}
+    stopped = group_point(point, 0, duration_s=60.0, stop=PAIR_STOP)
+    whole = group_point(point, 0, duration_s=60.0)
+    assert float(stopped["stopped_at_s"]) < 60.0
+    n = _finite_len(stopped["x"].values)
+    np.testing.assert_array_equal(stopped["x"].values[:n], whole["x"].values[:n])
+    lam, amp = float(whole["wavelength"]), 0.05
+    for cut_s in (30.0, 60.0):
+        (dx_a, _, steady_a), (dx_b, _, steady_b) = (_pair_rows(_cut(r, cut_s), dphi, lam, amp)[3]
+                                                   for r in (stopped, whole))
+        assert steady_a == steady_b == 1.0, cut_s
+        assert abs(dx_a - dx_b) <= C.STEADY_TOL, cut_s

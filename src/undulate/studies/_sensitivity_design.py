@@ -30,7 +30,8 @@ __all__ = ["FACTORS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_ca
 
 PAPER_RANGE_HIGH = 1.2
 LONG_S = 60.0
-"""Length of the default xi = 1 runs and the N = 8 xi = 3/2 runs, s (cut short for 20 and 30 s)."""
+"""Length of the default xi = 1 runs (run whole, cut short for 20 and 30 s) and the longest xi = 3/2
+runs at N > 3 (stopped once steady, cut at 30 s), s."""
 DEFAULT_S = 30.0
 CONFINEMENT_S = 40.0
 THIN_BODY_M = 0.003
