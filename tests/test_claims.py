@@ -114,3 +114,23 @@ def test_claims_json_counts_each_reference_apart_and_old_rows_are_the_papers(tmp
     bare = [{k: v for k, v in r.items() if k != "reference"} for r in rows]
     doc = json.loads(write_claims_json(tmp_path, bare).read_text())
     assert doc["counts_by_reference"]["paper"] == doc["counts"]
+
+
+def test_a_claim_decided_at_an_earlier_look_says_so_in_claims_json_and_on_its_page(tmp_path):
+    import json
+
+    from undulate._report_claims import claim_section
+    from undulate.claims import collect, write_claims_json
+
+    at = {"stage": 1, "of": 4, "confidence_level": 0.995, "later_verdicts": ["undecided", "undecided", "fails"]}
+    rows = [_row("pot", "harmonic", "holds", decided_at=at), _row("pot", "last look", "holds",
+                                                                   decided_at={**at, "stage": 4, "later_verdicts": []}),
+            _row("pot", "open", "undecided", decided_at=None)]
+    (tmp_path / "pot.json").write_text(json.dumps({"claims": rows}))
+    got = collect(tmp_path, ["pot"])
+    assert [r["decided_at"] for r in got] == [at, {**at, "stage": 4, "later_verdicts": []}, None]
+    assert json.loads(write_claims_json(tmp_path, got).read_text())["claims"][0]["decided_at"] == at
+    page = "".join(claim_section(got[0], "a", tmp_path))
+    assert "at stage 1 of 4 (99.5 % intervals)" in page and "undecided, undecided, fails" in page
+    assert "<dt>decided</dt>" not in "".join(claim_section(got[1], "b", tmp_path))  # decided at the last look
+    assert "<dt>decided</dt>" not in "".join(claim_section(got[2], "c", tmp_path))

@@ -333,3 +333,40 @@ def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, mon
     assert pre["claims"][0]["verdict"] == plain["claims"][0]["verdict"]
     assert pre["summary"] == plain["summary"]
     assert sum(1 for s in pre["sweeps"] if s.get("prefetch")) == 1
+
+
+def test_a_decided_claim_keeps_its_look_while_the_study_runs_on(tmp_path, staged, monkeypatch):
+    """Two claims in one staged study: the first is decided at the first look (holds: fewer than 10
+    runs) and would fail at the later ones, which run only because the second stays undecided (its true
+    mean sits on its boundary).  The first keeps its first look's row, level and value, marked
+    ``decided_at`` with what the later looks said on their own; the second is the last look's."""
+    from undulate.studies import Claim, Study, Verdict, register, run_study
+    from undulate.studies._registry import _REGISTRY
+
+    def count(s):
+        n = len(s["angles"])
+        return Verdict.judged(n < 10, f"{n} runs", {"n": n})
+
+    def summary(ds):
+        return {**staged.summary(ds), "angles": [float(v) for v in ds["start_angle"].values]}
+
+    monkeypatch.setattr(staged, "REGION", (0.0, 5.0))
+    register(Study(name="_two", description="two claims", plan=lambda quick: staged.damping(24),
+                   stages=lambda quick: tuple(staged.damping(n) for n in staged.STAGE_POINTS),
+                   dataset=staged.dataset, summary=summary, figure=staged._figure,
+                   claims=(Claim("fewer than 10 runs", "toy", "count < 10", count), staged.CLAIM)))
+    try:
+        run_study("_two", tmp_path, workers=1, progress=False)
+    finally:
+        _REGISTRY.pop("_two", None)
+    doc = _doc(tmp_path, "_two")
+    looks = doc["stages"]
+    assert len(looks) == 3  # the mean on its boundary stays undecided to the cap
+    assert [s["verdicts"]["fewer than 10 runs"] for s in looks] == [HOLDS, FAILS, FAILS]
+    first, mean = doc["claims"]
+    assert first["verdict"] == HOLDS and first["value"] == {"n": 6} and first["measured"] == "6 runs"
+    assert first["decided_at"] == {"stage": 1, "of": 3, "confidence_level": stats.look_levels(3)[0],
+                                   "later_verdicts": [FAILS, FAILS]}
+    assert mean["verdict"] == UNDECIDED and mean["decided_at"] is None
+    assert mean["value"]["mean_start_angle"]["n"] == 24  # the last look's
+    assert all(s["undecided"] == [staged.CLAIM.claim] for s in looks)

@@ -113,6 +113,18 @@ def _cause_text(c: dict[str, Any]) -> tuple[str, str]:
     return "", ""
 
 
+def decided_text(at: dict[str, Any] | None) -> str:
+    """"at stage 1 of 4 (99.5 % intervals); the later looks, run for other claims, gave: undecided, …" for
+    a claim decided at a look its study went on past (``decided_at``), else ""."""
+    later = (at or {}).get("later_verdicts") or []
+    if not later:
+        return ""
+    lvl = at.get("confidence_level")
+    level = f" ({100 * lvl:.4g} % intervals)" if isinstance(lvl, (int, float)) else ""
+    return (f"at stage {at.get('stage')} of {at.get('of')}{level}, and kept: a decided claim is not reopened; "
+            f"the later looks, run for other claims, gave on their own: {', '.join(map(str, later))}")
+
+
 def runs_needed_text(c: dict[str, Any]) -> str:
     """"about N runs would decide it" for an undecided row whose ``runs_needed`` is known, else ""."""
     n = c.get("runs_needed")
@@ -218,6 +230,9 @@ def claim_section(c: dict[str, Any], anchor: str, out_dir: Path, back: str = "cl
                    + "</dd>")
     elif c.get("reason") and c.get("reason") not in str(c.get("measured", "")):
         out.append(f"<dt>no result because</dt><dd>{esc(c['reason'])}</dd>")
+    decided = decided_text(c.get("decided_at"))
+    if decided:
+        out.append(f"<dt>decided</dt><dd>{esc(decided)}</dd>")
     if c.get("explanation"):
         out += _evidence(c["explanation"], "cause (shown by the runs)")
     for e in c.get("explanations_not_shown") or []:

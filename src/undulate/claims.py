@@ -27,9 +27,14 @@ undecided claim straddles), ``criterion``, ``reference`` (whose claim it is:
 synchronization through contact, Zhou, Hao & Gravish, Phys. Rev. X 11, 031051
 (2021); a row from a study file written before the field existed counts as
 ``"paper"``), ``runs_needed`` (for ``undecided``: about how many runs would
-decide it, or null), ``explanation`` (for ``explained``: ``cause``,
-``measured`` evidence numbers, ``value``, ``evidence_study``,
-``evidence_figure``, ``shown``; else null) and, when some explanation of the
+decide it, or null), ``decided_at`` (for a claim that holds or fails: the
+look of its study's staged plan that decided it, ``stage``, ``of``,
+``confidence_level``, and the verdicts the study's later looks, run for
+other claims, gave it on their own, ``later_verdicts``; null otherwise, and
+for a study file written before the field existed), ``explanation`` (for
+``explained``: ``cause``, ``measured`` evidence numbers, ``value``,
+``evidence_study``, ``evidence_figure``, ``shown``, ``decided_at``; else
+null) and, when some explanation of the
 claim was tested but not shown, ``explanations_not_shown`` (the same fields,
 ``shown`` false or null).
 
@@ -55,8 +60,8 @@ REFERENCES = ("paper", "prx2021")
 """Whose claims a row judges: the reproduced paper, or beyond it the PRX 2021 synchronization paper
 (:attr:`undulate.studies.Study.reference`)."""
 FIELDS = ("study", "claim", "paper", "measured", "value", "verdict", "reason", "criterion", "reference",
-          "runs_needed")
-_EXPLANATION_FIELDS = ("cause", "measured", "value", "evidence_study", "evidence_figure", "shown")
+          "runs_needed", "decided_at")
+_EXPLANATION_FIELDS = ("cause", "measured", "value", "evidence_study", "evidence_figure", "shown", "decided_at")
 
 
 def reference_of(row: dict[str, Any]) -> str:

@@ -654,12 +654,31 @@ def _prefetch(info: Study, ctx: "StudyContext", plans: tuple[Any, ...]) -> dict[
             "n_computed": sum(s["n_computed"] for s in mine), "wall_s": time.perf_counter() - t0}
 
 
+def _keep_decided(rows: list[dict[str, Any]], decided: dict[Any, dict[str, Any]], key: Callable[[dict], Any],
+                  is_decided: Callable[[dict], bool], look: dict[str, Any]) -> list[dict[str, Any]]:
+    """``rows`` of this look with every row decided at an earlier look replaced by that look's row
+    (``decided``, updated with the rows this look decides, each marked ``decided_at``: the look's
+    ``stage``, ``of`` and ``confidence_level``).  A claim or explanation is decided once, as in a
+    group-sequential design: the later looks run for what is still open and never reopen it."""
+    out = []
+    for r in rows:
+        k = key(r)
+        if k not in decided and is_decided(r):
+            decided[k] = {**r, "decided_at": dict(look)}
+        out.append(decided.get(k, {**r, "decided_at": None}))
+    return out
+
+
 def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress: bool) -> Path:
     """Run the study's stages until nothing it judges is undecided (or the last stage ran).
 
     Look k of K forms its intervals at :func:`undulate.stats.look_levels`\\ (K)[k] (Bonferroni over
     the looks, so a verdict taken at any look keeps the family-wise 95 %); the runs of every earlier
-    stage are reused by the sweeps (content-keyed stores).  The study's files hold the last look.
+    stage are reused by the sweeps (content-keyed stores).  A claim that holds or fails at a look, and
+    an explanation shown or refuted there, keeps that look's row (``decided_at``) however the later
+    looks, run for what is still undecided, would judge it: the decision is the one the error rate
+    was spent on (:func:`_keep_decided`).  Each look's own verdicts are in ``stages``.  The study's
+    files hold the last look.
     """
     from .. import _physics
 
@@ -668,6 +687,8 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     plans = stage_plans(info, config.quick)
     levels = stats.look_levels(len(plans))
     looks: list[dict[str, Any]] = []
+    decided_claims: dict[Any, dict[str, Any]] = {}
+    decided_explanations: dict[Any, dict[str, Any]] = {}
     with _physics.meter() as here:  # what this process simulates (serial sweeps, direct runs)
         prefetched = _prefetch(info, ctx, plans)
         for k, (plan, level) in enumerate(zip(plans, levels), start=1):
@@ -678,16 +699,25 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
                 claims = [{**c, "reference": info.reference} for c in judge(name, info.claims, summary)]
                 explanations = [{**e, "needed": ctx.needs_explanation(e["study"], e["claim"])}
                                 for e in explain(name, info.explanations, summary)]
+            verdicts = {c["claim"]: c["verdict"] for c in claims}  # this look's own
+            at = {"stage": k, "of": len(plans), "confidence_level": level}
+            claims = _keep_decided(claims, decided_claims, lambda c: c["claim"],
+                                   lambda c: c["verdict"] in (HOLDS, FAILS), at)
+            explanations = _keep_decided(explanations, decided_explanations, lambda e: (e["study"], e["claim"]),
+                                         lambda e: e["shown"] is not None, at)
             still = _open(claims, explanations, _growth_left(len(plans), k, config.quick))
             mine = ctx.sweeps[first:]
-            looks.append({"stage": k, "of": len(plans), "confidence_level": level,
-                          "n_runs": sum(s["n_runs"] for s in mine),
+            looks.append({**at, "n_runs": sum(s["n_runs"] for s in mine),
                           "n_computed": sum(s["n_computed"] for s in mine),
-                          "verdicts": {c["claim"]: c["verdict"] for c in claims}, "undecided": still,
+                          "verdicts": verdicts, "undecided": still,
                           "futile": [c["claim"] for c in claims
                                      if c["verdict"] == UNDECIDED and c["claim"] not in still]})
             if not still:
                 break
+    claims = [c if c["decided_at"] is None else
+              {**c, "decided_at": {**c["decided_at"], "later_verdicts": [s["verdicts"].get(c["claim"]) for s in
+                                                                         looks[c["decided_at"]["stage"]:]]}}
+              for c in claims]
     _check_units(name, ds)
     figure = info.figure(ds)
     timing = _timing(ctx, here, time.thread_time() - cpu0)  # the files' writing is left out
