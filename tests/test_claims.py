@@ -122,15 +122,17 @@ def test_a_claim_decided_at_an_earlier_look_says_so_in_claims_json_and_on_its_pa
     from undulate._report_claims import claim_section
     from undulate.claims import collect, write_claims_json
 
-    at = {"stage": 1, "of": 4, "confidence_level": 0.995, "later_verdicts": ["undecided", "undecided", "fails"]}
-    rows = [_row("pot", "harmonic", "holds", decided_at=at), _row("pot", "last look", "holds",
-                                                                   decided_at={**at, "stage": 4, "later_verdicts": []}),
+    at = {"stage": 1, "of": 4, "confidence_level": 0.995, "measured_at_stage": 1,
+          "later_verdicts": ["undecided", "undecided", "fails"]}
+    agreed = {**at, "measured_at_stage": 4, "later_verdicts": ["holds"] * 3}  # every later look agreed
+    rows = [_row("pot", "harmonic", "holds", decided_at=at), _row("pot", "agreed", "holds", decided_at=agreed),
             _row("pot", "open", "undecided", decided_at=None)]
     (tmp_path / "pot.json").write_text(json.dumps({"claims": rows}))
     got = collect(tmp_path, ["pot"])
-    assert [r["decided_at"] for r in got] == [at, {**at, "stage": 4, "later_verdicts": []}, None]
+    assert [r["decided_at"] for r in got] == [at, agreed, None]
     assert json.loads(write_claims_json(tmp_path, got).read_text())["claims"][0]["decided_at"] == at
     page = "".join(claim_section(got[0], "a", tmp_path))
-    assert "at stage 1 of 4 (99.5 % intervals)" in page and "undecided, undecided, fails" in page
-    assert "<dt>decided</dt>" not in "".join(claim_section(got[1], "b", tmp_path))  # decided at the last look
+    assert "holds at stage 1 of 4 (99.5 % intervals), measured as of stage 1" in page
+    assert "undecided, undecided, fails" in page
+    assert "<dt>decided</dt>" not in "".join(claim_section(got[1], "b", tmp_path))  # nothing to tell
     assert "<dt>decided</dt>" not in "".join(claim_section(got[2], "c", tmp_path))

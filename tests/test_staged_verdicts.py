@@ -335,26 +335,29 @@ def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, mon
     assert sum(1 for s in pre["sweeps"] if s.get("prefetch")) == 1
 
 
-def test_a_decided_claim_keeps_its_look_while_the_study_runs_on(tmp_path, staged, monkeypatch):
-    """Two claims in one staged study: the first is decided at the first look (holds: fewer than 10
-    runs) and would fail at the later ones, which run only because the second stays undecided (its true
-    mean sits on its boundary).  The first keeps its first look's row, level and value, marked
-    ``decided_at`` with what the later looks said on their own; the second is the last look's."""
+def test_a_decided_claim_stays_decided_while_the_study_runs_on(tmp_path, staged, monkeypatch):
+    """Three claims in one staged study, the last undecided to the cap (its true mean sits on its
+    boundary), so every look runs.  One is decided at the first look (holds: fewer than 10 runs) and
+    would fail at the later ones: it keeps its first look's row, level and value.  One holds at every
+    look: decided at the first, its row is the last look's (the most runs).  Each is marked
+    ``decided_at`` with what the later looks said on their own; the undecided one is the last look's."""
     from undulate.studies import Claim, Study, Verdict, register, run_study
     from undulate.studies._registry import _REGISTRY
 
-    def count(s):
+    def count(s, below):
         n = len(s["angles"])
-        return Verdict.judged(n < 10, f"{n} runs", {"n": n})
+        return Verdict.judged(n < below, f"{n} runs", {"n": n})
 
     def summary(ds):
         return {**staged.summary(ds), "angles": [float(v) for v in ds["start_angle"].values]}
 
     monkeypatch.setattr(staged, "REGION", (0.0, 5.0))
-    register(Study(name="_two", description="two claims", plan=lambda quick: staged.damping(24),
+    register(Study(name="_two", description="three claims", plan=lambda quick: staged.damping(24),
                    stages=lambda quick: tuple(staged.damping(n) for n in staged.STAGE_POINTS),
                    dataset=staged.dataset, summary=summary, figure=staged._figure,
-                   claims=(Claim("fewer than 10 runs", "toy", "count < 10", count), staged.CLAIM)))
+                   claims=(Claim("fewer than 10 runs", "toy", "count < 10", lambda s: count(s, 10)),
+                           Claim("fewer than 100 runs", "toy", "count < 100", lambda s: count(s, 100)),
+                           staged.CLAIM)))
     try:
         run_study("_two", tmp_path, workers=1, progress=False)
     finally:
@@ -363,10 +366,14 @@ def test_a_decided_claim_keeps_its_look_while_the_study_runs_on(tmp_path, staged
     looks = doc["stages"]
     assert len(looks) == 3  # the mean on its boundary stays undecided to the cap
     assert [s["verdicts"]["fewer than 10 runs"] for s in looks] == [HOLDS, FAILS, FAILS]
-    first, mean = doc["claims"]
+    first, always, mean = doc["claims"]
+    levels = stats.look_levels(3)
     assert first["verdict"] == HOLDS and first["value"] == {"n": 6} and first["measured"] == "6 runs"
-    assert first["decided_at"] == {"stage": 1, "of": 3, "confidence_level": stats.look_levels(3)[0],
+    assert first["decided_at"] == {"stage": 1, "of": 3, "confidence_level": levels[0], "measured_at_stage": 1,
                                    "later_verdicts": [FAILS, FAILS]}
+    assert always["verdict"] == HOLDS and always["value"] == {"n": 24}
+    assert always["decided_at"] == {"stage": 1, "of": 3, "confidence_level": levels[0], "measured_at_stage": 3,
+                                    "later_verdicts": [HOLDS, HOLDS]}
     assert mean["verdict"] == UNDECIDED and mean["decided_at"] is None
     assert mean["value"]["mean_start_angle"]["n"] == 24  # the last look's
     assert all(s["undecided"] == [staged.CLAIM.claim] for s in looks)

@@ -113,16 +113,19 @@ def _cause_text(c: dict[str, Any]) -> tuple[str, str]:
     return "", ""
 
 
-def decided_text(at: dict[str, Any] | None) -> str:
-    """"at stage 1 of 4 (99.5 % intervals); the later looks, run for other claims, gave: undecided, …" for
-    a claim decided at a look its study went on past (``decided_at``), else ""."""
-    later = (at or {}).get("later_verdicts") or []
-    if not later:
+def decided_text(c: dict[str, Any]) -> str:
+    """For a claim decided at a look its study went on past, where some later look on its own did not
+    decide it the same way (``decided_at``): "at stage 1 of 4 (99.5 % intervals), …"; else ""."""
+    at = c.get("decided_at") or {}
+    later = at.get("later_verdicts") or []
+    verdict = "fails" if c.get("verdict") == "explained" else c.get("verdict")
+    if all(v == verdict for v in later):
         return ""
     lvl = at.get("confidence_level")
     level = f" ({100 * lvl:.4g} % intervals)" if isinstance(lvl, (int, float)) else ""
-    return (f"at stage {at.get('stage')} of {at.get('of')}{level}, and kept: a decided claim is not reopened; "
-            f"the later looks, run for other claims, gave on their own: {', '.join(map(str, later))}")
+    return (f"{verdict} at stage {at.get('stage')} of {at.get('of')}{level}, measured as of stage "
+            f"{at.get('measured_at_stage', at.get('stage'))}, and kept: a decided claim is not reopened; the "
+            f"later looks, run for other claims, gave on their own: {', '.join(map(str, later))}")
 
 
 def runs_needed_text(c: dict[str, Any]) -> str:
@@ -230,7 +233,7 @@ def claim_section(c: dict[str, Any], anchor: str, out_dir: Path, back: str = "cl
                    + "</dd>")
     elif c.get("reason") and c.get("reason") not in str(c.get("measured", "")):
         out.append(f"<dt>no result because</dt><dd>{esc(c['reason'])}</dd>")
-    decided = decided_text(c.get("decided_at"))
+    decided = decided_text(c)
     if decided:
         out.append(f"<dt>decided</dt><dd>{esc(decided)}</dd>")
     if c.get("explanation"):

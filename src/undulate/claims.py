@@ -29,9 +29,11 @@ synchronization through contact, Zhou, Hao & Gravish, Phys. Rev. X 11, 031051
 ``"paper"``), ``runs_needed`` (for ``undecided``: about how many runs would
 decide it, or null), ``decided_at`` (for a claim that holds or fails: the
 look of its study's staged plan that decided it, ``stage``, ``of``,
-``confidence_level``, and the verdicts the study's later looks, run for
-other claims, gave it on their own, ``later_verdicts``; null otherwise, and
-for a study file written before the field existed), ``explanation`` (for
+``confidence_level``; the look whose numbers the row shows,
+``measured_at_stage``, the last that decided it the same way; and the
+verdicts the study's later looks, run for other claims, gave it on their
+own, ``later_verdicts``; null otherwise, and for a study file written before
+the field existed), ``explanation`` (for
 ``explained``: ``cause``, ``measured`` evidence numbers, ``value``,
 ``evidence_study``, ``evidence_figure``, ``shown``, ``decided_at``; else
 null) and, when some explanation of the

@@ -655,16 +655,25 @@ def _prefetch(info: Study, ctx: "StudyContext", plans: tuple[Any, ...]) -> dict[
 
 
 def _keep_decided(rows: list[dict[str, Any]], decided: dict[Any, dict[str, Any]], key: Callable[[dict], Any],
-                  is_decided: Callable[[dict], bool], look: dict[str, Any]) -> list[dict[str, Any]]:
-    """``rows`` of this look with every row decided at an earlier look replaced by that look's row
-    (``decided``, updated with the rows this look decides, each marked ``decided_at``: the look's
-    ``stage``, ``of`` and ``confidence_level``).  A claim or explanation is decided once, as in a
-    group-sequential design: the later looks run for what is still open and never reopen it."""
+                  decision: Callable[[dict], Any], look: dict[str, Any]) -> list[dict[str, Any]]:
+    """``rows`` of this look, with every claim (or explanation) decided at an earlier look kept decided,
+    as in a group-sequential design: the later looks run for what is still open and never reopen it.
+
+    ``decision(row)``: the row's decision (e.g. ``holds`` / ``fails``), None while open.  The first look
+    that decides a row marks it ``decided_at`` (that look's ``stage``, ``of`` and ``confidence_level``);
+    a later look that decides it the same way, on more runs, replaces the row shown (its
+    ``measured_at_stage``), and one that does not leaves the deciding row as it was.  Every look's
+    intervals are valid at its level with the family-wise 95 % over the looks (Bonferroni), so any look
+    that decides it may stand for it.  ``decided`` (key -> row) is updated in place."""
     out = []
     for r in rows:
-        k = key(r)
-        if k not in decided and is_decided(r):
-            decided[k] = {**r, "decided_at": dict(look)}
+        k, d = key(r), decision(r)
+        if k in decided:
+            first = decided[k]
+            if d is not None and d == decision(first):
+                decided[k] = {**r, "decided_at": {**first["decided_at"], "measured_at_stage": look["stage"]}}
+        elif d is not None:
+            decided[k] = {**r, "decided_at": {**look, "measured_at_stage": look["stage"]}}
         out.append(decided.get(k, {**r, "decided_at": None}))
     return out
 
@@ -675,9 +684,9 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     Look k of K forms its intervals at :func:`undulate.stats.look_levels`\\ (K)[k] (Bonferroni over
     the looks, so a verdict taken at any look keeps the family-wise 95 %); the runs of every earlier
     stage are reused by the sweeps (content-keyed stores).  A claim that holds or fails at a look, and
-    an explanation shown or refuted there, keeps that look's row (``decided_at``) however the later
-    looks, run for what is still undecided, would judge it: the decision is the one the error rate
-    was spent on (:func:`_keep_decided`).  Each look's own verdicts are in ``stages``.  The study's
+    an explanation shown or refuted there, stays decided however the later looks, run for what is still
+    undecided, would judge it; its row is the last look's that decided it the same way
+    (:func:`_keep_decided`: ``decided_at``).  Each look's own verdicts are in ``stages``.  The study's
     files hold the last look.
     """
     from .. import _physics
@@ -702,9 +711,9 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
             verdicts = {c["claim"]: c["verdict"] for c in claims}  # this look's own
             at = {"stage": k, "of": len(plans), "confidence_level": level}
             claims = _keep_decided(claims, decided_claims, lambda c: c["claim"],
-                                   lambda c: c["verdict"] in (HOLDS, FAILS), at)
+                                   lambda c: c["verdict"] if c["verdict"] in (HOLDS, FAILS) else None, at)
             explanations = _keep_decided(explanations, decided_explanations, lambda e: (e["study"], e["claim"]),
-                                         lambda e: e["shown"] is not None, at)
+                                         lambda e: e["shown"], at)
             still = _open(claims, explanations, _growth_left(len(plans), k, config.quick))
             mine = ctx.sweeps[first:]
             looks.append({**at, "n_runs": sum(s["n_runs"] for s in mine),
