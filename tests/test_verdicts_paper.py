@@ -135,7 +135,7 @@ def test_confinement_is_exact():
 # ------------------------------------------------------------------ potential
 def potential_summary(r2=(0.95, 0.92, 0.99), a=(4.0, 2.5, 5.5), fit_r2=(0.99, 0.978, 1.0),
                       rho=((-1.0, -1.0, -1.0),) * 3, collapse=((0.2, 0.1, 0.3), (0.6, 0.45, 0.75))):
-    return {"impulse_fit": {"slope_Ns_per_rad": est(*a), "r2": est(*r2)},
+    return {"impulse_fit": {"slope_Ns_per_rad": est(*a), "r2": est(*r2), "r2_without_phase_scatter": est(*r2)},
             "median_fit_r2": fit_r2[0], "fit_r2_ci95_low_median": fit_r2[1], "fit_r2_ci95_high_median": fit_r2[2],
             "n_fits": 9, "n_fit_points": 45, "fit_r2_level": stats.CONFIDENCE,
             "per_beta": {b: {"spearman_k_vs_d": est(*r, n=3)} for b, r in zip(("30", "45", "60"), rho)},
