@@ -353,11 +353,12 @@ def _r2_without_scatter_value(x, y, noise_var) -> float:
     """R^2 of the line of ``y`` on ``x`` with the measurement noise of ``y`` taken out of both the
     residual and the total variance (``noise_var``: each point's noise variance): the share of the
     variance of the noise-free ``y`` the line would explain (the correction for attenuation), at most 1."""
-    slope, intercept = np.polyfit(x, y, 1)
+    slope, intercept, _ = fit_abs_linear(x, y)  # x >= 0 here: the line on |dphi|; NaN when degenerate
     noise = float(np.mean(noise_var))
     res = float(np.mean((y - (slope * x + intercept)) ** 2)) - noise
     tot = float(np.var(y)) - noise
-    return min(1.0, 1.0 - res / tot) if tot > 0 else math.nan  # a share: a residual below the noise is 1
+    # a share: a residual below the noise is 1 (np.minimum keeps a NaN a NaN, as min() would not)
+    return float(np.minimum(1.0, 1.0 - res / tot)) if tot > 0 else math.nan
 
 
 def impulse_r2_without_phase_scatter(dphi, impulse_all) -> stats.Estimate:
