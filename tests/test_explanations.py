@@ -272,9 +272,16 @@ RISING = ([0.03, 0.035, 0.04, 0.05], [(0.028, 0.032), (0.033, 0.037), (0.038, 0.
 FALLING = ([0.009, 0.003, 0.0007, 0.001], [(0.007, 0.011), (0.002, 0.004), (0.0004, 0.0009), (0.0008, 0.0012)])
 
 
-@pytest.mark.parametrize("guided_x, alone, shown", [(FALLING, RISING, True), (RISING, RISING, False),
-                                                    (FALLING, FALLING, False), (FALLING, FLAT, None),
-                                                    (FLAT, RISING, None)])
+WIDE_FLAT = ([0.03, 0.035, 0.03, 0.035], [(0.01, 0.09)] * 4)  # flat, too uncertain to tell from a modest fall
+MODEST = ([0.03, 0.02, 0.015, 0.012], [(0.022, 0.038), (0.015, 0.025), (0.011, 0.019), (0.009, 0.015)])  # holds
+
+
+@pytest.mark.parametrize("guided_x, alone, shown", [
+    (FALLING, RISING, True), (RISING, RISING, False),
+    (FALLING, FALLING, False),  # a partial change alone makes the trend: not this cause
+    (FALLING, FLAT, True),  # a flat control: its own criterion never decides, the contrast does (fall ratio ~10)
+    (MODEST, WIDE_FLAT, None),  # the contrast straddles: more runs would tell
+    (FLAT, RISING, None)])
 def test_links_explanation_needs_both_changes_and_neither_alone(guided_x, alone, shown):
     sets = {"links": _links_set("links", *RISING), "links-x": _links_set("links-x", *alone),
             "links-guided": _links_set("links-guided", *RISING),
@@ -283,6 +290,28 @@ def test_links_explanation_needs_both_changes_and_neither_alone(guided_x, alone,
         assert e.check({"links_sets": sets})[0] is shown
     del sets["links-x"]
     assert links.EXPLANATIONS[0].check({"links_sets": sets})[0] is False  # a set missing: not shown
+
+
+def test_links_contrast_is_a_log_ratio_test_at_the_looks_level():
+    """The control's fall against the two-change set's: the difference of log(RMS_9 / RMS_3), each RMS's
+    interval read as a normal interval on a log scale, decided at the look's level (a wider interval at a
+    stricter level can straddle what 95 % decides)."""
+    fix, flat = _links_set("links-guided-x", *FALLING), _links_set("links", *FLAT)
+    state, d, lo, hi = links.weaker_fall(flat, fix)
+    z = 1.959963984540054
+    se = math.hypot(*(math.log(h / lo_) / (2 * z) for lo_, h in ((0.02, 0.04), (0.02, 0.04), (0.007, 0.011),
+                                                                  (0.0008, 0.0012))))
+    assert d == pytest.approx(math.log((0.035 / 0.03) / (0.001 / 0.009)))
+    assert (lo, hi) == pytest.approx((d - z * se, d + z * se))
+    assert state is True and links.weaker_fall(fix, flat)[0] is False  # the other way round: decisively less
+    assert links.weaker_fall(fix, fix)[0] is None
+    modest, wide = _links_set("links-guided-x", *MODEST), _links_set("links", *WIDE_FLAT)
+    assert links.weaker_fall(wide, modest)[0] is None
+    s_lo = links.weaker_fall(_links_set("links", [0.03, 0.035, 0.03, 0.035], [(0.02, 0.045)] * 4), modest)
+    assert s_lo[0] is True  # narrower control intervals decide it at 95 % ...
+    with stats.at_level(0.9999):  # ... and not at a much stricter look level
+        assert links.weaker_fall(_links_set("links", [0.03, 0.035, 0.03, 0.035], [(0.02, 0.045)] * 4),
+                                 modest)[0] is None
 
 
 def test_the_link_number_criterion_is_judged_on_the_intervals():

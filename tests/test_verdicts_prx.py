@@ -222,13 +222,22 @@ def test_impulse_explanation_is_three_valued(default, ok8, ok16, shown):
     assert e.check({"impulse": {"by_drag": rows}})[0] is shown
 
 
+_RMS = {True: ([0.009, 0.003, 0.0007, 0.001], [(0.007, 0.011), (0.002, 0.004), (0.0004, 0.0009), (0.0008, 0.0012)]),
+        False: ([0.03, 0.035, 0.04, 0.05], [(0.028, 0.032), (0.033, 0.037), (0.038, 0.042), (0.048, 0.052)]),
+        None: ([0.03, 0.035, 0.03, 0.035], [(0.02, 0.04)] * 4)}  # falling (holds), rising (fails), flat
+
+
 def _links_set(claim, falls):
-    return {"label": S.LINK_SETS[claim], "n_links": [3, 5], "amplitude_m": [0.05] * 2, "wavelength_over_L": [0.93] * 2,
-            "rms_residual_over_lambda": [E(0.01, 0.008, 0.012).to_dict()] * 2, "falls": falls}
+    values, intervals = _RMS[falls]
+    rms = [stats.Estimate(v, math.nan, lo, hi) for v, (lo, hi) in zip(values, intervals)]
+    assert S.C.falls_with_links(rms) is falls
+    return {"label": S.LINK_SETS[claim], "n_links": [3, 5, 7, 9], "amplitude_m": [0.05] * 4,
+            "wavelength_over_L": [0.93] * 4, "rms_residual_over_lambda": [e.to_dict() for e in rms], "falls": falls}
 
 
 @pytest.mark.parametrize("guided_x, others, shown", [
-    (True, False, True), (None, False, None), (True, None, None), (False, None, False), (True, True, False)])
+    (True, False, True), (None, False, None), (False, None, False), (True, True, False),
+    (True, None, True)])  # flat controls: decided by their fall against the two-change set's, not left undecided
 def test_links_explanation_is_three_valued(guided_x, others, shown):
     sets = {k: _links_set(k, others) for k in ("links", "links-x", "links-guided")}
     sets["links-guided-x"] = _links_set("links-guided-x", guided_x)

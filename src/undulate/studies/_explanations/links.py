@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import math
+
 from ... import stats
 from .._sensitivity_design import CaseId, CaseSet, Plan
-from ._protocol import CaseExplanation, CaseResults, Shown, all_of, negate, state_word
+from ._protocol import CaseExplanation, CaseResults, Shown, all_of, state_word
 
 LINK_SETS = (CaseSet.LINKS, CaseSet.LINKS_X, CaseSet.LINKS_GUIDED, CaseSet.LINKS_GUIDED_X)
 """The four link-number sets, each over the plan's N: equal-A with lambda = L and lambda_x; the same with
@@ -21,8 +23,9 @@ CAUSE = (
     "not L. The links study's amplitude rules also change A, and so the confinement, with N. Shown only if, with "
     "A held at the 3-link value (equal-A rule), the yaw recoil removed by a heading guide (only that changed in "
     "the model) and the line drawn with the lambda_x measured in the runs, the error falls with N by the claim's "
-    "own criterion, while the equal-A runs with lambda = L or lambda_x, and the recoil-free runs with lambda = L, "
-    "do not.")
+    "own criterion, while in the equal-A runs with lambda = L or lambda_x, and the recoil-free runs with lambda = L, "
+    "it does not hold and its fall from N = 3 to the largest N is decisively smaller (a partial change does not "
+    "make the trend).")
 
 
 def _text(entry: dict) -> str:
@@ -32,21 +35,66 @@ def _text(entry: dict) -> str:
             + f" (falls: {state_word(entry['falls'], entry.get('falls_verdict'))})")
 
 
+def _log_fall(entry: dict) -> tuple[float, float]:
+    """``log(RMS at the largest N / RMS at N = 3)`` of a link-number set and its standard error: each
+    RMS's own interval read on a log scale (half its log width over the normal quantile of its level),
+    the two added in quadrature (independent runs).  NaNs where an interval is missing or not positive."""
+    E = stats.Estimate.from_dict
+    ends = [E(entry["rms_residual_over_lambda"][i]) for i in (0, -1)]
+    if not all(e.has_interval and e.low > 0 and e.value > 0 for e in ends):
+        return math.nan, math.nan
+    from scipy.stats import norm
+
+    se = [(math.log(e.high) - math.log(e.low)) / (2 * norm.ppf(0.5 + e.level / 2)) for e in ends]
+    return math.log(ends[1].value / ends[0].value), math.hypot(*se)
+
+
+def weaker_fall(control: dict, fix: dict) -> tuple[bool | None, float, float, float]:
+    """Whether ``control``'s fall with N is decisively smaller than ``fix``'s: the difference of their log
+    falls (:func:`_log_fall`), ``d``, with its interval at the level of this look
+    (:func:`undulate.stats.level`, two-sided, normal); True when the interval lies above 0, False when
+    below, None when it straddles 0 (or a number is missing).  Returns ``(state, d, low, high)``."""
+    (lc, sc), (lf, sf) = _log_fall(control), _log_fall(fix)
+    d, se = lc - lf, math.hypot(sc, sf)
+    if not (math.isfinite(d) and math.isfinite(se)):
+        return None, math.nan, math.nan, math.nan
+    from scipy.stats import norm
+
+    half = float(norm.ppf(0.5 + stats.level() / 2)) * se
+    lo, hi = d - half, d + half
+    return (True if lo > 0 else False if hi < 0 else None), d, lo, hi
+
+
+def _partial(control: dict, fix: dict) -> tuple[bool | None, str]:
+    """A partial change does not make the trend: its own criterion does not hold (False if it does) and
+    its fall is decisively smaller than with both changes (:func:`weaker_fall`).  Undecided while the
+    contrast straddles.  A flat trend can never be decided ``fails`` by the claim's own criterion (its
+    value sits on the boundary), so the contrast, not that criterion, decides the control."""
+    state, d, lo, hi = weaker_fall(control, fix)
+    n = control["n_links"]
+    text = (f"its RMS ratio N = {n[-1]} / N = {n[0]} is {math.exp(d):.3g} [{math.exp(lo):.3g}, {math.exp(hi):.3g}] "
+            f"times the two-change set's ({stats.interval_note()}; decisively larger: {state_word(state)})"
+            if math.isfinite(d) else "its RMS ratio against the two-change set's: n/a")
+    return (False if control["falls"] is True else state), text
+
+
 def judge(r: CaseResults) -> Shown:
     """Shown: the trend appears when the bodies are what the compatibility model assumes (no recoil,
-    lambda the wavelength along the channel), and neither change alone makes it appear; undecided while
-    one of the four trends is (overlapping intervals, or one missing)."""
+    lambda the wavelength along the channel: the claim's own criterion holds), and neither partial change
+    makes it (:func:`_partial`: the criterion does not hold there and the fall from N = 3 to the largest N
+    is decisively smaller than with both changes); undecided while one of these straddles (or a set is
+    missing a number); not shown when a set is missing."""
     sets = {s: r.link_set(s) for s in LINK_SETS}
     if any(v is None for v in sets.values()):
         return False, "not every link-number set (equal-A; lambda = L and lambda_x; recoil and none) in this plan", None
     guided, guided_x = sets[CaseSet.LINKS_GUIDED], sets[CaseSet.LINKS_GUIDED_X]
-    measured = ("; ".join(_text(v) for v in sets.values()) + " (A = "
-                + ", ".join(f"{a * 1000:.1f}" for a in guided["amplitude_m"]) + " mm with the recoil removed; "
-                "lambda_x / L " + ", ".join(f"{v:.3f}" for v in guided_x["wavelength_over_L"]) + ")")
+    partial = {s: _partial(sets[s], guided_x) for s in LINK_SETS[:3]}
+    measured = ("; ".join(_text(v) + (f", {partial[s][1]}" if s in partial else "") for s, v in sets.items())
+                + " (A = " + ", ".join(f"{a * 1000:.1f}" for a in guided["amplitude_m"]) + " mm with the recoil "
+                "removed; lambda_x / L " + ", ".join(f"{v:.3f}" for v in guided_x["wavelength_over_L"]) + ")")
     falls = {s.value: v["falls"] for s, v in sets.items()}
-    shown = all_of(falls["links-guided-x"], negate(falls["links"]), negate(falls["links-x"]),
-                   negate(falls["links-guided"]))
-    return shown, measured, falls
+    shown = all_of(falls["links-guided-x"], *(state for state, _ in partial.values()))
+    return shown, measured, {**falls, **{f"{s.value}_partial": state for s, (state, _) in partial.items()}}
 
 
 EXPLANATIONS = tuple(
