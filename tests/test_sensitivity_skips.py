@@ -25,10 +25,11 @@ A3 = 0.05
 class FakeContext:
     """Records every sweep and lone swimmer asked for; answers the default lone swimmer only."""
 
-    def __init__(self, not_needed: set[str]):
+    def __init__(self, not_needed: set[str], quick: bool = True, decided: dict | None = None):
         self.not_needed = not_needed  # explanation studies whose claims hold
         self.calls: list[tuple] = []
-        self.config = SimpleNamespace(seed=0, quick=True)
+        self.config = SimpleNamespace(seed=0, quick=quick)
+        self.decided_explanations = decided or {}  # (study, claim) -> the look that decided it
 
     def needs_explanation(self, study: str, claim: str) -> bool:
         return study not in self.not_needed
@@ -183,3 +184,53 @@ def test_each_group_marks_only_its_rows(group, monkeypatch):
         if mine:
             assert row["shown"] is None
     assert any(t.get("reason") == S.NOT_RUN for t in s["table"])
+
+
+def test_frozen_groups_are_those_whose_needed_explanations_are_all_decided():
+    from undulate.studies._explanations import links as XL
+    from undulate.studies._explanations import xi32 as X32
+
+    every = lambda study, claim: True  # noqa: E731
+    links_at = {(e.study, e.claim): 1 for e in XL.EXPLANATIONS}
+    assert S.frozen_groups(every, {}) == {}
+    assert S.frozen_groups(every, links_at) == {"links": 1}
+    # one of the two links explanations still open: the group runs on
+    assert S.frozen_groups(every, dict(list(links_at.items())[:1])) == {}
+    # decided at different looks: the latest look's plan
+    later = {**links_at, (XL.EXPLANATIONS[1].study, XL.EXPLANATIONS[1].claim): 2,
+             **{(e.study, e.claim): 1 for e in X32.EXPLANATIONS}}
+    assert S.frozen_groups(every, later) == {"links": 2, "xi32": 1}
+    # a group no needed explanation reads is skipped, not frozen
+    assert S.frozen_groups(lambda study, claim: study != "links", links_at) == {}
+
+
+@pytest.mark.parametrize("decided", [False, True])
+def test_a_frozen_group_keeps_the_plan_of_the_look_that_decided_it(decided, monkeypatch):
+    """Full mode's second look with the links explanations decided at the first: the links steps run on
+    the first look's plan (its dphi: runs already made), and their cases sit on the second look's dphi
+    axis with NaN where the first look ran nothing; undecided, they run on the second look's plan."""
+    from undulate.studies._explanations import links as XL
+
+    _stub_running_groups(monkeypatch)
+    seen = []
+
+    def links_step(r):  # every links case, in pair_cases order, rows of ones on the runs' dphi
+        seen.append(np.asarray(r.dphis))
+        return [r.case(c, "f", str(c), np.ones((len(r.dphis), 3)))
+                for c in pair_cases(r.p) if S.FACTOR_GROUPS.get(c.case_set) == "links"]
+
+    monkeypatch.setattr(S, "_data_links_equal_a", links_step)
+    monkeypatch.setattr(S, "_data_links_guided", lambda r: [])
+    first, second = S.stages(False)[:2]
+    assert len(second.dphi_rad) > len(first.dphi_rad)
+    ctx = FakeContext(not_needed={e.study for e in EXPLANATIONS} - {"links"}, quick=False,
+                      decided={(e.study, e.claim): 1 for e in XL.EXPLANATIONS} if decided else None)
+    ds = S.dataset(ctx, second)
+    assert list(ds["case_id"].values) == [str(c) for c in pair_cases(second)]
+    (ran,) = seen
+    np.testing.assert_array_equal(ran, first.dphi_rad if decided else second.dphi_rad)
+    assert json.loads(ds.attrs["frozen_factor_groups"]) == ({"links": 1} if decided else {})
+    is_links = [S.FACTOR_GROUPS.get(CaseSet(str(c))) == "links" for c in ds["claim"].values]
+    y = ds["dx_final_over_lambda"].values[is_links]
+    ran_here = np.isin(ds["dphi"].values, first.dphi_rad) if decided else np.ones(ds.sizes["dphi"], bool)
+    assert (y[:, ran_here] == 1.0).all() and np.isnan(y[:, ~ran_here]).all()

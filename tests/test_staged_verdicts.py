@@ -377,3 +377,35 @@ def test_a_decided_claim_stays_decided_while_the_study_runs_on(tmp_path, staged,
     assert mean["verdict"] == UNDECIDED and mean["decided_at"] is None
     assert mean["value"]["mean_start_angle"]["n"] == 24  # the last look's
     assert all(s["undecided"] == [staged.CLAIM.claim] for s in looks)
+
+
+def test_later_looks_are_told_which_explanations_are_decided(tmp_path, staged, monkeypatch):
+    """The staged run tells each look's dataset which explanations earlier looks decided (and at which
+    look), so that a study can keep the runs only they read on the deciding look's plan (the sensitivity
+    study's frozen groups).  A toy study whose own claim stays undecided to the cap (every look runs) and
+    whose explanation of another study's claim (verdict unknown here: needed) is shown at the first."""
+    from undulate.studies import Explanation, Study, register, run_study
+    from undulate.studies._registry import _REGISTRY
+
+    told = []
+
+    def dataset(ctx, plan):
+        told.append(dict(ctx.decided_explanations))
+        return staged.dataset(ctx, plan)
+
+    monkeypatch.setattr(staged, "REGION", (0.0, 5.0))  # the mean sits on its boundary: undecided to the cap
+    shown_once = Explanation("elsewhere", "a claim of another study", "toy cause",
+                             lambda s: (True, "shown", None))
+    register(Study(name="_explains", description="staged, with an explanation",
+                   plan=lambda quick: staged.damping(24),
+                   stages=lambda quick: tuple(staged.damping(n) for n in staged.STAGE_POINTS),
+                   dataset=dataset, summary=staged.summary, figure=staged._figure, claims=(staged.CLAIM,),
+                   explanations=(shown_once,)))
+    try:
+        run_study("_explains", tmp_path, workers=1, progress=False)
+    finally:
+        _REGISTRY.pop("_explains", None)
+    key = ("elsewhere", "a claim of another study")
+    assert told == [{}, {key: 1}, {key: 1}]
+    (row,) = _doc(tmp_path, "_explains")["explanations"]
+    assert row["shown"] is True and row["decided_at"]["stage"] == 1

@@ -90,12 +90,16 @@ skipped group keeps its variables and cases, filled with NaN, and runs nothing;
 the dataset's ``skipped_factor_groups`` attribute (a JSON list) names it, the
 summary's ``skipped_factor_groups`` and ``skipped_cases`` carry it on, its table
 rows read ``no result`` (:data:`NOT_RUN`) and its explanations are not judged
-(shown None, :data:`~._explanations._protocol.NOT_RUN`).  The two xi = 1 groups
-feed the table only and always run.
+(shown None, :data:`~._explanations._protocol.NOT_RUN`).  A group every needed
+explanation of which an earlier look decided is *frozen* (:func:`frozen_groups`): a later look keeps
+it on the plan of the look that decided them (its runs reused, NaN at the dphi that look did not run),
+since a decided explanation is never reopened; the attribute ``frozen_factor_groups`` (JSON, group ->
+look) names it.  The two xi = 1 groups feed the table only and always run.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 import json
 import math
@@ -148,6 +152,22 @@ def needed_groups(needs: Callable[[str, str], bool], explanations: Iterable = EX
     cases it declares (:class:`~._explanations.CaseExplanation`), so its declared cases name its groups."""
     return frozenset(FACTOR_GROUPS[c.case_set] for e in explanations if needs(e.study, e.claim)
                      for c in e.cases if c.case_set in FACTOR_GROUPS)
+
+
+def frozen_groups(needs: Callable[[str, str], bool], decided: dict[tuple[str, str], int],
+                  explanations: Iterable = EXPLANATIONS) -> dict[str, int]:
+    """The factor groups every needed explanation of which was decided at an earlier look, each with the
+    latest such look (``decided``: ``(study, claim) -> look``, :attr:`~._registry.StudyContext.decided_explanations`).
+    A later look, run for what is still open, keeps such a group on that look's plan: its runs are the ones
+    already made (reused from the stores), and the decided explanations are never reopened
+    (:func:`~._registry._keep_decided`), so running it on a larger plan would buy nothing."""
+    looks: dict[str, list[int | None]] = {}
+    for e in explanations:
+        if needs(e.study, e.claim):
+            for c in e.cases:
+                if c.case_set in FACTOR_GROUPS:
+                    looks.setdefault(FACTOR_GROUPS[c.case_set], []).append(decided.get((e.study, e.claim)))
+    return {g: max(v) for g, v in looks.items() if v and all(k is not None for k in v)}
 
 
 def _timestep(n_links: int) -> float:
@@ -213,6 +233,24 @@ class _Runs:
     @property
     def seed(self) -> int:
         return self.ctx.config.seed
+
+    def on_plan(self, p: Plan) -> _Runs:
+        """These runs on another look's plan ``p`` (a frozen group: :func:`frozen_groups`)."""
+        return dataclasses.replace(self, p=p, dphis=np.asarray(p.dphi_rad, float))
+
+    def on_axis(self, values: np.ndarray, dphis: np.ndarray) -> np.ndarray:
+        """``values`` (first axis: ``dphis``, a look's subset of this plan's dphi) on this plan's dphi axis,
+        NaN at the dphi that look did not run."""
+        idx = [int(np.flatnonzero(np.isclose(self.dphis, d, rtol=0, atol=1e-12))[0]) for d in dphis]
+        out = np.full((len(self.dphis),) + np.shape(values)[1:], np.nan)
+        out[idx] = values
+        return out
+
+    def cases_on_axis(self, cases: list[_Case], sub: _Runs) -> list[_Case]:
+        """The pair ``cases`` made by ``sub`` (a frozen group's runs) on this plan's dphi axis."""
+        if sub is self:
+            return cases
+        return [dataclasses.replace(c, rows=self.on_axis(c.rows, sub.dphis)) for c in cases]
 
     def runs(self, group: str) -> bool:
         """Whether factor ``group`` runs (else its steps make NaN rows and call no sweep or lone swimmer)."""
@@ -573,16 +611,28 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     dphis = np.asarray(p.dphi_rad, float)
     skipped = frozenset(SKIPPABLE_GROUPS) - needed_groups(ctx.needs_explanation)
     r = _Runs(ctx, p, dphis, float(ctx.lone_swimmer()["amplitude_m"]), skipped)
-    cases = (_data_xi1_model(r) + _data_xi1_windows(r) + _data_xi32(r) + _data_links_equal_a(r)
-             + _data_links_guided(r))
-    conf_data, conf_coords = _data_confinement(r)
-    group_data, group_coords = _data_groups(r)
-    swim_cases, swim_data = _data_swimming(r)
-    cases += swim_cases
+    frozen = {g: k for g, k in frozen_groups(ctx.needs_explanation, ctx.decided_explanations).items()
+              if g not in skipped}
+    looks = stages(ctx.config.quick) if frozen else ()
+
+    def on(group: str) -> _Runs:
+        return r.on_plan(looks[frozen[group] - 1]) if group in frozen else r
+
+    xi32, links = on("xi32"), on("links")
+    cases = (_data_xi1_model(r) + _data_xi1_windows(r) + r.cases_on_axis(_data_xi32(xi32), xi32)
+             + r.cases_on_axis(_data_links_equal_a(links) + _data_links_guided(links), links))
+    conf_data, conf_coords = _data_confinement(on("confinement"))
+    group_data, group_coords = _data_groups(on("groups"))
+    swim = on("swimming")
+    swim_cases, swim_data = _data_swimming(swim)
+    if swim is not r:
+        name, (dims, speed, attrs) = next(iter(swim_data.items()))
+        swim_data = {name: (dims, r.on_axis(speed, swim.dphis), attrs)}
+    cases += r.cases_on_axis(swim_cases, swim)
     if [c.id for c in cases] != list(pair_cases(p)):
         raise UndulateError("the sensitivity dataset's cases differ from _sensitivity_design.pair_cases: "
                             + ", ".join(str(c.id) for c in cases))
-    imp_data, imp_coords = _data_impulse(r)
+    imp_data, imp_coords = _data_impulse(on("impulse"))
     case_data, case_coords = _case_variables(cases, dphis)
     amp = {"amplitude_3_links": ((), r.A3, {"units": "m", "long_name": "free 3-link swimmer's A (default gait)"})}
     return xr.Dataset(
@@ -592,7 +642,8 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
         attrs={"title": "model sensitivity: claims against the model choices the paper leaves open",
                "channel_width_m": PAIR_CHANNEL_M, "n_dphi": len(dphis), "steady_rule": C.STEADY_RULE,
                "slope_method": C.SLOPE_METHOD,
-               "skipped_factor_groups": json.dumps([g for g in SKIPPABLE_GROUPS if g in skipped])},
+               "skipped_factor_groups": json.dumps([g for g in SKIPPABLE_GROUPS if g in skipped]),
+               "frozen_factor_groups": json.dumps({g: frozen[g] for g in SKIPPABLE_GROUPS if g in frozen})},
     )
 
 
@@ -882,7 +933,8 @@ def summary(ds: xr.Dataset) -> dict:
     """Pure: per case the verdict by its claim's criterion and the key numbers (the ``_summary_*`` steps,
     every per-case entry with its ``case_id``); the table (``no result``, :data:`NOT_RUN`, for the rows
     of a skipped factor group); ``skipped_factor_groups`` and the ids of their cases, ``skipped_cases``
-    (whose explanations are then not judged: :data:`~._explanations._protocol.NOT_RUN`)."""
+    (whose explanations are then not judged: :data:`~._explanations._protocol.NOT_RUN`);
+    ``frozen_factor_groups`` (group -> the look whose plan it kept: :func:`frozen_groups`)."""
     skipped = skipped_groups(ds)
     cases, table = _summary_cases(ds, skipped)
     link_sets, link_rows = _summary_link_sets(cases)
@@ -898,6 +950,7 @@ def summary(ds: xr.Dataset) -> dict:
             "confinement": conf, "impulse": pot,
             "groups": groups,
             "skipped_factor_groups": [g for g in SKIPPABLE_GROUPS if g in skipped],
+            "frozen_factor_groups": json.loads(ds.attrs.get("frozen_factor_groups") or "{}"),
             "skipped_cases": skipped_cases,
             "swim_drag_pair_speed_m_s": _finite_mean(ds["swim_drag_pair_speed"].values),
             "impulse_Ns": ds["impulse"].values,
