@@ -183,6 +183,9 @@ def test_potential_quick(quick_runs):
         assert at[0] < at[1] < at[2] < at[3]
     fit = summary["impulse_fit"]
     assert 0 <= fit["r2"]["value"] <= 1 and fit["slope_Ns_per_rad"]["value"] > 0
+    # the line rests on the distinct |dphi| (+-dphi pooled), not on the rows
+    n_abs = np.unique(np.round(np.abs(ds["dphi"].values), 9)).size
+    assert fit["r2"]["n"] == fit["slope_Ns_per_rad"]["n"] == fit["n_abs_dphi"] == n_abs < ds.sizes["dphi"]
     assert fit["slope_Ns_per_rad"]["stderr"] > 0
     # every stiffness carries its interval
     ci = ds["stiffness_ci95"].values
@@ -267,3 +270,37 @@ def test_the_impulse_r2_without_phase_scatter_recovers_a_noisy_lines_shape():
     assert plain.value < 0.9 < clean.value <= 1.0 and clean.low < clean.value <= clean.high
     curve = 3.0 * (np.abs(dphi) > 1.0)[:, None] + rng.normal(0.0, 0.05, (41, 8))  # a step, hardly any scatter
     assert impulse_r2_without_phase_scatter(dphi, curve).value < 0.85
+
+
+def test_the_impulse_line_counts_each_abs_dphi_once():
+    """+-dphi are one design point (mirror images; +-pi one state): the line on |dphi| pools their runs,
+    so its intervals rest on the distinct |dphi|, not on twice as many rows."""
+    from undulate.studies import _analysis as C
+
+    dphi = np.linspace(-np.pi, np.pi, 9)
+    rows = np.abs(dphi)[:, None] + np.arange(4.0)[None, :]  # (dphi, phi0)
+    u, pooled = C.by_abs_dphi(dphi, rows)
+    np.testing.assert_allclose(u, np.linspace(0.0, np.pi, 5))
+    assert pooled.shape == (5, 8) and np.isnan(pooled[0, 4:]).all() and np.isfinite(pooled[1:]).all()
+    np.testing.assert_allclose(np.nanmean(pooled, axis=1), u + 1.5)
+    u1, p1 = C.by_abs_dphi(dphi, np.abs(dphi))  # one value per dphi
+    np.testing.assert_allclose(u1, u)
+    np.testing.assert_allclose(np.nanmean(p1, axis=1), u)
+
+
+def test_a_pair_at_minus_dphi_is_the_mirror_image_of_the_pair_at_dphi():
+    """Why +-dphi are one design point of the impulse line: reflected across the channel's centre line
+    (each body's bend negated: phase + pi) and relabelled, the pair (phi0, phi0 + dphi) is the pair
+    (phi0 + dphi + pi, phi0 + pi), i.e. -dphi from phi0' = phi0 + dphi + pi.  Real runs: the same contact
+    impulse over the first two periods, equal to rounding (so on the common-phase grid some -dphi runs
+    repeat +dphi runs: 1.6409580233630723 against ...694 N s at dphi = 2, phi0 = 1)."""
+    import functools
+
+    from undulate.studies._shared import IMPULSE_DURATION_S
+    from undulate.studies._runners import pair_point
+
+    run = functools.partial(pair_point, duration_s=IMPULSE_DURATION_S)
+    for dphi, phi0 in ((3 * np.pi / 4, 0.0), (1.3, 0.4)):
+        a = float(run({"dphi_rad": dphi, "phi0_rad": phi0}, 0)["impulse_2T_Ns"])
+        b = float(run({"dphi_rad": -dphi, "phi0_rad": (phi0 + dphi + np.pi) % (2 * np.pi)}, 0)["impulse_2T_Ns"])
+        assert a > 0.1 and b == pytest.approx(a, rel=1e-9), (dphi, phi0, a, b)  # equal to rounding

@@ -142,6 +142,24 @@ def impulse_design(quick: bool) -> tuple[np.ndarray, np.ndarray]:
     return phase_grid(IMPULSE_PHASES[quick]), phi0
 
 
+def by_abs_dphi(dphi, values) -> tuple[np.ndarray, np.ndarray]:
+    """The runs at each |dphi| together, for a fit on |dphi|: ``(|dphi| values, increasing; their runs,
+    one row each, NaN-padded)``.  ``values``: one row per ``dphi`` (e.g. the common phases of the impulse
+    runs), or one value each.  dphi and -dphi are one design point, not two: the pair at -dphi is the pair
+    at +dphi mirrored (swimmers swapped, reflected across the channel: phi0 -> phi0 + dphi + pi), so on the
+    common-phase grid some rows repeat others run for run, and dphi = +-pi is one state.  A bootstrap over
+    the rows would count each |dphi| twice; over these rows it counts it once."""
+    a = np.abs(np.asarray(dphi, float).ravel())
+    v = np.asarray(values, float).reshape(a.size, -1)
+    keys = np.round(a, 9)
+    u = np.unique(keys)
+    rows = [v[keys == k].ravel() for k in u]
+    out = np.full((u.size, max((r.size for r in rows), default=0)), np.nan)
+    for i, r in enumerate(rows):
+        out[i, :r.size] = r
+    return u, out
+
+
 # ------------------------------------------------------------------ analysis
 def stepped(run: xr.Dataset) -> xr.Dataset:
     """A run cut to the samples it stepped: a run its stopping rule ended early

@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import functools
 import math
+import warnings
 from typing import Any
 
 import numpy as np
@@ -365,7 +366,7 @@ def impulse_r2_without_phase_scatter(dphi, impulse_all) -> stats.Estimate:
     """R^2 of the impulse's line on |dphi| if each dphi's mean over the common phases were exact: the
     variance of a mean, var(phi0) / n (sample variance over the n common phases of that dphi), taken out
     of the residual and the total (:func:`_r2_without_scatter_value`); a paired bootstrap over dphi at the
-    current level.  Tells how much of the line's shortfall is the phases' scatter and how much is shape."""
+    current level.  The summary passes one row per |dphi| (both signs' runs: :func:`._analysis.by_abs_dphi`).  Tells how much of the line's shortfall is the phases' scatter and how much is shape."""
     a = np.asarray(impulse_all, float)
     n = np.isfinite(a).sum(axis=1)
     ok = n >= 2
@@ -381,7 +382,12 @@ def summary(ds) -> dict[str, Any]:
     the rank correlation of k with d; the collapse of log10 k against d/2A and against d."""
     dphi = ds["dphi"].values
     impulse = ds["impulse"].values
-    fit_a = stats.line_fit(np.abs(dphi), impulse)
+    # the line on |dphi|: +-dphi are one design point (mirror images), so their runs are pooled
+    abs_dphi, pooled = C.by_abs_dphi(dphi, ds["impulse_all"].values)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN row: every run there failed
+        pooled_mean = np.nanmean(pooled, axis=1)
+    fit_a = stats.line_fit(abs_dphi, pooled_mean)
     fit_pos = stats.line_fit(np.abs(dphi[dphi >= 0]), impulse[dphi >= 0])
     fit_neg = stats.line_fit(np.abs(dphi[dphi <= 0]), impulse[dphi <= 0])
     k = ds["stiffness"].values
@@ -416,8 +422,8 @@ def summary(ds) -> dict[str, Any]:
     return {
         "impulse_fit": {"slope_Ns_per_rad": fit_a.slope.to_dict(), "intercept_Ns": fit_a.intercept.to_dict(),
                         "r2": fit_a.r2.to_dict(),
-                        "r2_without_phase_scatter": impulse_r2_without_phase_scatter(
-                            dphi, ds["impulse_all"].values).to_dict(),
+                        "r2_without_phase_scatter": impulse_r2_without_phase_scatter(abs_dphi, pooled).to_dict(),
+                        "n_abs_dphi": int(abs_dphi.size),
                         "positive_dphi": fit_pos.to_dict(),
                         "negative_dphi": fit_neg.to_dict(), "form": "impulse = slope |dphi| + intercept"},
         "impulse_Ns": ds["impulse"].values,
@@ -450,8 +456,8 @@ def _impulse_linear(s: dict) -> Verdict:
     f = s["impulse_fit"]
     a, r2 = E(f["slope_Ns_per_rad"]), E(f["r2"])
     clean = E(f["r2_without_phase_scatter"])
-    measured = (f"fit impulse = a|dphi| + b: a = {a:.3g} N s/rad, R^2 = {r2:.2f} ({clean:.2f} with the common "
-                f"phases' scatter taken out of each dphi's mean; {stats.interval_note(r2.level)})")
+    measured = (f"fit impulse = a|dphi| + b over {r2.n} |dphi|: a = {a:.3g} N s/rad, R^2 = {r2:.2f} ({clean:.2f} "
+                f"with the common phases' scatter taken out of each |dphi|'s mean; {stats.interval_note(r2.level)})")
     value = {"slope_Ns_per_rad": f["slope_Ns_per_rad"], "r2": f["r2"],
              "r2_without_phase_scatter": f["r2_without_phase_scatter"]}
     if not r2.has_interval:

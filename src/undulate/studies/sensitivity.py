@@ -802,7 +802,8 @@ def _linear(idphi, impulse) -> tuple[stats.LineFit, bool | None, str]:
     """The potential study's criterion: the impulse's line fit against |dphi|, whether it is linear (the
     R^2 interval above R2_MIN and the slope's above 0: True, False when one lies wholly outside, None when
     one straddles or has no interval) and the verdict (``no result`` only without the intervals)."""
-    f = stats.line_fit(np.abs(idphi), impulse)
+    u, pooled = C.by_abs_dphi(idphi, impulse)  # +-dphi: one design point (C.by_abs_dphi)
+    f = stats.line_fit(u, np.nanmean(pooled, axis=1))
     missing = not (f.r2.has_interval and f.slope.has_interval)
     ok = None if missing else stats.decide([f.r2.above(R2_MIN, "R^2"), f.slope.above(0.0, "slope")])
     return f, ok, _verdict(ok, missing)
