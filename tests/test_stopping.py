@@ -302,3 +302,46 @@ def test_xi32_eight_link_pairs_stop_as_the_sensitivity_study_reads_them():
                                                    for r in (stopped, whole))
         assert steady_a == steady_b == 1.0, cut_s
         assert abs(dx_a - dx_b) <= C.STEADY_TOL, cut_s
+
+
+def test_the_leave_rule_on_constructed_period_means():
+    rule = SteadyStop(tol=0.01, window=3, leave=0.45, leave_after_s=6.0)
+    before = np.array([0.0, 0.0])
+    sliding = np.array([[0.0, 0.5], [0.0, 1.1], [0.0, 1.7]])  # swimmer 1 pulled along x, still moving
+    assert rule.left(sliding, before)
+    assert not rule.left(sliding[:2], before)  # fewer than `window` periods
+    relocked = np.array([[0.0, 1.0], [0.0, 1.002], [0.0, 1.001]])  # far, but no longer moving
+    assert not rule.left(relocked, before)
+    near = np.array([[0.0, 0.3], [0.0, 0.4], [0.0, 0.5]])  # moving, but one period within 0.45
+    assert not rule.left(near, before)
+    assert not SteadyStop().left(sliding, before)  # leave = inf: never
+    assert "left its state" in rule.rule and "left its state" not in SteadyStop().rule
+
+
+@pytest.mark.slow
+def test_a_force_run_pulled_apart_stops_when_it_has_left_and_reads_broken():
+    """Potential's force runs: a pair the force pulls apart (45 deg, d/2A = 1.4, 0.3 N: broken in full
+    mode) stops once it has left its state, bitwise the prefix of the whole 50 s run, and the study
+    reads both as broken; a pair that holds (d/2A = 1.0, 0.1 N) stops as before (leaving never fires)."""
+    from undulate.studies.potential import BREAK, DRIFT, DURATION_S, FORCE_STOP, SETTLE_S, _last_periods
+
+    amp = float(lone_swimmer({"amplitude_rad": math.radians(45)}, 0)["amplitude_m"])
+    old = SteadyStop(**{**FORCE_STOP.__dict__, "leave": math.inf})
+    run = functools.partial(pair_point, duration_s=DURATION_S, force_onset_s=SETTLE_S)
+
+    def broken(r):
+        pm = r["dx_period_over_lambda"].values[None, :]
+        k_before = int(np.flatnonzero(r["period_time"].values < SETTLE_S)[-1])
+        last = _last_periods(pm, 3)[0]
+        return bool(last.mean() - pm[0, k_before] > BREAK or np.ptp(last) > DRIFT)
+
+    pulled = {"amplitude_rad": math.radians(45), "amplitude_m": amp, "d_over_2A": 1.4, "force_N": 0.3}
+    new, whole = run(pulled, 0, stop=FORCE_STOP), run(pulled, 0, stop=old)
+    assert float(whole["stopped_at_s"]) == DURATION_S and float(new["stopped_at_s"]) <= 30.0
+    n = _finite_len(new["dx_over_lambda"].values)
+    np.testing.assert_array_equal(new["dx_over_lambda"].values[:n], whole["dx_over_lambda"].values[:n])
+    assert broken(new) and broken(whole)
+    held = {**pulled, "d_over_2A": 1.0, "force_N": 0.1}
+    a, b = run(held, 0, stop=FORCE_STOP), run(held, 0, stop=old)
+    assert float(a["stopped_at_s"]) == float(b["stopped_at_s"]) < DURATION_S and not broken(a)
+    np.testing.assert_array_equal(a["dx_period_over_lambda"].values, b["dx_period_over_lambda"].values)

@@ -14,7 +14,10 @@ per period or batch only, so its memory does not grow with the run.
   unchanged over those periods, and the offsets' trend over those periods,
   carried on to the end of the full run, moving them by at most
   ``drift_frac * tol`` (a slowly creeping offset satisfies the steady rule
-  at every window yet ends elsewhere: it runs on).
+  at every window yet ends elsewhere: it runs on).  With ``leave`` set it
+  also stops a pair that has left its state (moved more than ``leave`` from
+  its offset before ``leave_after_s`` over ``window`` periods and still
+  moving): a pair pulled apart by a force.
 * :class:`PhaseStop` -- closed-loop pairs: stop once every swimmer pair's
   phase difference has stayed within ``tol_rad`` of its circular mean for
   ``hold_s + extra_s`` (the lock the run measures, held ``extra_s`` longer),
@@ -86,6 +89,12 @@ class SteadyStop:
     min_periods: int = 6
     drift_frac: float = 0.5
     spread_frac: float = 0.5
+    leave: float = math.inf
+    """Also stop a run whose pair has *left* its state: once, for some swimmer pair, each of the last
+    ``window`` period means of dx/scale lies more than ``leave`` from its period mean just before
+    ``leave_after_s`` and their range exceeds ``tol`` (still moving).  Such a run is broken apart
+    by any rule that reads a settled offset; it would only move on.  ``inf``: never."""
+    leave_after_s: float = 0.0
 
     @property
     def rule(self) -> str:
@@ -94,7 +103,23 @@ class SteadyStop:
                 f"stop once, for every swimmer pair, the last {self.window} period means of dx/scale lie within "
                 f"{self.spread_frac * self.tol:g} of their mean in "
                 f"each of {self.extra_periods + 1} consecutive windows, the lateral order unchanged, and their "
-                f"trend carried to the end of the run moves them by <= {self.drift_frac * self.tol:g}")
+                f"trend carried to the end of the run moves them by <= {self.drift_frac * self.tol:g}"
+                + ("" if not math.isfinite(self.leave) else
+                   f"; or once some pair's last {self.window} period means of dx/scale each lie more than "
+                   f"{self.leave:g} from its period mean before t = {self.leave_after_s:g} s and span more "
+                   f"than {self.tol:g} (left its state, still moving)"))
+
+    def left(self, x_means: np.ndarray, before: np.ndarray) -> bool:
+        """Whether some pair has left its state: ``x_means`` the last period means ``(periods,
+        swimmers)`` of x / scale, ``before`` the swimmers' period mean just before ``leave_after_s``."""
+        if not math.isfinite(self.leave) or len(x_means) < self.window:
+            return False
+        x = np.asarray(x_means)[-self.window:]
+        i, j = np.triu_indices(x.shape[1], 1)
+        d, d0 = x[:, j] - x[:, i], np.asarray(before)[j] - np.asarray(before)[i]
+        away = (np.abs(d - d0) > self.leave).all(axis=0)
+        moving = np.ptp(d, axis=0) > self.tol
+        return bool((away & moving).any())
 
     def monitor(self, period_s: float, scale_m: float, end_s: float) -> "_SteadyMonitor":
         """The callable for ``simulate(..., stop=)``: ``end_s`` is the full run's duration."""
@@ -128,6 +153,9 @@ class _SteadyMonitor:
         self.y: list[_Periods] = []
         self.period_s, self.keep = period_s, keep
         self.rule = rule.rule
+        # the period whose mean "before" is: the last that ends by leave_after_s (None: not yet seen)
+        self.k_before = int(math.floor(rule.leave_after_s / period_s + 1e-9)) - 1
+        self.before: list[np.ndarray] | None = None
 
     def __call__(self, blocks: list[dict]) -> str | None:
         if not self.x:
@@ -136,6 +164,13 @@ class _SteadyMonitor:
         for b, blk in enumerate(blocks):
             self.x[b].add(blk["time"], blk["x"] / self.scale)
             self.y[b].add(blk["time"], blk["y"])
+        if math.isfinite(self.r.leave) and self.before is None and self.k_before >= 0:
+            back = self.x[0].n_done - self.k_before  # how far back the before-period's mean now is
+            if 1 <= back <= len(self.x[0].means):
+                self.before = [px.means[-back] for px in self.x]
+        if self.before is not None and self.x[0].n_done >= self.k_before + 1 + self.r.window:
+            if any(self.r.left(px.means, b) for px, b in zip(self.x, self.before)):
+                return f"left its state by t = {self.x[0].n_done * self.period_s:g} s"
         if self.x[0].n_done < self.r.min_periods:
             return None
         left = max(0.0, self.end_s / self.period_s - self.x[0].n_done)

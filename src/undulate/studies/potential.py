@@ -82,11 +82,16 @@ BREAK = 0.45
 """dx / lambda beyond which the pair has broken apart (left its compatible state)."""
 DRIFT = 0.005
 """Range of the last 3 period means (lambda) above which dx is still drifting."""
-FORCE_STOP = SteadyStop(tol=2 * DRIFT, window=3, extra_periods=2, min_periods=8, drift_frac=0.5, spread_frac=0.25)
+FORCE_STOP = SteadyStop(tol=2 * DRIFT, window=3, extra_periods=2, min_periods=8, drift_frac=0.5, spread_frac=0.25,
+                        leave=BREAK, leave_after_s=SETTLE_S)
 """The force runs' stopping rule: the last 3 period means of dx/lambda within DRIFT / 2 of their mean
 (so their range is at most :data:`DRIFT`: a stopped run is never "still drifting") in 3 consecutive
 windows, no trend that would move them by DRIFT by the end of the run, never before 8 periods
-(the force switches on after 3); a pair that breaks apart or creeps runs the whole duration."""
+(the force switches on after 3); or, a pair the force pulls apart, once each of its last 3 period
+means lies more than :data:`BREAK` from the settled offset before the force and they span more than
+2 DRIFT (still sliding): the analysis reads such a run as broken (its drift exceeds DRIFT), as it would
+the whole run (full mode at 87ecc4f: the 54 broken runs of 663, all of them, met this at 14-28 s, and
+had slid 1.7-12.7 lambda by 50 s; no run that held met it).  A pair that creeps runs the whole duration."""
 SLIDING_FROM = 1.0
 """d/2A from which the collapse of k is also measured on its own: in narrower channels
 the two bodies are wedged between the walls (large joint errors; the pair barely moves
