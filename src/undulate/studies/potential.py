@@ -371,7 +371,8 @@ def impulse_r2_without_phase_scatter(dphi, impulse_all) -> stats.Estimate:
     """R^2 of the impulse's line on |dphi| if each dphi's mean over the common phases were exact: the
     variance of a mean, var(phi0) / n (sample variance over the n common phases of that dphi), taken out
     of the residual and the total (:func:`_r2_without_scatter_value`); a paired bootstrap over dphi at the
-    current level.  The summary passes one row per |dphi| (both signs' runs: :func:`._analysis.by_abs_dphi`).  Tells how much of the line's shortfall is the phases' scatter and how much is shape."""
+    current level.  The summary passes one row per |dphi| (both signs' runs: :func:`._analysis.by_abs_dphi`).
+    Tells how much of the line's shortfall is the phases' scatter and how much is shape."""
     a = np.asarray(impulse_all, float)
     n = np.isfinite(a).sum(axis=1)
     ok = n >= 2

@@ -625,9 +625,9 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     group_data, group_coords = _data_groups(on("groups"))
     swim = on("swimming")
     swim_cases, swim_data = _data_swimming(swim)
-    if swim is not r:
-        name, (dims, speed, attrs) = next(iter(swim_data.items()))
-        swim_data = {name: (dims, r.on_axis(speed, swim.dphis), attrs)}
+    if swim is not r:  # its one variable along dphi
+        dims, speed, attrs = swim_data["swim_drag_pair_speed"]
+        swim_data = {"swim_drag_pair_speed": (dims, r.on_axis(speed, swim.dphis), attrs)}
     cases += r.cases_on_axis(swim_cases, swim)
     if [c.id for c in cases] != list(pair_cases(p)):
         raise UndulateError("the sensitivity dataset's cases differ from _sensitivity_design.pair_cases: "
