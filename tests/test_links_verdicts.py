@@ -7,6 +7,7 @@ and why, and reports none where no interval is wide.
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -180,3 +181,52 @@ def test_outlier_helpers():
     assert O.classify(True, True) == O.DRIFTING
     assert O.classify(False, True) == O.OTHER_BRANCH
     assert O.classify(False, False) == O.OTHER_STATE
+
+
+class _RecordingContext:
+    """A context whose sweep records the points asked for and answers with failed runs (no simulation)."""
+
+    def __init__(self, decided):
+        from types import SimpleNamespace
+
+        self.decided_claims = decided
+        self.config = SimpleNamespace(quick=False, seed=0)
+        self.points = []
+
+    def sweep(self, part, fn, grid):
+        self.points = list(grid.points())
+        n = len(self.points)
+        return xr.Dataset({"run_failed": (("point", "replicate"), np.ones((n, 1), bool)),
+                           "extent_x": (("point", "replicate", "swimmer"), np.full((n, 1, 2), np.nan))},
+                          coords={"time": np.arange(3.0)})
+
+    def lone_swimmer(self, **kw):
+        return {"amplitude_m": 0.05}
+
+
+@pytest.mark.parametrize("decided_rule", [None, "curvature"])
+def test_a_rule_whose_claim_is_decided_keeps_its_looks_runs(decided_rule):
+    """Full mode's second look with the 45 deg x 3/N claim decided at the first: that rule's runs stay on
+    the first look's dphi (made already), the other rule's grow; the dataset marks the runs not made
+    (NaN, not failed) and the summary counts only the runs made."""
+    first, second = links.stages(False)[:2]
+    claim = dict(zip(links.RULES, links.CLAIMS))
+    ctx = _RecordingContext({claim[decided_rule].claim: 1} if decided_rule else {})
+    ds = links.dataset(ctx, second)
+    per_rule = {r: sorted({round(p["dphi_rad"], 9) for p in ctx.points if p["beta_rule"] == r}) for r in links.RULES}
+    for r in links.RULES:
+        want = first if r == decided_rule else second
+        assert per_rule[r] == sorted(round(d, 9) for d in want.dphi_rad)
+    assert len(ctx.points) == sum(len(v) for v in per_rule.values()) * len(links.N_LINKS)
+    made = ds["run_made"].values
+    for i, r in enumerate(links.RULES):
+        ran = np.isin(np.round(ds["dphi"].values, 9), per_rule[r])
+        assert (made[i] == ran[None, :]).all()
+    assert ds["run_failed"].values.sum() == made.sum()  # every run made failed here; none not made
+    assert json.loads(ds.attrs["frozen_rules"]) == ({decided_rule: 1} if decided_rule else {})
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = links.summary(ds)
+    assert s["n_runs"] == int(made.sum()) == s["n_failed"]

@@ -384,14 +384,21 @@ def test_later_looks_are_told_which_explanations_are_decided(tmp_path, staged, m
     look), so that a study can keep the runs only they read on the deciding look's plan (the sensitivity
     study's frozen groups).  A toy study whose own claim stays undecided to the cap (every look runs) and
     whose explanation of another study's claim (verdict unknown here: needed) is shown at the first."""
-    from undulate.studies import Explanation, Study, register, run_study
+    from undulate.studies import Claim, Explanation, Study, Verdict, register, run_study
     from undulate.studies._registry import _REGISTRY
 
-    told = []
+    told, told_claims = [], []
 
     def dataset(ctx, plan):
         told.append(dict(ctx.decided_explanations))
+        told_claims.append(dict(ctx.decided_claims))
         return staged.dataset(ctx, plan)
+
+    def summary(ds):
+        return {**staged.summary(ds), "n": int(ds.sizes["run"])}
+
+    few = Claim("fewer than 10 runs", "toy", "count < 10",
+                lambda s: Verdict.judged(s["n"] < 10, f"{s['n']} runs", {"n": s["n"]}))
 
     monkeypatch.setattr(staged, "REGION", (0.0, 5.0))  # the mean sits on its boundary: undecided to the cap
     shown_once = Explanation("elsewhere", "a claim of another study", "toy cause",
@@ -399,7 +406,7 @@ def test_later_looks_are_told_which_explanations_are_decided(tmp_path, staged, m
     register(Study(name="_explains", description="staged, with an explanation",
                    plan=lambda quick: staged.damping(24),
                    stages=lambda quick: tuple(staged.damping(n) for n in staged.STAGE_POINTS),
-                   dataset=dataset, summary=staged.summary, figure=staged._figure, claims=(staged.CLAIM,),
+                   dataset=dataset, summary=summary, figure=staged._figure, claims=(staged.CLAIM, few),
                    explanations=(shown_once,)))
     try:
         run_study("_explains", tmp_path, workers=1, progress=False)
@@ -407,5 +414,6 @@ def test_later_looks_are_told_which_explanations_are_decided(tmp_path, staged, m
         _REGISTRY.pop("_explains", None)
     key = ("elsewhere", "a claim of another study")
     assert told == [{}, {key: 1}, {key: 1}]
+    assert told_claims == [{}, {"fewer than 10 runs": 1}, {"fewer than 10 runs": 1}]  # held at the first look
     (row,) = _doc(tmp_path, "_explains")["explanations"]
     assert row["shown"] is True and row["decided_at"]["stage"] == 1

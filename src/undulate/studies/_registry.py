@@ -373,6 +373,10 @@ class StudyContext:
         self.sweeps: list[dict[str, Any]] = []
         self.failures: list[str] = []
         self._verdicts: dict[tuple[str, str], str] | None = None
+        self.decided_claims: dict[str, int] = {}
+        """``claim -> look``: this study's claims its earlier looks decided (holds or fails), which a later
+        look never reopens (:func:`_keep_decided`); set by the staged run, so a study can keep the runs
+        that feed only such claims on the plan of the look that decided them."""
         self.decided_explanations: dict[tuple[str, str], int] = {}
         """``(study, claim) -> look``: the explanations this study's earlier looks decided (shown or
         refuted), which a later look never reopens (:func:`_keep_decided`); set by the staged run, so a
@@ -718,6 +722,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
                                    lambda c: c["verdict"] if c["verdict"] in (HOLDS, FAILS) else None, at)
             explanations = _keep_decided(explanations, decided_explanations, lambda e: (e["study"], e["claim"]),
                                          lambda e: e["shown"], at)
+            ctx.decided_claims = {k: c["decided_at"]["stage"] for k, c in decided_claims.items()}
             ctx.decided_explanations = {k: e["decided_at"]["stage"] for k, e in decided_explanations.items()}
             still = _open(claims, explanations, _growth_left(len(plans), k, config.quick))
             mine = ctx.sweeps[first:]

@@ -35,6 +35,7 @@ from the nearest branch).
 from __future__ import annotations
 
 import functools
+import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -88,39 +89,67 @@ def plan(quick: bool) -> Plan:
     return Plan(tuple(float(p) for p in (C.paper_phases() if quick else C.phase_grid(FULL_PHASES))))
 
 
+def rule_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[str, Plan]:
+    """The plan each rule's runs follow at a look on plan ``p``: ``p``, or, for a rule whose claim an
+    earlier look decided (``decided``: claim -> look, :attr:`~._registry.StudyContext.decided_claims`),
+    that look's plan (frozen: its runs are made, and a decided claim is never reopened, so more of them
+    would buy nothing)."""
+    looks = stages(quick)
+    return {rule: looks[decided[c.claim] - 1] if c.claim in decided else p for rule, c in zip(RULES, CLAIMS)}
+
+
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     dphis = np.asarray(p.dphi_rad, float)
+    decided = ctx.decided_claims
+    plans = rule_plans(p, decided, bool(ctx.config.quick))
     gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]
-    sim_points = [{**g, "dphi_rad": float(d)} for g in gaits for d in dphis]
+    sim_points = [{**g, "dphi_rad": float(d)} for g in gaits for d in plans[g["beta_rule"]].dphi_rad]
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
     sim = ctx.sweep("sim", fn, Grid(points=sim_points, seed=ctx.config.seed))
     amp = np.array([float(ctx.lone_swimmer(amplitude_rad=g["amplitude_rad"], n_links=g["n_links"],
                                            waves_per_body=XI)["amplitude_m"]) for g in gaits])
-    return links_dataset(sim, amp, dphis)
+    ds = links_dataset(sim, amp, dphis, [plans[r].dphi_rad for r in RULES])
+    ds.attrs["frozen_rules"] = json.dumps({r: decided[c.claim] for r, c in zip(RULES, CLAIMS) if c.claim in decided})
+    return ds
 
 
-def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray) -> xr.Dataset:
+def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray,
+                  rule_dphis: list | None = None) -> xr.Dataset:
     """Study dataset (dims rule, n_links, dphi, time) from the merged explicit-point sweeps.
 
-    The sweep points are ordered rule, N, dphi (see :func:`run`).
+    The sweep points are ordered rule, N, dphi (see :func:`dataset`), each rule over its own
+    ``rule_dphis`` (default: ``dphis``; a frozen rule's, a subset of them: :func:`rule_plans`); a
+    (rule, N, dphi) without a run is NaN, ``run_made`` False (and not ``run_failed``).
     """
     nr, nn, nd = len(RULES), len(N_LINKS), len(dphis)
     lam = BODY_LENGTH_M / XI
     A = np.asarray(amplitude_m, float).reshape(nr, nn)
-    failed = sim["run_failed"].isel(replicate=0).values.astype(bool).reshape(nr, nn, nd)
+    rule_dphis = [dphis] * nr if rule_dphis is None else [np.asarray(d, float) for d in rule_dphis]
+    index = np.full((nr, nn, nd), -1)
+    k = 0
+    for r in range(nr):
+        cols = [int(np.flatnonzero(np.isclose(dphis, d, rtol=0, atol=1e-12))[0]) for d in rule_dphis[r]]
+        for n in range(nn):
+            index[r, n, cols] = np.arange(k, k + len(cols))
+            k += len(cols)
+    made = index >= 0
+    point_failed = sim["run_failed"].isel(replicate=0).values.astype(bool)
+    failed = made & point_failed[np.where(made, index, 0)]
     dims = ("rule", "n_links", "dphi")
 
     def runs(idx):
-        r, n, j = idx
-        return sim.isel(point=(r * nn + n) * nd + j, replicate=0)
+        return sim.isel(point=int(index[idx]), replicate=0)
 
-    variables, dx_t = C.collect_pairs(runs, failed, dphis[None, None, :], lam, A[:, :, None], dims)
+    variables, dx_t = C.collect_pairs(runs, failed | ~made, dphis[None, None, :], lam, A[:, :, None], dims)
+    variables["run_failed"] = xr.Variable(dims, failed, variables["run_failed"].attrs)
+    variables["run_made"] = xr.Variable(dims, made, {"long_name": "a run was made (False: a frozen rule's "
+                                                                  "dphi its look did not run; NaN values)"})
     time = sim["time"].values
     if dx_t is None:
         dx_t = np.full(failed.shape + time.shape, np.nan)
     beta = np.array([[joint_amplitude(r, n) for n in N_LINKS] for r in RULES])
-    extent = sim["extent_x"].isel(replicate=0).mean("swimmer").values.reshape(nr, nn, nd)
-    extent = np.where(failed, np.nan, extent)
+    extent = sim["extent_x"].isel(replicate=0).mean("swimmer").values[np.where(made, index, 0)]
+    extent = np.where(failed | ~made, np.nan, extent)
     return xr.Dataset(
         {
             **variables,
@@ -169,7 +198,8 @@ def summary(ds: xr.Dataset) -> dict:
         rows = {}
         for n in ds["n_links"].values:
             d = ds.sel(rule=rule, n_links=n)
-            ok = ~d["run_failed"].values
+            made = _made(d)
+            ok = made & ~d["run_failed"].values
             res = d["residual_over_lambda"].values
             fit = C.compatibility_fit(d["dx_steady_over_lambda"].values, dphi)
             rows[str(int(n))] = {
@@ -183,8 +213,8 @@ def summary(ds: xr.Dataset) -> dict:
                 "slope": fit.slope.to_dict(),
                 "intercept": fit.intercept.to_dict(),
                 "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam).to_dict(),
-                "n_runs": int(ok.size),
-                "n_failed": int((~ok).sum()),
+                "n_runs": int(made.sum()),
+                "n_failed": int((made & ~ok).sum()),
                 "n_steady": int(d["steady"].values[ok].sum()),
                 "max_penetration_m": float(np.nanmax(d["penetration_max"].values)) if ok.any() else None,
             }
@@ -196,11 +226,12 @@ def summary(ds: xr.Dataset) -> dict:
             "rms_falls_with_n": falls,
             "outlier_note": note,  # None when no N's interval is wide
         }
-    ok = ~ds["run_failed"].values
+    made = _made(ds)
+    ok = made & ~ds["run_failed"].values
     return {
         "per_rule": per_rule,
-        "n_runs": int(ok.size),
-        "n_failed": int((~ok).sum()),
+        "n_runs": int(made.sum()),
+        "n_failed": int((made & ~ok).sum()),
         "n_steady": int(ds["steady"].values[ok].sum()),
         "n_dphi": int(ds.sizes["dphi"]),
         "rules": {"fixed": "beta = 45 deg at every joint (paper Eq. 1 unchanged)",
@@ -215,6 +246,12 @@ def summary(ds: xr.Dataset) -> dict:
 
 
 E = stats.Estimate.from_dict
+
+
+def _made(d: xr.Dataset) -> np.ndarray:
+    """Where a run was made (every point of a dataset written before ``run_made`` existed)."""
+    return d["run_made"].values if "run_made" in d else np.ones(d["run_failed"].shape, bool)
+
 
 END_TO_END = 0.75
 """A pair lies end to end (in line, not side by side) when its steady |dx| is at least this fraction of a
