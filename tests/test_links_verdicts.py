@@ -230,3 +230,4 @@ def test_a_rule_whose_claim_is_decided_keeps_its_looks_runs(decided_rule):
         warnings.simplefilter("ignore")
         s = links.summary(ds)
     assert s["n_runs"] == int(made.sum()) == s["n_failed"]
+

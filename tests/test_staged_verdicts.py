@@ -417,3 +417,20 @@ def test_later_looks_are_told_which_explanations_are_decided(tmp_path, staged, m
     assert told_claims == [{}, {"fewer than 10 runs": 1}, {"fewer than 10 runs": 1}]  # held at the first look
     (row,) = _doc(tmp_path, "_explains")["explanations"]
     assert row["shown"] is True and row["decided_at"]["stage"] == 1
+
+
+@pytest.mark.parametrize("decided", [{}, {"4": 3}, {"3": 4, "4": 3}])
+def test_a_group_size_whose_claim_is_decided_keeps_its_looks_runs(decided):
+    """The groups study's fourth full look: a size whose claim an earlier look decided asks for that
+    look's runs (fewer draws of four, fewer dphi of three); the reference pairs, which feed both claims,
+    stay as they are until both are decided."""
+    from undulate.studies import groups
+
+    looks = groups.stages(False)
+    claims = {c.claim.split()[2]: c.claim for c in groups.CLAIMS}
+    got = groups.size_plans(looks[3], {claims[n]: k for n, k in decided.items()}, False)
+    assert got[3] == (looks[decided["3"] - 1] if "3" in decided else looks[3])
+    assert got[4] == (looks[decided["4"] - 1] if "4" in decided else looks[3])
+    assert got[2] == (looks[max(decided.values()) - 1] if len(decided) == 2 else looks[3])
+    if "4" in decided:
+        assert got[4].draws < looks[3].draws

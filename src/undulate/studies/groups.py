@@ -17,6 +17,7 @@ n)``.
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from dataclasses import dataclass
 
@@ -89,13 +90,30 @@ def plan(quick: bool) -> Plan:
                 tuple(float(p) for p in C.group_phases(False)))
 
 
+def size_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[int, Plan]:
+    """The plan each group size's runs follow at a look on plan ``p``: ``p``, or, for a size whose claim an
+    earlier look decided (``decided``: claim -> look, :attr:`~._registry.StudyContext.decided_claims`),
+    that look's plan (frozen: its runs are made, and a decided claim is never reopened).  The reference
+    pairs feed both claims: frozen once both are decided (at the latest such look)."""
+    looks = stages(quick)
+    by_size = {int(c.claim.split()[2]): decided.get(c.claim) for c in CLAIMS}  # "groups of N follow ..."
+    plans = {n: p if k is None else looks[k - 1] for n, k in by_size.items()}
+    plans[2] = p if None in by_size.values() else looks[max(by_size.values()) - 1]
+    return plans
+
+
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
-    """Groups of three and four, and pairs over the same dphi range (the scatter they are compared with)."""
+    """Groups of three and four, and pairs over the same dphi range (the scatter they are compared with);
+    a size whose claim an earlier look decided keeps that look's runs (:func:`size_plans`)."""
     seed = ctx.config.seed
-    two, three, four = (ctx.shared_sweep(group_part(n), *group_sweep(n, p.pairs if n == 2 else p.dphi_rad,
-                                                                     p.draws, seed)) for n in (2, 3, 4))
+    plans = size_plans(p, ctx.decided_claims, bool(ctx.config.quick))
+    two, three, four = (ctx.shared_sweep(group_part(n), *group_sweep(
+        n, plans[n].pairs if n == 2 else plans[n].dphi_rad, plans[n].draws, seed)) for n in (2, 3, 4))
     A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
-    return groups_dataset({2: two, 3: three, 4: four}, A)
+    ds = groups_dataset({2: two, 3: three, 4: four}, A)
+    ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in sorted(
+        ((int(c.claim.split()[2]), ctx.decided_claims.get(c.claim)) for c in CLAIMS)) if k is not None})
+    return ds
 
 
 def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Dataset:
