@@ -218,13 +218,15 @@ def thinned_plan(p: Plan, k: int, k_dphi: int | None = None) -> Plan:
 
 
 def plan(quick: bool) -> Plan:
-    """Quick: every second one of the paper's nine dphi (5), xi = 3/2 at N = 3 and 8, 3 confinement
+    """Quick: every second one of the paper's nine dphi (5), xi = 3/2 at N = 3 and 8, the link-number
+    sets at the ends of the range, N = 3 and 9 (the explanation's contrast is their fall from 3 to 9; at
+    full's first look it is 8.6-12.6 times the two-change set's, so the ends decide it), 3 confinement
     starts, the groups' and impulse grids thinned the same way (:data:`QUICK_THINNING`); full: 17 dphi
-    (step pi/8), N = 3, 4, 6, 8, 5 starts.  The groups cases take the groups study's design
+    (step pi/8), xi = 3/2 at N = 3, 4, 6, 8, the link-number sets at N = 3, 5, 7, 9, 5 starts.  The groups cases take the groups study's design
     (:func:`._analysis.group_phases`, :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of
     four swimmers, thinned to 5 and 4; full 33 dphi and 40 draws), so that only the channel differs."""
     if quick:  # one look, on the groups' and potential's first quick look
-        return thinned_plan(Plan(tuple(float(p) for p in C.paper_phases())), QUICK_THINNING)
+        return thinned_plan(Plan(tuple(float(p) for p in C.paper_phases()), links=(3, 9)), QUICK_THINNING)
     impulse_dphi, impulse_phi0 = _impulse_grid(False)
     return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
                 confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),
