@@ -142,6 +142,13 @@ def impulse_design(quick: bool) -> tuple[np.ndarray, np.ndarray]:
     return phase_grid(IMPULSE_PHASES[quick]), phi0
 
 
+def positions(values, subset) -> list[int]:
+    """Index in ``values`` of each of ``subset`` (a staged look's thinned values: equal to ``values``'
+    bitwise, compared within 1e-12)."""
+    v = np.asarray(values, float)
+    return [int(np.flatnonzero(np.isclose(v, d, rtol=0, atol=1e-12))[0]) for d in subset]
+
+
 def by_abs_dphi(dphi, values) -> tuple[np.ndarray, np.ndarray]:
     """The runs at each |dphi| together, for a fit on |dphi|: ``(|dphi| values, increasing; their runs,
     one row each, NaN-padded)``.  ``values``: one row per ``dphi`` (e.g. the common phases of the impulse

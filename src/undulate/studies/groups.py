@@ -34,6 +34,8 @@ from ._runners import BODY_LENGTH_M, DURATION_S
 from ._shared import group_part, group_sweep
 
 XI = 1.0
+SIZES = (3, 4)
+"""The group sizes with a claim each (:data:`CLAIMS`, in this order)."""
 
 NEIGHBOUR_FIELDS = {
     "group_size": ("1", "swimmers in the group"),
@@ -95,11 +97,15 @@ def size_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[int, Plan]
     earlier look decided (``decided``: claim -> look, :attr:`~._registry.StudyContext.decided_claims`),
     that look's plan (frozen: its runs are made, and a decided claim is never reopened).  The reference
     pairs feed both claims: frozen once both are decided (at the latest such look)."""
-    looks = stages(quick)
-    by_size = {int(c.claim.split()[2]): decided.get(c.claim) for c in CLAIMS}  # "groups of N follow ..."
-    plans = {n: p if k is None else looks[k - 1] for n, k in by_size.items()}
-    plans[2] = p if None in by_size.values() else looks[max(by_size.values()) - 1]
+    looks, by_size = stages(quick), _decided_sizes(decided)
+    plans = {n: looks[by_size[n] - 1] if n in by_size else p for n in SIZES}
+    plans[2] = looks[max(by_size.values()) - 1] if len(by_size) == len(SIZES) else p
     return plans
+
+
+def _decided_sizes(decided: dict[str, int]) -> dict[int, int]:
+    """Group size -> the look that decided its claim, for the sizes ``decided`` (claim -> look) names."""
+    return {n: decided[c.claim] for n, c in zip(SIZES, CLAIMS) if c.claim in decided}
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
@@ -111,8 +117,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
         n, plans[n].pairs if n == 2 else plans[n].dphi_rad, plans[n].draws, seed)) for n in (2, 3, 4))
     A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
     ds = groups_dataset({2: two, 3: three, 4: four}, A)
-    ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in sorted(
-        ((int(c.claim.split()[2]), ctx.decided_claims.get(c.claim)) for c in CLAIMS)) if k is not None})
+    ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in _decided_sizes(ctx.decided_claims).items()})
     return ds
 
 
@@ -248,8 +253,8 @@ CLAIMS = tuple(
           f"{GROUP_RMS_TOL} lambda and wholly above the pairs' (same xi and dphi range, d = {PAIR_CHANNEL_M} m); "
           "fails if an interval lies wholly outside its region or the RMS interval wholly below the pairs', "
           "undecided if one straddles its bound or the two RMS intervals overlap",
-          _group_follows(size))
-    for size in ("3", "4"))
+          _group_follows(str(size)))
+    for size in SIZES)
 
 
 def figure(ds: xr.Dataset):

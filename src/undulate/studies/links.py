@@ -128,7 +128,7 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray,
     index = np.full((nr, nn, nd), -1)
     k = 0
     for r in range(nr):
-        cols = [int(np.flatnonzero(np.isclose(dphis, d, rtol=0, atol=1e-12))[0]) for d in rule_dphis[r]]
+        cols = C.positions(dphis, rule_dphis[r])
         for n in range(nn):
             index[r, n, cols] = np.arange(k, k + len(cols))
             k += len(cols)

@@ -241,9 +241,8 @@ class _Runs:
     def on_axis(self, values: np.ndarray, dphis: np.ndarray) -> np.ndarray:
         """``values`` (first axis: ``dphis``, a look's subset of this plan's dphi) on this plan's dphi axis,
         NaN at the dphi that look did not run."""
-        idx = [int(np.flatnonzero(np.isclose(self.dphis, d, rtol=0, atol=1e-12))[0]) for d in dphis]
         out = np.full((len(self.dphis),) + np.shape(values)[1:], np.nan)
-        out[idx] = values
+        out[C.positions(self.dphis, dphis)] = values
         return out
 
     def cases_on_axis(self, cases: list[_Case], sub: _Runs) -> list[_Case]:
