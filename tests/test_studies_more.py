@@ -288,6 +288,24 @@ def test_the_impulse_line_counts_each_abs_dphi_once():
     np.testing.assert_allclose(np.nanmean(p1, axis=1), u)
 
 
+def test_two_period_impulse_runs_give_a_longer_runs_impulse_and_escape_bitwise():
+    """The impulse runs last the two periods they read (IMPULSE_DURATION_S = 2 T): the impulse over
+    [0, 2T] and the first period's mean dx of a 3-period run are the same numbers, bitwise; the short run
+    has no steady window (NaN, not steady) instead of failing."""
+    from undulate.studies._shared import IMPULSE_DURATION_S
+    from undulate.studies._runners import PERIOD_S, pair_point
+
+    assert IMPULSE_DURATION_S == 2 * PERIOD_S
+    point = {"dphi_rad": 2.0, "phi0_rad": 0.7}
+    short = pair_point(point, 0, duration_s=IMPULSE_DURATION_S)
+    long = pair_point(point, 0, duration_s=3 * PERIOD_S)
+    assert float(short["impulse_2T_Ns"]) == float(long["impulse_2T_Ns"]) > 0.1
+    assert float(short["dx_period_over_lambda"][0]) == float(long["dx_period_over_lambda"][0])
+    assert short.sizes["period_time"] == 2 and long.sizes["period_time"] == 3
+    assert not bool(short["steady"]) and np.isnan(float(short["dx_final_over_lambda"]))
+    assert np.isnan(float(short["settle_time_s"])) and np.isfinite(float(long["dx_final_over_lambda"]))
+
+
 def test_a_pair_at_minus_dphi_is_the_mirror_image_of_the_pair_at_dphi():
     """Why +-dphi are one design point of the impulse line: reflected across the channel's centre line
     (each body's bend negated: phase + pi) and relabelled, the pair (phi0, phi0 + dphi) is the pair

@@ -28,7 +28,7 @@ import xarray as xr
 from ..errors import ParameterError
 from ..params import Channel, Ground, Scene, SimOptions, SwimmerGeometry
 from ..stopping import PhaseStop, SteadyStop
-from ._criteria import PAIR_CHANNEL_M, STEADY_TOL
+from ._criteria import PAIR_CHANNEL_M, STEADY_TOL, STEADY_WINDOW
 from ._points import GroupPoint, LonePoint, PairPoint
 
 __all__ = ["BODY_LENGTH_M", "PERIOD_S", "DURATION_S", "SAMPLE_RATE_HZ", "TIMESTEP_S", 
@@ -246,8 +246,9 @@ def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
     ``dx_period_over_lambda(period_time)`` (whole-period means);
     ``dx_final_over_lambda`` (mean of the last 3 periods), ``steady``
     (``observables.steady_state``, tolerance :data:`STEADY_TOL`),
-    ``settle_time_s``; ``dy_final_m``; ``impulse_2T_Ns`` (swimmer-swimmer
-    contact impulse over the first two periods); ``mean_joint_error_rad``
+    ``settle_time_s`` (a run shorter than :data:`STEADY_WINDOW` periods: NaN, not steady, NaN);
+    ``dy_final_m``; ``impulse_2T_Ns`` (swimmer-swimmer contact impulse over the first two periods:
+    a run of two periods, :data:`._shared.IMPULSE_DURATION_S`, has it all); ``mean_joint_error_rad``
     (t >= one period); ``speed_m_s`` (the pair's mean speed toward -x over
     the last 3 periods); ``max_penetration_m``.  ``seed`` is unused.
     ``stop``: a stopping rule (e.g. :data:`PAIR_STOP`; None: the whole ``duration_s``, which is
@@ -272,7 +273,10 @@ def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
     off = off.assign(dx=off["dx"] * sign, dy=off["dy"] * sign)
     dxl = off["dx"] / lam
     pa = period_average(dxl, T)
-    st = steady_state(dxl, T, tol=STEADY_TOL)
+    if pa.sizes["time"] >= STEADY_WINDOW:
+        st = steady_state(dxl, T, tol=STEADY_TOL, window=STEADY_WINDOW)
+    else:  # a run shorter than the steady window (e.g. the two-period impulse runs): no steady value
+        st = {"value": math.nan, "steady": False, "settle_time": math.nan}
     dy = period_average(off["dy"], T)
     xc = period_average(ds["x"].mean("swimmer"), T).values
     every = max(1, int(round(1.0 / (record_hz * float(ds.attrs["sample_interval"])))))
