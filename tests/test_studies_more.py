@@ -272,6 +272,29 @@ def test_the_impulse_r2_without_phase_scatter_recovers_a_noisy_lines_shape():
     assert impulse_r2_without_phase_scatter(dphi, curve).value < 0.85
 
 
+def test_the_impulse_r2_without_phase_scatter_leaves_an_exact_phase_average_alone():
+    """On equally spaced common phases a phase dependence that averages out exactly (here 3 sin(phi0)) is
+    no error of the mean: the two interpenetrating halves (+dphi, -dphi) agree, nothing is taken out, and
+    the R^2 is the plain one.  var(phi0) / n, as if the phases were drawn, would call 3 sin(phi0) noise
+    and lift a step's R^2 towards 1."""
+    from undulate import stats
+    from undulate.studies import _analysis as C
+    from undulate.studies.potential import (_r2_without_scatter_value, _split_half_means,
+                                            impulse_r2_without_phase_scatter)
+
+    dphi = np.linspace(-np.pi, np.pi, 41)
+    phi0 = np.linspace(0.0, 2 * np.pi, 8, endpoint=False)
+    step = 3.0 * (np.abs(dphi) > 1.0)[:, None] + 3.0 * np.sin(phi0)[None, :]
+    x, y, nv = _split_half_means(dphi, step)
+    assert x.size == 21 and np.allclose(nv, 0.0, atol=1e-20)
+    plain = stats.line_fit(x, y).r2
+    clean = impulse_r2_without_phase_scatter(dphi, step)
+    assert clean.value == pytest.approx(plain.value, abs=1e-9) and clean.value < 0.85
+    u, pooled = C.by_abs_dphi(dphi, step)  # what the random-sampling formula would have taken out:
+    naive = np.nanvar(pooled, axis=1, ddof=1) / np.isfinite(pooled).sum(axis=1)
+    assert _r2_without_scatter_value(u, np.nanmean(pooled, axis=1), naive) > plain.value + 0.05
+
+
 def test_the_impulse_line_counts_each_abs_dphi_once():
     """+-dphi are one design point (mirror images; +-pi one state): the line on |dphi| pools their runs,
     so its intervals rest on the distinct |dphi|, not on twice as many rows."""
