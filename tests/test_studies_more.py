@@ -287,6 +287,12 @@ def test_the_impulse_r2_without_phase_scatter_leaves_an_exact_phase_average_alon
     step = 3.0 * (np.abs(dphi) > 1.0)[:, None] + 3.0 * np.sin(phi0)[None, :]
     x, y, nv = _split_half_means(dphi, step)
     assert x.size == 21 and np.allclose(nv, 0.0, atol=1e-20)
+    # +-dphi rows that are the same runs (a mirror shift of whole grid steps) split by even / odd phases
+    same = np.array([[0.0, 1.0, 0.0, 1.0], [1.0, 0.0, 1.0, 0.0]])  # one set of runs, reordered
+    xs, ys, nvs = _split_half_means([-1.0, 1.0], same)
+    assert xs.tolist() == [1.0] and ys.tolist() == [0.5] and nvs.tolist() == [0.25]
+    other = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0]])  # two different halves
+    assert _split_half_means([-1.0, 1.0], other)[2].tolist() == [0.25]
     plain = stats.line_fit(x, y).r2
     clean = impulse_r2_without_phase_scatter(dphi, step)
     assert clean.value == pytest.approx(plain.value, abs=1e-9) and clean.value < 0.85

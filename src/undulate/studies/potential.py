@@ -371,11 +371,12 @@ def _split_half_means(dphi, impulse_all) -> tuple[np.ndarray, np.ndarray, np.nda
     """Per distinct |dphi|: ``(|dphi|, mean of its runs, the mean's error variance)``, the variance from
     two interpenetrating halves of its runs, ``((m1 - m2) / 2) ** 2``: the runs at +dphi and those at
     -dphi (two phase grids shifted against each other: the pair at -dphi from phi0 is the pair at +dphi
-    from phi0 + dphi + pi), or the even and odd common phases where one row holds the |dphi| (0, pi).
-    The common phases are equally spaced, not drawn, so a mean over them is far more exact than
-    var(phi0) / n says; two interpenetrating systematic halves estimate the error of their mean without
-    that assumption (Mahalanobis's interpenetrating subsamples).  |dphi| with fewer than 2 runs in a
-    half are left out."""
+    from phi0 + dphi + pi), or the even and odd common phases of one row where only one row holds the
+    |dphi| (dphi = 0) or the two rows are the same runs (the shift is a whole number of grid steps, as
+    at +-pi: equal to rounding, compared sorted).  The common phases are equally spaced, not drawn, so a
+    mean over them is far more exact than var(phi0) / n says; two interpenetrating systematic halves
+    estimate the error of their mean without that assumption (Mahalanobis's interpenetrating
+    subsamples).  |dphi| with fewer than 2 runs in a half are left out."""
     d = np.asarray(dphi, float).ravel()
     a = np.asarray(impulse_all, float).reshape(d.size, -1)
     keys = np.round(np.abs(d), 9)
@@ -384,7 +385,9 @@ def _split_half_means(dphi, impulse_all) -> tuple[np.ndarray, np.ndarray, np.nda
         warnings.simplefilter("ignore", RuntimeWarning)  # a half whose runs all failed
         for k in np.unique(keys):
             rows = a[keys == k]
-            halves = (rows[0], rows[1]) if len(rows) == 2 else (rows[0][::2], rows[0][1::2])
+            same = len(rows) == 2 and np.allclose(np.sort(rows[0]), np.sort(rows[1]), rtol=1e-9, atol=0.0,
+                                                  equal_nan=True)
+            halves = (rows[0], rows[1]) if len(rows) == 2 and not same else (rows[0][::2], rows[0][1::2])
             if min(np.isfinite(h).sum() for h in halves) < 2:
                 continue
             m1, m2 = (float(np.nanmean(h)) for h in halves)
