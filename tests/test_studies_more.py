@@ -293,6 +293,9 @@ def test_the_impulse_r2_without_phase_scatter_leaves_an_exact_phase_average_alon
     assert xs.tolist() == [1.0] and ys.tolist() == [0.5] and nvs.tolist() == [0.25]
     other = np.array([[0.0, 0.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0]])  # two different halves
     assert _split_half_means([-1.0, 1.0], other)[2].tolist() == [0.25]
+    # one run a half will do (quick's first look: 2 common phases; dphi = 0 has one row)
+    x0, _, nv0 = _split_half_means([0.0, 1.0], np.array([[1.0, 3.0], [2.0, np.nan]]))
+    assert x0.tolist() == [0.0] and nv0.tolist() == [1.0]  # |dphi| = 1: a half with no finite run, left out
     plain = stats.line_fit(x, y).r2
     clean = impulse_r2_without_phase_scatter(dphi, step)
     assert clean.value == pytest.approx(plain.value, abs=1e-9) and clean.value < 0.85

@@ -376,7 +376,7 @@ def _split_half_means(dphi, impulse_all) -> tuple[np.ndarray, np.ndarray, np.nda
     at +-pi: equal to rounding, compared sorted).  The common phases are equally spaced, not drawn, so a
     mean over them is far more exact than var(phi0) / n says; two interpenetrating systematic halves
     estimate the error of their mean without that assumption (Mahalanobis's interpenetrating
-    subsamples).  |dphi| with fewer than 2 runs in a half are left out."""
+    subsamples; one run a half will do).  A |dphi| with a half whose runs all failed is left out."""
     d = np.asarray(dphi, float).ravel()
     a = np.asarray(impulse_all, float).reshape(d.size, -1)
     keys = np.round(np.abs(d), 9)
@@ -388,7 +388,7 @@ def _split_half_means(dphi, impulse_all) -> tuple[np.ndarray, np.ndarray, np.nda
             same = len(rows) == 2 and np.allclose(np.sort(rows[0]), np.sort(rows[1]), rtol=1e-9, atol=0.0,
                                                   equal_nan=True)
             halves = (rows[0], rows[1]) if len(rows) == 2 and not same else (rows[0][::2], rows[0][1::2])
-            if min(np.isfinite(h).sum() for h in halves) < 2:
+            if min(np.isfinite(h).sum() for h in halves) < 1:
                 continue
             m1, m2 = (float(np.nanmean(h)) for h in halves)
             out.append((float(k), float(np.nanmean(rows)), ((m1 - m2) / 2.0) ** 2))
