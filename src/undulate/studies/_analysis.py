@@ -149,6 +149,11 @@ def positions(values, subset) -> list[int]:
     return [int(np.flatnonzero(np.isclose(v, d, rtol=0, atol=1e-12))[0]) for d in subset]
 
 
+def abs_dphi_keys(dphi) -> np.ndarray:
+    """|dphi| rounded to 1e-9 rad: equal for +dphi and -dphi of one grid (one design point, :func:`by_abs_dphi`)."""
+    return np.round(np.abs(np.asarray(dphi, float).ravel()), 9)
+
+
 def by_abs_dphi(dphi, values) -> tuple[np.ndarray, np.ndarray]:
     """The runs at each |dphi| together, for a fit on |dphi|: ``(|dphi| values, increasing; their runs,
     one row each, NaN-padded)``.  ``values``: one row per ``dphi`` (e.g. the common phases of the impulse
@@ -156,9 +161,8 @@ def by_abs_dphi(dphi, values) -> tuple[np.ndarray, np.ndarray]:
     at +dphi mirrored (swimmers swapped, reflected across the channel: phi0 -> phi0 + dphi + pi), so on the
     common-phase grid some rows repeat others run for run, and dphi = +-pi is one state.  A bootstrap over
     the rows would count each |dphi| twice; over these rows it counts it once."""
-    a = np.abs(np.asarray(dphi, float).ravel())
-    v = np.asarray(values, float).reshape(a.size, -1)
-    keys = np.round(a, 9)
+    keys = abs_dphi_keys(dphi)
+    v = np.asarray(values, float).reshape(keys.size, -1)
     u = np.unique(keys)
     rows = [v[keys == k].ravel() for k in u]
     out = np.full((u.size, max((r.size for r in rows), default=0)), np.nan)

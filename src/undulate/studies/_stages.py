@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from typing import Any
 
-__all__ = ["thinned", "QUICK_STRIDES", "FULL_STRIDES", "strides"]
+__all__ = ["thinned", "QUICK_STRIDES", "FULL_STRIDES", "strides", "kept_plan"]
 
 QUICK_STRIDES = (2, 1)
 """Quick mode: two looks, at every second value of the mode's grid, then all of it."""
@@ -28,3 +28,10 @@ def thinned(values: Sequence[Any], steps: Sequence[int]) -> list[tuple[Any, ...]
     ``k * s + 1`` values keeps both ends)."""
     vals = list(values)
     return [tuple(vals[::int(s)]) for s in steps]
+
+
+def kept_plan(looks: Sequence[Any], decided_at: dict[Any, int], key: Any, current: Any) -> Any:
+    """The plan the runs of ``key`` (a claim's share of a study: a rule, a group size) follow at a look on
+    ``current``: the plan of the look that decided it (``decided_at[key]``, 1-based into ``looks``, the
+    study's stages), else ``current``.  A decided claim is never reopened, so its runs stay those made."""
+    return looks[decided_at[key] - 1] if key in decided_at else current

@@ -29,7 +29,7 @@ from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, PAIR_CHA
 from . import _analysis as C
 from ._analysis import group_records
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import strides, thinned
+from ._stages import kept_plan, strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S
 from ._shared import group_part, group_sweep
 
@@ -98,7 +98,7 @@ def size_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[int, Plan]
     that look's plan (frozen: its runs are made, and a decided claim is never reopened).  The reference
     pairs feed both claims: frozen once both are decided (at the latest such look)."""
     looks, by_size = stages(quick), _decided_sizes(decided)
-    plans = {n: looks[by_size[n] - 1] if n in by_size else p for n in SIZES}
+    plans = {n: kept_plan(looks, by_size, n, p) for n in SIZES}
     plans[2] = looks[max(by_size.values()) - 1] if len(by_size) == len(SIZES) else p
     return plans
 

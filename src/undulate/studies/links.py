@@ -49,7 +49,7 @@ from ._criteria import PAIR_CHANNEL_M
 from . import _analysis as C
 from . import _outliers as O
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import strides, thinned
+from ._stages import kept_plan, strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
 
 N_LINKS = (3, 5, 7, 9)
@@ -95,7 +95,7 @@ def rule_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[str, Plan]
     that look's plan (frozen: its runs are made, and a decided claim is never reopened, so more of them
     would buy nothing)."""
     looks = stages(quick)
-    return {rule: looks[decided[c.claim] - 1] if c.claim in decided else p for rule, c in zip(RULES, CLAIMS)}
+    return {rule: kept_plan(looks, decided, c.claim, p) for rule, c in zip(RULES, CLAIMS)}
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:

@@ -377,9 +377,8 @@ def _split_half_means(dphi, impulse_all) -> tuple[np.ndarray, np.ndarray, np.nda
     mean over them is far more exact than var(phi0) / n says; two interpenetrating systematic halves
     estimate the error of their mean without that assumption (Mahalanobis's interpenetrating
     subsamples; one run a half will do).  A |dphi| with a half whose runs all failed is left out."""
-    d = np.asarray(dphi, float).ravel()
-    a = np.asarray(impulse_all, float).reshape(d.size, -1)
-    keys = np.round(np.abs(d), 9)
+    keys = C.abs_dphi_keys(dphi)
+    a = np.asarray(impulse_all, float).reshape(keys.size, -1)
     out = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # a half whose runs all failed
