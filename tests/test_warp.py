@@ -296,6 +296,58 @@ def test_a_capacity_overflow_stops_the_run_naming_the_capacity(monkeypatch, capf
     assert "overflow" not in capfd.readouterr().out.lower()  # no print from the kernels either
 
 
+def test_the_traced_step_names_every_kernel_the_first_step_loads_and_leaves_the_data_alone(monkeypatch):
+    """A Warp model's kernels are compiled on threads before its first step
+    (:func:`undulate.simulation._warp._compile_kernels`) from a trace of the step whose launches are
+    recorded, not run.  Every module the real step then launches is among those traced (so nothing is
+    left to compile one after another), and the trace leaves the group's data, and its model's
+    solver loop, as they were (it steps throwaway data)."""
+    import mujoco
+    import warp as wp
+
+    from undulate.simulation import _warp, compile_scene
+    from warp._src.context import _resolve_launch_block_dim
+
+    sc = Scene(phases_rad=(0.0, 1.57))
+    aff = compile_scene(sc, resolve_options(sc, SimOptions(duration_s=0.1)), servo="affine").model
+    aff.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
+    group = _warp._Group(aff, np.arange(3), {}, "cpu", [aff] * 3)
+    fields = {n: v.numpy().copy() for n, v in vars(group.d).items() if isinstance(v, wp.array)}
+    conditional = group.m.opt.graph_conditional
+    traced = _warp._traced_modules(group)
+    assert len(traced) > 20 and group.m.opt.graph_conditional == conditional
+    for n, v in fields.items():
+        assert np.array_equal(getattr(group.d, n).numpy(), v, equal_nan=True), n
+    device = wp.get_device("cpu")
+    want = {(mod, _resolve_launch_block_dim(device, bd)) for mod, bd in traced}
+    launched = set()
+
+    def recorder(real):
+        def launch(kernel, *args, **kw):
+            launched.add((kernel.module, _resolve_launch_block_dim(device, kw.get("block_dim"))))
+            return real(kernel, *args, **kw)
+        return launch
+
+    monkeypatch.setattr(wp, "launch", recorder(wp.launch))
+    monkeypatch.setattr(wp, "launch_tiled", recorder(wp.launch_tiled))
+    group._buffers(1)
+    group._one_step()
+    assert launched and launched <= want, sorted(m.name for m, _ in launched - want)
+
+
+def test_compile_workers_are_validated(monkeypatch):
+    from undulate.simulation import _warp
+
+    monkeypatch.setenv("UNDULATE_WARP_COMPILE_WORKERS", "3")
+    assert _warp.compile_workers() == 3
+    for bad in ("0", "two"):
+        monkeypatch.setenv("UNDULATE_WARP_COMPILE_WORKERS", bad)
+        with pytest.raises(ParameterError, match="UNDULATE_WARP_COMPILE_WORKERS"):
+            _warp.compile_workers()
+    monkeypatch.delenv("UNDULATE_WARP_COMPILE_WORKERS")
+    assert _warp.compile_workers() >= 1
+
+
 def test_options_validate_backend_and_device():
     with pytest.raises(ParameterError, match="backend"):
         SimOptions(backend="jax")

@@ -283,25 +283,8 @@ class _Group:
                                               .reshape((nw,) + tuple(cur.shape[1:]) + inner), dtype=cur.dtype))
             m.opt.warn_overflow = 0
             m.opt.contact_sensor_maxmatch = cap["contact_sensor_maxmatch"]
-            mjd = mujoco.MjData(mjm)
-            mujoco.mj_forward(mjm, mjd)
-            try:
-                self.d = mjw.put_data(mjm, mjd, nworld=nw, nconmax=cap["nconmax"], njmax=cap["njmax"])
-            except ValueError as e:  # the first state already needs more than was allocated
-                raise CapacityError(f"MuJoCo Warp: {e} at the start (allocated per world: {cap})") from None
-            if per_world and models is not None:
-                datas = []
-                for mw in models:
-                    dw = mujoco.MjData(mw)
-                    mujoco.mj_forward(mw, dw)
-                    datas.append(dw)
-                for name in self.STATIC_DATA:
-                    arr = getattr(self.d, name, None)
-                    if arr is None:
-                        continue
-                    inner = tuple(getattr(arr.dtype, "_shape_", ()))
-                    v = np.stack([getattr(dw, name) for dw in datas]).reshape((nw,) + tuple(arr.shape[1:]) + inner)
-                    setattr(self.d, name, wp.array(v.astype(np.float32), dtype=arr.dtype))
+            self._mjm, self._models, self._per_world = mjm, models, per_world
+            self.d = self._new_data()
             self.m = m
             self.k = wp.zeros(1, dtype=int)
             # its own stream on a GPU: the groups of threads running side by side (studies, gathered
@@ -313,6 +296,32 @@ class _Group:
         self.bufs = None
         self.stepped = False  # its kernels compiled (a first step taken)
         self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
+
+    def _new_data(self):
+        """The worlds' Warp data at the first state (the current device): one ``put_data`` of the
+        layout scene, with each world's static geoms and sites (the walls) from its own model."""
+        wp, mjw = require()
+        mjm, models, cap, nw = self._mjm, self._models, self.cap, len(self.idx)
+        mjd = mujoco.MjData(mjm)
+        mujoco.mj_forward(mjm, mjd)
+        try:
+            d = mjw.put_data(mjm, mjd, nworld=nw, nconmax=cap["nconmax"], njmax=cap["njmax"])
+        except ValueError as e:  # the first state already needs more than was allocated
+            raise CapacityError(f"MuJoCo Warp: {e} at the start (allocated per world: {cap})") from None
+        if self._per_world and models is not None:
+            datas = []
+            for mw in models:
+                dw = mujoco.MjData(mw)
+                mujoco.mj_forward(mw, dw)
+                datas.append(dw)
+            for name in self.STATIC_DATA:
+                arr = getattr(d, name, None)
+                if arr is None:
+                    continue
+                inner = tuple(getattr(arr.dtype, "_shape_", ()))
+                v = np.stack([getattr(dw, name) for dw in datas]).reshape((nw,) + tuple(arr.shape[1:]) + inner)
+                setattr(d, name, wp.array(v.astype(np.float32), dtype=arr.dtype))
+        return d
 
     def _buffers(self, k: int):
         """The chunk's buffers on the device for at least ``k`` steps -- the control table, then what
@@ -396,6 +405,7 @@ class _Group:
             if not self.stepped:  # (on CUDA and on Warp's CPU device alike: on the CPU the graph saves
                 self._upload(host)  # Warp's per-launch Python, 5x a pair's stepping)
                 t0 = time.perf_counter()
+                _compile_kernels(self)
                 self._one_step()
                 self._sync()
                 _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
@@ -490,6 +500,89 @@ def _device_seconds(group: "_Group", nstep: int) -> float:
                 group._one_step()
         wp.synchronize()
         return time.perf_counter() - t
+
+
+def compile_workers() -> int:
+    """Threads that compile a Warp model's kernels at once: ``UNDULATE_WARP_COMPILE_WORKERS``, or
+    the CPUs this process may use (1: one module after another, as Warp's first step does)."""
+    raw = os.environ.get("UNDULATE_WARP_COMPILE_WORKERS")
+    if raw:
+        try:
+            n = int(raw)
+        except ValueError:
+            n = 0
+        if n < 1:
+            raise ParameterError("UNDULATE_WARP_COMPILE_WORKERS", "an integer >= 1", raw)
+        return n
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # not on Linux
+        return os.cpu_count() or 1
+
+
+def _traced_modules(group: "_Group") -> list:
+    """The Warp modules (with their block sizes) that one step of ``group``'s model launches,
+    found by running MuJoCo Warp's step with every launch of this thread only recorded: on
+    throwaway data of the same shapes (the step's own copies and fills land there), with the
+    constraint solver's iterations unrolled (a conditional loop would wait for kernels that
+    never ran).  The kernels are the same ones the real step launches, since MuJoCo Warp
+    specialises them on the model and the data's sizes, which are the group's."""
+    wp, mjw = require()
+    from . import _warp_kernels as kernels
+
+    seen: dict = {(k.module, None): None for k in (kernels.set_ctrl, kernels.record, kernels.reduce, kernels.incr)}
+    me = threading.get_ident()
+    launch, launch_tiled = wp.launch, wp.launch_tiled
+
+    def record(real):
+        def stub(kernel, *args, **kw):
+            if threading.get_ident() != me:  # another thread's launches go through untouched
+                return real(kernel, *args, **kw)
+            seen[(kernel.module, kw.get("block_dim"))] = None
+        return stub
+
+    m = group.m
+    conditional = m.opt.graph_conditional
+    scratch = group._new_data()
+    wp.launch, wp.launch_tiled = record(launch), record(launch_tiled)
+    m.opt.graph_conditional = False
+    try:
+        mjw.step(m, scratch)
+    finally:
+        wp.launch, wp.launch_tiled = launch, launch_tiled
+        m.opt.graph_conditional = conditional
+    return list(seen)
+
+
+def _compile_kernels(group: "_Group") -> None:
+    """Compile (or load from Warp's kernel cache) every module ``group``'s first step needs, on
+    :func:`compile_workers` threads at once.  Warp compiles a module when a launch first needs
+    it, so a first step compiles its ~60 modules one after another; Warp's native compilers run
+    outside its code-generation lock, so modules compiled on threads overlap (on Warp's CPU device,
+    2 cores: a pair's cold first step 39-47 s -> 26 s).  Anything the trace misses is compiled by
+    the step as before, and a trace that fails leaves everything to the step."""
+    wp, _ = require()
+    n = compile_workers()
+    if n <= 1:
+        return
+    try:
+        todo = _traced_modules(group)
+    except Exception:  # noqa: BLE001  (an unexpected step path: the first step compiles serially)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    from warp._src.context import _resolve_launch_block_dim, runtime  # warp-lang is pinned (the gpu extra)
+
+    device = wp.get_device(group.device)
+    todo = [(mod, _resolve_launch_block_dim(device, bd)) for mod, bd in todo]
+    saved = runtime.core.wp_cuda_context_get_current() if device.is_cuda else None
+    try:  # (a module already loaded and current returns at once; one whose kernels changed recompiles)
+        with ThreadPoolExecutor(min(n, len(todo))) as pool:
+            for f in [pool.submit(mod.load, device, block_dim=bd) for mod, bd in todo]:
+                f.result()
+    finally:  # as wp.force_load does: the caller's CUDA context back
+        if saved is not None:
+            runtime.core.wp_cuda_context_set_current(saved)
 
 
 def _note_first_step(seconds: float, nworld: int, nv: int) -> None:
