@@ -22,6 +22,8 @@ leaves what it measured.  Steps, in the order ``--only`` gives (default: all, in
   device alone (the CUDA graph of one step, launched per step) and end to end (controls up, every
   step's state and sensors down, as :func:`undulate.simulation.simulate_batch` pays it).
 * ``pack`` -- the pack over 2 s against the MuJoCo backend: penetration (the 1 mm rule).
+* ``determinism`` -- MuJoCo Warp's determinism on (the default) and off: four identical worlds of the
+  pack over 1 s (their largest difference), and the pair's device-only throughput at 8 192 worlds.
 
 Every step has a time limit taken from ``--budget-s`` so the whole check ends in time.
 """
@@ -167,6 +169,53 @@ def throughput(which: str, budget: float) -> None:
                 say(f"{name}.worlds_{nw}", f"error: {type(e).__name__}: {e}"[:500])
 
 
+def determinism(budget: float) -> None:
+    """MuJoCo Warp's determinism (``undulate.simulation._warp.determinism``; on by default), on and
+    off: four identical worlds of the jammed pack over 1 s (the largest difference between their
+    centres: 0 when deterministic; GPU.md measured 4 cm after 1 s without), and what it costs the pair
+    on the device alone at 8 192 worlds."""
+    import numpy as np
+
+    from undulate import Scene, SimOptions
+    from undulate.simulation import _initial_state, compile_scene, resolve_options, simulate_batch
+    from undulate.simulation._warp import WarpRollout, _device_seconds
+    from undulate.studies.packing import _pack
+
+    pack = _pack({"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}, amplitude_m=0.05226, base_seed=0,
+                 n_swimmers=50)[0]
+    pair = Scene(phases_rad=(0.0, math.pi / 2))
+    nw, k = (4, 10) if SMALL else (8192, 200)
+    saved = os.environ.get("UNDULATE_WARP_DETERMINISTIC")
+    try:
+        for flag in ("1", "0"):
+            if left(budget) < 40:
+                say(f"determinism.{flag}", "skipped: budget")
+                continue
+            os.environ["UNDULATE_WARP_DETERMINISTIC"] = flag
+            t = time.perf_counter()
+            runs = simulate_batch([pack] * 4, SimOptions(duration_s=0.1 if SMALL else 1.0, sample_rate_hz=10.0,
+                                                         record=("x", "y", "penetration"), backend="warp",
+                                                         device=DEVICE))
+            pack_s = time.perf_counter() - t
+            spread = max(float(np.abs(r[v].values - runs[0][v].values).max()) for r in runs[1:] for v in ("x", "y"))
+            opts = resolve_options(pair, SimOptions(duration_s=1.0, backend="warp", device=DEVICE))
+            cs, aff = compile_scene(pair, opts), compile_scene(pair, opts, servo="affine")
+            s0, _ = _initial_state(cs.model)
+            u = np.broadcast_to(cs.controls(np.arange(k) * opts.timestep_s), (nw, k, cs.model.nu))
+            r = WarpRollout([cs] * nw, [aff] * nw, opts, DEVICE)
+            st, sd = np.empty((nw, k, s0.size)), np.empty((nw, k, cs.model.nsensordata))
+            r.rollout(np.tile(s0, (nw, 1)), u, st, sd, k)  # compilation, graph capture
+            dev = _device_seconds(r.groups[0], k)
+            r.close()
+            say(f"determinism.{flag}", {"pack_identical_worlds_max_dxy_m": spread, "pack_1s_wall_s": pack_s,
+                                        "pair_worlds": nw, "pair_device_world_steps_per_s": nw * k / dev})
+    finally:
+        if saved is None:
+            os.environ.pop("UNDULATE_WARP_DETERMINISTIC", None)
+        else:
+            os.environ["UNDULATE_WARP_DETERMINISTIC"] = saved
+
+
 def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     out = OUT / f"repro-{tag}"
     cmd = [sys.executable, "-c", "import sys; from undulate.cli import main; sys.exit(main(sys.argv[1:]))",
@@ -245,7 +294,8 @@ def reproduction(step: str, budget: float) -> None:
     _compare(step, _cpu_reference(mode, budget, base), gpu)
 
 
-STEPS = ("pair", "quick-warp", "full-warp", "quick-warp-warm", "pair-throughput", "pack", "pack-throughput")
+STEPS = ("pair", "quick-warp", "full-warp", "quick-warp-warm", "pair-throughput", "pack", "pack-throughput",
+         "determinism")
 
 
 def main() -> None:
@@ -277,6 +327,8 @@ def main() -> None:
                 agreement(step)
             elif step.endswith("-throughput"):
                 throughput(step.split("-")[0], a.budget_s)
+            elif step == "determinism":
+                determinism(a.budget_s)
             else:
                 reproduction(step, a.budget_s)
         except Exception:  # noqa: BLE001 - one failed step does not lose the others

@@ -335,6 +335,27 @@ def test_the_traced_step_names_every_kernel_the_first_step_loads_and_leaves_the_
     assert launched and launched <= want, sorted(m.name for m, _ in launched - want)
 
 
+def test_warp_models_are_deterministic_unless_told_otherwise(monkeypatch):
+    """Every Warp model steps with MuJoCo Warp's determinism on (stable contact order, canonical
+    constraint rows, order-invariant atomics: identical inputs give identical results on a GPU
+    too); UNDULATE_WARP_DETERMINISTIC=0 turns it off, anything else but 0 / 1 is refused."""
+    import mujoco
+    from mujoco_warp._src.types import DeterminismType
+
+    from undulate.simulation import _warp, compile_scene
+
+    sc = Scene(phases_rad=(0.0, 1.57))
+    aff = compile_scene(sc, resolve_options(sc, SimOptions(duration_s=0.1)), servo="affine").model
+    aff.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
+    monkeypatch.delenv("UNDULATE_WARP_DETERMINISTIC", raising=False)
+    assert _warp._Group(aff, np.arange(1), {}, "cpu").m.opt.deterministic == DeterminismType.ALL
+    monkeypatch.setenv("UNDULATE_WARP_DETERMINISTIC", "0")
+    assert _warp._Group(aff, np.arange(1), {}, "cpu").m.opt.deterministic == DeterminismType.NONE
+    monkeypatch.setenv("UNDULATE_WARP_DETERMINISTIC", "yes")
+    with pytest.raises(ParameterError, match="UNDULATE_WARP_DETERMINISTIC"):
+        _warp.determinism()
+
+
 def test_compile_workers_are_validated(monkeypatch):
     from undulate.simulation import _warp
 
