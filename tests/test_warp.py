@@ -349,8 +349,16 @@ def test_warp_models_are_deterministic_unless_told_otherwise(monkeypatch):
     aff.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
     monkeypatch.delenv("UNDULATE_WARP_DETERMINISTIC", raising=False)
     assert _warp._Group(aff, np.arange(1), {}, "cpu").m.opt.deterministic == DeterminismType.ALL
+    from undulate.sweep._store import backend_identity
+
+    monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+    monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
+    on = backend_identity()
+    assert simulate(sc, SimOptions(duration_s=0.05, **WARP)).attrs["warp_determinism"] == "all"
     monkeypatch.setenv("UNDULATE_WARP_DETERMINISTIC", "0")
     assert _warp._Group(aff, np.arange(1), {}, "cpu").m.opt.deterministic == DeterminismType.NONE
+    # a sweep's runs made with it on are never served for a request with it off (nor the reverse)
+    assert backend_identity() == on.replace("float32", "float32 nondeterministic") != on
     monkeypatch.setenv("UNDULATE_WARP_DETERMINISTIC", "yes")
     with pytest.raises(ParameterError, match="UNDULATE_WARP_DETERMINISTIC"):
         _warp.determinism()

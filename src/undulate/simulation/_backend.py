@@ -55,10 +55,11 @@ def check_backend(options: SimOptions) -> SimOptions:
 
 def backend_attrs(options: SimOptions) -> dict[str, str]:
     """What stepped a run (resolved ``options``): ``backend``, ``device``, ``precision`` and, for
-    Warp, the versions of mujoco-warp and warp-lang (Dataset attrs, sweep identity)."""
+    Warp, the versions of mujoco-warp and warp-lang and whether MuJoCo Warp's determinism was on
+    (``warp_determinism``: ``all`` or ``none``; Dataset attrs, sweep identity)."""
     if options.backend != "warp":
         return {"backend": "mujoco", "device": "cpu", "precision": "float64"}
     from . import _warp
 
     return {"backend": "warp", "device": options.device or "", "precision": _warp.PRECISION,
-            "backend_versions": _warp.versions()}
+            "backend_versions": _warp.versions(), "warp_determinism": "all" if _warp.determinism() else "none"}

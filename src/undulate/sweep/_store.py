@@ -143,8 +143,9 @@ def function_id(fn: Callable) -> str:
 
 def backend_identity() -> str:
     """The session's default stepping backend as a sweep's identity records it: ``"mujoco"``, or
-    ``"warp DEVICE float32 (mujoco-warp X, warp-lang Y)"`` (:func:`undulate.simulation.use_backend`).
-    Runs of one backend are never served for another."""
+    ``"warp DEVICE float32 (mujoco-warp X, warp-lang Y)"``, with `` nondeterministic`` after the
+    precision where MuJoCo Warp's determinism is off (:func:`undulate.simulation.use_backend`,
+    :func:`undulate.simulation._warp.determinism`).  Runs of one backend are never served for another."""
     from ..simulation import backend_attrs, default_backend
     from ..params import SimOptions
 
@@ -154,7 +155,8 @@ def backend_identity() -> str:
     from ..simulation import _warp
 
     a = backend_attrs(SimOptions(backend=backend, device=_warp.resolve_device(device)))
-    return f"warp {a['device']} {a['precision']} ({a['backend_versions']})"
+    nondet = " nondeterministic" if a["warp_determinism"] == "none" else ""
+    return f"warp {a['device']} {a['precision']}{nondet} ({a['backend_versions']})"
 
 
 def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:
