@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import contextvars
+import threading
 from collections.abc import Iterator
 
 __all__ = ["Tally", "meter", "report"]
@@ -29,10 +30,12 @@ class Tally:
 
     def __init__(self) -> None:
         self.seconds, self.steps = 0.0, 0
+        self._lock = threading.Lock()  # threads of one context report to the same tallies
 
     def add(self, seconds: float, steps: int) -> None:
-        self.seconds += seconds
-        self.steps += steps
+        with self._lock:
+            self.seconds += seconds
+            self.steps += steps
 
     def read(self) -> tuple[float, int]:
         """``(seconds, steps)``."""

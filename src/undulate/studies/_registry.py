@@ -377,6 +377,7 @@ class StudyContext:
         """``claim -> look``: this study's claims its earlier looks decided (holds or fails), which a later
         look never reopens (:func:`_keep_decided`); set by the staged run, so a study can keep the runs
         that feed only such claims on the plan of the look that decided them."""
+        self._local = threading.local()  # a thread of :meth:`together`: its sweeps' records, kept apart
         self.decided_explanations: dict[tuple[str, str], int] = {}
         """``(study, claim) -> look``: the explanations this study's earlier looks decided (shown or
         refuted), which a later look never reopens (:func:`_keep_decided`); set by the staged run, so a
@@ -427,11 +428,52 @@ class StudyContext:
             rel = str(out.relative_to(self.config.out_dir))
         except ValueError:
             rel = str(out)
-        self.sweeps.append({"part": part, "store": rel, **res.identity, "n_runs": res.n_runs,
-                            "n_computed": res.n_computed, "n_reused": res.n_reused, "stale": res.stale,
-                            "elapsed_s": res.elapsed_s, "n_failed": len(res.failures), "timing": res.timing})
-        self.failures += [f"{part}: {f}" for f in res.failures]
+        sweeps, failures = self._records()
+        sweeps.append({"part": part, "store": rel, **res.identity, "n_runs": res.n_runs,
+                       "n_computed": res.n_computed, "n_reused": res.n_reused, "stale": res.stale,
+                       "elapsed_s": res.elapsed_s, "n_failed": len(res.failures), "timing": res.timing})
+        failures += [f"{part}: {f}" for f in res.failures]
         return res.dataset
+
+    def _records(self) -> tuple[list[dict[str, Any]], list[str]]:
+        """Where this thread's sweeps and failures are recorded: the study's lists, or in a thread of
+        :meth:`together` that thread's own (added to its caller's in the calls' order)."""
+        return getattr(self._local, "records", None) or (self.sweeps, self.failures)
+
+    def together(self, *calls: Callable[[], Any]) -> list[Any]:
+        """``[call() for call in calls]``, for calls that do not depend on each other (each runs its own
+        sweeps).  On the Warp backend they run side by side on threads, so their runs reach the device
+        at once: a study's chain of sequential device steps is then its longest call's, not the sum of
+        them (a device step costs about the same for one world as for hundreds).  Their sweeps and
+        failures are recorded in the calls' order, and the first call (in that order) that raised
+        raises here once all have ended.  On the MuJoCo backend they run one after another, as
+        written: the worker pool is already kept busy, and nothing about the runs changes.  Results
+        never depend on it (content-keyed stores; a store shared by two calls is computed once)."""
+        if len(calls) < 2 or not _prefetching():
+            return [call() for call in calls]
+        import contextvars
+        from concurrent.futures import ThreadPoolExecutor
+
+        def run(call: Callable[[], Any]) -> tuple[Any, BaseException | None, tuple[list, list]]:
+            self._local.records = records = ([], [])
+            try:
+                return call(), None, records
+            except BaseException as e:  # noqa: BLE001 - raised below, in the calls' order
+                return None, e, records
+            finally:
+                self._local.records = None
+
+        with ThreadPoolExecutor(len(calls), thread_name_prefix=f"undulate-{self.name}") as pool:
+            # each call in a copy of this context: the study's physics meter counts its runs
+            done = [f.result() for f in [pool.submit(contextvars.copy_context().run, run, c) for c in calls]]
+        sweeps, failures = self._records()
+        for _, _, (s, f) in done:
+            sweeps += s
+            failures += f
+        for _, error, _ in done:
+            if error is not None:
+                raise error
+        return [result for result, _, _ in done]
 
     def lone_swimmer(self, *, amplitude_rad: float | None = None, waves_per_body: float = 1.0,
                      n_links: int = 3, ground: str = "viscous", heading_guide: bool = False) -> xr.Dataset:
@@ -454,7 +496,7 @@ class StudyContext:
         out = Path(self.config.out_dir) / ".sweeps" / "_lone" / (key + _backend_suffix())
         ds = self.sweep(f"lone {key}", lone_swimmer, Grid(points=[point], seed=0), where=out)
         if bool(ds["run_failed"].any()):
-            raise UndulateError(f"study {self.name!r}: the free swimmer {key} failed: {self.failures[-1]}")
+            raise UndulateError(f"study {self.name!r}: the free swimmer {key} failed: {self._records()[1][-1]}")
         return ds.isel(point=0, replicate=0)
 
 

@@ -113,9 +113,13 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     a size whose claim an earlier look decided keeps that look's runs (:func:`size_plans`)."""
     seed = ctx.config.seed
     plans = size_plans(p, ctx.decided_claims, bool(ctx.config.quick))
-    two, three, four = (ctx.shared_sweep(group_part(n), *group_sweep(
-        n, plans[n].pairs if n == 2 else plans[n].dphi_rad, plans[n].draws, seed)) for n in (2, 3, 4))
-    A = float(ctx.lone_swimmer(waves_per_body=XI)["amplitude_m"])
+    def size(n: int) -> xr.Dataset:
+        return ctx.shared_sweep(group_part(n), *group_sweep(n, plans[n].pairs if n == 2 else plans[n].dphi_rad,
+                                                             plans[n].draws, seed))
+
+    two, three, four, lone = ctx.together(lambda: size(2), lambda: size(3), lambda: size(4),
+                                          lambda: ctx.lone_swimmer(waves_per_body=XI))
+    A = float(lone["amplitude_m"])
     ds = groups_dataset({2: two, 3: three, 4: four}, A)
     ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in _decided_sizes(ctx.decided_claims).items()})
     return ds

@@ -105,9 +105,10 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]
     sim_points = [{**g, "dphi_rad": float(d)} for g in gaits for d in plans[g["beta_rule"]].dphi_rad]
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
-    sim = ctx.sweep("sim", fn, Grid(points=sim_points, seed=ctx.config.seed))
-    amp = np.array([float(ctx.lone_swimmer(amplitude_rad=g["amplitude_rad"], n_links=g["n_links"],
-                                           waves_per_body=XI)["amplitude_m"]) for g in gaits])
+    sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, Grid(points=sim_points, seed=ctx.config.seed)),
+                              *(functools.partial(ctx.lone_swimmer, amplitude_rad=g["amplitude_rad"],
+                                                  n_links=g["n_links"], waves_per_body=XI) for g in gaits))
+    amp = np.array([float(ds["amplitude_m"]) for ds in lone])
     ds = links_dataset(sim, amp, dphis, [plans[r].dphi_rad for r in RULES])
     ds.attrs["frozen_rules"] = json.dumps({r: decided[c.claim] for r, c in zip(RULES, CLAIMS) if c.claim in decided})
     return ds

@@ -57,9 +57,10 @@ def plan(quick: bool) -> Plan:
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset."""
     grid = Grid(axes={"waves_per_body": list(p.xi), "dphi_rad": list(p.dphi_rad)}, seed=ctx.config.seed)
-    sim = ctx.sweep("sim", functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M,
-                                                stop=PAIR_STOP), grid)
-    amp = [float(ctx.lone_swimmer(waves_per_body=x)["amplitude_m"]) for x in p.xi]
+    fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
+    sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, grid),
+                              *(functools.partial(ctx.lone_swimmer, waves_per_body=x) for x in p.xi))
+    amp = [float(ds["amplitude_m"]) for ds in lone]
     return pairs_dataset(sim, np.array(amp))
 
 

@@ -192,8 +192,7 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
 
     geo = SwimmerGeometry()
     lam = Gait().wavelength_m(geo.length_m)
-    imp_all, impulse, fit_a = _impulse_part(ctx, p)
-    amps, g = _force_sweep(ctx, p)
+    (imp_all, impulse, fit_a), (amps, g) = ctx.together(lambda: _impulse_part(ctx, p), lambda: _force_sweep(ctx, p))
     resp = _steady_response(g, (len(p.betas_deg), len(p.d_over_2A), len(p.forces_N)))
     est, n_used = _stiffness_fits(p, resp["dx"], resp["broken"], lam)
     R = np.asarray(p.d_over_2A)
@@ -241,7 +240,8 @@ def _force_sweep(ctx: StudyContext, p: PotentialPlan):
     from ..sweep import Grid
 
     betas = [math.radians(b) for b in p.betas_deg]
-    amps = np.array([float(ctx.lone_swimmer(amplitude_rad=b)["amplitude_m"]) for b in betas])
+    amps = np.array([float(ds["amplitude_m"]) for ds in ctx.together(
+        *(functools.partial(ctx.lone_swimmer, amplitude_rad=b) for b in betas))])
     points = [{"amplitude_rad": beta, "amplitude_m": float(amp), "d_over_2A": r, "force_N": f}
               for beta, amp in zip(betas, amps) for r in p.d_over_2A for f in p.forces_N]
     fn = functools.partial(pair_point, duration_s=p.duration_s, force_onset_s=SETTLE_S, stop=FORCE_STOP)

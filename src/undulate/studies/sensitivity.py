@@ -334,18 +334,19 @@ def _data_xi32(r: _Runs) -> list[_Case]:
     answer is the whole run's within the steady tolerance (its drift test carries the trend to the
     run's planned end, so a 60 s run stops no earlier than a 30 s one would), and a run steps on past
     30 s only while the rule finds the pair still drifting (``tests/test_stopping.py``)."""
+    def runs(n: int) -> tuple:  # (the pair runs, the free swimmer's A) of N links
+        if not r.runs("xi32"):
+            return None, math.nan
+        fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M,
+                               duration_s=max(xi32_durations(n)), stop=PAIR_STOP)
+        g = Grid(points=[{"waves_per_body": 1.5, "n_links": n, "timestep_s": _timestep(n),
+                          "dphi_rad": float(d)} for d in r.dphis], seed=r.seed)
+        return (r.ctx.sweep(f"xi32-N{n}", fn, g).isel(replicate=0),
+                float(r.ctx.lone_swimmer(n_links=n, waves_per_body=1.5)["amplitude_m"]))
+
     out = []
-    for n in r.p.xi32_links:
+    for n, (sw, amp) in zip(r.p.xi32_links, r.ctx.together(*(functools.partial(runs, n) for n in r.p.xi32_links))):
         durations = xi32_durations(n)
-        dur = max(durations)
-        sw, amp = None, math.nan
-        if r.runs("xi32"):
-            fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, duration_s=dur,
-                                   stop=PAIR_STOP)
-            g = Grid(points=[{"waves_per_body": 1.5, "n_links": n, "timestep_s": _timestep(n),
-                              "dphi_rad": float(d)} for d in r.dphis], seed=r.seed)
-            sw = r.ctx.sweep(f"xi32-N{n}", fn, g).isel(replicate=0)
-            amp = float(r.ctx.lone_swimmer(n_links=n, waves_per_body=1.5)["amplitude_m"])
         for D in durations:
             rows = r.nan_rows() if sw is None else r.steady_rows(sw, 0, BODY_LENGTH_M / 1.5, amp, cut_s=D)
             out.append(r.case(CaseId.of(CaseSet.XI32, n_links=n, duration_s=D), "links per body N at xi = 3/2",
@@ -360,18 +361,17 @@ def _equal_a_gaits(r: _Runs, heading_guide: bool) -> list[tuple[int, float, floa
     NaN beta and A (no run) when the links group is skipped."""
     if not r.runs("links"):
         return [(n, math.nan, math.nan) for n in r.p.links]
-    out = []
-    for n in r.p.links:
+    def gait(n: int) -> tuple[int, float, float]:
         if n == 3 and not heading_guide:
-            out.append((n, math.radians(BETA_DEG), r.A3))
-            continue
+            return n, math.radians(BETA_DEG), r.A3
 
-        def amplitude_m(beta: float, n: int = n) -> float:
+        def amplitude_m(beta: float) -> float:
             return float(r.ctx.lone_swimmer(amplitude_rad=beta, n_links=n, waves_per_body=1.0,
                                             heading_guide=heading_guide)["amplitude_m"])
 
-        out.append((n, *equal_amplitude_beta(amplitude_m, n, r.A3)))
-    return out
+        return n, *equal_amplitude_beta(amplitude_m, n, r.A3)
+
+    return r.ctx.together(*(functools.partial(gait, n) for n in r.p.links))  # one root search per N
 
 
 def _link_cases(r: _Runs, sweep, gaits, sets: tuple[tuple[CaseSet, str, str], ...]) -> list[_Case]:
@@ -479,8 +479,8 @@ def _data_groups(r: _Runs) -> tuple[dict, dict]:
         return [run for run in C.sweep_runs(sw) if run is not None]
 
     cases = group_cases()  # the groups study's grid: the same per-run seeds, hence the same phase draws
-    recs = [[rec for run in group_runs(n, w) for rec in C.group_records(C.trajectory(run, BODY_LENGTH_M), r.A3)]
-            for n, w, _ in cases]
+    runs = r.ctx.together(*(functools.partial(group_runs, n, w) for n, w, _ in cases))
+    recs = [[rec for run in rs for rec in C.group_records(C.trajectory(run, BODY_LENGTH_M), r.A3)] for rs in runs]
     n_nb = max(1, max(len(x) for x in recs))
     if not r.runs("groups"):  # not run: as many neighbour pairs as the runs would give (n - 1 per run)
         n_nb = max((n - 1) * group_sweep(n, gdphis, r.p.group_draws, r.seed, channel_width_m=w)[1].n_runs
@@ -509,12 +509,12 @@ def _data_swimming(r: _Runs) -> tuple[list[_Case], dict]:
     fns = functools.partial(pair_point, duration_s=DEFAULT_S, stop=PAIR_STOP)
     gs = Grid(axes={"ground": ["swimming"], "fluid_density_kg_m3": list(FLUID_DENSITIES), "dphi_rad": list(r.dphis)},
               seed=r.seed)
-    swim = r.ctx.sweep("swimming", fns, gs).isel(replicate=0, ground=0)
-    by_density = [r.pair_point_rows([swim.isel(fluid_density_kg_m3=k, dphi_rad=j) for j in range(len(r.dphis))])
-                  for k in range(len(FLUID_DENSITIES))]
     gsd = Grid(points=[{"ground": "swimming", "swim_drag_N_s_per_m": SWIM_DRAG_N_S_PER_M, "dphi_rad": float(d)}
                        for d in r.dphis], seed=r.seed)
-    swd = r.ctx.sweep("swimming-drag", fns, gsd).isel(replicate=0)
+    swim, swd = r.ctx.together(lambda: r.ctx.sweep("swimming", fns, gs).isel(replicate=0, ground=0),
+                               lambda: r.ctx.sweep("swimming-drag", fns, gsd).isel(replicate=0))
+    by_density = [r.pair_point_rows([swim.isel(fluid_density_kg_m3=k, dphi_rad=j) for j in range(len(r.dphis))])
+                  for k in range(len(FLUID_DENSITIES))]
     speed = np.where(swd["run_failed"].values, np.nan, swd["speed_m_s"].values)
     return _swimming_cases(r, by_density, r.pair_point_rows([swd.isel(point=j) for j in range(len(r.dphis))]),
                            speed)
@@ -543,10 +543,11 @@ def _data_impulse(r: _Runs) -> tuple[dict, dict]:
     escape_by_drag = np.full_like(imp_by_drag, np.nan)
     impulse = np.full(len(idphis), np.nan)
     if r.runs("impulse"):
-        imp = r.ctx.shared_sweep("impulse", *impulse_sweep(idphis, iphi0, r.seed)).isel(replicate=0)
+        imp, impd = r.ctx.together(
+            lambda: r.ctx.shared_sweep("impulse", *impulse_sweep(idphis, iphi0, r.seed)).isel(replicate=0),
+            lambda: r.ctx.sweep("impulse-drag", *impulse_sweep(idphis, iphi0, r.seed,
+                                                              drag_N_s_per_m=IMPULSE_DRAGS_N_S_PER_M)).isel(replicate=0))
         impulse = np.nanmean(np.where(imp["run_failed"].values, np.nan, imp["impulse_2T_Ns"].values), axis=1)
-        impd = r.ctx.sweep("impulse-drag", *impulse_sweep(idphis, iphi0, r.seed,
-                                                          drag_N_s_per_m=IMPULSE_DRAGS_N_S_PER_M)).isel(replicate=0)
     for k, c in enumerate(drags if r.runs("impulse") else ()):
         run = imp if c == IMPULSE_DRAG_DEFAULT else impd.isel(drag_N_s_per_m=IMPULSE_DRAGS_N_S_PER_M.index(c))
         bad = run["run_failed"].values
@@ -605,8 +606,9 @@ def _case_variables(cases: list[_Case], dphis: np.ndarray) -> tuple[dict, dict]:
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
-    """The sensitivity runs, one factor group at a time (the ``_data_*`` steps), as one dataset; the pair
-    cases along ``case`` in the order of :func:`~._sensitivity_design.pair_cases` (checked)."""
+    """The sensitivity runs, one factor group per ``_data_*`` step (side by side on the Warp backend:
+    :meth:`StudyContext.together`), as one dataset; the pair cases along ``case`` in the order of
+    :func:`~._sensitivity_design.pair_cases` (checked)."""
     dphis = np.asarray(p.dphi_rad, float)
     skipped = frozenset(SKIPPABLE_GROUPS) - needed_groups(ctx.needs_explanation)
     r = _Runs(ctx, p, dphis, float(ctx.lone_swimmer()["amplitude_m"]), skipped)
@@ -617,13 +619,16 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     def on(group: str) -> _Runs:
         return r.on_plan(looks[frozen[group] - 1]) if group in frozen else r
 
-    xi32, links = on("xi32"), on("links")
-    cases = (_data_xi1_model(r) + _data_xi1_windows(r) + r.cases_on_axis(_data_xi32(xi32), xi32)
-             + r.cases_on_axis(_data_links_equal_a(links) + _data_links_guided(links), links))
-    conf_data, conf_coords = _data_confinement(on("confinement"))
-    group_data, group_coords = _data_groups(on("groups"))
-    swim = on("swimming")
-    swim_cases, swim_data = _data_swimming(swim)
+    xi32, links, conf, groups, swim, imp = (on(g) for g in ("xi32", "links", "confinement", "groups", "swimming",
+                                                           "impulse"))
+    # the factor groups' runs do not depend on each other (side by side on the Warp backend)
+    (model, windows, xi32_cases, equal_a, guided, (conf_data, conf_coords), (group_data, group_coords),
+     (swim_cases, swim_data), (imp_data, imp_coords)) = ctx.together(
+        lambda: _data_xi1_model(r), lambda: _data_xi1_windows(r), lambda: _data_xi32(xi32),
+        lambda: _data_links_equal_a(links), lambda: _data_links_guided(links), lambda: _data_confinement(conf),
+        lambda: _data_groups(groups), lambda: _data_swimming(swim), lambda: _data_impulse(imp))
+    cases = (model + windows + r.cases_on_axis(xi32_cases, xi32)
+             + r.cases_on_axis(equal_a + guided, links))
     if swim is not r:  # its one variable along dphi
         dims, speed, attrs = swim_data["swim_drag_pair_speed"]
         swim_data = {"swim_drag_pair_speed": (dims, r.on_axis(speed, swim.dphis), attrs)}
@@ -631,7 +636,6 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     if [c.id for c in cases] != list(pair_cases(p)):
         raise UndulateError("the sensitivity dataset's cases differ from _sensitivity_design.pair_cases: "
                             + ", ".join(str(c.id) for c in cases))
-    imp_data, imp_coords = _data_impulse(on("impulse"))
     case_data, case_coords = _case_variables(cases, dphis)
     amp = {"amplitude_3_links": ((), r.A3, {"units": "m", "long_name": "free 3-link swimmer's A (default gait)"})}
     return xr.Dataset(

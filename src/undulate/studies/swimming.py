@@ -69,14 +69,13 @@ def dataset(ctx: StudyContext, p: SwimmingPlan):
 
     from ..sweep import Grid
 
-    lone = ctx.lone_swimmer(ground="swimming")
-    speed = float(lone["speed_m_s"])
-    lone_v = ctx.lone_swimmer(ground="viscous")
-    speed_v = float(lone_v["speed_m_s"])
-
     fn = functools.partial(pair_point, duration_s=p.duration_s, stop=PAIR_STOP)
     grid = Grid(axes={"ground": list(MODES), "dphi_rad": p.dphi}, seed=ctx.config.seed)
-    g = ctx.sweep("pairs", fn, grid).isel(replicate=0)
+    lone, lone_v, g = ctx.together(lambda: ctx.lone_swimmer(ground="swimming"),
+                                   lambda: ctx.lone_swimmer(ground="viscous"),
+                                   lambda: ctx.sweep("pairs", fn, grid).isel(replicate=0))
+    speed = float(lone["speed_m_s"])
+    speed_v = float(lone_v["speed_m_s"])
     failed = g["run_failed"].values.astype(bool)
     one = {"units": "1"}
     lam = Gait().wavelength_m(SwimmerGeometry().length_m)
