@@ -200,6 +200,9 @@ class _RecordingContext:
                            "extent_x": (("point", "replicate", "swimmer"), np.full((n, 1, 2), np.nan))},
                           coords={"time": np.arange(3.0)})
 
+    def together(self, *calls):  # StudyContext.together on the MuJoCo backend: one after another
+        return [call() for call in calls]
+
     def lone_swimmer(self, **kw):
         return {"amplitude_m": 0.05}
 

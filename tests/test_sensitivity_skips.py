@@ -42,6 +42,9 @@ class FakeContext:
         self.calls.append(("shared_sweep", part))
         raise AssertionError(f"shared sweep {part} ran")
 
+    def together(self, *calls):  # StudyContext.together on the MuJoCo backend: one after another
+        return [call() for call in calls]
+
     def lone_swimmer(self, **kw):
         self.calls.append(("lone_swimmer", tuple(sorted(kw.items()))))
         if kw:

@@ -186,6 +186,27 @@ def test_side_by_side_gives_the_results_of_one_at_a_time(tmp_path, swing_studies
     assert claims["counts"]["holds"] == 3
 
 
+def test_on_the_warp_backend_an_explaining_study_makes_its_runs_ahead(tmp_path, swing_studies, monkeypatch):
+    """With runs ahead (the Warp backend's way), the explaining study's runs are made beside the studies
+    it explains (:func:`undulate.studies.run_ahead`: every explanation taken as needed); the study itself
+    still starts after them, finds its runs made, and every result is that of one study at a time."""
+    import undulate.reproduce as rp
+
+    names = list(swing_studies)
+    one, ahead = tmp_path / "one", tmp_path / "ahead"
+    reproduce(one, quick=True, studies=names, log=lambda m: None, animation_s=0.3, workers=2, side_by_side=1)
+    monkeypatch.setattr(rp, "_runs_ahead", lambda: True)
+    log: list[str] = []
+    reproduce(ahead, quick=True, studies=names, log=log.append, animation_s=0.3, workers=2, side_by_side=2)
+    assert _results(one, names) == _results(ahead, names)
+    assert [m for m in log if "made ahead" in m and "_swing_explainer" in m]
+    assert RAN_AFTER[str(ahead)]  # the study itself waited for the studies it explains
+    mine = json.loads((ahead / "_swing_explainer.json").read_text())["sweeps"]
+    assert mine and sum(s["n_computed"] for s in mine) == 0  # its runs were there
+    state = json.loads((ahead / "reproduce.json").read_text())
+    assert set(state["studies"]) == set(names)  # the job ahead is not a study of the report
+
+
 # ---- which studies a reproduction runs ------------------------------------------------------
 @pytest.mark.parametrize("quick,beyond,expect_prx", [(True, None, False), (False, None, False), (True, True, True),
                                                      (False, True, True), (False, False, False)])

@@ -29,6 +29,17 @@ __all__ = ["reproduce", "ANIMATIONS"]
 SIDE_BY_SIDE = 2
 
 _ANIMATIONS_JOB = "(animations)"
+_AHEAD = "(ahead) "
+"""The job that makes an explaining study's runs ahead of the studies it explains (the Warp backend:
+:func:`undulate.studies._registry.run_ahead`): ``_AHEAD + name``."""
+
+
+def _runs_ahead() -> bool:
+    """Whether explaining studies make their runs ahead, beside the studies they explain: on the Warp
+    backend (where a study's chain of sequential device steps, not its work, sets its time)."""
+    from .simulation import default_backend
+
+    return default_backend()[0] == "warp"
 
 #: The report's animations: (file stem, caption, scene keyword arguments, duration s).
 ANIMATIONS = (
@@ -267,22 +278,40 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
         return st
 
     anims: list[dict] = []
+    deps = _dependencies(registry, names)
+    ahead = [n for n in todo if deps.get(n, set()) & set(todo)] if _runs_ahead() else []
 
     def job(name: str) -> Any:
         if name == _ANIMATIONS_JOB:
             return _animations(out, animation_s, log, None if scheduler is not None else workers)
+        if name.startswith(_AHEAD):
+            return run_ahead(name[len(_AHEAD):])
         return one(name)
 
+    def run_ahead(name: str) -> None:
+        try:
+            got = registry.run_ahead(name, out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
+            log(f"[{number[name]}/{len(names)}] {name}: {got['n_computed']} of its runs made ahead in "
+                f"{got['wall_s']:.1f} s")
+        except (KeyboardInterrupt, SourceChangedError):
+            raise
+        except Exception as e:  # noqa: BLE001 - the study itself computes what is missing, and reports
+            log(f"[{number[name]}/{len(names)}] {name}: its runs ahead stopped ({type(e).__name__}: {e}); "
+                f"the study makes them")
+
     def finished(name: str, result: Any) -> None:
-        if name == _ANIMATIONS_JOB:
-            anims.extend(result)
+        if name == _ANIMATIONS_JOB or name.startswith(_AHEAD):
+            if name == _ANIMATIONS_JOB:
+                anims.extend(result)
             return
         results[name] = result
         state["studies"][name] = {k: v for k, v in result.items() if k != "reused"}
         _save_state(out, state)
 
     # the animations are one more job, beside the last studies (they use the same worker pool)
-    _side_by_side(todo + [_ANIMATIONS_JOB], _dependencies(registry, names), job, finished, max(1, int(side_by_side)))
+    # (the runs ahead first among the jobs nothing waits for: they start beside the studies they wait for)
+    _side_by_side([_AHEAD + n for n in ahead] + todo + [_ANIMATIONS_JOB], deps, job, finished,
+                  max(1, int(side_by_side)) + len(ahead))
     statuses = [results[n] for n in names]
     from .claims import collect, write_claims_json
 

@@ -26,6 +26,7 @@ from ._registry import (
     is_current,
     names,
     register,
+    run_ahead,
     run_study,
 )
 
@@ -42,5 +43,6 @@ __all__ = [
     "is_current",
     "names",
     "register",
+    "run_ahead",
     "run_study",
 ]

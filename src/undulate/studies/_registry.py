@@ -628,6 +628,28 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
         return _run_study(info, name, config, out, progress)
 
 
+def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, scheduler: str | None = None,
+              seed: int = 0, workers: int | None = None) -> dict[str, Any]:
+    """An explaining study's runs before the studies it explains have finished (the reproduction does
+    this on the Warp backend, where a few more worlds cost the device little and the explaining study
+    would otherwise start its long chains only once the others end): its last stage's dataset with
+    every explanation taken as needed, into the stores the study reads when it then runs.  Nothing is
+    written but the runs, and nothing is judged: the study's own run, once the studies it explains
+    have finished, reads what its looks need from the stores (a run's result is a function of its
+    parameters and seed) and computes what is missing; runs it skips are left unread.  Returns what
+    was computed (``n_runs``, ``n_computed``, ``wall_s``)."""
+    info = describe(name)
+    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=int(seed),
+                         workers=workers)
+    config.out_dir.mkdir(parents=True, exist_ok=True)
+    ctx = StudyContext(config, name, progress=False)
+    ctx.needs_explanation = lambda study, claim: True  # the verdicts are not known yet: every one
+    t0 = time.perf_counter()
+    info.dataset(ctx, stage_plans(info, config.quick)[-1])
+    return {"n_runs": sum(s["n_runs"] for s in ctx.sweeps), "n_computed": sum(s["n_computed"] for s in ctx.sweeps),
+            "wall_s": time.perf_counter() - t0}
+
+
 def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
     """The plans of ``info``'s stages in this mode (one, ``plan(quick)``, unless it declares stages)."""
     plans = tuple(info.stages(quick)) if info.stages is not None else (info.plan(quick),)
