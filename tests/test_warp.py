@@ -306,7 +306,7 @@ def test_the_traced_step_names_every_kernel_the_first_step_loads_and_leaves_the_
     import warp as wp
 
     from undulate.simulation import _warp, compile_scene
-    from warp._src.context import _resolve_launch_block_dim
+    from warp._src.context import _normalize_launch_dim, _resolve_launch_block_dim
 
     sc = Scene(phases_rad=(0.0, 1.57))
     aff = compile_scene(sc, resolve_options(sc, SimOptions(duration_s=0.1)), servo="affine").model
@@ -322,9 +322,10 @@ def test_the_traced_step_names_every_kernel_the_first_step_loads_and_leaves_the_
     want = {(mod, _resolve_launch_block_dim(device, bd)) for mod, bd in traced}
     launched = set()
 
-    def recorder(real):
+    def recorder(real):  # the modules the step loads: those of its launches that are not empty
         def launch(kernel, *args, **kw):
-            launched.add((kernel.module, _resolve_launch_block_dim(device, kw.get("block_dim"))))
+            if _normalize_launch_dim(kw["dim"] if "dim" in kw else args[0])[1] > 0:
+                launched.add((kernel.module, _resolve_launch_block_dim(device, kw.get("block_dim"))))
             return real(kernel, *args, **kw)
         return launch
 

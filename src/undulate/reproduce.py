@@ -189,6 +189,18 @@ def _one_line_at_a_time(log: Callable[[str], None]) -> Callable[[str], None]:
     return logged
 
 
+def _run_ahead(registry, name: str, label: str, log: Callable[[str], None], out: Path, **config) -> None:
+    """The job that makes explaining study ``name``'s runs ahead (:func:`undulate.studies.run_ahead`),
+    logged under ``label``.  If it fails, the study itself computes what is missing, and reports."""
+    try:
+        got = registry.run_ahead(name, out, **config)
+        log(f"{label}: {got['n_computed']} of its runs made ahead in {got['wall_s']:.1f} s")
+    except (KeyboardInterrupt, SourceChangedError):
+        raise
+    except Exception as e:  # noqa: BLE001
+        log(f"{label}: its runs ahead stopped ({type(e).__name__}: {e}); the study makes them")
+
+
 def _dependencies(registry, names: list[str]) -> dict[str, set[str]]:
     """``name -> the studies among names it must wait for``: those whose claims it explains (an
     explaining study reads their verdicts, :meth:`undulate.studies.StudyContext.needs_explanation`)."""
@@ -285,19 +297,10 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
         if name == _ANIMATIONS_JOB:
             return _animations(out, animation_s, log, None if scheduler is not None else workers)
         if name.startswith(_AHEAD):
-            return run_ahead(name[len(_AHEAD):])
+            name = name[len(_AHEAD):]
+            return _run_ahead(registry, name, f"[{number[name]}/{len(names)}] {name}", log,
+                              out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
         return one(name)
-
-    def run_ahead(name: str) -> None:
-        try:
-            got = registry.run_ahead(name, out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
-            log(f"[{number[name]}/{len(names)}] {name}: {got['n_computed']} of its runs made ahead in "
-                f"{got['wall_s']:.1f} s")
-        except (KeyboardInterrupt, SourceChangedError):
-            raise
-        except Exception as e:  # noqa: BLE001 - the study itself computes what is missing, and reports
-            log(f"[{number[name]}/{len(names)}] {name}: its runs ahead stopped ({type(e).__name__}: {e}); "
-                f"the study makes them")
 
     def finished(name: str, result: Any) -> None:
         if name == _ANIMATIONS_JOB or name.startswith(_AHEAD):
