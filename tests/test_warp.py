@@ -64,6 +64,39 @@ def test_affine_servo_with_slew_on_the_stream_equals_mujocos_pid(heading_guide):
     assert np.abs(u[1:, servos.src_pos[has]] - slewed[0, 1:][:, has]).max() > 0.1
 
 
+def test_the_slew_rule_without_a_python_step_per_step_is_bitwise_the_step_by_step_rule():
+    """:func:`undulate.simulation._warp.slew` copies the steps where the state stays on its command;
+    against MuJoCo's rule applied step by step: ramps from far off, jumps mid-chunk, plateaus, sign
+    crossings (where ``t + (t' - t)`` can miss ``t'``), unlimited servos, empty chunks -- bitwise."""
+    from undulate.simulation._warp import slew
+
+    def step_by_step(target, rate, act0):
+        finite = np.isfinite(rate)
+        s, r, out = np.where(finite, act0, 0.0), np.where(finite, rate, 0.0), np.empty_like(target)
+        for i in range(target.shape[1]):
+            s = np.where(finite, s + np.clip(target[:, i] - s, -r, r), target[:, i])
+            out[:, i] = s
+        return out
+
+    rng = np.random.default_rng(0)
+    copied = 0
+    for trial in range(120):
+        nb, k, ns = rng.integers(1, 5), rng.integers(0, 300), rng.integers(1, 4)
+        t = np.linspace(0.0, rng.uniform(1, 5), k)
+        target = rng.uniform(0.2, 1.0, (nb, 1, ns)) * np.sin(2 * np.pi * t[None, :, None] / rng.uniform(0.5, 3)
+                                                              + rng.uniform(0, 6, (nb, 1, ns)))
+        if trial % 3 == 0:
+            target[:, k // 2:] += rng.uniform(-1, 1, (nb, 1, ns))
+        if trial % 5 == 0:
+            target = np.round(target, 2)
+        rate = rng.choice([0.001, 0.01, 0.05, np.inf], (nb, ns))
+        act0 = rng.uniform(-1, 1, (nb, ns))
+        want = step_by_step(target, rate, act0)
+        assert np.array_equal(slew(target, rate, act0), want), trial
+        copied += int((want == target).all(axis=(0, 2)).sum())
+    assert copied > 1000  # the copying path was taken
+
+
 def test_pair_agrees_with_mujoco_over_5_s():
     """The default pair, 5 s: centres within 1 mm of the MuJoCo backend (float32, no DIAGEXACT)."""
     sc = Scene(phases_rad=(0.0, math.pi / 2))

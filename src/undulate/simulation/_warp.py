@@ -242,19 +242,44 @@ class _Servos:
         out = np.zeros((k, nb, self.nu), np.float32)
         out[:, :, self.copy_dst] = u[:, :, self.copy_src].transpose(1, 0, 2)
         target = u[:, :, self.src_pos]
-        rate, ratio = self.rate, self.ratio
-        finite = np.isfinite(rate)
-        s = np.where(finite, act0, 0.0)
-        slewed = np.empty_like(target)
-        if finite.any():
-            r = np.where(finite, rate, 0.0)
-            for i in range(k):  # MuJoCo's rule: the slew state moves toward the command by <= slewmax dt
-                s = np.where(finite, s + np.clip(target[:, i] - s, -r, r), target[:, i])
-                slewed[:, i] = s
-        else:
-            slewed[:] = target
-        out[:, :, self.dst] = (slewed + ratio[:, None] * u[:, :, self.src_vel]).transpose(1, 0, 2)
+        slewed = slew(target, self.rate, act0)
+        out[:, :, self.dst] = (slewed + self.ratio[:, None] * u[:, :, self.src_vel]).transpose(1, 0, 2)
         return out, slewed
+
+
+def slew(target: np.ndarray, rate: np.ndarray, act0: np.ndarray) -> np.ndarray:
+    """The slew states after every step: MuJoCo's rule, the state moves toward the command by at
+    most ``slewmax dt`` a step, ``s <- s + clip(target - s, -rate, rate)``, from ``act0``.
+
+    ``target``: (nb, k, nservo) commands; ``rate``: (nb, nservo) ``slewmax dt`` (inf: no slew limit,
+    the state is the command); ``act0``: (nb, nservo).  Bitwise the step-by-step rule, without a
+    Python step per step where it can be skipped: once every state equals its command, the rule
+    gives the command itself at each following step whose change is within the rate and exact in
+    floating point (``t + (t' - t) == t'``), so those steps are copied whole (a gait within the
+    servos' speed is all such steps after the start's ramp)."""
+    nb, k, _ = target.shape
+    finite = np.isfinite(rate)
+    out = np.empty_like(target)
+    if not finite.any() or k == 0:
+        out[:] = target
+        return out
+    r = np.where(finite, rate, 0.0)
+    d = target[:, 1:] - target[:, :-1]
+    exact = ((np.abs(d) <= r[:, None]) & (target[:, :-1] + d == target[:, 1:])) | ~finite[:, None]
+    breaks = np.flatnonzero(~exact.all(axis=(0, 2)))  # step j -> j + 1 not followed exactly
+    s = np.where(finite, act0, 0.0)
+    i = 0
+    while i < k:
+        s = np.where(finite, s + np.clip(target[:, i] - s, -r, r), target[:, i])
+        out[:, i] = s
+        if np.array_equal(s, target[:, i]):  # on its command: copy the steps that follow exactly
+            nxt = np.searchsorted(breaks, i)
+            end = int(breaks[nxt]) if nxt < len(breaks) else k - 1  # the last step reached exactly
+            out[:, i + 1:end + 1] = target[:, i + 1:end + 1]
+            s = target[:, end].copy()
+            i = end
+        i += 1
+    return out
 
 
 class _Group:
