@@ -236,6 +236,7 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
         firsts = [json.loads(x) for x in stats.read_text().splitlines() if x.strip()]
         rec["warp_models"] = len(firsts)
         rec["warp_first_steps_s"] = sum(x["first_step_s"] for x in firsts)
+        rec["warp_steps_per_graph"] = sorted({x.get("steps_per_graph", 1) for x in firsts})
     claims = out / "claims.json"
     if claims.exists():
         c = json.loads(claims.read_text())

@@ -398,6 +398,24 @@ def test_warp_models_are_deterministic_unless_told_otherwise(monkeypatch):
         _warp.determinism()
 
 
+def test_steps_in_one_graph_give_the_run_of_one_step_graphs(monkeypatch):
+    """A chunk stepped by graphs of 16 steps (and one-step graphs for its remainder) is bitwise the
+    chunk stepped one graph per step; the setting is validated."""
+    from undulate.simulation import _warp
+
+    sc = Scene(phases_rad=(0.0, 1.57))
+    runs = []
+    for n in ("1", "16"):
+        monkeypatch.setenv("UNDULATE_WARP_STEPS_PER_GRAPH", n)
+        runs.append(simulate(sc, SimOptions(duration_s=0.37, **WARP)))
+    for v in ("x", "y", "joint_angle", "contact_force_pair"):
+        assert np.array_equal(runs[0][v].values, runs[1][v].values), v
+    for bad in ("0", "x", "5000"):
+        monkeypatch.setenv("UNDULATE_WARP_STEPS_PER_GRAPH", bad)
+        with pytest.raises(ParameterError, match="UNDULATE_WARP_STEPS_PER_GRAPH"):
+            _warp.steps_per_graph()
+
+
 def test_compile_workers_are_validated(monkeypatch):
     from undulate.simulation import _warp
 

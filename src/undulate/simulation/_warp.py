@@ -319,6 +319,7 @@ class _Group:
             own = wp.get_device(device).is_cuda and os.environ.get("UNDULATE_WARP_STREAMS", "1") != "0"
             self.stream = wp.Stream(device) if own else None
         self.graph = None
+        self.graphs: list = []  # (steps, captured graph), the longest first
         self.bufs = None
         self.stepped = False  # its kernels compiled (a first step taken)
         self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
@@ -428,25 +429,44 @@ class _Group:
         wp, _ = require()
         self._buffers(nstep)
         if self.graph is None:  # the first step compiles the kernels; then one captured graph per step
-            if not self.stepped:  # (on CUDA and on Warp's CPU device alike: on the CPU the graph saves
+            first = not self.stepped
+            if first:  # (on CUDA and on Warp's CPU device alike: on the CPU the graph saves
                 self._upload(host)  # Warp's per-launch Python, 5x a pair's stepping)
                 t0 = time.perf_counter()
                 _compile_kernels(self)
                 self._one_step()
                 self._sync()
-                _note_first_step(time.perf_counter() - t0, len(self.idx), self.nv)
+                first_s = time.perf_counter() - t0
                 self.stepped = True
             with wp.ScopedCapture(stream=self.stream) as cap:
                 self._one_step()
             self.graph = cap.graph
+            self.graphs = [(1, self.graph)]
+            n = steps_per_graph()
+            if n > 1:  # and n steps in one graph: one launch (one Python call on the host) for n steps
+                try:
+                    with wp.ScopedCapture(stream=self.stream) as cap:
+                        for _ in range(n):
+                            self._one_step()
+                    self.graphs.insert(0, (n, cap.graph))
+                except Exception:  # noqa: BLE001 - the one-step graph steps it all (said in the stats)
+                    n = 1
+            if first:
+                _note_first_step(first_s, len(self.idx), self.nv, steps_per_graph=max(n, 1))
 
     def _launch(self, nstep: int, host) -> None:
         """``nstep`` steps from the chunk's start (again, after a compiling step)."""
-        wp, _ = require()
         self._upload(host)
         self._nstep = nstep
-        for _ in range(nstep):
-            wp.capture_launch(self.graph, stream=self.stream)
+        self._steps(nstep)
+
+    def _steps(self, nstep: int) -> None:
+        """Launch ``nstep`` steps on the group's stream: the longest captured graphs first."""
+        wp, _ = require()
+        for n, graph in self.graphs:
+            for _ in range(nstep // n):
+                wp.capture_launch(graph, stream=self.stream)
+            nstep %= n
 
     def _sync(self) -> None:
         """Wait for this group's work on the device (its stream only, on a GPU).
@@ -519,10 +539,10 @@ def _device_seconds(group: "_Group", nstep: int) -> float:
         group.k.zero_()
         wp.synchronize()
         t = time.perf_counter()
-        for _ in range(nstep):
-            if group.graph is not None:
-                wp.capture_launch(group.graph, stream=group.stream)
-            else:
+        if group.graph is not None:
+            group._steps(nstep)
+        else:
+            for _ in range(nstep):
                 group._one_step()
         wp.synchronize()
         return time.perf_counter() - t
@@ -540,6 +560,25 @@ def determinism() -> int:
     if raw not in ("0", "1"):
         raise ParameterError("UNDULATE_WARP_DETERMINISTIC", "0 or 1", raw)
     return int(DeterminismType.ALL if raw == "1" else DeterminismType.NONE)
+
+
+STEPS_PER_GRAPH = 16
+"""Steps captured in one graph (besides the one-step graph for a chunk's remainder): a chunk of k steps
+is k // 16 + k % 16 launches, each one Python call on the host (``UNDULATE_WARP_STEPS_PER_GRAPH``)."""
+
+
+def steps_per_graph() -> int:
+    """Steps in one captured graph: ``UNDULATE_WARP_STEPS_PER_GRAPH`` or :data:`STEPS_PER_GRAPH`."""
+    raw = os.environ.get("UNDULATE_WARP_STEPS_PER_GRAPH")
+    if not raw:
+        return STEPS_PER_GRAPH
+    try:
+        n = int(raw)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= 1000:
+        raise ParameterError("UNDULATE_WARP_STEPS_PER_GRAPH", "an integer from 1 to 1000", raw)
+    return n
 
 
 def compile_workers() -> int:
@@ -628,7 +667,7 @@ def _compile_kernels(group: "_Group") -> None:
             runtime.core.wp_cuda_context_set_current(saved)
 
 
-def _note_first_step(seconds: float, nworld: int, nv: int) -> None:
+def _note_first_step(seconds: float, nworld: int, nv: int, steps_per_graph: int = 1) -> None:
     """The first step of a Warp model (kernel compilation unless cached, then the graph capture):
     appended as a JSON line to the file ``UNDULATE_WARP_STATS`` names, if set (benchmarks/bench_gpu_check.py
     reports compile time apart from stepping with it)."""
@@ -637,7 +676,8 @@ def _note_first_step(seconds: float, nworld: int, nv: int) -> None:
         import json
 
         with open(path, "a", encoding="utf-8") as f:
-            f.write(json.dumps({"first_step_s": seconds, "nworld": nworld, "nv": nv}) + "\n")
+            f.write(json.dumps({"first_step_s": seconds, "nworld": nworld, "nv": nv,
+                                "steps_per_graph": steps_per_graph}) + "\n")
 
 
 _OVERFLOW_NAMES = {"NEFC": "njmax (constraint rows per world)", "NJMAX_NNZ": "njmax_nnz",
