@@ -416,6 +416,23 @@ def test_steps_in_one_graph_give_the_run_of_one_step_graphs(monkeypatch):
             _warp.steps_per_graph()
 
 
+def test_capacities_count_a_frictionless_contact_as_one_constraint_row():
+    """A frictionless contact (condim 1, the default contact model) is one constraint row: a group
+    of three overflowed 31 rows on Warp's CPU device when it was counted as none."""
+    import mujoco
+
+    from undulate.simulation import _warp, compile_scene
+
+    sc = Scene(phases_rad=(0.0, 1.0, 2.0))
+    m = compile_scene(sc, resolve_options(sc, SimOptions(duration_s=0.1)), servo="affine").model
+    assert set(m.geom_condim.tolist()) == {1}
+    cap = _warp.capacities(m)
+    assert cap["njmax"] >= cap["nconmax"] + m.njnt
+    m.geom_condim[:] = 3  # pyramidal cone: 4 rows a contact
+    assert m.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    assert _warp.capacities(m)["njmax"] >= 4 * cap["nconmax"]
+
+
 def test_compile_workers_are_validated(monkeypatch):
     from undulate.simulation import _warp
 

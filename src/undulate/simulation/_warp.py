@@ -125,12 +125,18 @@ def capacities(mjm: mujoco.MjModel) -> dict[str, int]:
 
     Every colliding geom of a swimmer can touch its two lateral neighbours' geoms along its
     length and a wall; capsule pairs and capsule-plane pairs make at most 2 contacts each.
-    The bound used is 6 contacts per colliding geom plus 16; a pyramidal friction cone of
-    dimension 3 adds 4 rows per contact, plus one row per joint limit."""
+    The bound used is 6 contacts per colliding geom plus 16.  Constraint rows: per contact, 1
+    for a frictionless contact (condim 1), else ``2 (condim - 1)`` in a pyramidal friction cone
+    or ``condim`` in an elliptic one; plus one per joint limit, per dof with friction loss and
+    per equality row (6 at most each), and 16.  (Until 2026-11-27 a frictionless contact was
+    counted as 0 rows: a group of three overflowed on Warp's CPU device.)"""
     colliding = int(((mjm.geom_contype != 0) | (mjm.geom_conaffinity != 0)).sum())
     nconmax = 6 * colliding + 16
-    rows = 2 * (int(mjm.geom_condim.max()) - 1) if mjm.ngeom else 4
-    njmax = rows * nconmax + int(mjm.njnt) + 16
+    condim = max([int(mjm.geom_condim.max()) if mjm.ngeom else 3] + ([int(mjm.pair_dim.max())] if mjm.npair else []))
+    pyramidal = mjm.opt.cone == mujoco.mjtCone.mjCONE_PYRAMIDAL
+    rows = 1 if condim == 1 else 2 * (condim - 1) if pyramidal else condim
+    other = int(mjm.njnt) + int((mjm.dof_frictionloss > 0).sum()) + 6 * int(mjm.neq)
+    njmax = rows * nconmax + other + 16
     return {"nconmax": nconmax, "njmax": njmax, "contact_sensor_maxmatch": nconmax}
 
 
@@ -430,8 +436,8 @@ class _Group:
         self._buffers(nstep)
         if self.graph is None:  # the first step compiles the kernels; then one captured graph per step
             first = not self.stepped
-            if first:  # (on CUDA and on Warp's CPU device alike: on the CPU the graph saves
-                self._upload(host)  # Warp's per-launch Python, 5x a pair's stepping)
+            if first:  # its kernels compiled, on threads (then captured graphs, on CUDA and on Warp's
+                self._upload(host)  # CPU device alike: on the CPU they save Warp's per-launch Python)
                 t0 = time.perf_counter()
                 _compile_kernels(self)
                 self._one_step()
@@ -567,36 +573,33 @@ STEPS_PER_GRAPH = 16
 is k // 16 + k % 16 launches, each one Python call on the host (``UNDULATE_WARP_STEPS_PER_GRAPH``)."""
 
 
-def steps_per_graph() -> int:
-    """Steps in one captured graph: ``UNDULATE_WARP_STEPS_PER_GRAPH`` or :data:`STEPS_PER_GRAPH`."""
-    raw = os.environ.get("UNDULATE_WARP_STEPS_PER_GRAPH")
+def _env_count(name: str, default: int, most: int = 10**6) -> int:
+    """The integer environment setting ``name`` (1 to ``most``), or ``default`` where it is unset."""
+    raw = os.environ.get(name)
     if not raw:
-        return STEPS_PER_GRAPH
+        return default
     try:
         n = int(raw)
     except ValueError:
         n = 0
-    if not 1 <= n <= 1000:
-        raise ParameterError("UNDULATE_WARP_STEPS_PER_GRAPH", "an integer from 1 to 1000", raw)
+    if not 1 <= n <= most:
+        raise ParameterError(name, f"an integer from 1 to {most}", raw)
     return n
+
+
+def steps_per_graph() -> int:
+    """Steps in one captured graph: ``UNDULATE_WARP_STEPS_PER_GRAPH`` or :data:`STEPS_PER_GRAPH`."""
+    return _env_count("UNDULATE_WARP_STEPS_PER_GRAPH", STEPS_PER_GRAPH, 1000)
 
 
 def compile_workers() -> int:
     """Threads that compile a Warp model's kernels at once: ``UNDULATE_WARP_COMPILE_WORKERS``, or
     the CPUs this process may use (1: one module after another, as Warp's first step does)."""
-    raw = os.environ.get("UNDULATE_WARP_COMPILE_WORKERS")
-    if raw:
-        try:
-            n = int(raw)
-        except ValueError:
-            n = 0
-        if n < 1:
-            raise ParameterError("UNDULATE_WARP_COMPILE_WORKERS", "an integer >= 1", raw)
-        return n
     try:
-        return len(os.sched_getaffinity(0))
+        cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+        cpus = os.cpu_count() or 1
+    return _env_count("UNDULATE_WARP_COMPILE_WORKERS", cpus)
 
 
 def _traced_modules(group: "_Group") -> list:
@@ -641,8 +644,9 @@ def _compile_kernels(group: "_Group") -> None:
     :func:`compile_workers` threads at once.  Warp compiles a module when a launch first needs
     it, so a first step compiles its modules (41 for a pair) one after another; Warp's native
     compilers run outside its code-generation lock, so modules compiled on threads overlap (on Warp's
-    CPU device, 2 cores, a cold kernel cache: a pair's 0.5 s run 39.8 s -> 28.6 s).  Anything the trace misses is compiled by
-    the step as before, and a trace that fails leaves everything to the step."""
+    CPU device, 2 cores, a cold kernel cache: a pair's 0.5 s run 39.8 s -> 28.6 s).  Anything the
+    trace misses is compiled by the step as before, and a trace that fails leaves everything to the
+    step."""
     wp, _ = require()
     n = compile_workers()
     if n <= 1:
