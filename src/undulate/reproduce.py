@@ -303,9 +303,10 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
         return one(name)
 
     def finished(name: str, result: Any) -> None:
-        if name == _ANIMATIONS_JOB or name.startswith(_AHEAD):
-            if name == _ANIMATIONS_JOB:
-                anims.extend(result)
+        if name == _ANIMATIONS_JOB:
+            anims.extend(result)
+            return
+        if name.startswith(_AHEAD):  # no study of its own: what it made, the study reads
             return
         results[name] = result
         state["studies"][name] = {k: v for k, v in result.items() if k != "reused"}

@@ -372,12 +372,12 @@ class StudyContext:
         self.progress = progress
         self.sweeps: list[dict[str, Any]] = []
         self.failures: list[str] = []
+        self._local = threading.local()  # a thread of :meth:`together`: its sweeps' records, kept apart
         self._verdicts: dict[tuple[str, str], str] | None = None
         self.decided_claims: dict[str, int] = {}
         """``claim -> look``: this study's claims its earlier looks decided (holds or fails), which a later
         look never reopens (:func:`_keep_decided`); set by the staged run, so a study can keep the runs
         that feed only such claims on the plan of the look that decided them."""
-        self._local = threading.local()  # a thread of :meth:`together`: its sweeps' records, kept apart
         self.decided_explanations: dict[tuple[str, str], int] = {}
         """``(study, claim) -> look``: the explanations this study's earlier looks decided (shown or
         refuted), which a later look never reopens (:func:`_keep_decided`); set by the staged run, so a
