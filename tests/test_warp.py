@@ -399,8 +399,9 @@ def test_warp_models_are_deterministic_unless_told_otherwise(monkeypatch):
 
 
 def test_steps_in_one_graph_give_the_run_of_one_step_graphs(monkeypatch):
-    """A chunk stepped by graphs of 16 steps (and one-step graphs for its remainder) is bitwise the
-    chunk stepped one graph per step; the setting is validated."""
+    """A chunk stepped by graphs of 16 steps (and one-step graphs for its remainder: a GPU's default)
+    is bitwise the chunk stepped one graph per step (the CPU device's default); the setting is
+    validated."""
     from undulate.simulation import _warp
 
     sc = Scene(phases_rad=(0.0, 1.57))
@@ -410,6 +411,8 @@ def test_steps_in_one_graph_give_the_run_of_one_step_graphs(monkeypatch):
         runs.append(simulate(sc, SimOptions(duration_s=0.37, **WARP)))
     for v in ("x", "y", "joint_angle", "contact_force_pair"):
         assert np.array_equal(runs[0][v].values, runs[1][v].values), v
+    monkeypatch.delenv("UNDULATE_WARP_STEPS_PER_GRAPH")
+    assert _warp.steps_per_graph("cuda") == _warp.STEPS_PER_GRAPH > 1 == _warp.steps_per_graph("cpu")
     for bad in ("0", "x", "5000"):
         monkeypatch.setenv("UNDULATE_WARP_STEPS_PER_GRAPH", bad)
         with pytest.raises(ParameterError, match="UNDULATE_WARP_STEPS_PER_GRAPH"):

@@ -448,7 +448,7 @@ class _Group:
                 self._one_step()
             self.graph = cap.graph
             self.graphs = [(1, self.graph)]
-            n = steps_per_graph()
+            n = steps_per_graph(self.device)
             if n > 1:  # and n steps in one graph: one launch (one Python call on the host) for n steps
                 try:
                     with wp.ScopedCapture(stream=self.stream) as cap:
@@ -569,8 +569,10 @@ def determinism() -> int:
 
 
 STEPS_PER_GRAPH = 16
-"""Steps captured in one graph (besides the one-step graph for a chunk's remainder): a chunk of k steps
-is k // 16 + k % 16 launches, each one Python call on the host (``UNDULATE_WARP_STEPS_PER_GRAPH``)."""
+"""Steps captured in one graph on a GPU (besides the one-step graph for a chunk's remainder): a chunk of
+k steps is k // 16 + k % 16 launches, each one Python call on the host (``UNDULATE_WARP_STEPS_PER_GRAPH``).
+On Warp's CPU device the default is 1: there the kernels dominate a step (a pair: 70 us a step either
+way) and capturing 16 steps costs each new model ~0.4 s."""
 
 
 def _env_count(name: str, default: int, most: int = 10**6) -> int:
@@ -587,9 +589,10 @@ def _env_count(name: str, default: int, most: int = 10**6) -> int:
     return n
 
 
-def steps_per_graph() -> int:
-    """Steps in one captured graph: ``UNDULATE_WARP_STEPS_PER_GRAPH`` or :data:`STEPS_PER_GRAPH`."""
-    return _env_count("UNDULATE_WARP_STEPS_PER_GRAPH", STEPS_PER_GRAPH, 1000)
+def steps_per_graph(device: str = "cuda") -> int:
+    """Steps in one captured graph on ``device``: ``UNDULATE_WARP_STEPS_PER_GRAPH``, else
+    :data:`STEPS_PER_GRAPH` on a GPU and 1 on Warp's CPU device."""
+    return _env_count("UNDULATE_WARP_STEPS_PER_GRAPH", 1 if device == "cpu" else STEPS_PER_GRAPH, 1000)
 
 
 def compile_workers() -> int:
