@@ -36,10 +36,11 @@ _AHEAD = "(ahead) "
 
 def _runs_ahead() -> bool:
     """Whether explaining studies make their runs ahead, beside the studies they explain: on the Warp
-    backend (where a study's chain of sequential device steps, not its work, sets its time)."""
-    from .simulation import default_backend
+    backend (where a study's chain of sequential device steps, not its work, sets its time), as
+    staged studies step their last stage first there."""
+    from .studies._registry import _prefetching
 
-    return default_backend()[0] == "warp"
+    return _prefetching()
 
 #: The report's animations: (file stem, caption, scene keyword arguments, duration s).
 ANIMATIONS = (

@@ -324,8 +324,7 @@ class _Group:
             # (UNDULATE_WARP_STREAMS=0: every group on the device's current stream, one thread at a time)
             own = wp.get_device(device).is_cuda and os.environ.get("UNDULATE_WARP_STREAMS", "1") != "0"
             self.stream = wp.Stream(device) if own else None
-        self.graph = None
-        self.graphs: list = []  # (steps, captured graph), the longest first
+        self.graphs: list = []  # (steps, captured graph), the longest first; none until captured
         self.bufs = None
         self.stepped = False  # its kernels compiled (a first step taken)
         self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
@@ -377,7 +376,7 @@ class _Group:
                 pinned = self.stream is not None
                 self.host = [wp.empty(a.shape, dtype=a.dtype, device="cpu", pinned=pinned)
                              for a in (*self.bufs[1:], self.d.qacc_warmstart, self.d.overflow)]
-            self.graph = None
+            self.graphs = []
         return self.bufs
 
     def _one_step(self):
@@ -410,7 +409,7 @@ class _Group:
                     self._ready(nstep, host)
                     self._launch(nstep, host)
                     return self._download()
-            if self.graph is None or self.bufs[0].shape[0] < nstep:
+            if not self.graphs or self.bufs[0].shape[0] < nstep:
                 with _DEVICE_LOCK, wp.ScopedStream(self.stream):  # allocation, compilation, capture
                     self._ready(nstep, host)
             # Then on this group's own stream, every call naming it: threads stepping other groups
@@ -434,7 +433,7 @@ class _Group:
         """The chunk's buffers, and on the first call the kernels compiled and the step captured."""
         wp, _ = require()
         self._buffers(nstep)
-        if self.graph is None:  # the first step compiles the kernels; then one captured graph per step
+        if not self.graphs:  # the first step compiles the kernels; then captured graphs
             first = not self.stepped
             if first:  # its kernels compiled, on threads (then captured graphs, on CUDA and on Warp's
                 self._upload(host)  # CPU device alike: on the CPU they save Warp's per-launch Python)
@@ -446,8 +445,7 @@ class _Group:
                 self.stepped = True
             with wp.ScopedCapture(stream=self.stream) as cap:
                 self._one_step()
-            self.graph = cap.graph
-            self.graphs = [(1, self.graph)]
+            self.graphs = [(1, cap.graph)]
             n = steps_per_graph(self.device)
             if n > 1:  # and n steps in one graph: one launch (one Python call on the host) for n steps
                 try:
@@ -545,7 +543,7 @@ def _device_seconds(group: "_Group", nstep: int) -> float:
         group.k.zero_()
         wp.synchronize()
         t = time.perf_counter()
-        if group.graph is not None:
+        if group.graphs:
             group._steps(nstep)
         else:
             for _ in range(nstep):

@@ -334,7 +334,7 @@ def _data_xi32(r: _Runs) -> list[_Case]:
     answer is the whole run's within the steady tolerance (its drift test carries the trend to the
     run's planned end, so a 60 s run stops no earlier than a 30 s one would), and a run steps on past
     30 s only while the rule finds the pair still drifting (``tests/test_stopping.py``)."""
-    def runs(n: int) -> tuple:  # (the pair runs, the free swimmer's A) of N links
+    def pair_runs(n: int) -> tuple:  # (the pair runs, the free swimmer's A) of N links
         if not r.runs("xi32"):
             return None, math.nan
         fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M,
@@ -345,7 +345,7 @@ def _data_xi32(r: _Runs) -> list[_Case]:
                 float(r.ctx.lone_swimmer(n_links=n, waves_per_body=1.5)["amplitude_m"]))
 
     out = []
-    for n, (sw, amp) in zip(r.p.xi32_links, r.ctx.together(*(functools.partial(runs, n) for n in r.p.xi32_links))):
+    for n, (sw, amp) in zip(r.p.xi32_links, r.ctx.together(*(functools.partial(pair_runs, n) for n in r.p.xi32_links))):
         durations = xi32_durations(n)
         for D in durations:
             rows = r.nan_rows() if sw is None else r.steady_rows(sw, 0, BODY_LENGTH_M / 1.5, amp, cut_s=D)
