@@ -61,10 +61,17 @@ def left(budget: float) -> float:
     return budget - (time.perf_counter() - T0)
 
 
+FALLBACKS = ("UNDULATE_WARP_STREAMS", "UNDULATE_WARP_COMPILE_WORKERS", "UNDULATE_WARP_STEPS_PER_GRAPH",
+             "UNDULATE_WARP_DETERMINISTIC")
+"""Settings the check turns to the plain way, one more at a time, while the pair's first run fails
+(each: a path of the Warp backend first run on a GPU here): one stream, kernels compiled by the first
+step, one step per graph, MuJoCo Warp's determinism off; every later step inherits them."""
+
+
 def agreement(which: str) -> None:
     """``pair``: the default pair over 5 s; ``pack``: a jammed 50-swimmer pack over 2 s; Warp against
-    the MuJoCo backend.  If the pair fails on its own streams, the check goes on with
-    ``UNDULATE_WARP_STREAMS=0`` (one stream, one thread at a time) and says so."""
+    the MuJoCo backend.  If the pair's first run fails, the check turns the :data:`FALLBACKS` to the
+    plain way one at a time until it runs, and says which."""
     import numpy as np
 
     from undulate import Scene, SimOptions, simulate
@@ -74,16 +81,18 @@ def agreement(which: str) -> None:
     if which == "pair":
         say("device", device_name(DEVICE))
         sc = Scene(phases_rad=(0.0, math.pi / 2))
-        t = time.perf_counter()
-        try:
-            simulate(sc, SimOptions(duration_s=0.05, backend="warp", device=DEVICE))
-        except Exception as e:  # noqa: BLE001 - the streams' path failed: fall back, and say so
-            say("pair.streams_error", f"{type(e).__name__}: {e}"[:800])
-            os.environ["UNDULATE_WARP_STREAMS"] = "0"
+        for fallback in (*FALLBACKS, None):
             t = time.perf_counter()
-            simulate(sc, SimOptions(duration_s=0.05, backend="warp", device=DEVICE))
+            try:
+                simulate(sc, SimOptions(duration_s=0.05, backend="warp", device=DEVICE))
+                break
+            except Exception as e:  # noqa: BLE001 - a path never run on this device failed: fall back, say so
+                if fallback is None:
+                    raise
+                say(f"pair.error_before_{fallback}", f"{type(e).__name__}: {e}"[:800])
+                os.environ[fallback] = "1" if fallback.endswith(("WORKERS", "GRAPH")) else "0"
         say("pair.compile_s", time.perf_counter() - t)
-        say("streams", os.environ.get("UNDULATE_WARP_STREAMS", "1") != "0")
+        say("settings", {k: os.environ.get(k, "default") for k in FALLBACKS})
         t = time.perf_counter()
         pair_s = 0.2 if SMALL else 5.0
         a = simulate(sc, SimOptions(duration_s=pair_s))

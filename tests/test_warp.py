@@ -436,6 +436,26 @@ def test_capacities_count_a_frictionless_contact_as_one_constraint_row():
     assert _warp.capacities(m)["njmax"] >= 4 * cap["nconmax"]
 
 
+def test_a_failed_compile_on_threads_leaves_the_kernels_to_the_first_step(monkeypatch):
+    """Compiling on threads is an optimisation: a module that fails to load there (a path never met
+    on this device) is left to the first step, which loads it the Warp way; one warning says so."""
+    from undulate.simulation import _warp
+
+    class Broken:
+        name = "broken"
+
+        def load(self, device, block_dim=None):
+            raise RuntimeError("no compiler here")
+
+    monkeypatch.setenv("UNDULATE_WARP_COMPILE_WORKERS", "2")
+    monkeypatch.setattr(_warp, "_traced_modules", lambda group: [(Broken(), None)])
+    monkeypatch.setattr(_warp, "_COMPILE_FALLBACK_SAID", False)
+    sc = Scene(phases_rad=(0.0, 1.57))
+    with pytest.warns(RuntimeWarning, match="compiled on threads failed.*no compiler here"):
+        ds = simulate(sc, SimOptions(duration_s=0.05, **WARP))
+    assert np.isfinite(ds["x"].values).all()
+
+
 def test_compile_workers_are_validated(monkeypatch):
     from undulate.simulation import _warp
 

@@ -667,9 +667,26 @@ def _compile_kernels(group: "_Group") -> None:
         with ThreadPoolExecutor(min(n, len(todo))) as pool:
             for f in [pool.submit(mod.load, device, block_dim=bd) for mod, bd in todo]:
                 f.result()
+    except Exception as e:  # noqa: BLE001  (what failed here, the first step loads the Warp way, and says why)
+        _note_compile_fallback(e)
     finally:  # as wp.force_load does: the caller's CUDA context back
         if saved is not None:
             runtime.core.wp_cuda_context_set_current(saved)
+
+
+def _note_compile_fallback(error: Exception) -> None:
+    """A failed compile on threads: the first step then compiles what is missing one module after
+    another, as Warp does; said once per process (a warning), so a slow first step is explained."""
+    global _COMPILE_FALLBACK_SAID
+    if not _COMPILE_FALLBACK_SAID:
+        _COMPILE_FALLBACK_SAID = True
+        import warnings
+
+        warnings.warn(f"Warp kernels compiled on threads failed ({type(error).__name__}: {error}); "
+                      "the first step compiles them one after another", RuntimeWarning, stacklevel=3)
+
+
+_COMPILE_FALLBACK_SAID = False
 
 
 def _note_first_step(seconds: float, nworld: int, nv: int, steps_per_graph: int = 1) -> None:
