@@ -369,10 +369,11 @@ def test_the_traced_step_names_every_kernel_the_first_step_loads_and_leaves_the_
     assert launched and launched <= want, sorted(m.name for m, _ in launched - want)
 
 
-def test_warp_models_are_deterministic_unless_told_otherwise(monkeypatch):
-    """Every Warp model steps with MuJoCo Warp's determinism on (stable contact order, canonical
-    constraint rows, order-invariant atomics: identical inputs give identical results on a GPU
-    too); UNDULATE_WARP_DETERMINISTIC=0 turns it off, anything else but 0 / 1 is refused."""
+def test_warp_determinism_is_on_for_the_cpu_device_and_off_on_a_gpu_unless_told_otherwise(monkeypatch):
+    """MuJoCo Warp's determinism (stable contact order, canonical constraint rows, order-invariant
+    atomics) is on by default on Warp's CPU device and off on a GPU, where it made steps 9-20x slower
+    and could not allocate for a jammed pack (H200, 2026-11-27); UNDULATE_WARP_DETERMINISTIC=1 / 0
+    sets it on either, anything else is refused.  The Dataset and the sweep identity say which."""
     import mujoco
     from mujoco_warp._src.types import DeterminismType
 
@@ -383,6 +384,8 @@ def test_warp_models_are_deterministic_unless_told_otherwise(monkeypatch):
     aff.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
     monkeypatch.delenv("UNDULATE_WARP_DETERMINISTIC", raising=False)
     assert _warp._Group(aff, np.arange(1), {}, "cpu").m.opt.deterministic == DeterminismType.ALL
+    assert _warp.determinism("cpu") == DeterminismType.ALL
+    assert _warp.determinism("cuda") == _warp.determinism("cuda:0") == DeterminismType.NONE
     from undulate.sweep._store import backend_identity
 
     monkeypatch.setenv("UNDULATE_BACKEND", "warp")
@@ -393,9 +396,34 @@ def test_warp_models_are_deterministic_unless_told_otherwise(monkeypatch):
     assert _warp._Group(aff, np.arange(1), {}, "cpu").m.opt.deterministic == DeterminismType.NONE
     # a sweep's runs made with it on are never served for a request with it off (nor the reverse)
     assert backend_identity() == on.replace("float32", "float32 nondeterministic") != on
+    monkeypatch.setenv("UNDULATE_WARP_DETERMINISTIC", "1")
+    assert _warp.determinism("cuda") == DeterminismType.ALL
     monkeypatch.setenv("UNDULATE_WARP_DETERMINISTIC", "yes")
     with pytest.raises(ParameterError, match="UNDULATE_WARP_DETERMINISTIC"):
-        _warp.determinism()
+        _warp.determinism("cpu")
+
+
+def test_determinism_beyond_warps_arrays_is_a_capacity_error_naming_the_setting(monkeypatch):
+    """On a GPU, MuJoCo Warp's deterministic atomics need sort-reduce workspace that Warp could not
+    allocate for a jammed pack (H200: "Array shapes must not exceed ... signed 32-bit integer"); the
+    run stops with a CapacityError saying to turn the setting off, and with determinism off the same
+    error is not rewritten.  (Warp's deterministic launches exist on CUDA only: the error is injected.)"""
+    from undulate.simulation import _warp
+
+    said = ("Array shapes must not exceed the maximum representable value of a signed 32-bit integer, "
+            "got 2671722239 in dimension 0.")
+
+    def refuse(self):
+        raise ValueError(said)
+
+    monkeypatch.setattr(_warp._Group, "_one_step", refuse)
+    sc = Scene(phases_rad=(0.0, 1.57))
+    monkeypatch.setenv("UNDULATE_WARP_DETERMINISTIC", "1")
+    with pytest.raises(_warp.CapacityError, match="UNDULATE_WARP_DETERMINISTIC=0.*1 worlds|1 worlds.*UNDULATE_WARP_DETERMINISTIC=0"):
+        simulate(sc, SimOptions(duration_s=0.05, **WARP))
+    monkeypatch.setenv("UNDULATE_WARP_DETERMINISTIC", "0")
+    with pytest.raises(ValueError, match="signed 32-bit"):
+        simulate(sc, SimOptions(duration_s=0.05, **WARP))
 
 
 def test_steps_in_one_graph_give_the_run_of_one_step_graphs(monkeypatch):

@@ -62,4 +62,4 @@ def backend_attrs(options: SimOptions) -> dict[str, str]:
     from . import _warp
 
     return {"backend": "warp", "device": options.device or "", "precision": _warp.PRECISION,
-            "backend_versions": _warp.versions(), "warp_determinism": "all" if _warp.determinism() else "none"}
+            "backend_versions": _warp.versions(), "warp_determinism": "all" if _warp.determinism(options.device) else "none"}

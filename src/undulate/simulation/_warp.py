@@ -313,7 +313,7 @@ class _Group:
                 setattr(owner, attr, wp.array(np.ascontiguousarray(v, dtype=np.float64 if v.dtype.kind == "f" else v.dtype)
                                               .reshape((nw,) + tuple(cur.shape[1:]) + inner), dtype=cur.dtype))
             m.opt.warn_overflow = 0
-            m.opt.deterministic = determinism()
+            m.opt.deterministic = determinism(device)
             m.opt.contact_sensor_maxmatch = cap["contact_sensor_maxmatch"]
             self._mjm, self._models, self._per_world = mjm, models, per_world
             self.d = self._new_data()
@@ -431,32 +431,44 @@ class _Group:
 
     def _ready(self, nstep: int, host) -> None:
         """The chunk's buffers, and on the first call the kernels compiled and the step captured."""
-        wp, _ = require()
         self._buffers(nstep)
         if not self.graphs:  # the first step compiles the kernels; then captured graphs
-            first = not self.stepped
-            if first:  # its kernels compiled, on threads (then captured graphs, on CUDA and on Warp's
-                self._upload(host)  # CPU device alike: on the CPU they save Warp's per-launch Python)
-                t0 = time.perf_counter()
-                _compile_kernels(self)
-                self._one_step()
-                self._sync()
-                first_s = time.perf_counter() - t0
-                self.stepped = True
-            with wp.ScopedCapture(stream=self.stream) as cap:
-                self._one_step()
-            self.graphs = [(1, cap.graph)]
-            n = steps_per_graph(self.device)
-            if n > 1:  # and n steps in one graph: one launch (one Python call on the host) for n steps
-                try:
-                    with wp.ScopedCapture(stream=self.stream) as cap:
-                        for _ in range(n):
-                            self._one_step()
-                    self.graphs.insert(0, (n, cap.graph))
-                except Exception:  # noqa: BLE001 - the one-step graph steps it all (said in the stats)
-                    n = 1
-            if first:
-                _note_first_step(first_s, len(self.idx), self.nv, steps_per_graph=max(n, 1))
+            try:
+                self._capture(host)
+            except (RuntimeError, ValueError) as e:
+                if self.m.opt.deterministic and _beyond_determinism(e):
+                    raise CapacityError(
+                        f"MuJoCo Warp's determinism (UNDULATE_WARP_DETERMINISTIC=1) needs more workspace than Warp "
+                        f"can allocate for this model at {len(self.idx)} worlds ({type(e).__name__}: {e}); "
+                        "run with UNDULATE_WARP_DETERMINISTIC=0 or with fewer worlds") from None
+                raise
+
+    def _capture(self, host) -> None:
+        """The first step (kernels compiled, unless already) and the captured graphs."""
+        wp, _ = require()
+        first = not self.stepped
+        if first:  # its kernels compiled, on threads (then captured graphs, on CUDA and on Warp's
+            self._upload(host)  # CPU device alike: on the CPU they save Warp's per-launch Python)
+            t0 = time.perf_counter()
+            _compile_kernels(self)
+            self._one_step()
+            self._sync()
+            first_s = time.perf_counter() - t0
+            self.stepped = True
+        with wp.ScopedCapture(stream=self.stream) as cap:
+            self._one_step()
+        self.graphs = [(1, cap.graph)]
+        n = steps_per_graph(self.device)
+        if n > 1:  # and n steps in one graph: one launch (one Python call on the host) for n steps
+            try:
+                with wp.ScopedCapture(stream=self.stream) as cap:
+                    for _ in range(n):
+                        self._one_step()
+                self.graphs.insert(0, (n, cap.graph))
+            except Exception:  # noqa: BLE001 - the one-step graph steps it all (said in the stats)
+                n = 1
+        if first:
+            _note_first_step(first_s, len(self.idx), self.nv, steps_per_graph=max(n, 1))
 
     def _launch(self, nstep: int, host) -> None:
         """``nstep`` steps from the chunk's start (again, after a compiling step)."""
@@ -552,18 +564,38 @@ def _device_seconds(group: "_Group", nstep: int) -> float:
         return time.perf_counter() - t
 
 
-def determinism() -> int:
-    """MuJoCo Warp's determinism bitmask for every Warp model: all of it (stable contact order,
-    canonical constraint rows, order-invariant atomic sums), so the same inputs give the same
-    results on a GPU too; ``UNDULATE_WARP_DETERMINISTIC=0`` turns it off (MuJoCo Warp's default:
-    identical worlds of a jammed pack drifted 4 cm apart in 1 s on an H200)."""
+def determinism(device: str = "cuda") -> int:
+    """MuJoCo Warp's determinism bitmask for a Warp model on ``device``: ``UNDULATE_WARP_DETERMINISTIC``
+    (1: all of it, stable contact order, canonical constraint rows and order-invariant atomic sums;
+    0: none), by default on Warp's CPU device and off on a GPU.
+
+    On the CPU device it costs nothing measurable (a pair: 27.0 k against 26.5 k world-steps/s) and the
+    kernels run on one thread, so the same inputs give the same results either way.  On a GPU its
+    order-invariant atomics are sort-reduce launches whose workspace grows with the launch size times
+    the constraint rows: on an H200 (2026-11-27) it made the pair's steps 8.9x slower at 1 024 worlds
+    and 20x at 8 192, and could not allocate at 32 768 worlds nor for one jammed 50-swimmer pack
+    (Warp's arrays stop at 2^31 elements).  Off, identical worlds of a jammed pack drift apart on a GPU
+    (4 cm in 1 s on an H200, GPU.md): only statistics over runs are comparable there, as between the
+    two engines; the Dataset attr ``warp_determinism`` and the sweep identity say which."""
     _, mjw = require()
     from mujoco_warp._src.types import DeterminismType
 
-    raw = os.environ.get("UNDULATE_WARP_DETERMINISTIC", "1")
+    raw = os.environ.get("UNDULATE_WARP_DETERMINISTIC") or ("1" if _is_cpu(device) else "0")
     if raw not in ("0", "1"):
         raise ParameterError("UNDULATE_WARP_DETERMINISTIC", "0 or 1", raw)
     return int(DeterminismType.ALL if raw == "1" else DeterminismType.NONE)
+
+
+def _beyond_determinism(error: Exception) -> bool:
+    """Whether ``error`` is Warp refusing a deterministic launch's workspace (its sort-reduce buffers
+    exceed what a Warp array may hold: measured on an H200 for a jammed pack, and a pair at 32 768 worlds)."""
+    text = str(error)
+    return (type(error).__name__ == "WarpDeterminismError" or "atomic-update slots" in text
+            or "signed 32-bit integer" in text)
+
+
+def _is_cpu(device: str | None) -> bool:
+    return str(device or "").split(":")[0] == "cpu"
 
 
 STEPS_PER_GRAPH = 16
