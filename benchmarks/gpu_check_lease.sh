@@ -1,0 +1,25 @@
+#!/usr/bin/env bash
+# The second call of a device lease (docs/gpu.md, "A lease step by step"): the first call copied
+# out/site/part.00 to /tmp/parts; this one carries out/site/part.01, runs the GPU check in /tmp/gc
+# and copies its figures to $OUT every 10 s (a run cut short still returns them) and at the end.
+#
+#   benchmarks/gpu_check_lease.sh BUDGET_S HARD_STOP_S [bench_gpu_check.py options]
+set -u
+BUDGET=${1:?usage: gpu_check_lease.sh BUDGET_S HARD_STOP_S [options]}
+HARD=${2:?usage: gpu_check_lease.sh BUDGET_S HARD_STOP_S [options]}
+shift 2
+: "${OUT:?the device machine sets OUT}"
+mkdir -p /tmp/parts && cp out/site/part.01 /tmp/parts/ && ls -l /tmp/parts
+GC=/tmp/gc
+mkdir -p $GC
+( while sleep 10; do cp $GC/gpu_check.json "$OUT"/ 2>/dev/null; done ) &
+SAVER=$!
+UNDULATE_SITE_PARTS="/tmp/parts/part.00 /tmp/parts/part.01" timeout "$HARD" \
+    "$(dirname "$0")/gpu_check.sh" $GC --budget-s "$BUDGET" "$@"
+echo "gpu_check rc $?"
+kill $SAVER 2>/dev/null
+cd $GC && cp gpu_check.json ./*.log ./*.jsonl "$OUT"/ 2>/dev/null
+for d in repro-*/; do
+    [ -d "$d" ] && mkdir -p "$OUT/$d" && cp "$d"/claims.json "$d"/reproduce.json "$OUT/$d" 2>/dev/null
+done
+ls -l "$OUT"
