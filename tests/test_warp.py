@@ -64,6 +64,32 @@ def test_affine_servo_with_slew_on_the_stream_equals_mujocos_pid(heading_guide):
     assert np.abs(u[1:, servos.src_pos[has]] - slewed[0, 1:][:, has]).max() > 0.1
 
 
+@pytest.mark.parametrize("heading_guide, shuffled", [(False, False), (True, False), (False, True)])
+def test_the_control_table_is_bitwise_the_gathered_one(heading_guide, shuffled):
+    """The Warp control table is built step-major with slices where the columns are evenly spaced;
+    bitwise the plain gather: per scene, the slewed position command plus (kv/kp) times the velocity
+    command on each servo, the other inputs (the heading guide's) copied."""
+    from undulate.simulation._warp import _Servos, slew
+
+    sc = Scene(phases_rad=(0.0, 1.57), heading_guide=heading_guide)
+    dt = resolve_options(sc, SimOptions(duration_s=2)).timestep_s
+    pid, aff = build(sc, dt), build(sc, dt, servo="affine")
+    servos = _Servos(pid.model, aff.model, dt, [pid.model] * 3)
+    if shuffled:  # columns not evenly spaced (gathers), and inputs copied as they are
+        servos.src_vel = servos.src_vel[::-1].copy()
+        servos.copy_src, servos.copy_dst = np.array([1, 2, 6]), np.array([0, 3, 1])
+    rng = np.random.default_rng(1)
+    u = rng.normal(size=(3, 50, pid.model.nu))
+    act0 = rng.normal(size=(3, len(servos.act)))
+    table, slewed = servos.table(u, act0)
+    want = np.zeros((50, 3, aff.model.nu), np.float32)
+    want[:, :, servos.copy_dst] = u[:, :, servos.copy_src].transpose(1, 0, 2)
+    s = slew(u[:, :, servos.src_pos], servos.rate, act0)
+    want[:, :, servos.dst] = (s + servos.ratio[:, None] * u[:, :, servos.src_vel]).transpose(1, 0, 2)
+    assert np.array_equal(table, want) and np.array_equal(slewed, s)
+    assert heading_guide == bool((servos.act < 0).any())  # the heading guide's pid has no slew state
+
+
 def test_the_slew_rule_without_a_python_step_per_step_is_bitwise_the_step_by_step_rule():
     """:func:`undulate.simulation._warp.slew` copies the steps where the state stays on its command;
     against MuJoCo's rule applied step by step: ramps from far off, jumps mid-chunk, plateaus, sign

@@ -242,15 +242,26 @@ class _Servos:
 
     def table(self, u: np.ndarray, act0: np.ndarray):
         """Controls ``u`` (nb, k, nu of the CPU model) -> the Warp model's (k, nb, nu) float32 table,
-        and the slew states after every step (nb, k, nservo).  ``act0``: the slew states at the
-        start (nb, nservo; NaN where a servo has none)."""
+        and the slew states after every step (nb, k, nservo; a view of a step-major array).  ``act0``:
+        the slew states at the start (nb, nservo; NaN where a servo has none).  Built step-major, as
+        the table is, so each step's rows are contiguous, with slices where the columns are evenly
+        spaced (the host's share of a chunk: docs/gpu.md, "The host's share")."""
         nb, k = u.shape[:2]
+        ut = u.transpose(1, 0, 2)
         out = np.zeros((k, nb, self.nu), np.float32)
-        out[:, :, self.copy_dst] = u[:, :, self.copy_src].transpose(1, 0, 2)
-        target = u[:, :, self.src_pos]
-        slewed = slew(target, self.rate, act0)
-        out[:, :, self.dst] = (slewed + self.ratio[:, None] * u[:, :, self.src_vel]).transpose(1, 0, 2)
-        return out, slewed
+        if self.copy_dst.size:
+            out[:, :, _cols(self.copy_dst)] = ut[:, :, _cols(self.copy_src)]
+        slewed = _slew_steps(np.ascontiguousarray(ut[:, :, _cols(self.src_pos)]), self.rate, act0)
+        out[:, :, _cols(self.dst)] = slewed + self.ratio[None] * ut[:, :, _cols(self.src_vel)]
+        return out, slewed.transpose(1, 0, 2)
+
+
+def _cols(idx: np.ndarray):
+    """``idx`` as a slice where its columns are evenly spaced and ascending (a view, not a gather)."""
+    step = int(idx[1] - idx[0]) if idx.size > 1 else 1
+    if idx.size and step > 0 and (np.diff(idx) == step).all():
+        return slice(int(idx[0]), int(idx[-1]) + 1, step)
+    return idx
 
 
 def slew(target: np.ndarray, rate: np.ndarray, act0: np.ndarray) -> np.ndarray:
@@ -263,26 +274,32 @@ def slew(target: np.ndarray, rate: np.ndarray, act0: np.ndarray) -> np.ndarray:
     gives the command itself at each following step whose change is within the rate and exact in
     floating point (``t + (t' - t) == t'``), so those steps are copied whole (a gait within the
     servos' speed is all such steps after the start's ramp)."""
-    nb, k, _ = target.shape
+    return _slew_steps(np.ascontiguousarray(target.transpose(1, 0, 2)), rate, act0).transpose(1, 0, 2)
+
+
+def _slew_steps(target: np.ndarray, rate: np.ndarray, act0: np.ndarray) -> np.ndarray:
+    """:func:`slew` on step-major commands (k, nb, nservo) -> step-major states: every step's rows
+    contiguous, as the control table is."""
+    k = target.shape[0]
     finite = np.isfinite(rate)
     out = np.empty_like(target)
     if not finite.any() or k == 0:
         out[:] = target
         return out
     r = np.where(finite, rate, 0.0)
-    d = target[:, 1:] - target[:, :-1]
-    exact = ((np.abs(d) <= r[:, None]) & (target[:, :-1] + d == target[:, 1:])) | ~finite[:, None]
-    breaks = np.flatnonzero(~exact.all(axis=(0, 2)))  # step j -> j + 1 not followed exactly
+    d = target[1:] - target[:-1]
+    exact = ((np.abs(d) <= r[None]) & (target[:-1] + d == target[1:])) | ~finite[None]
+    breaks = np.flatnonzero(~exact.all(axis=(1, 2)))  # step j -> j + 1 not followed exactly
     s = np.where(finite, act0, 0.0)
     i = 0
     while i < k:
-        s = np.where(finite, s + np.clip(target[:, i] - s, -r, r), target[:, i])
-        out[:, i] = s
-        if np.array_equal(s, target[:, i]):  # on its command: copy the steps that follow exactly
+        s = np.where(finite, s + np.clip(target[i] - s, -r, r), target[i])
+        out[i] = s
+        if np.array_equal(s, target[i]):  # on its command: copy the steps that follow exactly
             nxt = np.searchsorted(breaks, i)
             end = int(breaks[nxt]) if nxt < len(breaks) else k - 1  # the last step reached exactly
-            out[:, i + 1:end + 1] = target[:, i + 1:end + 1]
-            s = target[:, end].copy()
+            out[i + 1:end + 1] = target[i + 1:end + 1]
+            s = target[end].copy()
             i = end
         i += 1
     return out
@@ -424,7 +441,7 @@ class _Group:
         wp, _ = require()
         for dst, src in zip((self.d.qpos, self.d.qvel, self.d.qacc_warmstart, self.bufs[0]), host):
             if src.size:
-                wp.copy(dst, wp.array(src, dtype=float, device="cpu"), stream=self.stream)
+                wp.copy(dst, wp.array(src, dtype=float, device="cpu", copy=False), stream=self.stream)
         wp.copy(self.k, wp.zeros(1, dtype=int, device="cpu"), stream=self.stream)
         if self.reduce is not None:
             wp.copy(self.bufs[-1], wp.zeros(len(self.idx), dtype=int, device="cpu"), stream=self.stream)
@@ -544,6 +561,14 @@ class _Reduction:
             r.wall_dev = wp.array(r.wall_adr, dtype=int)
             r.maxpen_dev = wp.array(r.maxpen_m, dtype=float)
         return r
+
+
+def _worlds(table: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """The control table's columns of the worlds ``idx`` (step-major, contiguous): the table itself
+    where one group holds every world in order (no copy)."""
+    if len(idx) == table.shape[1] and np.array_equal(idx, np.arange(len(idx))):
+        return table
+    return np.ascontiguousarray(table[:, idx])
 
 
 def _device_seconds(group: "_Group", nstep: int) -> float:
@@ -780,11 +805,11 @@ class WarpRollout:
         table, slewed = self.servos.table(u[:, :nstep], act0)
         t0 = cur[:, :1]  # the clock stays float64 on the host
         for g in self.groups:
-            idx = g.idx
+            idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers)
             q, v, s, warm, overflow = g.run(cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx],
-                                            np.ascontiguousarray(table[:, idx]), nstep)
+                                            _worlds(table, g.idx), nstep)
             if overflow.any():
-                self._overflow(idx, overflow)
+                self._overflow(g.idx, overflow)
             st[idx, :nstep, q0:q0 + nq] = q
             st[idx, :nstep, v0:v0 + nv] = v
             sd[idx, :nstep] = s
@@ -792,7 +817,7 @@ class WarpRollout:
         if na:
             st[:, :nstep, a0:] = cur[:, None, a0:]
             has = act_idx >= 0
-            st[:, :nstep, a0 + act_idx[has]] = slewed[:, :, has]
+            st[:, :nstep, _cols(a0 + act_idx[has])] = slewed[:, :, _cols(np.flatnonzero(has))]
         st[:, :nstep, 0] = t0 + self._dt * (1 + np.arange(nstep))[None]
         if active is not None:
             st[~active], sd[~active] = cur[~active, None], 0.0
@@ -820,11 +845,11 @@ class WarpRollout:
         fp, fw = np.empty((nb, ns, len(r.pair_adr))), np.empty((nb, ns, len(r.wall_adr)))
         code = np.zeros(nb, dtype=np.int64)
         for g in self.groups:
-            idx = g.idx
+            idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers)
             q, v, s, p, f_pair, f_wall, bad, warm, overflow = g.run(
-                cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx], np.ascontiguousarray(table[:, idx]), nstep)
+                cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx], _worlds(table, g.idx), nstep)
             if overflow.any():
-                self._overflow(idx, overflow)
+                self._overflow(g.idx, overflow)
             st[idx, :, q0:q0 + nq], st[idx, :, v0:v0 + nv], sd[idx] = q, v, s
             pn[idx], fp[idx], fw[idx], code[idx] = p, f_pair, f_wall, bad
             self.warm[idx] = warm
