@@ -66,8 +66,8 @@ def left(budget: float) -> float:
     return budget - (time.perf_counter() - T0)
 
 
-FALLBACKS = ("UNDULATE_WARP_STREAMS", "UNDULATE_WARP_COMPILE_WORKERS", "UNDULATE_WARP_STEPS_PER_GRAPH",
-             "UNDULATE_WARP_DETERMINISTIC")
+FALLBACKS = {"UNDULATE_WARP_STREAMS": "0", "UNDULATE_WARP_COMPILE_WORKERS": "1", "UNDULATE_WARP_STEPS_PER_GRAPH": "1",
+             "UNDULATE_WARP_DETERMINISTIC": "0"}
 """Settings the check turns to the plain way, one more at a time, while the pair's first run fails
 (each: a path of the Warp backend first run on a GPU here): one stream, kernels compiled by the first
 step, one step per graph, MuJoCo Warp's determinism off; every later step inherits them."""
@@ -95,7 +95,7 @@ def agreement(which: str) -> None:
                 if fallback is None:
                     raise
                 say(f"pair.error_before_{fallback}", f"{type(e).__name__}: {e}"[:800])
-                os.environ[fallback] = "1" if fallback.endswith(("WORKERS", "GRAPH")) else "0"
+                os.environ[fallback] = FALLBACKS[fallback]
         say("pair.compile_s", time.perf_counter() - t)
         say("settings", {k: os.environ.get(k, "default") for k in FALLBACKS})
         t = time.perf_counter()

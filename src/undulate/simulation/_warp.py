@@ -564,11 +564,9 @@ class _Reduction:
 
 
 def _worlds(table: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """The control table's columns of the worlds ``idx`` (step-major, contiguous): the table itself
-    where one group holds every world in order (no copy)."""
-    if len(idx) == table.shape[1] and np.array_equal(idx, np.arange(len(idx))):
-        return table
-    return np.ascontiguousarray(table[:, idx])
+    """The control table's columns of the worlds ``idx`` (step-major, contiguous): the table itself,
+    uncopied, where one group holds every world in order."""
+    return np.ascontiguousarray(table[:, _cols(idx)])
 
 
 def _device_seconds(group: "_Group", nstep: int) -> float:
@@ -647,7 +645,7 @@ def _env_count(name: str, default: int, most: int = 10**6) -> int:
 def steps_per_graph(device: str = "cuda") -> int:
     """Steps in one captured graph on ``device``: ``UNDULATE_WARP_STEPS_PER_GRAPH``, else
     :data:`STEPS_PER_GRAPH` on a GPU and 1 on Warp's CPU device."""
-    return _env_count("UNDULATE_WARP_STEPS_PER_GRAPH", 1 if device == "cpu" else STEPS_PER_GRAPH, 1000)
+    return _env_count("UNDULATE_WARP_STEPS_PER_GRAPH", 1 if _is_cpu(device) else STEPS_PER_GRAPH, 1000)
 
 
 def compile_workers() -> int:
