@@ -30,7 +30,7 @@ def _pids(res) -> set[int]:
 def test_warm_workers_serve_every_sweep_with_the_same_processes(tmp_path):
     grid_a = Grid(axes={"k": list(range(8))})
     grid_b = Grid(axes={"k": list(range(8, 16))})
-    with warm_workers():
+    with warm_workers(2):
         a = run_sweep(sweep_funcs.worker_pid, grid_a, tmp_path / "a", workers=2, batch=1, progress=False)
         b = run_sweep(sweep_funcs.worker_pid, grid_b, tmp_path / "b", workers=2, batch=1, progress=False)
         assert a.ok and b.ok and os.getpid() not in _pids(a)
@@ -47,7 +47,7 @@ def test_warm_workers_serve_every_sweep_with_the_same_processes(tmp_path):
 def test_warm_pool_gives_the_serial_results_and_resumes(tmp_path):
     grid = Grid(axes={"damping_Nms": [0.05, 0.1, 0.2], "length_m": [0.3, 0.5]}, replicates=2, seed=7)
     ref = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "serial", workers=1, progress=False)
-    with warm_workers():
+    with warm_workers(2):
         warm = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "warm", workers=2, batch=2, progress=False)
         again = run_sweep(sweep_funcs.pendulum, grid, tmp_path / "warm", workers=2, batch=2, progress=False)
     xr.testing.assert_identical(sweep_funcs.result_data(warm.dataset), sweep_funcs.result_data(ref.dataset))
@@ -56,7 +56,7 @@ def test_warm_pool_gives_the_serial_results_and_resumes(tmp_path):
 
 def test_warm_pool_replaced_when_a_waiting_worker_dies(tmp_path):
     grid = Grid(axes={"k": list(range(6))})
-    with warm_workers():
+    with warm_workers(2):
         first = run_sweep(sweep_funcs.worker_pid, grid, tmp_path / "a", workers=2, batch=1, progress=False)
         victim = min(_pids(first))
         os.kill(victim, signal.SIGKILL)  # dies while the pool waits between sweeps
@@ -71,7 +71,7 @@ def test_warm_pool_replaced_when_a_waiting_worker_dies(tmp_path):
 
 def test_a_crash_inside_a_warm_pool_is_isolated_as_without_it(tmp_path):
     grid = Grid(axes={"damping_Nms": [0.1, 0.2, -1.0, 0.3, 0.4, 0.5], "length_m": [0.5]})
-    with warm_workers():
+    with warm_workers(2):
         res = run_sweep(sweep_funcs.pendulum_or_crash, grid, tmp_path / "crash", workers=2, batch=2, progress=False)
         after = run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": [1, 2, 3, 4]}), tmp_path / "after",
                           workers=2, batch=1, progress=False)
@@ -100,7 +100,7 @@ def test_a_sweep_that_wants_more_processes_never_takes_the_pool_from_a_sweep_bes
         except BaseException as e:  # noqa: BLE001 - reported below
             errors.append(e)
 
-    with warm_workers():
+    with warm_workers(2):
         run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": [0, 1]}), tmp_path / "w", workers=2, batch=1,
                   progress=False)  # the warm pool: two processes
         a = threading.Thread(target=sweep, args=("a", 2))
@@ -119,3 +119,16 @@ def test_a_sweep_that_wants_more_processes_never_takes_the_pool_from_a_sweep_bes
     for name in ("a", "b"):
         assert results[name].ok
         xr.testing.assert_identical(sweep_funcs.result_data(results[name].dataset), sweep_funcs.result_data(ref.dataset))
+
+
+def test_the_warm_pool_has_its_size_from_the_start_not_from_the_first_sweep(tmp_path):
+    """Studies side by side hold the warm pool all the time, and a pool grows only while no sweep
+    holds it: so it is made at the reproduction's size, whatever the first sweep asks for (its
+    processes start when first needed)."""
+    with warm_workers(3):
+        run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": [0, 1]}), tmp_path / "a", workers=2, batch=1,
+                  progress=False)
+        assert _executors._WARM["workers"] == 3
+        wide = run_sweep(sweep_funcs.worker_pid, Grid(axes={"k": list(range(12))}), tmp_path / "b", workers=3,
+                         batch=1, progress=False)
+        assert wide.ok and len(_pids(wide)) <= 3

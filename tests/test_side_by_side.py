@@ -195,7 +195,7 @@ def test_on_the_warp_backend_an_explaining_study_makes_its_runs_ahead(tmp_path, 
     names = list(swing_studies)
     one, ahead = tmp_path / "one", tmp_path / "ahead"
     reproduce(one, quick=True, studies=names, log=lambda m: None, animation_s=0.3, workers=2, side_by_side=1)
-    monkeypatch.setattr(rp, "_runs_ahead", lambda: True)
+    monkeypatch.setattr(rp, "_runs_ahead", lambda workers, scheduler: True)
     log: list[str] = []
     reproduce(ahead, quick=True, studies=names, log=log.append, animation_s=0.3, workers=2, side_by_side=2)
     assert _results(one, names) == _results(ahead, names)
@@ -205,6 +205,31 @@ def test_on_the_warp_backend_an_explaining_study_makes_its_runs_ahead(tmp_path, 
     assert mine and sum(s["n_computed"] for s in mine) == 0  # its runs were there
     state = json.loads((ahead / "reproduce.json").read_text())
     assert set(state["studies"]) == set(names)  # the job ahead is not a study of the report
+
+
+def test_on_many_workers_every_study_runs_at_once_with_its_runs_ahead(tmp_path, swing_studies, monkeypatch):
+    """From :data:`WIDE_WORKERS` local workers on (here lowered to 2) the MuJoCo backend's
+    reproduction runs wide, as the Warp backend's: every study at once and the explaining study's runs
+    made ahead; below it, two at a time and nothing ahead; with a Dask scheduler, as few cores.  The
+    results are those of one study at a time."""
+    import undulate.reproduce as rp
+
+    monkeypatch.delenv("UNDULATE_BACKEND", raising=False)
+    names = list(swing_studies)
+    assert not _registry._wide(2) and not _registry._wide(64, scheduler="tcp://x:1")
+    assert _registry._wide(_registry.WIDE_WORKERS)
+    one, wide = tmp_path / "one", tmp_path / "wide"
+    reproduce(one, quick=True, studies=names, log=lambda m: None, animation_s=0.3, workers=2, side_by_side=1)
+    at_once: list[int] = []
+    real = rp._side_by_side
+    monkeypatch.setattr(rp, "_side_by_side", lambda todo, deps, one, finished, n: at_once.append(n)
+                        or real(todo, deps, one, finished, n))
+    monkeypatch.setattr(_registry, "WIDE_WORKERS", 2)
+    log: list[str] = []
+    reproduce(wide, quick=True, studies=names, log=log.append, animation_s=0.3, workers=2)
+    assert at_once == [len(names) + 1 + 1]  # every study, the animations and the job ahead
+    assert [m for m in log if "made ahead" in m and "_swing_explainer" in m]
+    assert _results(one, names) == _results(wide, names)
 
 
 # ---- which studies a reproduction runs ------------------------------------------------------

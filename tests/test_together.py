@@ -21,15 +21,26 @@ def toy(point: dict, seed: int) -> xr.Dataset:
     return xr.Dataset({"v": ((), float(point["v"]), {"units": "1"})})
 
 
-def _ctx(tmp_path):
-    return studies.StudyContext(studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0), "toy", progress=False)
+def _ctx(tmp_path, workers=None):
+    return studies.StudyContext(studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0, workers=workers), "toy",
+                                progress=False)
 
 
-def test_on_the_mujoco_backend_the_calls_run_here_one_after_another(tmp_path, monkeypatch):
+def test_on_the_mujoco_backend_and_a_few_cores_the_calls_run_here_one_after_another(tmp_path, monkeypatch):
     monkeypatch.delenv("UNDULATE_BACKEND", raising=False)
-    ctx, seen = _ctx(tmp_path), []
+    ctx, seen = _ctx(tmp_path, workers=2), []
     out = ctx.together(*(lambda i=i: seen.append((i, threading.get_ident())) or i for i in range(3)))
     assert out == [0, 1, 2] and seen == [(i, threading.get_ident()) for i in range(3)]
+
+
+def test_on_the_mujoco_backend_and_many_workers_the_calls_run_side_by_side(tmp_path, monkeypatch):
+    """From :data:`undulate.studies._registry.WIDE_WORKERS` local workers on, a few stages of 10-20
+    runs would leave most of the pool idle: the calls run side by side there too (two calls that
+    each wait for the other)."""
+    monkeypatch.delenv("UNDULATE_BACKEND", raising=False)
+    ctx = _ctx(tmp_path, workers=_registry.WIDE_WORKERS)
+    both = threading.Barrier(2, timeout=10)  # one after another, the first call would time out
+    assert ctx.together(lambda: (both.wait(), "a")[1], lambda: (both.wait(), "b")[1]) == ["a", "b"]
 
 
 def test_on_the_warp_backend_the_calls_run_side_by_side_and_record_in_their_order(tmp_path, monkeypatch):

@@ -34,13 +34,13 @@ _AHEAD = "(ahead) "
 :func:`undulate.studies._registry.run_ahead`): ``_AHEAD + name``."""
 
 
-def _runs_ahead() -> bool:
-    """Whether explaining studies make their runs ahead, beside the studies they explain: on the Warp
-    backend (where a study's chain of sequential device steps, not its work, sets its time), as
-    staged studies step their last stage first there."""
-    from .studies._registry import _prefetching
+def _runs_ahead(workers: int | None, scheduler: Any) -> bool:
+    """Whether explaining studies make their runs ahead, beside the studies they explain: where the
+    reproduction runs wide (:func:`undulate.studies._registry._wide`: the Warp backend, or many local
+    workers), whose time is its chain of sequential steps, not its work."""
+    from .studies._registry import _wide
 
-    return _prefetching()
+    return _wide(workers, scheduler)
 
 #: The report's animations: (file stem, caption, scene keyword arguments, duration s).
 ANIMATIONS = (
@@ -150,11 +150,13 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     ``workers``: local worker processes (default: every core this process may
     use); one pool of them stays warm across every study's sweeps.
     ``side_by_side``: studies run at once (threads sharing that pool; an explaining study waits for
-    the studies it explains).  Default: :data:`SIDE_BY_SIDE` on the MuJoCo backend; on the Warp
-    backend every study at once, each Warp model on its own stream of the device, so that their small
-    batches overlap there (a step costs a GPU about the same at any small number of worlds;
-    docs/gpu.md).  Results do not depend on it: every run's result is a function of its parameters
-    and seed, and each study judges its own runs.
+    the studies it explains).  Default: :data:`SIDE_BY_SIDE` on a few cores, where the reproduction's
+    time is its work; every study at once, with explaining studies' runs made ahead, where it runs
+    wide (:data:`undulate.studies._registry.WIDE_WORKERS` or more local workers, where its time is
+    its chain of sequential stages; or the Warp backend, each Warp model on its own stream of the
+    device, so that their small batches overlap there: a step costs a GPU about the same at any small
+    number of worlds, docs/gpu.md).  Results do not depend on it: every run's result is a function of
+    its parameters and seed, and each study judges its own runs.
 
     Returns the report path and the per-study statuses (``name``, ``ok``,
     ``wall_s``, ``error``, ``reused``).
@@ -169,10 +171,10 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
         beyond = bool(beyond_paper)
         studies = [n for n in registry.names() if beyond or registry.describe(n).reference == "paper"]
     if side_by_side is None:
-        from .simulation import default_backend
+        from .studies._registry import _wide
 
-        side_by_side = len(studies) + 1 if default_backend()[0] == "warp" else SIDE_BY_SIDE  # + animations
-    with warm_workers():
+        side_by_side = len(studies) + 1 if _wide(workers, scheduler) else SIDE_BY_SIDE  # + animations
+    with warm_workers(None if scheduler is not None else workers):
         return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers,
                           side_by_side)
 
@@ -292,7 +294,7 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
 
     anims: list[dict] = []
     deps = _dependencies(registry, names)
-    ahead = [n for n in todo if deps.get(n, set()) & set(todo)] if _runs_ahead() else []
+    ahead = [n for n in todo if deps.get(n, set()) & set(todo)] if _runs_ahead(workers, scheduler) else []
 
     def job(name: str) -> Any:
         if name == _ANIMATIONS_JOB:

@@ -442,14 +442,15 @@ class StudyContext:
 
     def together(self, *calls: Callable[[], Any]) -> list[Any]:
         """``[call() for call in calls]``, for calls that do not depend on each other (each runs its own
-        sweeps).  On the Warp backend they run side by side on threads, so their runs reach the device
-        at once: a study's chain of sequential device steps is then its longest call's, not the sum of
-        them (a device step costs about the same for one world as for hundreds).  Their sweeps and
-        failures are recorded in the calls' order, and the first call (in that order) that raised
-        raises here once all have ended.  On the MuJoCo backend they run one after another, as
-        written: the worker pool is already kept busy, and nothing about the runs changes.  Results
-        never depend on it (content-keyed stores; a store shared by two calls is computed once)."""
-        if len(calls) < 2 or not _prefetching():
+        sweeps).  Where the study runs wide (:func:`_wide`: the Warp backend, or many local workers) they
+        run side by side on threads, so their runs reach the device or the worker pool at once: a
+        study's chain of sequential steps is then its longest call's, not the sum of them (a device
+        step costs about the same for one world as for hundreds; a stage of 10-20 runs leaves most of
+        16 workers idle).  Their sweeps and failures are recorded in the calls' order, and the first
+        call (in that order) that raised raises here once all have ended.  Otherwise (a few cores,
+        already kept busy) they run one after another, as written.  Results never depend on it
+        (content-keyed stores; a store shared by two calls is computed once)."""
+        if len(calls) < 2 or not _wide(self.config.workers, self.config.scheduler):
             return [call() for call in calls]
         import contextvars
         from concurrent.futures import ThreadPoolExecutor
@@ -624,16 +625,19 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
     out.mkdir(parents=True, exist_ok=True)
     from ..sweep import warm_workers
 
-    with warm_workers():
+    with warm_workers(workers):
         return _run_study(info, name, config, out, progress)
 
 
 def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, scheduler: str | None = None,
               seed: int = 0, workers: int | None = None) -> dict[str, Any]:
     """An explaining study's runs before the studies it explains have finished (the reproduction does
-    this on the Warp backend, where a few more worlds cost the device little and the explaining study
-    would otherwise start its long chains only once the others end): its last stage's dataset with
-    every explanation taken as needed, into the stores the study reads when it then runs.  Nothing is
+    this where it runs wide, :func:`_wide`, so that the explaining study does not start its long chains
+    only once the others end): a stage's dataset with every explanation taken as needed, into the
+    stores the study reads when it then runs.  On the Warp backend its last stage's (a few more worlds
+    cost the device little, and the study steps its last stage first there, :func:`_prefetch`); on
+    the MuJoCo backend its first stage's (later stages cost the cores their runs, and are made only if
+    a look needs them).  Nothing is
     written but the runs, and nothing is judged: the study's own run, once the studies it explains
     have finished, reads what its looks need from the stores (a run's result is a function of its
     parameters and seed) and computes what is missing; runs it skips are left unread.  Returns what
@@ -645,7 +649,8 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     ctx = StudyContext(config, name, progress=False)
     ctx.needs_explanation = lambda study, claim: True  # the verdicts are not known yet: every one
     t0 = time.perf_counter()
-    info.dataset(ctx, stage_plans(info, config.quick)[-1])
+    plans = stage_plans(info, config.quick)
+    info.dataset(ctx, plans[-1] if _prefetching() else plans[0])
     return {"n_runs": sum(s["n_runs"] for s in ctx.sweeps), "n_computed": sum(s["n_computed"] for s in ctx.sweeps),
             "wall_s": time.perf_counter() - t0}
 
@@ -706,6 +711,31 @@ def _prefetching() -> bool:
     from ..simulation import default_backend
 
     return default_backend()[0] == "warp"
+
+
+WIDE_WORKERS = 8
+"""Local worker processes from which a study's independent calls run side by side
+(:meth:`StudyContext.together`) and a reproduction runs every study at once, with explaining studies'
+runs made ahead (:func:`undulate.reproduce.reproduce`).  On 2 cores the quick reproduction, two
+studies at a time, keeps the cores 94-97 % busy: its time is its work, and running more at once only
+adds runs made ahead.  On 16 cores (the H100 machine, 2026-11-26) the same schedule took 70.5 s for
+~345 core-s of work, the cores ~30 % busy: its time was its chain of sequential stages.  8 is where
+two studies' stages of 10-20 runs (quick mode) stop filling the pool.  A judgement between those two
+measurements, not a measured crossover."""
+
+
+def _wide(workers: int | None, scheduler: Any = None) -> bool:
+    """Whether a study or reproduction runs wide (:data:`WIDE_WORKERS`): on the Warp backend (a device
+    step costs about the same for one world as for hundreds), or on at least ``WIDE_WORKERS`` local
+    worker processes (``workers``; None: every core this process may use).  Not with a Dask scheduler
+    (its size is the cluster's, unknown here).  Results never depend on it."""
+    if _prefetching():
+        return True
+    if scheduler is not None:
+        return False
+    from ..sweep._executors import default_workers
+
+    return (workers or default_workers()) >= WIDE_WORKERS
 
 
 def _prefetch(info: Study, ctx: "StudyContext", plans: tuple[Any, ...]) -> dict[str, Any] | None:

@@ -103,7 +103,7 @@ def _new_pool(ctx, workers: int) -> ProcessPoolExecutor:
 
 
 # ---- one warm pool for a series of sweeps --------------------------------
-_WARM: dict[str, Any] = {"depth": 0, "pool": None, "workers": 0, "users": 0}
+_WARM: dict[str, Any] = {"depth": 0, "pool": None, "workers": 0, "users": 0, "size": 0}
 _WARM_LOCK = threading.RLock()  # sweeps of studies run side by side (threads) share the warm pool
 _STOP = threading.Event()
 
@@ -125,8 +125,9 @@ def _check_stop() -> None:
 
 
 @contextlib.contextmanager
-def warm_workers() -> Iterator[None]:
-    """Inside this context, local sweeps share one pool of worker processes.
+def warm_workers(workers: int | None = None) -> Iterator[None]:
+    """Inside this context, local sweeps share one pool of worker processes, of ``workers``
+    processes (None: every core this process may use) or more if a sweep asks for more.
 
     Outside it every :func:`run_local` call starts its own pool and shuts it
     down at the end (each process pays ~1.5 s of imports, and the first run in
@@ -138,11 +139,17 @@ def warm_workers() -> Iterator[None]:
     fixed too).  A pool that breaks (a worker died) is dropped and the next
     sweep starts a fresh one; nesting is allowed (the outermost exit stops
     the pool).
+
+    The pool has its size from the start, not that of the first sweep: the pool grows only while no
+    sweep holds it, and studies side by side (a reproduction on many cores) always hold it, so a
+    small first sweep would keep it small for the rest of the run.  Processes start when first
+    needed (spawned on demand), so a pool larger than the sweeps need costs nothing.
     """
     with _WARM_LOCK:
         _WARM["depth"] += 1
         if _WARM["depth"] == 1:
             _STOP.clear()
+            _WARM["size"] = int(workers or default_workers())
     try:
         yield
     finally:
@@ -177,6 +184,7 @@ def _acquire_pool(ctx, workers: int) -> tuple[ProcessPoolExecutor, bool]:
             _drop_warm()
             pool = None
         if pool is None:
+            workers = max(workers, _WARM["size"])
             pool = _new_pool(ctx, workers)
             _WARM["pool"], _WARM["workers"] = pool, workers
         _WARM["users"] += 1
