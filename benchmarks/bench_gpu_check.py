@@ -5,8 +5,8 @@
 Run by ``benchmarks/gpu_check.sh`` (which installs the carried wheels first).  Prints one JSON line
 per measurement as it goes and keeps ``OUTDIR/gpu_check.json`` up to date, so a run cut short still
 leaves what it measured.  Steps, in the order ``--only`` gives (default: all, in the order of
-:data:`STEPS`: pair, full-warp, quick-warp-warm, quick-warp, pair-throughput, pack, pack-throughput,
-determinism):
+:data:`STEPS`: pair, full-warp, quick-warp-warm, quick-cpu, quick-warp, pair-throughput, pack,
+pack-throughput, determinism):
 
 * ``pair`` -- the default pair over 5 s, Warp on the device against the MuJoCo backend (float64, CPU)
   on the same machine: max |dx|, penetration.  The first Warp call compiles the kernels: its time is
@@ -15,11 +15,14 @@ determinism):
   each in a fresh folder: wall time, the Warp models' first steps (kernel compilation unless cached,
   reported apart), per-study times and the verdicts, compared claim by claim with the MuJoCo
   backend's (``--cpu-verdicts``: made elsewhere from the same commit by
-  ``benchmarks/bench_gpu_check_reference.py``; or step ``quick-cpu`` before them: quick on the MuJoCo
-  backend here, with every core).
+  ``benchmarks/bench_gpu_check_reference.py``; or step ``quick-cpu``'s, quick on the MuJoCo backend
+  here, with every core).
 * ``quick-warp-warm`` -- quick in a fresh folder after a Warp reproduction (full, or a cold quick) has
   compiled the kernels: its wall time is the stepping's (any first steps still compiling are
   reported apart, as above).
+* ``quick-cpu`` -- quick on the MuJoCo backend on this machine's cores: the baseline of the Warp
+  runs' times in the same run, and their verdicts' reference where ``--cpu-verdicts`` gives none
+  (with it, the two MuJoCo reproductions' verdicts must be equal, and are compared).
 * ``pair-throughput``, ``pack-throughput`` -- world-steps per second against the number of worlds,
   for the pair (1 / 1 024 / 8 192 / 32 768 worlds) and a jammed 50-swimmer pack (1 / 64 / 512): on the
   device alone (the CUDA graph of one step, launched per step) and end to end (controls up, every
@@ -51,7 +54,7 @@ DEVICE = "cuda"
 STUDIES = ""  # --studies: reproduce these only (comma-separated)
 CPU_VERDICTS: str | None = None  # --cpu-verdicts
 REF: dict = {}  # mode -> the MuJoCo backend's reproduction (its verdicts)
-RUN_CPU = False  # step quick-cpu asked for: quick on the MuJoCo backend here, the reference
+WARP: dict = {}  # step -> a Warp reproduction of this run (compared with quick-cpu once it has run)
 SPS = 10  # steps per sample interval in the reduced throughput (a pair sampled at 10 Hz has 150)
 SMALL = False  # --dry-run: tiny sizes, to check the script itself on Warp's CPU device
 
@@ -277,23 +280,42 @@ def _compare(tag: str, cpu: dict, gpu: dict) -> None:
                                                  if a.get(k) != b.get(k)}})
 
 
-def _cpu_reference(mode: str, budget: float, base: dict) -> dict:
-    """The MuJoCo backend's verdicts for ``mode``: from ``--cpu-verdicts`` (made elsewhere from the
-    same commit: MuJoCo's results are a function of the code, the parameters and the seed) or, in
-    quick mode without it, a run here on every core."""
-    if CPU_VERDICTS is not None:
-        ref = json.loads(Path(CPU_VERDICTS).read_text())
-        if mode in ref:
-            return ref[mode]
-    if mode in REF:
-        return REF[mode]
-    if mode != "quick" or not RUN_CPU:
-        return {}  # no reference here: the verdicts are compared afterwards, from the JSON
+def _file_reference(mode: str) -> dict:
+    """The MuJoCo backend's reproduction in ``mode`` from ``--cpu-verdicts`` (made elsewhere from the
+    same commit: MuJoCo's results are a function of the code, the parameters and the seed), or {}."""
+    if CPU_VERDICTS is None:
+        return {}
+    return json.loads(Path(CPU_VERDICTS).read_text()).get(mode, {})
+
+
+def _cpu_reference(mode: str) -> dict:
+    """The MuJoCo backend's verdicts for ``mode``: ``--cpu-verdicts``, else step ``quick-cpu``'s if it
+    has run; else {} (then step ``quick-cpu`` compares them when it runs, or they are compared
+    afterwards, from the JSON)."""
+    return _file_reference(mode) or REF.get(mode, {})
+
+
+def _quick_cpu(budget: float, base: dict, reserve: float) -> None:
+    """Step ``quick-cpu``: quick on the MuJoCo backend on this machine's cores (the baseline of the
+    Warp runs' times, measured in the same run; on 8 or more cores the reproduction runs wide,
+    :data:`undulate.studies._registry.WIDE_WORKERS`), its verdicts compared with ``--cpu-verdicts``
+    (MuJoCo on another machine: they must be equal) and with the Warp quick runs made before it."""
     only = ["--only", STUDIES] if STUDIES else []
-    cpu = _reproduce("quick-cpu", ["--quick", *only], min(150.0, left(budget) - 200), base)
+    if left(budget) < 40:
+        say("reproduce.quick-cpu", "skipped: budget")
+        return
+    cpu = _reproduce("quick-cpu", ["--quick", *only], max(40.0, left(budget) - reserve), base)
     say("reproduce.quick.mujoco_cpu", {k: v for k, v in cpu.items() if k != "verdicts"})
-    REF[mode] = cpu
-    return cpu
+    REF.setdefault("quick", cpu)
+    ref = _file_reference("quick").get("verdicts")
+    if ref is not None and cpu.get("verdicts"):
+        got = cpu["verdicts"]
+        keys = set(got) if STUDIES else set(ref) | set(got)  # --studies: the claims of those studies
+        say("reproduce.quick-cpu.against_reference", {k: [ref.get(k), got.get(k)] for k in sorted(keys)
+                                                       if ref.get(k) != got.get(k)})
+    for step, gpu in WARP.items():
+        if step.startswith("quick") and not _file_reference("quick"):
+            _compare(step, cpu, gpu)
 
 
 def reproduction(step: str, budget: float) -> None:
@@ -301,30 +323,30 @@ def reproduction(step: str, budget: float) -> None:
     every kernel now cached, so its wall time is stepping), ``full-warp``."""
     base = {k: v for k, v in os.environ.items() if k not in ("UNDULATE_BACKEND", "UNDULATE_DEVICE")}
     only = ["--only", STUDIES] if STUDIES else []
+    # time kept for the steps after this one: a cold quick leaves room for the rest; the full
+    # reproduction takes what is left but a warm quick's and the cores' quick's worth where they follow
+    later = LATER.get(step, ())
+    reserve = {"quick-warp": 200.0, "full-warp": 150.0 * ("quick-warp-warm" in later) + 80.0 * ("quick-cpu" in later),
+               "quick-warp-warm": 80.0 if "quick-cpu" in later else 10.0, "quick-cpu": 10.0}[step]
     if step == "quick-cpu":
-        global RUN_CPU
-        RUN_CPU = True
-        _cpu_reference("quick", budget, base)
+        _quick_cpu(budget, base, reserve)
         return
     mode = "quick" if step.startswith("quick") else "full"
     if left(budget) < 40:
         say(f"reproduce.{step}", "skipped: budget")
         return
-    # time kept for the steps after this one: a cold quick leaves room for the rest; the full
-    # reproduction takes what is left but a warm quick's worth where one follows it
-    later = LATER.get(step, ())
-    reserve = {"quick-warp": 200.0, "full-warp": 150.0 if "quick-warp-warm" in later else 10.0,
-               "quick-warp-warm": 10.0}[step]
     gpu = _reproduce(step, [f"--{mode}", *only, "--backend", "warp", "--device", DEVICE],
                      max(40.0, left(budget) - reserve), base)
     say(f"reproduce.{step}", {k: v for k, v in gpu.items() if k != "verdicts"})
-    _compare(step, _cpu_reference(mode, budget, base), gpu)
+    WARP[step] = gpu
+    _compare(step, _cpu_reference(mode), gpu)
 
 
-STEPS = ("pair", "full-warp", "quick-warp-warm", "quick-warp", "pair-throughput", "pack", "pack-throughput",
-         "determinism")
+STEPS = ("pair", "full-warp", "quick-warp-warm", "quick-cpu", "quick-warp", "pair-throughput", "pack",
+         "pack-throughput", "determinism")
 """The default order: issue 37's goals first (the full reproduction, which compiles the kernels, then
-quick with them cached), as the H200 check of 2026-11-27 already measured the throughput."""
+quick with them cached, then quick on the machine's cores, the baseline measured in the same run), as
+the H200 check of 2026-11-27 already measured the throughput."""
 LATER: dict = {}  # step -> the steps --only puts after it
 
 
@@ -334,8 +356,7 @@ def main() -> None:
     p.add_argument("out")
     p.add_argument("--budget-s", type=float, default=450.0)
     p.add_argument("--skip-full", action="store_true")
-    p.add_argument("--only", default=",".join(STEPS), help="steps, in this order: " + ", ".join(STEPS)
-                   + ", quick-cpu")
+    p.add_argument("--only", default=",".join(STEPS), help="steps, in this order: " + ", ".join(STEPS))
     p.add_argument("--device", default="cuda")
     p.add_argument("--studies", default="", help="reproduce only these studies (comma-separated)")
     p.add_argument("--cpu-verdicts", default=None, help="JSON {mode: {verdicts: {...}}} of the MuJoCo "
