@@ -3,11 +3,11 @@
     python benchmarks/bench_gpu_check_reference.py OUT.json quick=REPRO_DIR [full=REPRO_DIR ...]
 
 Reads each reproduction folder's ``claims.json`` and ``reproduce.json`` and writes
-``{mode: {"verdicts": {"study:claim": verdict}, "wall_s": ..., "commit": ...}}``: the reference
+``{mode: {"verdicts": {"study:claim": verdict}, "wall_s": ..., "commit": ..., "src_tree": ...}}``: the reference
 ``benchmarks/gpu_check.sh --cpu-verdicts OUT.json`` compares the Warp backend's verdicts against, so
 the device's minutes are not spent re-running the CPU reproductions.  MuJoCo's results are a
 function of the code, the parameters and the seed, so the reference must come from the commit the
-check runs (recorded here; the check reports it beside its own).
+check runs, or one with the same ``src`` tree (``git rev-parse COMMIT:src``; both recorded here).
 """
 
 from __future__ import annotations
@@ -20,15 +20,19 @@ from pathlib import Path
 
 def main(argv: list[str]) -> int:
     out, pairs = Path(argv[0]), [a.split("=", 1) for a in argv[1:]]
-    commit = subprocess.run(["git", "rev-parse", "HEAD"], capture_output=True, text=True,
-                            cwd=Path(__file__).parent).stdout.strip()
+    def git(*args: str) -> str:
+        return subprocess.run(["git", *args], capture_output=True, text=True, cwd=Path(__file__).parent).stdout.strip()
+
+    # the package's source tree: a later commit that changes only docs or benchmarks has the same one,
+    # and its MuJoCo results are these
+    commit, src_tree = git("rev-parse", "HEAD"), git("rev-parse", "HEAD:src")
     doc = {}
     for mode, folder in pairs:
         d = Path(folder)
         claims = json.loads((d / "claims.json").read_text())
         state = json.loads((d / "reproduce.json").read_text())
         doc[mode] = {"verdicts": {f"{c.get('study')}:{c.get('claim')}": c.get("verdict") for c in claims["claims"]},
-                     "wall_s": state.get("wall_s"), "commit": commit,
+                     "wall_s": state.get("wall_s"), "commit": commit, "src_tree": src_tree,
                      "studies": {k: v.get("wall_s") for k, v in state.get("studies", {}).items()}}
     out.write_text(json.dumps(doc, indent=1))
     print(f"wrote {out}: " + ", ".join(f"{m} {len(v['verdicts'])} claims" for m, v in doc.items()))

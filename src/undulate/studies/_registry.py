@@ -719,9 +719,8 @@ WIDE_WORKERS = 8
 runs made ahead (:func:`undulate.reproduce.reproduce`).  On 2 cores the quick reproduction, two
 studies at a time, keeps the cores 94-97 % busy: its time is its work, and running more at once only
 adds runs made ahead.  On 16 cores (the H100 machine, 2026-11-26) the same schedule took 70.5 s for
-~345 core-s of work, the cores ~30 % busy: its time was its chain of sequential stages.  8 is where
-two studies' stages of 10-20 runs (quick mode) stop filling the pool.  A judgement between those two
-measurements, not a measured crossover."""
+~345 core-s of work, the cores ~30 % busy: its time was its chain of sequential stages.  8 is a
+judgement between those two measurements, not a measured crossover (docs/performance.md)."""
 
 
 def _wide(workers: int | None, scheduler: Any = None) -> bool:
