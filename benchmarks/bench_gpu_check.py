@@ -372,6 +372,13 @@ def main() -> None:
 
     say("versions", {"python": sys.version.split()[0], "mujoco": mujoco.__version__, "warp": versions(),
                      "cores": os.cpu_count()})
+    if CPU_VERDICTS is not None:  # a reference made from other code is reported, not used silently
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        from bench_gpu_check_reference import src_digest
+
+        mine = src_digest()
+        ref = json.loads(Path(CPU_VERDICTS).read_text())
+        say("cpu_reference_same_code", {m: r.get("src_sha256") == mine for m, r in ref.items()})
     steps = [x for x in a.only.split(",") if x]
     LATER.update({x: tuple(steps[i + 1:]) for i, x in enumerate(steps)})
     for step in steps:

@@ -3,19 +3,33 @@
     python benchmarks/bench_gpu_check_reference.py OUT.json quick=REPRO_DIR [full=REPRO_DIR ...]
 
 Reads each reproduction folder's ``claims.json`` and ``reproduce.json`` and writes
-``{mode: {"verdicts": {"study:claim": verdict}, "wall_s": ..., "commit": ..., "src_tree": ...}}``: the reference
+``{mode: {"verdicts": {"study:claim": verdict}, "wall_s": ..., "commit": ..., "src_tree": ...,
+"src_sha256": ...}}``: the reference
 ``benchmarks/gpu_check.sh --cpu-verdicts OUT.json`` compares the Warp backend's verdicts against, so
 the device's minutes are not spent re-running the CPU reproductions.  MuJoCo's results are a
 function of the code, the parameters and the seed, so the reference must come from the commit the
-check runs, or one with the same ``src`` tree (``git rev-parse COMMIT:src``; both recorded here).
+check runs, or one with the same ``src`` tree (``git rev-parse COMMIT:src``; both recorded here, and
+the sources' digest, which the check compares with its own: ``cpu_reference_same_code``).
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
 import subprocess
 import sys
 from pathlib import Path
+
+SRC = Path(__file__).resolve().parent.parent / "src" / "undulate"
+
+
+def src_digest(root: Path = SRC) -> str:
+    """SHA-256 of the package's Python sources (paths and contents, in order): the same on the
+    device machine, which has no git, as here for the same code."""
+    h = hashlib.sha256()
+    for f in sorted(root.rglob("*.py")):
+        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 def main(argv: list[str]) -> int:
@@ -32,7 +46,7 @@ def main(argv: list[str]) -> int:
         claims = json.loads((d / "claims.json").read_text())
         state = json.loads((d / "reproduce.json").read_text())
         doc[mode] = {"verdicts": {f"{c.get('study')}:{c.get('claim')}": c.get("verdict") for c in claims["claims"]},
-                     "wall_s": state.get("wall_s"), "commit": commit, "src_tree": src_tree,
+                     "wall_s": state.get("wall_s"), "commit": commit, "src_tree": src_tree, "src_sha256": src_digest(),
                      "studies": {k: v.get("wall_s") for k, v in state.get("studies", {}).items()}}
     out.write_text(json.dumps(doc, indent=1))
     print(f"wrote {out}: " + ", ".join(f"{m} {len(v['verdicts'])} claims" for m, v in doc.items()))
