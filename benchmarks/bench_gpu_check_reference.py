@@ -23,12 +23,22 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parent.parent / "src" / "undulate"
 
 
+def _warp_files() -> set[str]:
+    """The Warp backend's modules (``undulate._source.BACKEND_MODULES["warp"]``) as paths under the
+    package: left out of the digest, as out of a MuJoCo sweep's code hash, since the MuJoCo backend's
+    results do not depend on them."""
+    from undulate._source import BACKEND_MODULES
+
+    return {m.split(".", 1)[1].replace(".", "/") + ".py" for m in BACKEND_MODULES["warp"]}
+
+
 def src_digest(root: Path = SRC) -> str:
-    """SHA-256 of the package's Python sources (paths and contents, in order): the same on the
-    device machine, which has no git, as here for the same code."""
-    h = hashlib.sha256()
+    """SHA-256 of the package's Python sources but the Warp backend's (paths and contents, in order):
+    the same on the device machine, which has no git, as here for code whose MuJoCo results are the same."""
+    h, warp = hashlib.sha256(), _warp_files()
     for f in sorted(root.rglob("*.py")):
-        h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+        if f.relative_to(root).as_posix() not in warp:
+            h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
     return h.hexdigest()
 
 

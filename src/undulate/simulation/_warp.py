@@ -563,12 +563,6 @@ class _Reduction:
         return r
 
 
-def _worlds(table: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """The control table's columns of the worlds ``idx`` (step-major, contiguous): the table itself,
-    uncopied, where one group holds every world in order."""
-    return np.ascontiguousarray(table[:, _cols(idx)])
-
-
 def _device_seconds(group: "_Group", nstep: int) -> float:
     """Seconds the device takes for ``nstep`` steps of ``group``'s worlds alone (no transfers; a
     benchmark: benchmarks/bench_gpu_check.py)."""
@@ -803,9 +797,10 @@ class WarpRollout:
         table, slewed = self.servos.table(u[:, :nstep], act0)
         t0 = cur[:, :1]  # the clock stays float64 on the host
         for g in self.groups:
-            idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers)
+            idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers; the
+            # table itself, uncopied, where one group holds every world in order)
             q, v, s, warm, overflow = g.run(cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx],
-                                            _worlds(table, g.idx), nstep)
+                                            np.ascontiguousarray(table[:, idx]), nstep)
             if overflow.any():
                 self._overflow(g.idx, overflow)
             st[idx, :nstep, q0:q0 + nq] = q
@@ -845,7 +840,8 @@ class WarpRollout:
         for g in self.groups:
             idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers)
             q, v, s, p, f_pair, f_wall, bad, warm, overflow = g.run(
-                cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx], _worlds(table, g.idx), nstep)
+                cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx], np.ascontiguousarray(table[:, idx]),
+                nstep)
             if overflow.any():
                 self._overflow(g.idx, overflow)
             st[idx, :, q0:q0 + nq], st[idx, :, v0:v0 + nv], sd[idx] = q, v, s
