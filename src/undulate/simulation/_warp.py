@@ -92,8 +92,11 @@ def require():
                              "warp") from None
 
 
+@functools.lru_cache(maxsize=1)
 def versions() -> str:
-    """``"mujoco-warp X, warp-lang Y"`` (provenance)."""
+    """``"mujoco-warp X, warp-lang Y"`` (provenance; read once a process, as
+    :func:`undulate.provenance.provenance`'s versions are: every run's Dataset records it, and
+    reading a distribution's metadata costs ~1.5 ms, a tenth of a gathered run's host time)."""
     from ..provenance import package_version
 
     return f"mujoco-warp {package_version('mujoco-warp', '?')}, warp-lang {package_version('warp-lang', '?')}"
@@ -185,10 +188,10 @@ def _plan_worlds(models: Sequence[mujoco.MjModel]):
     for name in fields:
         if name not in known:
             continue
-        ref = getattr(m0, name)
-        same = [np.array_equal(getattr(m, name), ref) for m in models[1:]]
-        if not all(same):
-            differ[name] = np.stack([getattr(m, name) for m in models])
+        vals = [getattr(m, name) for m in models]
+        ref, shape = vals[0].tobytes(), vals[0].shape  # equal bytes of one shape: equal values (NaN too)
+        if not all(v.shape == shape and v.tobytes() == ref for v in vals[1:]):
+            differ[name] = np.stack(vals)
     opt_differ: dict[str, np.ndarray] = {}
     for name in _OPT_FIELDS:
         vals = [np.asarray(getattr(m.opt, name)) for m in models]
