@@ -254,6 +254,47 @@ def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_p
         assert np.abs(gpu.dataset["x"].isel(point=i, replicate=0).values - alone).max() < 1e-9
 
 
+def test_a_warp_sweep_split_over_processes_gives_the_runs_of_one_and_leaves_the_pool_on_mujoco(tmp_path,
+                                                                                              monkeypatch):
+    """UNDULATE_WARP_PROCESSES=2: a Warp sweep's runs go to two processes of the local pool, each
+    stepping its share as one batch and saving its runs; every run is the one-process sweep's (each
+    world is its run alone).  Each task names its backend, so the same warm processes then step a
+    MuJoCo sweep on MuJoCo: bitwise the serial MuJoCo runs, not the Warp ones."""
+    from undulate.studies._runners import group_point
+    from undulate.sweep import Grid, run_sweep, warm_workers
+
+    fn = functools.partial(group_point, duration_s=0.5)
+    grid = Grid(points=[{"dphi_rad": d} for d in (0.0, 1.0, 2.0, 3.0)], seed=0)
+    monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+    monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
+    one = run_sweep(fn, grid, tmp_path / "one", progress=False)
+    monkeypatch.setenv("UNDULATE_WARP_PROCESSES", "2")
+    with warm_workers(2):
+        two = run_sweep(fn, grid, tmp_path / "two", progress=False)
+        monkeypatch.setenv("UNDULATE_BACKEND", "mujoco")
+        pooled = run_sweep(fn, grid, tmp_path / "pooled", workers=2, progress=False)
+    serial = run_sweep(fn, grid, tmp_path / "serial", workers=1, progress=False)
+    assert (one.timing["executor"], two.timing["executor"]) == ("serial", "local")
+    assert two.identity == one.identity and two.n_computed == 4
+    assert np.abs(two.dataset["x"].values - one.dataset["x"].values).max() < 1e-9
+    assert pooled.identity["backend"] == serial.identity["backend"] == "mujoco"
+    assert np.array_equal(pooled.dataset["x"].values, serial.dataset["x"].values)
+    assert not np.array_equal(pooled.dataset["x"].values, two.dataset["x"].values)  # float32 Warp differs
+
+
+def test_warp_processes_are_validated(monkeypatch):
+    from undulate.simulation import warp_processes
+
+    monkeypatch.delenv("UNDULATE_WARP_PROCESSES", raising=False)
+    assert warp_processes() == 1
+    monkeypatch.setenv("UNDULATE_WARP_PROCESSES", "4")
+    assert warp_processes() == 4
+    for bad in ("0", "four", "100000"):
+        monkeypatch.setenv("UNDULATE_WARP_PROCESSES", bad)
+        with pytest.raises(ParameterError, match="UNDULATE_WARP_PROCESSES"):
+            warp_processes()
+
+
 def test_chunks_of_any_length_give_the_same_run():
     """A run cut into chunks (whose last is shorter: the device buffers and the captured step are
     reused) equals the run in one chunk: the state crosses each boundary exactly (float32 both ways)."""

@@ -46,7 +46,7 @@ from ..schema import scene_attrs, variable  # noqa: F401  (importable from here 
 from ..scene import CompiledScene, auto_timestep, build, servo_damping_rate_per_s, snap_timestep
 from .._xrcompat import install as _lazy_dask
 from ._backend import (BACKEND_ENV, DEVICE_ENV, backend_attrs, check_backend,  # noqa: F401
-                       default_backend, use_backend)
+                       default_backend, use_backend, warp_processes)
 from ._checkpoint import Checkpoint, _starts
 from ._compile import RK4_DAMPING_STEP, compile_scene, controls, resolve_options  # noqa: F401
 from ._gather import Gather, _gathering

@@ -10,6 +10,8 @@ from ..errors import ParameterError
 from ..params import SimOptions
 
 BACKEND_ENV, DEVICE_ENV = "UNDULATE_BACKEND", "UNDULATE_DEVICE"
+WARP_PROCESSES_ENV = "UNDULATE_WARP_PROCESSES"
+WARP_PROCESSES_MAX = 256
 
 
 def use_backend(backend: str | None, device: str | None = None) -> None:
@@ -36,6 +38,24 @@ def default_backend() -> tuple[str, str | None]:
     if backend not in SimOptions.BACKENDS:
         raise ParameterError(BACKEND_ENV, "'mujoco' or 'warp' (environment variable)", backend)
     return backend, (os.environ.get(DEVICE_ENV) or None) if backend == "warp" else None
+
+
+def warp_processes() -> int:
+    """Processes a sweep on the Warp backend splits its runs over: ``UNDULATE_WARP_PROCESSES``
+    (1 to :data:`WARP_PROCESSES_MAX`; default 1, every run of a task in this process).  Each process
+    steps its share as the worlds of one batch on the same device, and does its share of the host's
+    work (models, control tables, Datasets, run files), which on a GPU is most of a large sweep's time
+    (docs/gpu.md, "The host's share of a sweep"); more processes are not yet measured on a GPU."""
+    raw = os.environ.get(WARP_PROCESSES_ENV)
+    if not raw:
+        return 1
+    try:
+        n = int(raw)
+    except ValueError:
+        n = 0
+    if not 1 <= n <= WARP_PROCESSES_MAX:
+        raise ParameterError(WARP_PROCESSES_ENV, f"an integer from 1 to {WARP_PROCESSES_MAX} (environment variable)", raw)
+    return n
 
 
 def check_backend(options: SimOptions) -> SimOptions:

@@ -241,6 +241,36 @@ def _report_stale(store: Store, progress: bool, stream: TextIO | None) -> None:
         log.warning(msg)
 
 
+def _chunks(fn, grid: Grid, store: Store, todo: list, *, workers, client, batch, batched: bool):
+    """Where the ``todo`` runs go: ``(processes or Dask threads, runs per task, where in words, the
+    tasks)``.  On the Warp backend (no Dask) a task's runs are gathered into one batch: one task in
+    this process, or with ``UNDULATE_WARP_PROCESSES`` > 1 one a process of the local pool."""
+    from ..simulation import default_backend, warp_processes
+
+    gather = client is None and store.manifest.get("backend", "mujoco") != "mujoco"
+    if client is not None:
+        _executors.check_shared_dir(client, str(store.runs_dir))
+        threads = _executors.dask_threads(client)
+        n_workers = threads or 8  # workers still starting: assume a few for the chunk size
+        where = f"Dask at {client.scheduler.address} ({threads} worker threads now)"
+    elif gather:  # its runs' host work shared by UNDULATE_WARP_PROCESSES processes (default 1)
+        n_workers = min(warp_processes(), max(len(todo), 1))
+        where = ("this process, each task's runs stepped together as Warp worlds" if n_workers == 1 else
+                 f"{n_workers} local processes, each task's runs stepped together as Warp worlds")
+    else:
+        n_workers = min(workers or _executors.default_workers(), max(len(todo), 1))
+        where = "this process" if n_workers == 1 else f"{n_workers} local processes"
+    if gather:  # the runs reach the device together: one task (a process) of up to GATHER_MAX runs
+        size = batch or min(GATHER_MAX, max(math.ceil(len(todo) / n_workers), 1))
+    else:
+        size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
+    run_prov = tuple(run_provenance(store.manifest).items())
+    backend = default_backend() if client is None and n_workers > 1 else None  # the pool's processes: this one's
+    chunks = [Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov, gather, backend)
+              for i in range(0, len(todo), size)]
+    return n_workers, size, where, chunks
+
+
 def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, scheduler, progress: bool,
              batch, batched: bool, stream) -> tuple[dict, dict]:
     """Run the ``todo`` runs in chunks on the chosen executor, saving each as it finishes.
@@ -248,30 +278,11 @@ def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, s
     Returns the outcome counts (``OK``, ``FAILED``, ``EXISTS``) and the timing
     (executor, the runs' own wall and physics seconds, scene-steps)."""
     client, own_client = None, False
-    gather = scheduler is None and store.manifest.get("backend", "mujoco") != "mujoco"
     if scheduler is not None and todo:
         client, own_client = _executors.connect(scheduler)
     try:
-        if client is not None:
-            _executors.check_shared_dir(client, str(store.runs_dir))
-            threads = _executors.dask_threads(client)
-            n_workers = threads or 8  # workers still starting: assume a few for the chunk size
-            where = f"Dask at {client.scheduler.address} ({threads} worker threads now)"
-        elif gather:
-            n_workers = 1
-            where = "this process, each task's runs stepped together as Warp worlds"
-        else:
-            n_workers = min(workers or _executors.default_workers(), max(len(todo), 1))
-            where = "this process" if n_workers == 1 else f"{n_workers} local processes"
-        if gather:  # the runs reach the device together: one task of up to GATHER_MAX runs
-            size = batch or min(GATHER_MAX, max(len(todo), 1))
-        else:
-            size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
-        run_prov = tuple(run_provenance(store.manifest).items())
-        chunks = [
-            Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov, gather)
-            for i in range(0, len(todo), size)
-        ]
+        n_workers, size, where, chunks = _chunks(fn, grid, store, todo, workers=workers, client=client, batch=batch,
+                                                 batched=batched)
         bar = Progress(len(runs), len(runs) - len(todo), enabled=progress, stream=stream)
         if todo:
             bar.write(

@@ -51,6 +51,11 @@ class Chunk:
     gather: bool = False
     """Run the chunk's runs on threads whose simulations are stepped together
     (:class:`undulate.simulation.Gather`: the Warp backend's worlds)."""
+    backend: tuple[str, str | None] | None = None
+    """``(backend, device)`` the runs step on, made the worker process's default before they run
+    (:func:`undulate.simulation.use_backend`): a local pool's processes serve sweeps of either
+    backend, and a process keeps whatever an earlier chunk set.  None: the process's own default
+    (this process, where the sweep was started)."""
 
 
 def init_local_worker() -> None:
@@ -68,6 +73,10 @@ def run_chunk(chunk: Chunk) -> list[Outcome]:
     A run that raises is recorded (``*.failed.json``) and the chunk goes on.
     """
     runs_dir = Path(chunk.runs_dir)
+    if chunk.backend is not None:
+        from ..simulation import use_backend
+
+        use_backend(*chunk.backend)
     todo = []
     out = []
     for run in chunk.runs:
