@@ -6,7 +6,7 @@ Run by ``benchmarks/gpu_check.sh`` (which installs the carried wheels first).  P
 per measurement as it goes and keeps ``OUTDIR/gpu_check.json`` up to date, so a run cut short still
 leaves what it measured.  Steps, in the order ``--only`` gives (default: all, in the order of
 :data:`STEPS`: pair, full-warp, quick-warp-warm, quick-cpu, quick-warp, pair-throughput, pack,
-pack-throughput, determinism):
+pack-throughput, determinism, sweep):
 
 * ``pair`` -- the default pair over 5 s, Warp on the device against the MuJoCo backend (float64, CPU)
   on the same machine: max |dx|, penetration.  The first Warp call compiles the kernels: its time is
@@ -32,6 +32,11 @@ pack-throughput, determinism):
   identical worlds of the pack over 1 s (their largest difference), and the pair's device-only
   throughput at 8 192 worlds.  On an H200 (2026-11-27) the deterministic pack could not allocate its
   workspace: the step reports that error and goes on.
+
+* ``sweep`` -- a user's sweep end to end: 1 024 pair runs of 5 s through ``run_sweep`` on Warp in one
+  process, on Warp split over 8 processes (``UNDULATE_WARP_PROCESSES``) and on the MuJoCo backend on
+  every core: runs per second (:func:`sweep`; on 2 cores a run's host work besides its steps was
+  ~18 ms, 2026-11-27, docs/gpu.md "The host's share of a sweep").
 
 Every step has a time limit taken from ``--budget-s`` so the whole check ends in time.
 """
@@ -241,6 +246,36 @@ def determinism(budget: float) -> None:
             os.environ["UNDULATE_WARP_DETERMINISTIC"] = saved
 
 
+SWEEP_PROCESSES = 8  # UNDULATE_WARP_PROCESSES of the sweep step's second Warp sweep
+
+
+def sweep(budget: float) -> None:
+    """A user's sweep end to end (``benchmarks/bench_sweep_host.py``): 1 024 pair runs of 5 s through
+    ``run_sweep`` into a fresh store, on the Warp backend in one process (the runs' host work --
+    models, control tables, Datasets, run files -- on one core), on Warp split over
+    :data:`SWEEP_PROCESSES` processes (``UNDULATE_WARP_PROCESSES``: the host work on as many cores, the
+    processes' batches sharing the device), and on the MuJoCo backend on every core.  Each after a
+    warm-up sweep (processes started, kernels loaded); runs per second, best of two."""
+    script = Path(__file__).resolve().parent / "bench_sweep_host.py"
+    runs, dur = (8, 0.2) if SMALL else (1024, 5.0)
+    cases = (("warp_1_process", ["--backend", "warp", "--device", DEVICE]),
+             (f"warp_{SWEEP_PROCESSES}_processes", ["--backend", "warp", "--device", DEVICE,
+                                                    "--processes", str(2 if SMALL else SWEEP_PROCESSES)]),
+             ("mujoco_every_core", ["--backend", "mujoco", "--workers", str(os.cpu_count() or 1)]))
+    for name, args in cases:
+        if left(budget) < 40:
+            say(f"sweep.{name}", "skipped: budget")
+            continue
+        cmd = [sys.executable, str(script), "--runs", str(runs), "--duration", str(dur), "--repeat", "2", *args]
+        try:
+            r = subprocess.run(cmd, capture_output=True, text=True, timeout=max(20.0, left(budget) - 20.0))
+            found = [x for x in r.stdout.splitlines() if x.startswith("json ")]
+            say(f"sweep.{name}", json.loads(found[-1][5:]) if found else
+                f"error: rc {r.returncode}: {(r.stdout + r.stderr)[-800:]}")
+        except subprocess.TimeoutExpired:
+            say(f"sweep.{name}", "timeout")
+
+
 def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     out = OUT / f"repro-{tag}"
     cmd = [sys.executable, "-c", "import sys; from undulate.cli import main; sys.exit(main(sys.argv[1:]))",
@@ -343,7 +378,7 @@ def reproduction(step: str, budget: float) -> None:
 
 
 STEPS = ("pair", "full-warp", "quick-warp-warm", "quick-cpu", "quick-warp", "pair-throughput", "pack",
-         "pack-throughput", "determinism")
+         "pack-throughput", "determinism", "sweep")
 """The default order: issue 37's goals first (the full reproduction, which compiles the kernels, then
 quick with them cached, then quick on the machine's cores, the baseline measured in the same run), as
 the H200 check of 2026-11-27 already measured the throughput."""
@@ -389,6 +424,8 @@ def main() -> None:
                 throughput(step.split("-")[0], a.budget_s)
             elif step == "determinism":
                 determinism(a.budget_s)
+            elif step == "sweep":
+                sweep(a.budget_s)
             else:
                 reproduction(step, a.budget_s)
         except Exception:  # noqa: BLE001 - one failed step does not lose the others
