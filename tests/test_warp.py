@@ -256,10 +256,11 @@ def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_p
 
 def test_a_warp_sweep_split_over_processes_gives_the_runs_of_one_and_leaves_the_pool_on_mujoco(tmp_path,
                                                                                               monkeypatch):
-    """UNDULATE_WARP_PROCESSES=2: a Warp sweep's runs go to two processes of the local pool, each
-    stepping its share as one batch and saving its runs; every run is the one-process sweep's (each
-    world is its run alone).  Each task names its backend, so the same warm processes then step a
+    """UNDULATE_WARP_PROCESSES=2: a Warp sweep's runs go to two processes of the local pool (given
+    enough runs for each: GATHER_MIN_SPLIT), each stepping its share as one batch and saving its
+    runs; every run is the one-process sweep's (each world is its run alone).  Each task names its backend, so the same warm processes then step a
     MuJoCo sweep on MuJoCo: bitwise the serial MuJoCo runs, not the Warp ones."""
+    import undulate.sweep._sweep as sweep_mod
     from undulate.studies._runners import group_point
     from undulate.sweep import Grid, run_sweep, warm_workers
 
@@ -269,6 +270,9 @@ def test_a_warp_sweep_split_over_processes_gives_the_runs_of_one_and_leaves_the_
     monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
     one = run_sweep(fn, grid, tmp_path / "one", progress=False)
     monkeypatch.setenv("UNDULATE_WARP_PROCESSES", "2")
+    few = run_sweep(fn, grid, tmp_path / "few", progress=False)  # 4 runs: too few to split
+    assert few.timing["executor"] == "serial"
+    monkeypatch.setattr(sweep_mod, "GATHER_MIN_SPLIT", 2)
     with warm_workers(2):
         two = run_sweep(fn, grid, tmp_path / "two", progress=False)
         monkeypatch.setenv("UNDULATE_BACKEND", "mujoco")

@@ -113,6 +113,11 @@ class SweepResult:
 
 GATHER_MAX = 4096
 """Most runs of one task on the Warp backend (one thread each; their scenes become worlds)."""
+GATHER_MIN_SPLIT = 64
+"""Fewest runs a process gets where ``UNDULATE_WARP_PROCESSES`` splits a Warp sweep: a split pays only
+where the runs' host work (~20 ms a run on 2 cores) outweighs the step latency each batch pays on the
+device whatever its size (0.34 ms a step on an H200: 64 runs' host work is ~3 800 steps).  A
+judgement from those two figures, not a measured crossover."""
 
 
 def _auto_chunk(n_todo: int, workers: int) -> int:
@@ -244,7 +249,8 @@ def _report_stale(store: Store, progress: bool, stream: TextIO | None) -> None:
 def _chunks(fn, grid: Grid, store: Store, todo: list, *, workers, client, batch, batched: bool):
     """Where the ``todo`` runs go: ``(processes or Dask threads, runs per task, where in words, the
     tasks)``.  On the Warp backend (no Dask) a task's runs are gathered into one batch: one task in
-    this process, or with ``UNDULATE_WARP_PROCESSES`` > 1 one a process of the local pool."""
+    this process, or with ``UNDULATE_WARP_PROCESSES`` > 1 one a process of the local pool (at least
+    :data:`GATHER_MIN_SPLIT` runs each)."""
     from ..simulation import default_backend, warp_processes
 
     gather = client is None and store.manifest.get("backend", "mujoco") != "mujoco"
@@ -254,7 +260,7 @@ def _chunks(fn, grid: Grid, store: Store, todo: list, *, workers, client, batch,
         n_workers = threads or 8  # workers still starting: assume a few for the chunk size
         where = f"Dask at {client.scheduler.address} ({threads} worker threads now)"
     elif gather:  # its runs' host work shared by UNDULATE_WARP_PROCESSES processes (default 1)
-        n_workers = min(warp_processes(), max(len(todo), 1))
+        n_workers = max(1, min(warp_processes(), len(todo) // GATHER_MIN_SPLIT))
         where = ("this process, each task's runs stepped together as Warp worlds" if n_workers == 1 else
                  f"{n_workers} local processes, each task's runs stepped together as Warp worlds")
     else:
