@@ -286,6 +286,39 @@ def test_a_warp_sweep_split_over_processes_gives_the_runs_of_one_and_leaves_the_
     assert not np.array_equal(pooled.dataset["x"].values, two.dataset["x"].values)  # float32 Warp differs
 
 
+def test_a_warp_sweep_on_dask_steps_on_warp_whatever_the_workers_were_started_with(tmp_path, monkeypatch):
+    """A Dask worker has the environment it was started with, not the sweep's: each task names its
+    backend, so a Warp sweep on workers started on the MuJoCo backend steps on Warp (float32: not the
+    MuJoCo run, which its store would otherwise have labelled Warp).  A task whose backend its worker
+    cannot step on fails each of its runs, saying why."""
+    import json
+
+    distributed = pytest.importorskip("distributed")
+    from undulate.studies._runners import group_point
+    from undulate.sweep import Grid, run_sweep
+    from undulate.sweep._worker import Chunk, run_chunk
+
+    fn = functools.partial(group_point, duration_s=0.5)
+    grid = Grid(points=[{"dphi_rad": 1.0}], seed=0)
+    monkeypatch.delenv("UNDULATE_BACKEND", raising=False)
+    with distributed.LocalCluster(n_workers=1, processes=True, threads_per_worker=1, dashboard_address=None) as cl:
+        monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+        monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
+        on_dask = run_sweep(fn, grid, tmp_path / "dask", scheduler=cl.scheduler_address, progress=False)
+        here = run_sweep(fn, grid, tmp_path / "here", progress=False)
+    monkeypatch.delenv("UNDULATE_BACKEND")
+    cpu = run_sweep(fn, grid, tmp_path / "cpu", workers=1, progress=False)
+    assert on_dask.identity == here.identity and on_dask.ok
+    assert np.abs(on_dask.dataset["x"].values - here.dataset["x"].values).max() < 1e-9
+    assert not np.array_equal(on_dask.dataset["x"].values, cpu.dataset["x"].values)
+    # a task for a device this worker lacks (CUDA, on this machine): each run recorded as failed, why
+    runs_dir = tmp_path / "nocuda"
+    runs_dir.mkdir()
+    out = run_chunk(Chunk(fn, str(runs_dir), tuple(grid.runs()), grid.names, backend=("warp", "cuda")))
+    assert [o.status for o in out] == ["failed"] and "ParameterError" in out[0].error
+    assert "device" in json.loads(next(runs_dir.glob("*.failed.json")).read_text())["error"]
+
+
 def test_warp_processes_are_validated(monkeypatch):
     from undulate.simulation import warp_processes
 

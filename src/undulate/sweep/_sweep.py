@@ -271,7 +271,8 @@ def _chunks(fn, grid: Grid, store: Store, todo: list, *, workers, client, batch,
     else:
         size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
     run_prov = tuple(run_provenance(store.manifest).items())
-    backend = default_backend() if client is None and n_workers > 1 else None  # the pool's processes: this one's
+    # the workers (a local pool's processes, Dask's) step on this process's backend, named in every task
+    backend = default_backend() if client is not None or n_workers > 1 else None
     chunks = [Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov, gather, backend)
               for i in range(0, len(todo), size)]
     return n_workers, size, where, chunks

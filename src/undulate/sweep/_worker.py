@@ -54,8 +54,10 @@ class Chunk:
     backend: tuple[str, str | None] | None = None
     """``(backend, device)`` the runs step on, made the worker process's default before they run
     (:func:`undulate.simulation.use_backend`): a local pool's processes serve sweeps of either
-    backend, and a process keeps whatever an earlier chunk set.  None: the process's own default
-    (this process, where the sweep was started)."""
+    backend and keep whatever an earlier chunk set, and a Dask worker has the environment it was
+    started with, not the sweep's.  Where the worker cannot step on it (no gpu extra, no such
+    device), every run of the chunk fails saying why.  None: the process's own default (this
+    process, where the sweep was started)."""
 
 
 def init_local_worker() -> None:
@@ -76,7 +78,11 @@ def run_chunk(chunk: Chunk) -> list[Outcome]:
     if chunk.backend is not None:
         from ..simulation import use_backend
 
-        use_backend(*chunk.backend)
+        try:
+            use_backend(*chunk.backend)
+        except Exception as exc:  # noqa: BLE001 - e.g. a Dask worker without the gpu extra: said per run
+            return [Outcome(r.key, EXISTS) if result_path(runs_dir, r).exists()
+                    else Outcome(r.key, FAILED, write_failure(runs_dir, r, exc)["error"]) for r in chunk.runs]
     todo = []
     out = []
     for run in chunk.runs:
