@@ -46,15 +46,20 @@ def warp_processes() -> int:
     steps its share as the worlds of one batch on the same device, and does its share of the host's
     work (models, control tables, Datasets, run files), which on a GPU is most of a large sweep's time
     (docs/gpu.md, "The host's share of a sweep"); more processes are not yet measured on a GPU."""
-    raw = os.environ.get(WARP_PROCESSES_ENV)
+    return env_count(WARP_PROCESSES_ENV, 1, WARP_PROCESSES_MAX)
+
+
+def env_count(name: str, default: int, most: int = 10**6) -> int:
+    """The integer environment setting ``name`` (1 to ``most``), or ``default`` where it is unset."""
+    raw = os.environ.get(name)
     if not raw:
-        return 1
+        return default
     try:
         n = int(raw)
     except ValueError:
         n = 0
-    if not 1 <= n <= WARP_PROCESSES_MAX:
-        raise ParameterError(WARP_PROCESSES_ENV, f"an integer from 1 to {WARP_PROCESSES_MAX} (environment variable)", raw)
+    if not 1 <= n <= most:
+        raise ParameterError(name, f"an integer from 1 to {most}", raw)
     return n
 
 

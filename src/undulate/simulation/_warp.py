@@ -43,6 +43,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ParameterError, UndulateError
+from ._backend import env_count
 
 __all__ = ["WarpRollout", "available", "require", "capacities", "CapacityError", "DEVICES", "PRECISION"]
 
@@ -625,24 +626,10 @@ On Warp's CPU device the default is 1: there the kernels dominate a step (a pair
 way) and capturing 16 steps costs each new model ~0.4 s."""
 
 
-def _env_count(name: str, default: int, most: int = 10**6) -> int:
-    """The integer environment setting ``name`` (1 to ``most``), or ``default`` where it is unset."""
-    raw = os.environ.get(name)
-    if not raw:
-        return default
-    try:
-        n = int(raw)
-    except ValueError:
-        n = 0
-    if not 1 <= n <= most:
-        raise ParameterError(name, f"an integer from 1 to {most}", raw)
-    return n
-
-
 def steps_per_graph(device: str = "cuda") -> int:
     """Steps in one captured graph on ``device``: ``UNDULATE_WARP_STEPS_PER_GRAPH``, else
     :data:`STEPS_PER_GRAPH` on a GPU and 1 on Warp's CPU device."""
-    return _env_count("UNDULATE_WARP_STEPS_PER_GRAPH", 1 if _is_cpu(device) else STEPS_PER_GRAPH, 1000)
+    return env_count("UNDULATE_WARP_STEPS_PER_GRAPH", 1 if _is_cpu(device) else STEPS_PER_GRAPH, 1000)
 
 
 def compile_workers() -> int:
@@ -652,7 +639,7 @@ def compile_workers() -> int:
         cpus = len(os.sched_getaffinity(0))
     except AttributeError:  # not on Linux
         cpus = os.cpu_count() or 1
-    return _env_count("UNDULATE_WARP_COMPILE_WORKERS", cpus)
+    return env_count("UNDULATE_WARP_COMPILE_WORKERS", cpus)
 
 
 def _traced_modules(group: "_Group") -> list:
