@@ -8,6 +8,7 @@ import os
 
 from ..errors import ParameterError
 from ..params import SimOptions
+from ._env import env_count
 
 BACKEND_ENV, DEVICE_ENV = "UNDULATE_BACKEND", "UNDULATE_DEVICE"
 WARP_PROCESSES_ENV = "UNDULATE_WARP_PROCESSES"
@@ -47,20 +48,6 @@ def warp_processes() -> int:
     work (models, control tables, Datasets, run files), which on a GPU is most of a large sweep's time
     (docs/gpu.md, "The host's share of a sweep"); more processes are not yet measured on a GPU."""
     return env_count(WARP_PROCESSES_ENV, 1, WARP_PROCESSES_MAX)
-
-
-def env_count(name: str, default: int, most: int = 10**6) -> int:
-    """The integer environment setting ``name`` (1 to ``most``), or ``default`` where it is unset."""
-    raw = os.environ.get(name)
-    if not raw:
-        return default
-    try:
-        n = int(raw)
-    except ValueError:
-        n = 0
-    if not 1 <= n <= most:
-        raise ParameterError(name, f"an integer from 1 to {most}", raw)
-    return n
 
 
 def check_backend(options: SimOptions) -> SimOptions:

@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ParameterError, UndulateError
-from ._backend import env_count
+from ._env import env_count
 
 __all__ = ["WarpRollout", "available", "require", "capacities", "CapacityError", "DEVICES", "PRECISION"]
 
