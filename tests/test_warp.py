@@ -322,6 +322,37 @@ def test_a_warp_sweep_on_dask_steps_on_warp_whatever_the_workers_were_started_wi
     assert "device" in json.loads(next(runs_dir.glob("*.failed.json")).read_text())["error"]
 
 
+def test_a_warp_sweep_on_dask_steps_each_tasks_runs_together(tmp_path, monkeypatch):
+    """On Dask too, a Warp sweep's task is one batch of worlds (not its runs one at a time): one
+    task where the runs are too few to split (GATHER_MIN_SPLIT), else one a worker thread; every run
+    is the one-process sweep's.  (Workers in this process, so that the batches can be counted.)"""
+    distributed = pytest.importorskip("distributed")
+    from undulate import simulation
+    from undulate.studies._runners import group_point
+    from undulate.sweep import Grid, _sweep as sweep_mod, run_sweep
+
+    fn = functools.partial(group_point, duration_s=0.5)
+    grid = Grid(points=[{"dphi_rad": d} for d in (0.0, 1.0, 2.0, 3.0)], seed=0)
+    batches = []
+    real = simulation.Gather._run
+    monkeypatch.setattr(simulation.Gather, "_run", lambda self, reqs: (batches.append(len(reqs)), real(self, reqs)))
+    monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+    monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
+    here = run_sweep(fn, grid, tmp_path / "here", progress=False)
+    assert batches == [4]
+    with distributed.LocalCluster(n_workers=1, processes=False, threads_per_worker=2, dashboard_address=None) as cl:
+        batches.clear()
+        whole = run_sweep(fn, grid, tmp_path / "whole", scheduler=cl.scheduler_address, progress=False)
+        assert batches == [4]  # 4 runs: too few to split over the 2 threads
+        monkeypatch.setattr(sweep_mod, "GATHER_MIN_SPLIT", 2)
+        batches.clear()
+        split = run_sweep(fn, grid, tmp_path / "split", scheduler=cl.scheduler_address, progress=False)
+        assert sorted(batches) == [2, 2]
+    for res in (whole, split):
+        assert res.ok and res.timing["executor"] == "dask" and res.identity == here.identity
+        assert np.abs(res.dataset["x"].values - here.dataset["x"].values).max() < 1e-9
+
+
 def test_warp_processes_are_validated(monkeypatch):
     from undulate.simulation import warp_processes
 

@@ -114,10 +114,10 @@ class SweepResult:
 GATHER_MAX = 4096
 """Most runs of one task on the Warp backend (one thread each; their scenes become worlds)."""
 GATHER_MIN_SPLIT = 64
-"""Fewest runs a process gets where ``UNDULATE_WARP_PROCESSES`` splits a Warp sweep: a split pays only
-where the runs' host work (~20 ms a run on 2 cores) outweighs the step latency each batch pays on the
-device whatever its size (0.34 ms a step on an H200: 64 runs' host work is ~3 800 steps).  A
-judgement from those two figures, not a measured crossover."""
+"""Fewest runs a process (or Dask task) gets where ``UNDULATE_WARP_PROCESSES`` (or Dask) splits a
+Warp sweep: a split pays only where the runs' host work (~20 ms a run on 2 cores) outweighs the step
+latency each batch pays on the device whatever its size (0.34 ms a step on an H200: 64 runs' host
+work is ~3 800 steps).  A judgement from those two figures, not a measured crossover."""
 
 
 def _auto_chunk(n_todo: int, workers: int) -> int:
@@ -248,17 +248,20 @@ def _report_stale(store: Store, progress: bool, stream: TextIO | None) -> None:
 
 def _chunks(fn, grid: Grid, store: Store, todo: list, *, workers, client, batch, batched: bool):
     """Where the ``todo`` runs go: ``(processes or Dask threads, runs per task, where in words, the
-    tasks)``.  On the Warp backend (no Dask) a task's runs are gathered into one batch: one task in
-    this process, or with ``UNDULATE_WARP_PROCESSES`` > 1 one a process of the local pool (at least
-    :data:`GATHER_MIN_SPLIT` runs each)."""
+    tasks)``.  On the Warp backend a task's runs are gathered into one batch: one task in this
+    process, or with ``UNDULATE_WARP_PROCESSES`` > 1 one a process of the local pool, or on Dask one
+    a worker thread (at least :data:`GATHER_MIN_SPLIT` runs each where split)."""
     from ..simulation import default_backend, warp_processes
 
-    gather = client is None and store.manifest.get("backend", "mujoco") != "mujoco"
+    gather = store.manifest.get("backend", "mujoco") != "mujoco"
     if client is not None:
         _executors.check_shared_dir(client, str(store.runs_dir))
         threads = _executors.dask_threads(client)
         n_workers = threads or 8  # workers still starting: assume a few for the chunk size
         where = f"Dask at {client.scheduler.address} ({threads} worker threads now)"
+        if gather:  # as many batches as threads, none smaller than a split's least
+            n_workers = max(1, min(n_workers, len(todo) // GATHER_MIN_SPLIT))
+            where += ", each task's runs stepped together as Warp worlds"
     elif gather:  # its runs' host work shared by UNDULATE_WARP_PROCESSES processes (default 1)
         n_workers = max(1, min(warp_processes(), len(todo) // GATHER_MIN_SPLIT))
         where = ("this process, each task's runs stepped together as Warp worlds" if n_workers == 1 else
