@@ -2,13 +2,15 @@
 
     python benchmarks/bench_sweep_host.py [--runs 256] [--duration 0.2] [--backend warp|mujoco]
                                           [--device cpu|cuda] [--repeat 3] [--processes 1] [--workers 1]
+                                          [--dask 0]
 
 A sweep of ``--runs`` pair runs (the pairs study's runner, ``group_point``; ``--duration`` s each, no
 stopping rule) through :func:`undulate.sweep.run_sweep` into a fresh store, end to end: on the Warp
 backend (Warp's CPU device unless ``--device cuda``) its runs are gathered into one batch, each on
 its own thread, as a study's are (``--processes`` P: ``UNDULATE_WARP_PROCESSES``, P processes of a
 warm pool, one batch each); on the MuJoCo backend on ``--workers`` processes (1: this one, one run
-after another).  Short runs on purpose: what is measured is what a run costs besides its steps,
+after another).  ``--dask N``: on a Dask ``LocalCluster`` of N worker processes (one thread each)
+instead, each Warp task one batch on its worker.  Short runs on purpose: what is measured is what a run costs besides its steps,
 which on a GPU is most of a large sweep (a 10 s pair at 8 192 worlds costs the H200 ~1.3 ms of
 device time per run; docs/gpu.md, "The host's share of a sweep").
 
@@ -62,6 +64,7 @@ def main() -> None:
     p.add_argument("--processes", type=int, default=1,
                    help="UNDULATE_WARP_PROCESSES: processes a Warp sweep splits its runs over")
     p.add_argument("--workers", type=int, default=1, help="local processes of a MuJoCo sweep")
+    p.add_argument("--dask", type=int, default=0, help="worker processes of a Dask LocalCluster (0: none)")
     a = p.parse_args()
     if a.backend == "mujoco":
         a.processes = 1
@@ -94,13 +97,20 @@ def main() -> None:
           flush=True)
     with contextlib.ExitStack() as stack:
         pool = max(a.processes, a.workers)
-        if pool > 1:  # started once, as in a study or reproduction (the first repeat starts them)
+        a.scheduler = None
+        if a.dask > 0:  # the workers start on the MuJoCo backend: each task names the sweep's
+            from distributed import LocalCluster
+
+            cluster = stack.enter_context(LocalCluster(n_workers=a.dask, threads_per_worker=1, processes=True,
+                                                       dashboard_address=None))
+            a.scheduler, pool = cluster.scheduler_address, a.dask
+        elif pool > 1:  # started once, as in a study or reproduction (the first repeat starts them)
             stack.enter_context(warm_workers(pool))
         walls = _repeats(a, fn, acc)
     best = min(walls)
     print("json " + json.dumps({"runs": a.runs, "duration_s": a.duration, "backend": a.backend,
                                 "device": a.device if a.backend == "warp" else "cpu", "processes": pool,
-                                "best_wall_s": best, "runs_per_s": a.runs / best, "walls_s": walls}), flush=True)
+                                "dask": a.dask > 0, "best_wall_s": best, "runs_per_s": a.runs / best, "walls_s": walls}), flush=True)
 
 
 def _repeats(a, fn, acc: dict) -> list[float]:
@@ -114,14 +124,15 @@ def _repeats(a, fn, acc: dict) -> list[float]:
         grid = Grid(axes={"dphi_rad": [float(x) for x in dphi]}, seed=0)
         with tempfile.TemporaryDirectory() as d:
             t = time.perf_counter()
-            r = run_sweep(fn, grid, d, progress=False, workers=a.workers if a.backend == "mujoco" else None)
+            r = run_sweep(fn, grid, d, progress=False, workers=a.workers if a.backend == "mujoco" else None,
+                          scheduler=a.scheduler)
             wall = time.perf_counter() - t
         if r.failures:
             raise SystemExit(f"{len(r.failures)} runs failed: {next(iter(r.failures.values()))}")
         if rep == 0:
             continue
         walls.append(wall)
-        if a.processes > 1 or a.workers > 1:  # the parts ran in the pool's processes, out of this one's sight
+        if a.processes > 1 or a.workers > 1 or a.scheduler:  # the parts ran in the pool's processes, out of this one's sight
             print(f"repeat {rep}: wall {wall:.2f} s, {a.runs / wall:.1f} runs/s, {wall / a.runs * 1e3:.1f} ms a run "
                   "end to end", flush=True)
             continue
