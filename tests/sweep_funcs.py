@@ -104,3 +104,33 @@ def result_data(ds: xr.Dataset) -> xr.Dataset:
     ds = ds.copy()
     ds.attrs = {k: v for k, v in ds.attrs.items() if not k.startswith("provenance_")}
     return ds
+
+
+def mixed(point: dict, seed: int) -> xr.Dataset:
+    """A Dataset of every kind a merge meets, cheap (tests of reading run files raw): float series
+    with NaN, int64 (stored as int32), a per-run non-index coordinate, attributes some runs share and
+    some do not; with ``point["kind"]`` 1 also a boolean and a string (whose decoding xarray owns), 2
+    a float with a non-NaN fill value (masked by xarray where a value equals it), 3 the layout of 0
+    with another attribute value on a variable in run 2 (a file that does not fit the first run's
+    layout), 4 an int64 beyond int32 (the run file is netCDF-4)."""
+    rng = np.random.default_rng(seed)
+    k = int(point.get("kind", 0))
+    t = np.arange(5) * 0.1
+    v = rng.normal(size=(5, 2))
+    v[int(point["i"]) % 5, 0] = np.nan
+    ds = xr.Dataset(
+        {"v": (("time", "swimmer"), v, {"units": "m", "long_name": "value"}),
+         "big": ((), np.int64((2**40 if k == 4 else 2**20) + int(point["i"])), {"units": "1"}),
+         "count": (("swimmer",), np.array([1, int(point["i"])], dtype=np.int32), {"units": "1"})},
+        coords={"time": ("time", t, {"units": "s"}), "tag": ((), float(point["i"]) * 0.5, {"units": "m"})},
+        attrs={"shared": "same", "arr": np.array([1.0, 2.0]), "own": f"run {point['i']}", "nan": np.nan},
+    )
+    if k == 1:
+        ds["flag"] = ((), bool(int(point["i"]) % 2), {"units": "1"})
+        ds["name"] = ((), np.array(f"n{point['i']}"))
+    if k == 2:
+        ds["v"].encoding["_FillValue"] = -1.0
+        ds["v"][0, 1] = -1.0 if int(point["i"]) % 2 else 0.5
+    if k == 3 and int(point["i"]) == 2:
+        ds["v"].attrs["long_name"] = "another value"
+    return ds

@@ -410,3 +410,43 @@ def test_a_source_edit_during_a_run_is_refused_not_mislabelled(tmp_path):
                             "undulate.studies._runners import pair_point; print(code_hash(pair_point))"],
                            env=env, capture_output=True, text=True, timeout=120)
     assert fresh.returncode == 0 and len(fresh.stdout.strip()) == 16 and fresh.stdout.strip() != before
+
+
+# ---- the merge reads run files raw only where that is what xarray gives ---------------------------
+@pytest.mark.parametrize("fn, axes, raw_rows", [
+    (sweep_funcs.mixed, {"i": [0, 1, 2, 3], "kind": [0]}, 2),  # every run after the first raw
+    (sweep_funcs.mixed, {"i": [0, 1, 2, 3], "kind": [1]}, 0),  # booleans and strings: xarray's
+    (sweep_funcs.mixed, {"i": [0, 1, 2, 3], "kind": [2]}, 0),  # a fill value xarray masks by value
+    (sweep_funcs.mixed, {"i": [0, 1, 2, 3], "kind": [3]}, 1),  # run 2's layout differs: read by xarray
+    (sweep_funcs.mixed, {"i": [0, 1, 2, 3], "kind": [4]}, 0),  # netCDF-4 run files: xarray's
+    (sweep_funcs.swimmer_pair, {"dphi_rad": [0.0, 1.0, 2.0, 3.0], "duration_s": [0.1]}, 2),
+])
+def test_the_merge_reading_run_files_raw_gives_what_xarray_gives(tmp_path, monkeypatch, fn, axes, raw_rows):
+    """Merging a store whose run files are read raw (SciPy's netCDF-3 arrays, no Dataset per run)
+    is identical to merging it through xarray, values, dtypes and attributes: with a missing run, NaN,
+    int64, per-run coordinates and attributes; booleans, strings and value-dependent fill values stay
+    xarray's, as does a file whose layout differs from the first run's."""
+    from undulate.sweep import _fastread, _store
+
+    grid = Grid(axes=axes, seed=3)
+    res = run_sweep(fn, grid, tmp_path / "s", workers=1, progress=False)
+    assert res.ok
+    runs = grid.runs()
+    runs_dir = tmp_path / "s" / "runs"
+    _store.result_path(runs_dir, runs[1]).unlink()  # a run without a result: NaN and run_failed
+    rows = []
+    stack = _fastread.FastLayout.stack
+    monkeypatch.setattr(_fastread.FastLayout, "stack", lambda self, raw, s, j, a: (rows.append(j), stack(self, raw, s, j, a)))
+    fast = _store.merge(grid, runs, runs_dir)
+    assert len(rows) == raw_rows
+    monkeypatch.setattr(_fastread.FastLayout, "of", classmethod(lambda cls, *a: None))
+    slow = _store.merge(grid, runs, runs_dir)
+    xr.testing.assert_identical(fast, slow)
+    assert all(fast[k].dtype == slow[k].dtype for k in fast.variables)
+    assert bool(fast["run_failed"].values.ravel()[1]) and int(fast["run_failed"].sum()) == 1
+    if fn is sweep_funcs.mixed:
+        big = fast["big"].values.ravel()  # int64 made float by the missing run
+        assert np.isnan(big[1]) and [int(b) % 2**20 for b in big[[0, 2, 3]]] == [0, 2, 3]
+        assert fast.attrs["shared"] == "same" and "own" not in fast.attrs and "nan" not in fast.attrs
+    if axes.get("kind") == [1]:  # strings merge as strings (a 0-d one was stored as an array: unwritable)
+        assert list(fast["name"].values.ravel()) == ["n0", "", "n2", "n3"]

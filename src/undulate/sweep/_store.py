@@ -38,6 +38,7 @@ import xarray as xr
 
 from .._io import atomic_write_bytes, atomic_write_text, remove_temporaries, write_netcdf
 from ..errors import ParameterError
+from ._fastread import FastLayout, read_raw, same_attr
 from ._grid import RESERVED, Grid, Run
 from .._xrcompat import install as _lazy_dask
 
@@ -72,9 +73,10 @@ def _run_file_bytes(ds: xr.Dataset) -> bytes:
         return bytes(ds.to_netcdf(engine=ENGINE))
 
 
-def read_run_file(path: Path) -> tuple[xr.Dataset, dict[str, Any]]:
-    """A run file's Dataset, with its variables' original dtypes restored, and its run record."""
-    data = path.read_bytes()
+def read_run_file(path: Path, data: bytes | None = None) -> tuple[xr.Dataset, dict[str, Any]]:
+    """A run file's Dataset, with its variables' original dtypes restored, and its run record
+    (``data``: the file's bytes, where already read)."""
+    data = path.read_bytes() if data is None else data
     ds = xr.load_dataset(io.BytesIO(data), engine="scipy" if data[:3] == b"CDF" else ENGINE)
     meta = json.loads(ds.attrs.pop(RUN_ATTR, "{}"))
     for name, dt in meta.get("dtypes", {}).items():
@@ -404,11 +406,6 @@ def _missing_fill(dtype: np.dtype) -> tuple[np.dtype, Any]:
     return dtype, ""  # strings (h5netcdf reads them as objects)
 
 
-def _same_attr(a: Any, b: Any) -> bool:
-    try:
-        return bool(np.array_equal(a, b)) if isinstance(a, np.ndarray) or isinstance(b, np.ndarray) else bool(a == b)
-    except Exception:
-        return False
 
 
 def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path, code: str | None = None) -> xr.Dataset:
@@ -444,42 +441,71 @@ def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path, code: str | None = No
 def _stack_runs(runs: Sequence[Run], runs_dir: Path, code: str | None, have: np.ndarray):
     """Read the finished runs (``have``) into stacked arrays, one row per run: ``(template, stacked,
     attrs)`` (the first run read, its stackable variables, the attributes every run agrees on), or
-    None when a run file was removed (corrupt or stale)."""
+    None when a run file was removed (corrupt or stale).  Runs after the first are read raw where
+    that gives what xarray would (:mod:`undulate.sweep._fastread`)."""
     n = len(runs)
     complete = bool(have.all())
     template: xr.Dataset | None = None
+    fast: FastLayout | None = None
     stacked: dict[str, np.ndarray] = {}
     attrs: dict[str, Any] = {}
     for j, run in enumerate(runs):
         if not have[j]:
             continue
         path = result_path(runs_dir, run)
-        ds = _read_checked(runs_dir, run, path, code)
+        got = _read_checked(runs_dir, run, path, code)
+        if got is None:
+            return None
+        raw, data = got
+        if fast is not None and fast.fits(raw):
+            fast.stack(raw, stacked, j, attrs)
+            continue
+        ds = _dataset(runs_dir, run, path, data)
         if ds is None:
             return None
         if template is None:
             template = ds
             attrs = dict(ds.attrs)
             stacked = _empty_stack(ds, n, complete)
+            fast = FastLayout.of(template, raw, list(stacked))
         else:
             _check_like(template, ds, path)
             for k in list(attrs):
-                if k not in ds.attrs or not _same_attr(attrs[k], ds.attrs[k]):
+                if k not in ds.attrs or not same_attr(attrs[k], ds.attrs[k]):
                     del attrs[k]
         for name, arr in stacked.items():
-            arr[j] = ds[name].values
+            value = ds[name].values
+            arr[j] = value[()] if value.ndim == 0 else value  # a 0-d object array's element, not the array
     return template, stacked, attrs
 
 
-def _read_checked(runs_dir: Path, run: Run, path: Path, code: str | None) -> xr.Dataset | None:
-    """The result of ``run`` from ``path``; None if the file was unreadable or computed by other code
-    (it is then removed and recorded as a failure).  A file of another run is refused."""
+def _dataset(runs_dir: Path, run: Run, path: Path, data: bytes) -> xr.Dataset | None:
+    """A run file's Dataset from its bytes, as :func:`read_run_file` gives it; None where xarray
+    cannot read it (removed, as :func:`_read_checked` does)."""
     try:
-        ds, meta = read_run_file(path)
+        return read_run_file(path, data)[0]
+    except Exception as exc:  # noqa: BLE001
+        _corrupt(runs_dir, run, path, exc)
+        return None
+
+
+def _corrupt(runs_dir: Path, run: Run, path: Path, exc: BaseException) -> None:
+    """Remove an unreadable run file and record why (the sweep computes the run again)."""
+    path.unlink(missing_ok=True)
+    write_failure(runs_dir, run, None, f"CorruptResult: {path.name} could not be read ({exc}); "
+                  "it was removed, run the sweep again to recompute it")
+
+
+def _read_checked(runs_dir: Path, run: Run, path: Path, code: str | None):
+    """The run file of ``run`` at ``path`` as ``(raw or None, its bytes)``
+    (:func:`undulate.sweep._fastread.read_raw`); None if the file was unreadable or computed by
+    other code (it is then removed and recorded as a failure).  A file of another run is refused."""
+    try:
+        raw, meta, data = read_raw(path)
+        if meta is None:  # not netCDF-3: its record through xarray
+            meta = read_run_file(path, data)[1]
     except Exception as exc:  # noqa: BLE001 - e.g. truncated by a power cut despite fsync
-        path.unlink(missing_ok=True)
-        write_failure(runs_dir, run, None, f"CorruptResult: {path.name} could not be read ({exc}); "
-                      "it was removed, run the sweep again to recompute it")
+        _corrupt(runs_dir, run, path, exc)
         return None
     if code is not None and (meta.get("provenance") or {}).get("code") != code:
         path.unlink(missing_ok=True)  # computed by other code: never presented
@@ -492,7 +518,7 @@ def _read_checked(runs_dir: Path, run: Run, path: Path, code: str | None) -> xr.
             "out_dir", f"a store whose run files match its manifest ({path.name} is for another run)",
             str(runs_dir.parent),
         )
-    return ds
+    return raw, data
 
 
 def _empty_stack(ds: xr.Dataset, n: int, complete: bool) -> dict[str, np.ndarray]:
