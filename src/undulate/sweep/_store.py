@@ -406,8 +406,6 @@ def _missing_fill(dtype: np.dtype) -> tuple[np.dtype, Any]:
     return dtype, ""  # strings (h5netcdf reads them as objects)
 
 
-
-
 def merge(grid: Grid, runs: Sequence[Run], runs_dir: Path, code: str | None = None) -> xr.Dataset:
     """Stack every finished run file into one Dataset over the grid.
 
@@ -456,11 +454,11 @@ def _stack_runs(runs: Sequence[Run], runs_dir: Path, code: str | None, have: np.
         got = _read_checked(runs_dir, run, path, code)
         if got is None:
             return None
-        raw, data = got
+        raw, data, ds = got
         if fast is not None and fast.fits(raw):
             fast.stack(raw, stacked, j, attrs)
             continue
-        ds = _dataset(runs_dir, run, path, data)
+        ds = ds if ds is not None else _dataset(runs_dir, run, path, data)
         if ds is None:
             return None
         if template is None:
@@ -497,13 +495,15 @@ def _corrupt(runs_dir: Path, run: Run, path: Path, exc: BaseException) -> None:
 
 
 def _read_checked(runs_dir: Path, run: Run, path: Path, code: str | None):
-    """The run file of ``run`` at ``path`` as ``(raw or None, its bytes)``
-    (:func:`undulate.sweep._fastread.read_raw`); None if the file was unreadable or computed by
-    other code (it is then removed and recorded as a failure).  A file of another run is refused."""
+    """The run file of ``run`` at ``path`` as ``(raw, its bytes, None)``
+    (:func:`undulate.sweep._fastread.read_raw`), or for a netCDF-4 file ``(None, its bytes, its
+    Dataset)``; None if the file was unreadable or computed by other code (it is then removed and
+    recorded as a failure).  A file of another run is refused."""
+    ds = None
     try:
         raw, meta, data = read_raw(path)
-        if meta is None:  # not netCDF-3: its record through xarray
-            meta = read_run_file(path, data)[1]
+        if meta is None:  # not netCDF-3: read through xarray
+            ds, meta = read_run_file(path, data)
     except Exception as exc:  # noqa: BLE001 - e.g. truncated by a power cut despite fsync
         _corrupt(runs_dir, run, path, exc)
         return None
@@ -518,7 +518,7 @@ def _read_checked(runs_dir: Path, run: Run, path: Path, code: str | None):
             "out_dir", f"a store whose run files match its manifest ({path.name} is for another run)",
             str(runs_dir.parent),
         )
-    return raw, data
+    return raw, data, ds
 
 
 def _empty_stack(ds: xr.Dataset, n: int, complete: bool) -> dict[str, np.ndarray]:
