@@ -450,3 +450,28 @@ def test_the_merge_reading_run_files_raw_gives_what_xarray_gives(tmp_path, monke
         assert fast.attrs["shared"] == "same" and "own" not in fast.attrs and "nan" not in fast.attrs
     if axes.get("kind") == [1]:  # strings merge as strings (a 0-d one was stored as an array: unwritable)
         assert list(fast["name"].values.ravel()) == ["n0", "", "n2", "n3"]
+
+
+def test_progress_shows_a_batchs_stepping_beside_the_bar_on_a_terminal_and_as_lines_elsewhere():
+    """:meth:`Progress.stepping`: on a terminal beside the tqdm bar, otherwise a plain line (at most
+    one every ``every_s`` seconds, and always the end); nothing when disabled."""
+    from undulate.sweep._progress import Progress
+
+    class Terminal(io.StringIO):
+        def isatty(self):
+            return True
+
+    tty = Terminal()
+    bar = Progress(4, 0, stream=tty)
+    bar.stepping(1.0, 4.0, 7)
+    bar.close()
+    assert "stepping 7 worlds together: 25%" in tty.getvalue()
+    plain = io.StringIO()
+    lines = Progress(4, 0, stream=plain, every_s=3600.0)
+    for done in (1.0, 2.0, 4.0):
+        lines.stepping(done, 4.0, 7)
+    assert [x.split(", elapsed")[0] for x in plain.getvalue().splitlines()] == [
+        "sweep: stepping 7 worlds together, 100% of their simulated time"]  # the rest within every_s
+    quiet = io.StringIO()
+    Progress(4, 0, stream=quiet, enabled=False).stepping(4.0, 4.0, 7)
+    assert quiet.getvalue() == ""

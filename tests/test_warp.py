@@ -353,6 +353,34 @@ def test_a_warp_sweep_on_dask_steps_each_tasks_runs_together(tmp_path, monkeypat
         assert np.abs(res.dataset["x"].values - here.dataset["x"].values).max() < 1e-9
 
 
+def test_a_gathered_warp_sweep_shows_its_stepping_before_its_runs_end(tmp_path, monkeypatch):
+    """A gathered batch's worlds all finish at its end, so the sweep's progress shows the batch's
+    stepping as it goes (after each chunk): growing fractions of its simulated time, every line
+    before the first run is counted; the runs are those of a sweep without a display."""
+    import io
+    import re
+
+    import xarray as xr
+
+    from undulate.studies._runners import group_point
+    from undulate.sweep import Grid, _progress, run_sweep
+
+    fn = functools.partial(group_point, duration_s=5.0)  # 2 500 steps of 2 ms: chunks of 2 000
+    grid = Grid(points=[{"dphi_rad": d} for d in (0.0, 1.0, 2.0)], seed=0)
+    monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+    monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
+    monkeypatch.setattr(_progress, "EVERY_S", 0.0)
+    out = io.StringIO()
+    shown = run_sweep(fn, grid, tmp_path / "shown", progress=True, stream=out)
+    quiet = run_sweep(fn, grid, tmp_path / "quiet", progress=False)
+    lines = out.getvalue().splitlines()
+    pct = [int(m.group(1)) for m in (re.search(r"stepping 3 worlds together, (\d+)% of their", x) for x in lines) if m]
+    assert pct == [0, 80, 100]  # t = 0, after the first chunk (4 of 5 s), the end
+    first_count = next(i for i, x in enumerate(lines) if re.search(r"\d+/3 runs", x))
+    assert max(i for i, x in enumerate(lines) if "stepping" in x) < first_count
+    xr.testing.assert_identical(shown.dataset.drop_attrs(), quiet.dataset.drop_attrs())
+
+
 def test_warp_processes_are_validated(monkeypatch):
     from undulate.simulation import warp_processes
 

@@ -4,6 +4,7 @@ backend as the worlds of one model."""
 from __future__ import annotations
 
 import json
+from collections.abc import Callable
 
 import xarray as xr
 
@@ -46,17 +47,35 @@ class Gather:
     ``progress`` or ``start`` run at once, alone.  If a gathered batch fails (one scene diverges),
     its calls are run again one at a time so that only the failing one raises."""
 
-    def __init__(self, n_threads: int):
+    def __init__(self, n_threads: int, progress: Callable[[float, float, int], None] | None = None):
+        """``progress``: called as ``progress(done, total, worlds)`` while a batch steps (after each
+        of its chunks): the simulated world-seconds done and in all of the batches stepping now, and
+        their worlds (the sweep's progress display, :meth:`undulate.sweep._progress.Progress.stepping`)."""
         import threading
 
         self.live = int(n_threads)
         self.pending: list[_Request] = []
         self.cond = threading.Condition()
         self.batches: list[int] = []  # scenes per batch stepped (for reports and tests)
+        self.progress = progress
+        self._stepping: dict[int, tuple[float, float, int]] = {}  # group -> (done_s, total_s, worlds)
+
+    def _report(self, group: int, worlds: int) -> Callable[[float, float], None] | None:
+        """The ``progress(done_s, total_s)`` hook of one group's batch (None without a display)."""
+        if self.progress is None:
+            return None
+
+        def hook(done_s: float, total_s: float) -> None:
+            with self.cond:
+                self._stepping[group] = (done_s * worlds, total_s * worlds, worlds)
+                done, total, n = (sum(v[i] for v in self._stepping.values()) for i in range(3))
+            self.progress(done, total, n)
+
+        return hook
 
     def submit(self, scenes, options, stop, run) -> list[xr.Dataset]:
-        """Wait for the other threads, then step the calls together; ``run(scenes, options, stop=)``
-        steps one batch now (:func:`undulate.simulation._simulate_batch_now`)."""
+        """Wait for the other threads, then step the calls together; ``run(scenes, options, stop=,
+        progress=)`` steps one batch now (:func:`undulate.simulation._simulate_batch_now`)."""
         req = _Request(scenes, options or SimOptions(), stop, run)
         with self.cond:
             self.pending.append(req)
@@ -112,9 +131,10 @@ class Gather:
         rules = [rule for r in group for rule in r.rules()]
         with self.cond:
             self.batches.append(len(scenes))
+            hook = self._report(len(self.batches), len(scenes))
         try:
             with _physics.meter() as tally:  # this batch's physics, shared among its calls
-                dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules)
+                dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules, progress=hook)
         except Exception:  # noqa: BLE001 - isolate the failing call
             for r in group:
                 try:

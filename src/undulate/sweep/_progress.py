@@ -14,23 +14,27 @@ def _hms(seconds: float) -> str:
     return f"{h}h{m:02d}m{s:02d}s" if h else (f"{m}m{s:02d}s" if m else f"{s}s")
 
 
+EVERY_S = 10.0
+"""Seconds between plain progress lines (not on a terminal)."""
+
+
 class Progress:
     """Counts finished runs out of ``total`` (``initial`` of them already done).
 
     On a terminal: a tqdm bar with rate and ETA.  Otherwise (CI logs, batch
-    jobs): one line every ``every_s`` seconds or every 10 % of the runs to
+    jobs): one line every ``every_s`` seconds (:data:`EVERY_S`) or every 10 % of the runs to
     compute, whichever comes first.  ``enabled=False`` prints nothing.
     """
 
     def __init__(self, total: int, initial: int, *, enabled: bool = True, stream: TextIO | None = None,
-                 every_s: float = 10.0, label: str = "sweep"):
+                 every_s: float | None = None, label: str = "sweep"):
         self.total = total
         self.initial = initial
         self.done = initial
         self.failed = 0
         self.enabled = enabled
         self.stream = stream if stream is not None else sys.stderr
-        self.every_s = every_s
+        self.every_s = EVERY_S if every_s is None else every_s
         self.label = label
         self._t0 = time.monotonic()
         self._last_t = self._t0
@@ -72,6 +76,26 @@ class Progress:
             self._last_t = now
             self._last_decile = decile
             self.write(self._line(now))
+
+    def stepping(self, done: float, total: float, worlds: int) -> None:
+        """Progress inside a batch whose runs step together (a Warp sweep's worlds, which all finish
+        at its end): ``done`` of ``total`` simulated world-seconds, ``worlds`` worlds.  Shown beside
+        the bar on a terminal, else as a line every ``every_s`` seconds (called from the stepping
+        thread, after each chunk)."""
+        if not self.enabled or total <= 0:
+            return
+        now = time.monotonic()
+        frac = min(max(done / total, 0.0), 1.0)
+        if self._bar is not None:
+            self._bar.set_postfix_str(f"stepping {worlds} worlds together: {100 * frac:.0f}%")
+            return
+        if frac < 1.0 and now - self._last_t < self.every_s:
+            return
+        self._last_t = now
+        elapsed = now - self._t0
+        eta = _hms(elapsed * (1 - frac) / frac) if frac > 0 else "?"
+        self.write(f"{self.label}: stepping {worlds} worlds together, {100 * frac:.0f}% of their simulated time, "
+                   f"elapsed {_hms(elapsed)}, ETA {eta}")
 
     def _line(self, now: float) -> str:
         elapsed = now - self._t0

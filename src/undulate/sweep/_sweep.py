@@ -17,7 +17,7 @@ from typing import Any, TextIO
 import xarray as xr
 
 from ..errors import ParameterError, UndulateError
-from . import _executors
+from . import _executors, _worker
 from ._grid import Grid
 from ._progress import Progress
 from .._source import check_unchanged
@@ -306,8 +306,12 @@ def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, s
                 pass
             elif client is not None:
                 _executors.run_dask(chunks, tally.on_done, tally.on_lost, client=client)
-            elif n_workers == 1:
-                _executors.run_serial(chunks, tally.on_done, tally.on_lost)
+            elif n_workers == 1:  # a gathered batch here shows its stepping on the bar
+                token = _worker.STEP_PROGRESS.set(bar.stepping)
+                try:
+                    _executors.run_serial(chunks, tally.on_done, tally.on_lost)
+                finally:
+                    _worker.STEP_PROGRESS.reset(token)
             else:
                 _executors.run_local(chunks, tally.on_done, tally.on_lost, workers=n_workers)
         except KeyboardInterrupt:

@@ -6,6 +6,7 @@ its imports light and holds no state.
 
 from __future__ import annotations
 
+import contextvars
 import signal
 import time
 from collections.abc import Callable, Sequence
@@ -58,6 +59,12 @@ class Chunk:
     started with, not the sweep's.  Where the worker cannot step on it (no gpu extra, no such
     device), every run of the chunk fails saying why.  None: the process's own default (this
     process, where the sweep was started)."""
+
+
+STEP_PROGRESS: contextvars.ContextVar[Callable[[float, float, int], None] | None] = contextvars.ContextVar(
+    "undulate_step_progress", default=None)
+"""Where a gathered batch in this process reports its stepping (``progress(done, total, worlds)``:
+:meth:`undulate.sweep._progress.Progress.stepping`); set by the sweep for the chunks it runs itself."""
 
 
 def init_local_worker() -> None:
@@ -117,12 +124,11 @@ def _run_one(chunk: Chunk, runs_dir: Path, run: Run, compute: Callable[[Run], ob
 def _run_gathered(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outcome]:
     """Every run on its own thread, their simulations stepped together
     (:class:`undulate.simulation.Gather`); each run saved as it finishes, as :func:`_run_one` does."""
-    import contextvars
     import threading
 
     from ..simulation import Gather
 
-    gather = Gather(len(runs))
+    gather = Gather(len(runs), progress=STEP_PROGRESS.get())
     outcomes: list[Outcome | None] = [None] * len(runs)
 
     def work(i: int, run: Run) -> None:
