@@ -24,6 +24,22 @@ def test_servo_frequency_grows_like_n_to_the_three_halves():
     assert slope == pytest.approx(1.5, abs=0.1)  # link inertia ~ N^-3, kp fixed
 
 
+def test_a_swimmers_model_and_servo_frequency_do_not_depend_on_the_phases():
+    """The time-step rule's servo frequency is computed once for scenes that differ only in their
+    phases (cached): exact only because a swimmer's model does not read them (its XML is the
+    same), and the cached value is the one computed afresh."""
+    from undulate.scene import _joint_inverse_inertia_of, swimmer_spec
+
+    scenes = [Scene(phases_rad=p, geometry=SwimmerGeometry(n_links=5)) for p in ((0.0, 0.3), (2.0, -1.1))]
+    assert len({swimmer_spec(sc, 0.002).to_xml() for sc in scenes}) == 1
+    first = servo_frequency_rad_s(scenes[0])
+    _joint_inverse_inertia_of.cache_clear()
+    assert servo_frequency_rad_s(scenes[1]) == first
+    assert _joint_inverse_inertia_of.cache_info().misses == 1
+    other = Scene(phases_rad=(0.0, 0.3), geometry=SwimmerGeometry(n_links=6))
+    assert servo_frequency_rad_s(other) != first and _joint_inverse_inertia_of.cache_info().misses == 2
+
+
 def test_rule_keeps_the_paper_default_and_shrinks_the_step_with_links():
     lone = Scene(phases_rad=(0.0,), channel=Channel(width_m=2.0))
     assert not contact_possible(lone) and auto_timestep(lone) == 0.002  # no contact: the servo rule alone

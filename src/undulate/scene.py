@@ -55,6 +55,8 @@ Model choices (documented here, tested in ``tests/``):
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 from dataclasses import dataclass
 
@@ -305,7 +307,15 @@ SERVO_STEP_FRACTION = 0.5
 
 
 def _joint_inverse_inertia(scene: Scene) -> float:
-    """``max_i (M^-1)_ii`` over the actuated joints of one free swimmer, 1/(kg m^2)."""
+    """``max_i (M^-1)_ii`` over the actuated joints of one free swimmer, 1/(kg m^2).  A swimmer's
+    model does not depend on the gait phases (they enter only its controls and the scene's
+    placement), so scenes that differ only in them share one computation (a sweep over phase lags
+    compiles it once, not once a run: ~1 ms)."""
+    return _joint_inverse_inertia_of(dataclasses.replace(scene, phases_rad=(0.0,) * len(scene.phases_rad)))
+
+
+@functools.lru_cache(maxsize=256)
+def _joint_inverse_inertia_of(scene: Scene) -> float:
     m = swimmer_spec(scene, MAX_AUTO_TIMESTEP_S).compile()
     d = mujoco.MjData(m)
     mujoco.mj_forward(m, d)
