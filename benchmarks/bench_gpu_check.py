@@ -287,8 +287,8 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=max(10.0, timeout), env=env)
         rc, tail = r.returncode, (r.stdout + r.stderr)[-3000:]
     except subprocess.TimeoutExpired as e:
-        rc = "timeout"
-        tail = ((e.stdout or b"").decode() if isinstance(e.stdout, bytes) else (e.stdout or ""))[-3000:]
+        rc = "timeout"  # what it printed: the studies' states (stdout), the sweeps' progress (stderr)
+        tail = "".join((x or b"").decode() if isinstance(x, bytes) else (x or "") for x in (e.stdout, e.stderr))[-3000:]
     wall = time.perf_counter() - t
     (OUT / f"repro-{tag}.log").write_text(tail)
     rec = {"args": args, "rc": rc, "wall_s": wall}
