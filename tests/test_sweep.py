@@ -172,7 +172,7 @@ def test_progress_lines_when_not_a_terminal(tmp_path):
     run_sweep(sweep_funcs.pendulum, grid, tmp_path / "p", workers=1, stream=log)
     text = log.getvalue()
     assert "4 runs, 0 already in" in text
-    assert "sweep: 4/4 runs (100%), 1 failed" in text and "runs/s" in text and "ETA" in text
+    assert "sweep p: 4/4 runs (100%), 1 failed" in text and "runs/s" in text and "ETA" in text  # named by its store
     assert "sweep done" in text and "1 run(s) FAILED" in text and "damping_Nms=-0.05" in text
 
 

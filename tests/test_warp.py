@@ -374,7 +374,7 @@ def test_a_gathered_warp_sweep_shows_its_stepping_before_its_runs_end(tmp_path, 
     shown = run_sweep(fn, grid, tmp_path / "shown", progress=True, stream=out)
     quiet = run_sweep(fn, grid, tmp_path / "quiet", progress=False)
     lines = out.getvalue().splitlines()
-    pct = [int(m.group(1)) for m in (re.search(r"stepping 3 worlds together, (\d+)% of their", x) for x in lines) if m]
+    pct = [int(m.group(1)) for m in (re.search(r"sweep shown: stepping 3 worlds together, (\d+)% of their", x) for x in lines) if m]
     assert pct == [0, 80, 100]  # t = 0, after the first chunk (4 of 5 s), the end
     first_count = next(i for i, x in enumerate(lines) if re.search(r"\d+/3 runs", x))
     assert max(i for i, x in enumerate(lines) if "stepping" in x) < first_count

@@ -293,7 +293,9 @@ def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, s
     try:
         n_workers, size, where, chunks = _chunks(fn, grid, store, todo, workers=workers, client=client, batch=batch,
                                                  batched=batched)
-        bar = Progress(len(runs), len(runs) - len(todo), enabled=progress, stream=stream)
+        # named by its store's folder: sweeps side by side (a reproduction's studies) print between each other
+        bar = Progress(len(runs), len(runs) - len(todo), enabled=progress, stream=stream,
+                       label=f"sweep {Path(store.root).name}")
         if todo:
             bar.write(
                 f"sweep {function_id(fn)}: {len(runs)} runs, {len(runs) - len(todo)} already in {store.root}, "
