@@ -225,10 +225,19 @@ def test_a_batch_of_different_channels_is_one_warp_model_with_per_world_fields()
         assert _max_dx(r, g, "y") < 1e-3
 
 
+def _count_batches(monkeypatch) -> list[int]:
+    """The calls of each gathered batch stepped in this process from now on (a list it fills)."""
+    from undulate import simulation
+
+    batches: list[int] = []
+    real = simulation.Gather._run
+    monkeypatch.setattr(simulation.Gather, "_run", lambda self, reqs: (batches.append(len(reqs)), real(self, reqs)))
+    return batches
+
+
 def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_path, monkeypatch):
     """On the Warp backend a sweep's runs are gathered into one batch (one world each); its store
     records the backend, and switching backend recomputes instead of reusing."""
-    from undulate import simulation
     from undulate.studies._runners import group_point
     from undulate.sweep import Grid, run_sweep
 
@@ -236,9 +245,7 @@ def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_p
     grid = Grid(points=[{"dphi_rad": d} for d in (0.0, 2.0)], seed=0)
     cpu = run_sweep(fn, grid, tmp_path / "s", workers=1, progress=False)
     assert cpu.identity["backend"] == "mujoco"
-    batches = []
-    real = simulation.Gather._run
-    monkeypatch.setattr(simulation.Gather, "_run", lambda self, reqs: (batches.append(len(reqs)), real(self, reqs)))
+    batches = _count_batches(monkeypatch)
     monkeypatch.setenv("UNDULATE_BACKEND", "warp")
     monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
     gpu = run_sweep(fn, grid, tmp_path / "s", progress=False)
@@ -327,15 +334,12 @@ def test_a_warp_sweep_on_dask_steps_each_tasks_runs_together(tmp_path, monkeypat
     task where the runs are too few to split (GATHER_MIN_SPLIT), else one a worker thread; every run
     is the one-process sweep's.  (Workers in this process, so that the batches can be counted.)"""
     distributed = pytest.importorskip("distributed")
-    from undulate import simulation
     from undulate.studies._runners import group_point
     from undulate.sweep import Grid, _sweep as sweep_mod, run_sweep
 
     fn = functools.partial(group_point, duration_s=0.5)
     grid = Grid(points=[{"dphi_rad": d} for d in (0.0, 1.0, 2.0, 3.0)], seed=0)
-    batches = []
-    real = simulation.Gather._run
-    monkeypatch.setattr(simulation.Gather, "_run", lambda self, reqs: (batches.append(len(reqs)), real(self, reqs)))
+    batches = _count_batches(monkeypatch)
     monkeypatch.setenv("UNDULATE_BACKEND", "warp")
     monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
     here = run_sweep(fn, grid, tmp_path / "here", progress=False)

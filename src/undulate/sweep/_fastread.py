@@ -29,6 +29,7 @@ import numpy as np
 import xarray as xr
 
 RUN_ATTR = "sweep_run"
+"""The run file's attribute that holds its run record (written by :func:`undulate.sweep._store.write_result`)."""
 _VALUE_DEPENDENT = frozenset({"scale_factor", "add_offset", "missing_value", "dtype", "_Unsigned", "calendar",
                               "_Encoding", "valid_range", "valid_min", "valid_max", "compress"})
 _MISSING = object()

@@ -38,7 +38,7 @@ import xarray as xr
 
 from .._io import atomic_write_bytes, atomic_write_text, remove_temporaries, write_netcdf
 from ..errors import ParameterError
-from ._fastread import FastLayout, read_raw, same_attr
+from ._fastread import RUN_ATTR, FastLayout, read_raw, same_attr
 from ._grid import RESERVED, Grid, Run
 from .._xrcompat import install as _lazy_dask
 
@@ -47,7 +47,6 @@ _lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
 FORMAT = "undulate-sweep/2"  # 2: runs keyed by point content (1: by position)
 #: The merged file: netCDF-4 (HDF5).
 ENGINE = "h5netcdf"
-RUN_ATTR = "sweep_run"
 MERGED = "sweep.nc"
 
 
