@@ -301,6 +301,8 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     if claims.exists():
         c = json.loads(claims.read_text())
         rec["verdicts"] = {f"{x.get('study')}:{x.get('claim')}": x.get("verdict") for x in c.get("claims", [])}
+    elif out.is_dir():  # cut short: the studies it finished still have their verdicts
+        rec["verdicts"], rec["verdicts_from"] = study_verdicts(out), STUDY_FILES
     state = out / "reproduce.json"
     if state.exists():
         st = json.loads(state.read_text())
@@ -308,11 +310,50 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     return rec
 
 
-def _compare(tag: str, cpu: dict, gpu: dict) -> None:
+STUDY_FILES = "the finished studies' NAME.json (the reproduction was cut short)"
+
+
+def study_verdicts(out: Path) -> dict:
+    """``{"study:claim": verdict}`` from the study files (``NAME.json``) of a reproduction cut short
+    before its ``claims.json``: each study's own verdicts, without another study's explanation (a
+    claim the sensitivity study explains reads ``fails`` there)."""
+    verdicts = {}
+    for f in sorted(out.glob("*.json")):
+        if f.name in ("claims.json", "reproduce.json"):
+            continue
+        try:
+            d = json.loads(f.read_text())
+        except ValueError:  # being written when the run was stopped
+            continue
+        for x in d.get("claims", []) if isinstance(d, dict) else []:
+            verdicts[f"{x.get('study')}:{x.get('claim')}"] = x.get("verdict")
+    return verdicts
+
+
+def compare_verdicts(cpu: dict, gpu: dict) -> dict:
+    """The Warp reproduction's verdicts against the MuJoCo backend's: how many are the same, those that
+    differ, those the Warp run did not reach (cut short), and, from a cut-short run's study files,
+    those that fail in their study where MuJoCo's reproduction had them explained (the explaining study
+    not reached: the same as far as it went)."""
     a, b = cpu.get("verdicts", {}), gpu.get("verdicts", {})
-    say(f"reproduce.{tag}.verdicts", {"mujoco_cpu": a, "warp": b,
-                                      "differ": {k: [a.get(k), b.get(k)] for k in sorted(set(a) | set(b))
-                                                 if a.get(k) != b.get(k)}})
+    partial = gpu.get("verdicts_from") == STUDY_FILES
+    same, differ, pending, missing = 0, {}, [], []
+    for k in sorted(set(a) | set(b)):
+        x, y = a.get(k), b.get(k)
+        if y is None:
+            missing.append(k)
+        elif x == y:
+            same += 1
+        elif partial and (x, y) == ("explained", "fails"):
+            pending.append(k)
+        else:
+            differ[k] = [x, y]
+    return {"mujoco_cpu": a, "warp": b, "same": same, "differ": differ,
+            "explanation_not_reached": pending, "not_reached": missing}
+
+
+def _compare(tag: str, cpu: dict, gpu: dict) -> None:
+    say(f"reproduce.{tag}.verdicts", compare_verdicts(cpu, gpu))
 
 
 def _file_reference(mode: str) -> dict:
@@ -344,10 +385,9 @@ def _quick_cpu(budget: float, base: dict, reserve: float) -> None:
     REF.setdefault("quick", cpu)
     ref = _file_reference("quick").get("verdicts")
     if ref is not None and cpu.get("verdicts"):
-        got = cpu["verdicts"]
-        keys = set(got) if STUDIES else set(ref) | set(got)  # --studies: the claims of those studies
-        say("reproduce.quick-cpu.against_reference", {k: [ref.get(k), got.get(k)] for k in sorted(keys)
-                                                       if ref.get(k) != got.get(k)})
+        # with --studies (or cut short) the other claims are 'not_reached'
+        c = compare_verdicts({"verdicts": ref}, cpu)
+        say("reproduce.quick-cpu.against_reference", {k: v for k, v in c.items() if k not in ("mujoco_cpu", "warp")})
     for step, gpu in WARP.items():
         if step.startswith("quick") and not _file_reference("quick"):
             _compare(step, cpu, gpu)

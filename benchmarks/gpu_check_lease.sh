@@ -20,6 +20,6 @@ echo "gpu_check rc $?"
 kill $SAVER 2>/dev/null
 cd $GC && cp gpu_check.json ./*.log ./*.jsonl "$OUT"/ 2>/dev/null
 for d in repro-*/; do
-    [ -d "$d" ] && mkdir -p "$OUT/$d" && cp "$d"/claims.json "$d"/reproduce.json "$OUT/$d" 2>/dev/null
+    [ -d "$d" ] && mkdir -p "$OUT/$d" && cp "$d"/*.json "$OUT/$d" 2>/dev/null  # claims, reproduce and each finished study (NAME.json)
 done
 ls -l "$OUT"

@@ -1,0 +1,57 @@
+"""The GPU check's verdict comparison (``benchmarks/bench_gpu_check.py``), which runs for the first time
+on a device lease: a reproduction cut short by the check's budget still has its finished studies'
+verdicts compared, and a claim it did not reach is not reported as a difference."""
+
+from __future__ import annotations
+
+import importlib.util
+import json
+from pathlib import Path
+
+import pytest
+
+SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_gpu_check.py"
+
+XI1, XI34, XI32 = (f"pairs:xi = {x}: contact drives pairs to a steady dx that follows the compatibility line"
+                   for x in ("1", "3/4", "3/2"))
+G3 = "groups:groups of 3 follow the compatibility line with more scatter than pairs"
+
+
+@pytest.fixture(scope="module")
+def check():
+    spec = importlib.util.spec_from_file_location("bench_gpu_check", SCRIPT)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _study_file(out: Path, study: str, verdicts: dict) -> None:
+    """A study's NAME.json as a reproduction writes it (the fields the check reads)."""
+    (out / f"{study}.json").write_text(json.dumps({"study": study, "claims": [
+        {"study": study, "claim": k.split(":", 1)[1], "verdict": v} for k, v in verdicts.items()]}))
+
+
+def test_a_cut_short_reproduction_compares_the_studies_it_finished(check, tmp_path):
+    out = tmp_path / "repro-full-warp"
+    out.mkdir()
+    _study_file(out, "pairs", {XI1: "holds", XI34: "holds", XI32: "fails"})
+    (out / "reproduce.json").write_text(json.dumps({"studies": {"pairs": {"ok": True}}}))
+    (out / "groups.json").write_text('{"study": "gro')  # being written when the run was stopped
+    got = check.study_verdicts(out)
+    assert got == {XI1: "holds", XI34: "holds", XI32: "fails"}
+
+    cpu = {"verdicts": {XI1: "holds", XI34: "undecided", XI32: "explained", G3: "holds"}}
+    c = check.compare_verdicts(cpu, {"verdicts": got, "verdicts_from": check.STUDY_FILES})
+    assert c["same"] == 1
+    assert c["differ"] == {XI34: ["undecided", "holds"]}
+    assert c["explanation_not_reached"] == [XI32]  # fails in its study; the sensitivity study not reached
+    assert c["not_reached"] == [G3]
+
+
+def test_a_finished_reproductions_claims_are_compared_whole(check):
+    """From claims.json a fails where MuJoCo has explained is a real difference (the explanation ran)."""
+    cpu = {"verdicts": {XI1: "holds", XI32: "explained"}}
+    c = check.compare_verdicts(cpu, {"verdicts": {XI1: "holds", XI32: "fails"}})
+    assert (c["same"], c["differ"], c["explanation_not_reached"], c["not_reached"]) == (
+        1, {XI32: ["explained", "fails"]}, [], [])
+    assert check.compare_verdicts(cpu, {})["not_reached"] == [XI1, XI32]
