@@ -431,6 +431,46 @@ def test_reduced_on_the_device_equals_every_step_on_the_host(monkeypatch):
     assert float(got[1]["penetration"].max()) > 0  # in contact: depths and forces were compared
 
 
+@pytest.mark.parametrize("reduce", ["1", "0"])
+def test_a_stopped_scene_steps_on_the_device_under_finite_controls(monkeypatch, reduce):
+    """A scene its rule has stopped still steps on the device (its steps are thrown away) under its
+    rows of the control buffer, which nothing fills once it stopped; the buffer of a shorter last chunk
+    is new and unset.  A world stepped under such garbage (inf after the float32 cast, NaN) could
+    overflow its contact capacity, a CapacityError for the whole batch, or keep the solver iterating.
+    Here the buffers start as huge numbers: the device sees only finite controls, and the runs are
+    those of clean buffers."""
+    import warnings
+
+    from undulate.simulation import _Stepper, _warp
+
+    monkeypatch.setenv("UNDULATE_WARP_REDUCE", reduce)
+    scenes = [Scene(phases_rad=(0.0, 1.0)), Scene(phases_rad=(0.0, 2.5), dx0_m=0.05)]
+    opts = SimOptions(duration_s=1.0, sample_rate_hz=20.0, chunk_steps=450, **WARP)  # last chunk shorter
+    stop = [lambda blocks: "enough" if blocks and blocks[-1]["time"][-1] >= 0.3 else None, lambda blocks: None]
+    ref = simulate_batch(scenes, opts, stop=stop)
+
+    buffers, run, tables = _Stepper._buffers, _warp._Group.run, []
+
+    def unset(self, k):  # what np.empty may hand back
+        st, sd, u = buffers(self, k)
+        u.fill(1e300)
+        return st, sd, u
+
+    def seen(self, qpos, qvel, warm, table, nstep):
+        tables.append(np.isfinite(table).all())
+        return run(self, qpos, qvel, warm, table, nstep)
+
+    monkeypatch.setattr(_Stepper, "_buffers", unset)
+    monkeypatch.setattr(_warp._Group, "run", seen)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # numpy's "overflow encountered in cast"
+        got = simulate_batch(scenes, opts, stop=stop)
+    assert len(tables) >= 3 and all(tables)
+    assert got[0].sizes["time"] < got[1].sizes["time"]  # the first scene stopped: it was stepped idle
+    for g, r in zip(got, ref):
+        assert _max_dx(g, r) == 0.0 and _max_dx(g, r, "y") == 0.0
+
+
 def test_a_divergence_found_on_the_device_is_diagnosed_as_on_the_host(monkeypatch):
     """A penetration bound crossed on the device stops the run with the host path's diagnosis, at the
     same time."""

@@ -260,6 +260,17 @@ class _Servos:
         return out, slewed.transpose(1, 0, 2)
 
 
+def _idle_controls(u: np.ndarray, active: np.ndarray | None, nstep: int) -> np.ndarray:
+    """The first ``nstep`` steps' controls of ``u`` (nb, k, nu), zero for the scenes outside ``active``
+    (set in place).  A scene its rule stopped still steps on the device, its steps thrown away, under
+    rows nothing fills once it stopped (and unset in a new buffer): garbage there (inf once cast to
+    float32, NaN) could overflow its world's contact capacity, a CapacityError for the whole batch, or
+    keep the solver iterating on a GPU."""
+    if active is not None and not active.all():
+        u[~active, :nstep] = 0.0
+    return u[:, :nstep]
+
+
 def _cols(idx: np.ndarray):
     """``idx`` as a slice where its columns are evenly spaced and ascending (a view, not a gather)."""
     step = int(idx[1] - idx[0]) if idx.size > 1 else 1
@@ -784,7 +795,7 @@ class WarpRollout:
         q0, v0, a0 = 1, 1 + nq, 1 + nq + nv
         act_idx = self.servos.act
         act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if na else 0.0, np.nan)
-        table, slewed = self.servos.table(u[:, :nstep], act0)
+        table, slewed = self.servos.table(_idle_controls(u, active, nstep), act0)
         t0 = cur[:, :1]  # the clock stays float64 on the host
         for g in self.groups:
             idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers; the
@@ -821,7 +832,7 @@ class WarpRollout:
         nb, ns = cur.shape[0], nstep // sps
         act_idx = self.servos.act
         act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if na else 0.0, np.nan)
-        table, slewed = self.servos.table(u[:, :nstep], act0)
+        table, slewed = self.servos.table(_idle_controls(u, active, nstep), act0)
         st = np.empty((nb, ns, cur.shape[1]))
         sd = np.empty((nb, ns, self.groups[0].ns))
         pn = np.empty((nb, ns))
