@@ -300,7 +300,7 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     claims = out / "claims.json"
     if claims.exists():
         c = json.loads(claims.read_text())
-        rec["verdicts"] = {f"{x.get('study')}:{x.get('claim')}": x.get("verdict") for x in c.get("claims", [])}
+        rec["verdicts"] = _keyed(c.get("claims", []))
     elif out.is_dir():  # cut short: the studies it finished still have their verdicts
         rec["verdicts"], rec["verdicts_from"] = study_verdicts(out), STUDY_FILES
     state = out / "reproduce.json"
@@ -325,9 +325,13 @@ def study_verdicts(out: Path) -> dict:
             d = json.loads(f.read_text())
         except ValueError:  # being written when the run was stopped
             continue
-        for x in d.get("claims", []) if isinstance(d, dict) else []:
-            verdicts[f"{x.get('study')}:{x.get('claim')}"] = x.get("verdict")
+        verdicts.update(_keyed(d.get("claims", []) if isinstance(d, dict) else []))
     return verdicts
+
+
+def _keyed(claims: list) -> dict:
+    """``{"study:claim": verdict}`` of claim rows (claims.json's, or a study file's)."""
+    return {f"{x.get('study')}:{x.get('claim')}": x.get("verdict") for x in claims}
 
 
 def compare_verdicts(cpu: dict, gpu: dict) -> dict:
