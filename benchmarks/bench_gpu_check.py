@@ -6,7 +6,7 @@ Run by ``benchmarks/gpu_check.sh`` (which installs the carried wheels first).  P
 per measurement as it goes and keeps ``OUTDIR/gpu_check.json`` up to date, so a run cut short still
 leaves what it measured.  Steps, in the order ``--only`` gives (default: all, in the order of
 :data:`STEPS`: pair, full-warp, quick-warp-warm, quick-cpu, quick-warp, pair-throughput, pack,
-pack-throughput, determinism, sweep):
+pack-throughput, determinism, sweep, side-by-side):
 
 * ``pair`` -- the default pair over 5 s, Warp on the device against the MuJoCo backend (float64, CPU)
   on the same machine: max |dx|, penetration.  The first Warp call compiles the kernels: its time is
@@ -37,6 +37,9 @@ pack-throughput, determinism, sweep):
   process, on Warp split over 8 processes (``UNDULATE_WARP_PROCESSES``) and on the MuJoCo backend on
   every core: runs per second (:func:`sweep`; on 2 cores a run's host work besides its steps was
   ~18 ms, 2026-11-27, docs/gpu.md "The host's share of a sweep").
+* ``side-by-side`` -- whether small Warp models stepping at once overlap on the device, as a
+  reproduction's studies step theirs (:func:`side_by_side`; on the H200 on 2026-11-27 ~20 of them
+  made each step ~8x slower than one model's alone).
 
 Every step has a time limit taken from ``--budget-s`` so the whole check ends in time.
 """
@@ -276,6 +279,29 @@ def sweep(budget: float) -> None:
             say(f"sweep.{name}", "timeout")
 
 
+def side_by_side(budget: float) -> None:
+    """Do small Warp models stepping side by side overlap on the device
+    (``benchmarks/bench_warp_side_by_side.py``): 1-16 pair models of 18 worlds each on their own
+    threads and streams, their steps' wall time on the device alone and end to end, against one model
+    holding all their worlds; once with the CUDA driver's default hardware queues and once with
+    ``CUDA_DEVICE_MAX_CONNECTIONS=32``."""
+    script = Path(__file__).resolve().parent / "bench_warp_side_by_side.py"
+    args = ["--models", "1,2", "--worlds", "2", "--steps", "20", "--repeat", "1"] if SMALL else []
+    for name, extra in (("default_connections", {}), ("32_connections", {"CUDA_DEVICE_MAX_CONNECTIONS": "32"})):
+        if left(budget) < 40:
+            say(f"side_by_side.{name}", "skipped: budget")
+            continue
+        env = {**os.environ, **extra}
+        try:
+            r = subprocess.run([sys.executable, str(script), "--device", DEVICE, *args], capture_output=True, text=True,
+                               env=env, timeout=max(20.0, min(150.0, left(budget) - 20.0)))
+            found = [x for x in r.stdout.splitlines() if x.startswith("json ")]
+            say(f"side_by_side.{name}", json.loads(found[-1][5:]) if found else
+                f"error: rc {r.returncode}: {(r.stdout + r.stderr)[-800:]}")
+        except subprocess.TimeoutExpired:
+            say(f"side_by_side.{name}", "timeout")
+
+
 def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     out = OUT / f"repro-{tag}"
     cmd = [sys.executable, "-c", "import sys; from undulate.cli import main; sys.exit(main(sys.argv[1:]))",
@@ -422,7 +448,7 @@ def reproduction(step: str, budget: float) -> None:
 
 
 STEPS = ("pair", "full-warp", "quick-warp-warm", "quick-cpu", "quick-warp", "pair-throughput", "pack",
-         "pack-throughput", "determinism", "sweep")
+         "pack-throughput", "determinism", "sweep", "side-by-side")
 """The default order: issue 37's goals first (the full reproduction, which compiles the kernels, then
 quick with them cached, then quick on the machine's cores, the baseline measured in the same run), as
 the H200 check of 2026-11-27 already measured the throughput."""
@@ -470,6 +496,8 @@ def main() -> None:
                 determinism(a.budget_s)
             elif step == "sweep":
                 sweep(a.budget_s)
+            elif step == "side-by-side":
+                side_by_side(a.budget_s)
             else:
                 reproduction(step, a.budget_s)
         except Exception:  # noqa: BLE001 - one failed step does not lose the others
