@@ -121,7 +121,6 @@ def main() -> None:
     if not ks or ks[0] < 1 or a.worlds < 1 or a.steps < 10 or a.steps % 10 or a.repeat < 1:
         p.error("--models: positive integers; --worlds >= 1; --steps a positive multiple of 10; --repeat >= 1")
     t0 = time.perf_counter()
-    import numpy as np  # noqa: F401 - loaded before the clock of the first figure
 
     from undulate.simulation._warp import device_name
 
