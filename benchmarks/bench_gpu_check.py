@@ -270,13 +270,18 @@ def sweep(budget: float) -> None:
             say(f"sweep.{name}", "skipped: budget")
             continue
         cmd = [sys.executable, str(script), "--runs", str(runs), "--duration", str(dur), "--repeat", "2", *args]
-        try:
-            r = subprocess.run(cmd, capture_output=True, text=True, timeout=max(20.0, left(budget) - 20.0))
-            found = [x for x in r.stdout.splitlines() if x.startswith("json ")]
-            say(f"sweep.{name}", json.loads(found[-1][5:]) if found else
-                f"error: rc {r.returncode}: {(r.stdout + r.stderr)[-800:]}")
-        except subprocess.TimeoutExpired:
-            say(f"sweep.{name}", "timeout")
+        say(f"sweep.{name}", _json_line(cmd, max(20.0, left(budget) - 20.0)))
+
+
+def _json_line(cmd: list[str], timeout: float, env: dict | None = None):
+    """What a benchmark script run as ``cmd`` printed on its last ``json ...`` line; else its error
+    (return code and output's end), or ``"timeout"``."""
+    try:
+        r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
+    except subprocess.TimeoutExpired:
+        return "timeout"
+    found = [x for x in r.stdout.splitlines() if x.startswith("json ")]
+    return json.loads(found[-1][5:]) if found else f"error: rc {r.returncode}: {(r.stdout + r.stderr)[-800:]}"
 
 
 def side_by_side(budget: float) -> None:
@@ -291,15 +296,8 @@ def side_by_side(budget: float) -> None:
         if left(budget) < 40:
             say(f"side_by_side.{name}", "skipped: budget")
             continue
-        env = {**os.environ, **extra}
-        try:
-            r = subprocess.run([sys.executable, str(script), "--device", DEVICE, *args], capture_output=True, text=True,
-                               env=env, timeout=max(20.0, min(150.0, left(budget) - 20.0)))
-            found = [x for x in r.stdout.splitlines() if x.startswith("json ")]
-            say(f"side_by_side.{name}", json.loads(found[-1][5:]) if found else
-                f"error: rc {r.returncode}: {(r.stdout + r.stderr)[-800:]}")
-        except subprocess.TimeoutExpired:
-            say(f"side_by_side.{name}", "timeout")
+        say(f"side_by_side.{name}", _json_line([sys.executable, str(script), "--device", DEVICE, *args],
+                                               max(20.0, min(150.0, left(budget) - 20.0)), {**os.environ, **extra}))
 
 
 def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
