@@ -5,8 +5,9 @@
 
 Why: on the H200 (2026-11-27, e9b2b39) a quick reproduction on the Warp backend stepped ~20 small
 Warp models at once (every study side by side, each model on its own stream), and an 18-world pair
-sweep took 126 s for at most 45 000 steps: ~2.8 ms a step, ~8x what one model's step costs alone
-(~0.35 ms).  So the models' steps did not overlap.  This separates where they queue:
+sweep of at most 45 000 steps was at 84 % of its simulated time after 103 s: ~2.7 ms a step, ~8x
+what one model's step costs alone (~0.35 ms at 1 024 worlds; one model of 18 worlds alone was not
+measured that day).  So the models' steps overlapped little, if at all.  This separates where they queue:
 
 * ``device`` -- K models of the default pair (``--worlds`` worlds each), each stepped by its own
   thread on its own stream with its captured graphs only (``--steps`` steps, then a wait for its
