@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The second call of a device lease (docs/gpu.md, "A lease step by step"): the first call copied
 # out/site/part.00 to /tmp/parts; this one carries out/site/part.01, runs the GPU check in /tmp/gc
-# and copies its figures to $OUT every 10 s (a run cut short still returns them) and at the end.
+# and copies its figures to $OUT every 10 s (a run cut short still returns them), and at the end packs
+# them with the logs and the reproductions' study files (benchmarks/gpu_check_pack.sh).
 #
 #   benchmarks/gpu_check_lease.sh BUDGET_S HARD_STOP_S [bench_gpu_check.py options]
 set -u
@@ -18,8 +19,4 @@ UNDULATE_SITE_PARTS="/tmp/parts/part.00 /tmp/parts/part.01" timeout "$HARD" \
     "$(dirname "$0")/gpu_check.sh" $GC --budget-s "$BUDGET" "$@"
 echo "gpu_check rc $?"
 kill $SAVER 2>/dev/null
-cd $GC && cp gpu_check.json ./*.log ./*.jsonl "$OUT"/ 2>/dev/null
-for d in repro-*/; do
-    [ -d "$d" ] && mkdir -p "$OUT/$d" && cp "$d"/*.json "$OUT/$d" 2>/dev/null  # claims, reproduce and each finished study (NAME.json)
-done
-ls -l "$OUT"
+bash "$(dirname "$0")/gpu_check_pack.sh" $GC "$OUT"  # gpu_check.json and figures.tgz (8 files come back at most)
