@@ -55,3 +55,19 @@ def test_a_finished_reproductions_claims_are_compared_whole(check):
     assert (c["same"], c["differ"], c["explanation_not_reached"], c["not_reached"]) == (
         1, {XI32: ["explained", "fails"]}, [], [])
     assert check.compare_verdicts(cpu, {})["not_reached"] == [XI1, XI32]
+
+
+def _side_by_side(ms_per_step: dict) -> dict:
+    """A side-by-side script's json (bench_warp_side_by_side.py): device ms a step per model count."""
+    return {"rows": [{"models": k, "device_ms_per_step": v, "end_to_end_ms_per_step": v,
+                      "merged_device_ms_per_step": v} for k, v in ms_per_step.items()]}
+
+
+def test_more_hardware_queues_are_kept_only_where_they_cut_the_crowded_step(check):
+    default = _side_by_side({1: 0.35, 16: 5.6})
+    assert check.more_queues_help(default, _side_by_side({1: 0.35, 16: 0.9}))
+    assert not check.more_queues_help(default, _side_by_side({1: 0.35, 16: 5.0}))  # within 20 %: not worth a change
+    assert not check.more_queues_help(default, _side_by_side({1: 0.35}))  # not the same crowd measured
+    assert not check.more_queues_help(default, "timeout")
+    assert not check.more_queues_help(None, _side_by_side({1: 0.35, 16: 0.9}))
+    assert not check.more_queues_help(_side_by_side({1: 0.4}), _side_by_side({1: 0.2}))  # one model: no crowd
