@@ -291,14 +291,14 @@ def side_by_side(budget: float) -> None:
     holding all their worlds; once with the CUDA driver's default hardware queues and once with
     ``CUDA_DEVICE_MAX_CONNECTIONS=32``."""
     script = Path(__file__).resolve().parent / "bench_warp_side_by_side.py"
-    args = ["--models", "1,2", "--worlds", "2", "--steps", "20", "--repeat", "1"] if SMALL else []
+    args = ["--models", "1,2", "--worlds", "2", "--steps", "20", "--repeat", "1"] if SMALL else ["--repeat", "2"]
     got = {}
     for name, extra in (("default_connections", {}), ("32_connections", {"CUDA_DEVICE_MAX_CONNECTIONS": "32"})):
         if left(budget) < 40:
             say(f"side_by_side.{name}", "skipped: budget")
             continue
         got[name] = _json_line([sys.executable, str(script), "--device", DEVICE, *args],
-                               max(20.0, min(150.0, left(budget) - 20.0)), {**os.environ, **extra})
+                               max(20.0, min(180.0, left(budget) - 20.0)), {**os.environ, **extra})
         say(f"side_by_side.{name}", got[name])
     if more_queues_help(got.get("default_connections"), got.get("32_connections")):
         os.environ["CUDA_DEVICE_MAX_CONNECTIONS"] = "32"
