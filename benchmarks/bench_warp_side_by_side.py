@@ -6,8 +6,8 @@
 Why: on the H200 (2026-11-27, e9b2b39) a quick reproduction on the Warp backend stepped ~20 small
 Warp models at once (every study side by side, each model on its own stream), and an 18-world pair
 sweep of at most 45 000 steps was at 84 % of its simulated time after 103 s: ~2.7 ms a step, ~8x
-what one model's step costs alone (~0.35 ms at 1 024 worlds; one model of 18 worlds alone was not
-measured that day).  So the models' steps overlapped little, if at all.  This separates where they queue:
+what one model's step costs alone (the same lease's pair run, one world alone: 0.32 ms a step end
+to end; 0.34 ms at 1 024 worlds on the device, the first H200 check).  So the models' steps overlapped little, if at all.  This separates where they queue:
 
 * ``device`` -- K models of the default pair (``--worlds`` worlds each), each stepped by its own
   thread on its own stream with its captured graphs only (``--steps`` steps, then a wait for its
