@@ -786,6 +786,14 @@ class WarpRollout:
         self.warm = np.zeros((len(compiled), cpu0.nv))
         self._dt = float(options.timestep_s)
 
+    def _control_table(self, cur: np.ndarray, u: np.ndarray, active: np.ndarray | None, nstep: int):
+        """The device's control table for ``nstep`` steps of ``u`` from ``cur`` (the servos' slew from
+        their states there; scenes outside ``active`` under zero controls) and the slewed set-points
+        (:meth:`_Servos.table`)."""
+        a0, act_idx = 1 + self.nq + self.nv, self.servos.act
+        act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if self.na else 0.0, np.nan)
+        return self.servos.table(_idle_controls(u, active, nstep), act0)
+
     def rollout(self, cur: np.ndarray, u: np.ndarray, st: np.ndarray, sd: np.ndarray, nstep: int,
                 active: np.ndarray | None = None):
         """Step every scene ``nstep`` steps from ``cur`` (nb, nstate FULLPHYSICS) under controls ``u``
@@ -794,8 +802,7 @@ class WarpRollout:
         nq, nv, na = self.nq, self.nv, self.na
         q0, v0, a0 = 1, 1 + nq, 1 + nq + nv
         act_idx = self.servos.act
-        act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if na else 0.0, np.nan)
-        table, slewed = self.servos.table(_idle_controls(u, active, nstep), act0)
+        table, slewed = self._control_table(cur, u, active, nstep)
         t0 = cur[:, :1]  # the clock stays float64 on the host
         for g in self.groups:
             idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers; the
@@ -831,8 +838,7 @@ class WarpRollout:
         q0, v0, a0 = 1, 1 + nq, 1 + nq + nv
         nb, ns = cur.shape[0], nstep // sps
         act_idx = self.servos.act
-        act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if na else 0.0, np.nan)
-        table, slewed = self.servos.table(_idle_controls(u, active, nstep), act0)
+        table, slewed = self._control_table(cur, u, active, nstep)
         st = np.empty((nb, ns, cur.shape[1]))
         sd = np.empty((nb, ns, self.groups[0].ns))
         pn = np.empty((nb, ns))
