@@ -522,6 +522,43 @@ def test_a_gather_of_two_structures_steps_them_side_by_side(monkeypatch):
         assert _max_dx(simulate(sc, opts), got[i]) < 1e-9
 
 
+def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(monkeypatch):
+    """Grouping a gathered batch compiles each call's scene to learn its structure; the batch's plan
+    takes those models rather than compiling them again (one MuJoCo model and one Warp model a
+    scene), and the runs are bitwise those of the same batch not gathered."""
+    import threading
+
+    from undulate import simulation
+    from undulate.simulation import _compile
+
+    opts = SimOptions(duration_s=0.2, **WARP)
+    scenes = [Scene(phases_rad=(0.0, d)) for d in (0.5, 1.0, 2.0)]
+    alone = simulate_batch(scenes, opts)
+    builds = []
+    real = _compile.build
+    monkeypatch.setattr(_compile, "build", lambda sc, *a, **k: (builds.append(k.get("servo", "pid")), real(sc, *a, **k))[1])
+    gather = simulation.Gather(len(scenes))
+    got = {}
+
+    def one(i):
+        try:
+            got[i] = simulate_batch([scenes[i]], opts)[0]
+        finally:
+            gather.thread_done()
+
+    threads = [threading.Thread(target=one, args=(i,)) for i in range(len(scenes))]
+    for t in threads:
+        t.undulate_gather = gather
+        t.start()
+    for t in threads:
+        t.join()
+    assert gather.batches == [3]
+    assert sorted(builds) == ["affine"] * 3 + ["pid"] * 3
+    for i in range(len(scenes)):
+        for v in ("x", "y", "joint_error"):
+            np.testing.assert_array_equal(got[i][v].values, alone[i][v].values)
+
+
 def test_a_capacity_overflow_stops_the_run_naming_the_capacity(monkeypatch, capfd):
     """A contact sensor allowed fewer matches than the pair's contacts: the run stops with CapacityError
     naming the capacity, not with wrong forces or one warning per step.  Contacts allocated below what

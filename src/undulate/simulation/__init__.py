@@ -131,8 +131,12 @@ class _Batch:
         return self.options.steps_per_sample
 
 
-def _plan_batch(scenes: Sequence[Scene], options: SimOptions | None, out, controller) -> _Batch:
-    """Validate a batch, resolve its time step, compile its scenes and choose its chunk length."""
+def _plan_batch(scenes: Sequence[Scene], options: SimOptions | None, out, controller,
+                compiled: dict[int, tuple] | None = None) -> _Batch:
+    """Validate a batch, resolve its time step, compile its scenes and choose its chunk length.
+    ``compiled``: ``{index: (push, CompiledScene)}`` of scenes already compiled by the same rule (a
+    gathered batch's grouping, :func:`undulate.simulation._gather._gather_groups`), used where their
+    ``push`` is the batch's and the batch is open-loop (closed-loop batches compile servo-load sensors)."""
     options = options or SimOptions()
     if len(scenes) == 0:
         raise ParameterError("scenes", "a non-empty sequence of Scene", scenes)
@@ -148,7 +152,8 @@ def _plan_batch(scenes: Sequence[Scene], options: SimOptions | None, out, contro
     if closed and any((s.gait, s.controller, s.geometry.n_links) != (scenes[0].gait, scenes[0].controller,
                                                                    scenes[0].geometry.n_links) for s in scenes):
         raise ParameterError("scenes", "of one gait, controller and link count in a closed-loop batch", None)
-    compiled = [compile_scene(s, options, push=push, loads=closed) for s in scenes]
+    done = {} if closed or compiled is None else {i: cs for i, (p, cs) in compiled.items() if p == push}
+    compiled = [done.get(i) or compile_scene(s, options, push=push, loads=closed) for i, s in enumerate(scenes)]
     _check_same_structure(compiled)
     dt, sps = options.timestep_s, options.steps_per_sample
     n_samples = options.n_steps // sps
@@ -423,9 +428,9 @@ def simulate_batch(
 
 
 def _simulate_batch_now(scenes, options, *, nthread=0, out=None, controller=None, stop=None, progress=None,
-                        start=None):
-    """:func:`simulate_batch` in this call, never gathered."""
-    bt = _plan_batch(scenes, options, out, controller)
+                        start=None, compiled=None):
+    """:func:`simulate_batch` in this call, never gathered (``compiled``: see :func:`_plan_batch`)."""
+    bt = _plan_batch(scenes, options, out, controller, compiled)
     starts = _starts(bt, start)
     clock = _Clock()
     recorders = _Recorders(bt, stop)

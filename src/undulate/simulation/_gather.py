@@ -27,6 +27,7 @@ class _Request:
         self.result = self.error = None
         self.done = False
         self.physics = (0.0, 0)
+        self.compiled = None  # (push, the first scene's CompiledScene): what grouping it compiled
 
     def rules(self) -> list:
         if self.stop is None:
@@ -134,7 +135,8 @@ class Gather:
             hook = self._report(len(self.batches), len(scenes))
         try:
             with _physics.meter() as tally:  # this batch's physics, shared among its calls
-                dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules, progress=hook)
+                dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules, progress=hook,
+                                                compiled=_compiled(group))
         except Exception:  # noqa: BLE001 - isolate the failing call
             for r in group:
                 try:
@@ -152,6 +154,16 @@ class Gather:
             r.physics = (sec * n / len(scenes), steps * n // len(scenes))
 
 
+def _compiled(group: list[_Request]) -> dict[int, tuple]:
+    """``{index in the batch's scenes: (push, CompiledScene)}``: the scenes grouping compiled."""
+    out, i = {}, 0
+    for r in group:
+        if r.compiled is not None:
+            out[i] = r.compiled
+        i += len(r.scenes)
+    return out
+
+
 def _gather_groups(reqs: list[_Request]) -> list[list[_Request]]:
     """Calls that can be stepped as one batch: same resolved options and one structure (the
     compiled models' sizes), and for closed-loop scenes one gait, controller and link count."""
@@ -159,7 +171,9 @@ def _gather_groups(reqs: list[_Request]) -> list[list[_Request]]:
     for r in reqs:
         opts = [resolve_options(sc, r.options) for sc in r.scenes]
         o = opts[0]
-        cs = compile_scene(r.scenes[0], o, push=any(sc.forces_N is not None for sc in r.scenes))
+        push = any(sc.forces_N is not None for sc in r.scenes)
+        cs = compile_scene(r.scenes[0], o, push=push)
+        r.compiled = (push, cs)  # the batch's plan takes it rather than compiling the scene again
         m = cs.model
         closed = r.scenes[0].controller.closed_loop
         keys.append((json.dumps(o.to_dict(), sort_keys=True, default=str), len({x.timestep_s for x in opts}) == 1,

@@ -39,6 +39,7 @@ import xarray as xr
 from .._io import atomic_write_bytes, atomic_write_text, remove_temporaries, write_netcdf
 from ..errors import ParameterError
 from ._fastread import RUN_ATTR, FastLayout, read_raw, same_attr
+from ._fastwrite import run_file_bytes
 from ._grid import RESERVED, Grid, Run
 from .._xrcompat import install as _lazy_dask
 
@@ -374,7 +375,7 @@ def write_result(runs_dir: Path, run: Run, ds: xr.Dataset, provenance: dict[str,
         meta["timing"] = dict(timing)
     ds = ds.copy(deep=False)
     ds.attrs = {**ds.attrs, RUN_ATTR: json.dumps(meta)}
-    data = _run_file_bytes(ds)
+    data = run_file_bytes(ds, _run_file_bytes)  # xarray's bytes, written without xarray where plain
     atomic_write_bytes(result_path(runs_dir, run), data)
     with contextlib.suppress(FileNotFoundError):
         failure_path(runs_dir, run).unlink()
