@@ -6,6 +6,16 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 import pytest  # noqa: E402
 
 
+@pytest.fixture(autouse=True)
+def _fresh_models():
+    """Every test compiles its own models: compile_scene's per-process model cache starts empty (a
+    test that patches the model builder must not hand its models to the next)."""
+    from undulate.simulation._compile import clear_model_cache
+
+    clear_model_cache()
+    yield
+
+
 @pytest.fixture(scope="module")
 def whole_plans():
     """Every registered study runs its mode's whole plan in one look (``Study.stages`` off), for a

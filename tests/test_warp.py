@@ -152,6 +152,9 @@ def _without_diagexact(monkeypatch):
         return sp, walls
 
     monkeypatch.setattr(scene_module, "scene_spec", spec)
+    from undulate.simulation._compile import clear_model_cache
+
+    clear_model_cache()  # models compiled before the patch are not the ones asked for now
 
 
 def test_a_closed_loop_controller_steps_on_warp():
@@ -522,10 +525,12 @@ def test_a_gather_of_two_structures_steps_them_side_by_side(monkeypatch):
         assert _max_dx(simulate(sc, opts), got[i]) < 1e-9
 
 
-def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(monkeypatch):
+@pytest.mark.parametrize("cached", [True, False])
+def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(monkeypatch, cached):
     """Grouping a gathered batch compiles each call's scene to learn its structure; the batch's plan
-    takes those models rather than compiling them again (one MuJoCo model and one Warp model a
-    scene), and the runs are bitwise those of the same batch not gathered."""
+    takes those models rather than compiling them again (without the model cache: one MuJoCo model
+    and one Warp model a scene; with it, scenes that differ only in their phases compile once in
+    all), and the runs are bitwise those of the same batch not gathered."""
     import threading
 
     from undulate import simulation
@@ -534,6 +539,9 @@ def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(mon
     opts = SimOptions(duration_s=0.2, **WARP)
     scenes = [Scene(phases_rad=(0.0, d)) for d in (0.5, 1.0, 2.0)]
     alone = simulate_batch(scenes, opts)
+    _compile.clear_model_cache()
+    if not cached:  # as in a batch of more distinct scenes than the cache keeps
+        monkeypatch.setattr(_compile, "_cached_model", _compile._model)
     builds = []
     real = _compile.build
     monkeypatch.setattr(_compile, "build", lambda sc, *a, **k: (builds.append(k.get("servo", "pid")), real(sc, *a, **k))[1])
@@ -553,7 +561,8 @@ def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(mon
     for t in threads:
         t.join()
     assert gather.batches == [3]
-    assert sorted(builds) == ["affine"] * 3 + ["pid"] * 3
+    n = 1 if cached else 3
+    assert sorted(builds) == ["affine"] * n + ["pid"] * n
     for i in range(len(scenes)):
         for v in ("x", "y", "joint_error"):
             np.testing.assert_array_equal(got[i][v].values, alone[i][v].values)
