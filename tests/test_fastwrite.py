@@ -144,7 +144,7 @@ def test_first_of_a_layout_is_compared_and_a_mismatch_sticks(monkeypatch, caplog
     ds2 = xr.Dataset({"y": ("t", [1.0, 2.0])})
     calls.clear()
     assert run_file_bytes(ds2, lambda d: (calls.append(d), _xarray(d))[1]) == _xarray(ds2)
-    ds3 = ds2.assign(y=("t", [5.0, 6.0]))
+    ds3 = ds2.assign(y=("t", [5.0, 6.0, 7.0]))  # another length, the same layout
     assert run_file_bytes(ds3, lambda d: (calls.append(d), _xarray(d))[1]) == _xarray(ds3)
     assert len(calls) == 1
 

@@ -12,7 +12,8 @@ for the *plain* Datasets the runners return:
 * no variable whose first dimension has length 0 (SciPy would write it as a record variable);
 * coordinates only along their own dimension (no ``coordinates`` attribute is needed), no
   unlimited dimension, and no encoding carried over from a file;
-* names of letters, digits and ``_``; attributes of str, float, int, bool or 1-D numeric arrays.
+* names of letters, digits and ``_``; attributes of str, float, int or 1-D numeric arrays
+  (booleans are left to xarray, which stores them as int8).
 
 Anything else returns None and the caller writes through xarray, as before.  The first Dataset of
 each layout in a process is written both ways and compared: a layout whose bytes differ (an xarray
@@ -168,11 +169,12 @@ def netcdf3_bytes(ds: xr.Dataset) -> bytes | None:
 
 
 def _layout(ds: xr.Dataset) -> tuple:
-    """What decides how a plain Dataset is written, apart from its values."""
+    """What decides how a plain Dataset is written, apart from its values and sizes (runs of one
+    sweep that stop at different times share a layout)."""
     def kinds(attrs: dict) -> tuple:
         return tuple((k, type(v).__name__, getattr(v, "dtype", None), np.ndim(v)) for k, v in attrs.items())
 
-    return (tuple((str(k), v.dims, v.dtype.str, v.shape, kinds(v.attrs)) for k, v in ds.variables.items()),
+    return (tuple((str(k), v.dims, v.dtype.str, kinds(v.attrs)) for k, v in ds.variables.items()),
             kinds(ds.attrs), tuple(ds.coords))
 
 
