@@ -491,21 +491,14 @@ def test_a_divergence_found_on_the_device_is_diagnosed_as_on_the_host(monkeypatc
     assert t[0] == t[1] and "interpenetration" in str(dev.value)
 
 
-def test_a_gather_of_two_structures_steps_them_side_by_side(monkeypatch):
-    """Threads whose scenes differ in structure (a pair, a group of 3) are gathered into one batch
-    per structure, each stepped on its own thread (on a GPU: its own stream); each result is its
-    run alone."""
+def _gathered(scenes, opts):
+    """Each scene simulated on its own thread, the threads' calls gathered (as a sweep's runs are):
+    ``(the Gather, {index: Dataset})``."""
     import threading
 
     from undulate import simulation
 
-    opts = SimOptions(duration_s=0.3, **WARP)
-    scenes = [Scene(phases_rad=(0.0, 1.0)), Scene(phases_rad=(0.0, 1.0, 2.0))]
-    gather = simulation.Gather(len(scenes))
-    where, got = [], {}
-    real = simulation.Gather._run_group
-    monkeypatch.setattr(simulation.Gather, "_run_group",
-                        lambda self, group: (where.append(threading.current_thread().name), real(self, group)))
+    gather, got = simulation.Gather(len(scenes)), {}
 
     def one(i):
         try:
@@ -519,6 +512,24 @@ def test_a_gather_of_two_structures_steps_them_side_by_side(monkeypatch):
         t.start()
     for t in threads:
         t.join()
+    return gather, got
+
+
+def test_a_gather_of_two_structures_steps_them_side_by_side(monkeypatch):
+    """Threads whose scenes differ in structure (a pair, a group of 3) are gathered into one batch
+    per structure, each stepped on its own thread (on a GPU: its own stream); each result is its
+    run alone."""
+    import threading
+
+    from undulate import simulation
+
+    opts = SimOptions(duration_s=0.3, **WARP)
+    scenes = [Scene(phases_rad=(0.0, 1.0)), Scene(phases_rad=(0.0, 1.0, 2.0))]
+    where = []
+    real = simulation.Gather._run_group
+    monkeypatch.setattr(simulation.Gather, "_run_group",
+                        lambda self, group: (where.append(threading.current_thread().name), real(self, group)))
+    gather, got = _gathered(scenes, opts)
     assert sorted(gather.batches) == [1, 1] and len(where) == 2
     assert all(n.startswith("undulate-gather") for n in where)
     for i, sc in enumerate(scenes):
@@ -531,9 +542,6 @@ def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(mon
     takes those models rather than compiling them again (without the model cache: one MuJoCo model
     and one Warp model a scene; with it, scenes that differ only in their phases compile once in
     all), and the runs are bitwise those of the same batch not gathered."""
-    import threading
-
-    from undulate import simulation
     from undulate.simulation import _compile
 
     opts = SimOptions(duration_s=0.2, **WARP)
@@ -545,21 +553,7 @@ def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(mon
     builds = []
     real = _compile.build
     monkeypatch.setattr(_compile, "build", lambda sc, *a, **k: (builds.append(k.get("servo", "pid")), real(sc, *a, **k))[1])
-    gather = simulation.Gather(len(scenes))
-    got = {}
-
-    def one(i):
-        try:
-            got[i] = simulate_batch([scenes[i]], opts)[0]
-        finally:
-            gather.thread_done()
-
-    threads = [threading.Thread(target=one, args=(i,)) for i in range(len(scenes))]
-    for t in threads:
-        t.undulate_gather = gather
-        t.start()
-    for t in threads:
-        t.join()
+    gather, got = _gathered(scenes, opts)
     assert gather.batches == [3]
     n = 1 if cached else 3
     assert sorted(builds) == ["affine"] * n + ["pid"] * n
