@@ -96,6 +96,9 @@ def agreement(which: str) -> None:
 
     if which == "pair":
         say("device", device_name(DEVICE))
+        # modules benchmarks/bench_gpu_kernels.py compiled ahead of time, copied by gpu_check.sh into Warp's
+        # kernel cache (0: none): with them, pair.compile_s shows whether the device found them
+        say("precompiled_kernel_modules", int(os.environ.get("UNDULATE_PRECOMPILED_KERNELS", "0")))
         sc = Scene(phases_rad=(0.0, math.pi / 2))
         for fallback in (*FALLBACKS, None):
             t = time.perf_counter()

@@ -28,4 +28,14 @@ export PYTHONUNBUFFERED=1
 nvidia-smi --query-gpu=name,memory.total,driver_version --format=csv,noheader 2>/dev/null | sed 's/^/gpu_check: /'
 python3 -c "import warp, mujoco_warp, mujoco, undulate; print('gpu_check: imports ok, mujoco', mujoco.__version__)" \
     || { echo "gpu_check: the packages do not import"; exit 3; }
+if [ -n "${SITE:-}" ] && [ -d "$SITE/warp-kernels" ]; then
+    # Warp's GPU kernels compiled ahead of time (benchmarks/bench_gpu_kernels.py) into its kernel cache:
+    # a module whose hash matches loads from there instead of compiling at a model's first step
+    KCACHE=$(python3 -c "import warp; warp.config.quiet = True; warp.init(); print(warp.config.kernel_cache_dir)")
+    VER=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['cache_dir'])" "$SITE/warp-kernels/kernels.json")
+    mkdir -p "$KCACHE" && cp -rn "$SITE/warp-kernels/$VER"/. "$KCACHE"/ \
+        && export UNDULATE_PRECOMPILED_KERNELS=$(ls "$SITE/warp-kernels/$VER" | wc -l) \
+        && echo "gpu_check: $UNDULATE_PRECOMPILED_KERNELS precompiled kernel modules copied to $KCACHE" \
+        || echo "gpu_check: copying the precompiled kernels failed (they compile at first steps)"
+fi
 exec python3 "$HERE/benchmarks/bench_gpu_check.py" "$OUTDIR" "$@"
