@@ -31,9 +31,11 @@ python3 -c "import warp, mujoco_warp, mujoco, undulate; print('gpu_check: import
 if [ -n "${SITE:-}" ] && [ -d "$SITE/warp-kernels" ]; then
     # Warp's GPU kernels compiled ahead of time (benchmarks/bench_gpu_kernels.py) into its kernel cache:
     # a module whose hash matches loads from there instead of compiling at a model's first step
-    KCACHE=$(python3 -c "import warp; warp.config.quiet = True; warp.init(); print(warp.config.kernel_cache_dir)")
+    # (Warp's start-up banner may go to stdout too: the path is the last line)
+    KCACHE=$(python3 -c "import warp; warp.config.quiet = True; warp.init(); print(warp.config.kernel_cache_dir)" | tail -n 1)
+    case "$KCACHE" in /*) ;; *) echo "gpu_check: no kernel cache directory from Warp ($KCACHE)"; KCACHE=/nonexistent/x ;; esac
     VER=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['cache_dir'])" "$SITE/warp-kernels/kernels.json")
-    mkdir -p "$KCACHE" && cp -rn "$SITE/warp-kernels/$VER"/. "$KCACHE"/ \
+    [ "$KCACHE" != /nonexistent/x ] && mkdir -p "$KCACHE" && cp -rn "$SITE/warp-kernels/$VER"/. "$KCACHE"/ \
         && export UNDULATE_PRECOMPILED_KERNELS=$(ls "$SITE/warp-kernels/$VER" | wc -l) \
         && echo "gpu_check: $UNDULATE_PRECOMPILED_KERNELS precompiled kernel modules copied to $KCACHE" \
         || echo "gpu_check: copying the precompiled kernels failed (they compile at first steps)"
