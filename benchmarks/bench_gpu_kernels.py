@@ -8,12 +8,14 @@ architecture without a device (``wp.compile_aot_module``). So this script:
 1. runs ``undulate reproduce`` (quick by default) on the MuJoCo backend in this process, one worker,
    recording every batch it asks for (:func:`undulate.simulation._plan_batch`);
 2. for each model structure, builds the Warp backend's models for its largest batch on Warp's CPU
-   device and traces one step as the backend does before a first step
+   device, with MuJoCo Warp's determinism as on a GPU (``UNDULATE_WARP_DETERMINISTIC``, default off
+   there), and traces one step as the backend does before a first step
    (:func:`undulate.simulation._warp._traced_modules`): the modules and their CUDA block sizes;
 3. compiles each module for ``sm_90`` (H100, H200) both ways Warp may load it there: a CUBIN, and PTX
    for ``sm_75`` (Warp's default PTX target, used where the device's driver is at least as new as
    Warp's CUDA toolkit), into ``OUTDIR/<warp version>/`` laid out as Warp's kernel cache;
-4. writes ``OUTDIR/kernels.json``: the structures, the modules, the times.
+4. writes ``OUTDIR/kernels.json``: the structures, the modules, the times (and keeps the recorded
+   batches in ``OUTDIR/batches.pkl``: run again, it only traces and compiles).
 
 ``benchmarks/make_gpu_site.sh out/site OUTDIR`` puts them in the site tarball and ``gpu_check.sh`` copies
 them into the device's kernel cache. Whether the device finds them (the same hashes on Python 3.12, the
@@ -28,6 +30,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import pickle
 import shutil
 import sys
 import tempfile
@@ -74,7 +77,17 @@ def _traced(scenes: list, closed: bool) -> list:
     bt = _plan_batch(scenes[:64], SimOptions(backend="warp", device="cpu"), None, controller)
     affine = [compile_scene(c.scene, bt.options, push=c.index.ctrl_push.size > 0,
                             loads=c.index.sens_load.size > 0, servo="affine") for c in bt.compiled]
-    rollout = _warp.WarpRollout(bt.compiled, affine, bt.options, "cpu")
+    # MuJoCo Warp's determinism as on a GPU (off by default there, on by default on the CPU device):
+    # 12 of a pair's 41 modules and 16 of a pack's 50 differ between the two
+    gpu = "1" if _warp.determinism("cuda") else "0"
+    was, os.environ["UNDULATE_WARP_DETERMINISTIC"] = os.environ.get("UNDULATE_WARP_DETERMINISTIC"), gpu
+    try:
+        rollout = _warp.WarpRollout(bt.compiled, affine, bt.options, "cpu")
+    finally:
+        if was is None:
+            os.environ.pop("UNDULATE_WARP_DETERMINISTIC")
+        else:
+            os.environ["UNDULATE_WARP_DETERMINISTIC"] = was
     # a CUDA launch's block size: its own, else 256 (warp's _resolve_launch_block_dim; on the CPU it is 1)
     return [(mod, 256 if bd is None or bd <= 0 else int(bd))
             for g in rollout.groups for mod, bd in _warp._traced_modules(g)]
@@ -95,7 +108,12 @@ def main(argv: list[str] | None = None) -> int:
     from warp._src.context import runtime
 
     t0 = time.perf_counter()
-    seen = _record_batches(args.full)
+    batches = args.outdir / "batches.pkl"  # the recorded batches, kept: a second run only traces and compiles
+    if batches.exists():
+        seen = pickle.loads(batches.read_bytes())
+    else:
+        seen = _record_batches(args.full)
+        batches.write_bytes(pickle.dumps(seen))
     t_rec = time.perf_counter() - t0
     print(f"{len(seen)} model structures in {t_rec:.0f} s", flush=True)
     modules: dict = {}
