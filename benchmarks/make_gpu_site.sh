@@ -8,7 +8,8 @@
 #
 # KERNELS: what benchmarks/bench_gpu_kernels.py wrote (Warp's GPU kernels compiled here); they go into
 # the site as warp-kernels/, and gpu_check.sh copies them into the device's kernel cache.
-# On 2026-11-27 (no kernels): 91 MB in all, about 2 minutes on 2 cores.
+# On 2026-11-27 (no kernels): 91 MB in all, about 2 minutes on 2 cores; on 2026-11-28 with the full
+# reproduction's kernels: 96 MB, two 48 MB parts.
 set -eu
 OUT=${1:-out/site}
 KERNELS=${2:-}
