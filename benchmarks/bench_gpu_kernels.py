@@ -49,9 +49,14 @@ def _record_batches(full: bool) -> dict:
     def recording(scenes, options, out, controller, compiled=None):
         bt = plan(scenes, options, out, controller, compiled)
         m = bt.compiled[0].model
+        # what MuJoCo Warp specialises its kernels on: the sizes, the solver and fluid options (the
+        # swimming ground's ellipsoid fluid model, the viscous ground's inertia box), the servos' form
         key = (m.nq, m.nv, m.nu, m.na, m.nbody, m.ngeom, m.nsensor, m.nsensordata, m.npair, m.nexclude,
-               int(m.opt.integrator), bt.ctl is not None, any(s.forces_N is not None for s in scenes))
-        n, best, closed = seen.get(key, (0, [], False))
+               int(m.opt.integrator), int(m.opt.cone), int(m.opt.solver), int(m.opt.jacobian),
+               int(m.opt.disableflags), int(m.opt.enableflags), bool(m.opt.density > 0),
+               bool(m.opt.viscosity > 0), bool(m.geom_fluid[:, 0].any()),
+               bt.ctl is not None, any(s.forces_N is not None for s in scenes))
+        n, best, _ = seen.get(key, (0, [], False))
         seen[key] = (n + 1, list(scenes) if len(scenes) > len(best) else best, bt.ctl is not None)
         return bt
 
@@ -125,7 +130,8 @@ def main(argv: list[str] | None = None) -> int:
             if (mod.name, bd) not in modules:
                 modules[(mod.name, bd)] = mod
                 new += 1
-        structures.append({"nv": key[1], "nu": key[2], "ngeom": key[5], "closed_loop": key[11], "push": key[12],
+        structures.append({"nv": key[1], "nu": key[2], "ngeom": key[5], "fluid_density": key[16],
+                           "ellipsoid_fluid": key[18], "closed_loop": key[19], "push": key[20],
                            "batches": n, "worlds_traced": min(len(scenes), 64), "modules": len(mods), "new": new})
         print(f"nv {key[1]:3d} ngeom {key[5]:4d}: {len(mods)} modules, {new} new", flush=True)
     ptx_arch = min(args.arch, runtime.default_ptx_arch)
