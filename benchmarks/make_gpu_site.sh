@@ -23,8 +23,9 @@ rm -rf "$TMP"/site/warp/bin/warp-clang.so "$TMP"/site/warp/examples "$TMP"/site/
     "$TMP"/site/mujoco_warp/test_data "$TMP"/site/mujoco/experimental
 find "$TMP/site" -name __pycache__ -prune -exec rm -rf {} +
 if [ -n "$KERNELS" ]; then
-    mkdir -p "$TMP/site/warp-kernels"
-    cp -r "$KERNELS"/. "$TMP/site/warp-kernels/"
+    mkdir -p "$TMP/site/warp-kernels"  # the cache folder and kernels.json (not the recorded batches.pkl)
+    VER=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['cache_dir'])" "$KERNELS/kernels.json")
+    cp -r "$KERNELS/kernels.json" "$KERNELS/$VER" "$TMP/site/warp-kernels/"
 fi
 mkdir -p "$OUT"
 rm -f "$OUT"/part.*
