@@ -39,7 +39,8 @@ from pathlib import Path
 
 
 def _record_batches(full: bool) -> dict:
-    """``{structure: (n_calls, scenes of its largest call, closed loop)}`` of a reproduction's batches."""
+    """``{structure: (n_calls, scenes of its largest call)}`` of a reproduction's batches (the structure
+    key's last two entries: closed loop, pushed)."""
     import undulate.simulation as sim
     from undulate.reproduce import reproduce
 
@@ -56,8 +57,8 @@ def _record_batches(full: bool) -> dict:
                int(m.opt.disableflags), int(m.opt.enableflags), bool(m.opt.density > 0),
                bool(m.opt.viscosity > 0), bool(m.geom_fluid[:, 0].any()),
                bt.ctl is not None, any(s.forces_N is not None for s in scenes))
-        n, best, _ = seen.get(key, (0, [], False))
-        seen[key] = (n + 1, list(scenes) if len(scenes) > len(best) else best, bt.ctl is not None)
+        n, best = seen.get(key, (0, []))
+        seen[key] = (n + 1, list(scenes) if len(scenes) > len(best) else best)
         return bt
 
     sim._plan_batch = recording
@@ -71,31 +72,24 @@ def _record_batches(full: bool) -> dict:
 
 def _traced(scenes: list, closed: bool) -> list:
     """The (module, CUDA block size) pairs one step of the Warp backend's models of ``scenes`` launches."""
+    from unittest import mock
+
     from undulate.params import SimOptions
-    from undulate.simulation import _plan_batch, _warp
-    from undulate.simulation._compile import compile_scene
+    from undulate.simulation import _Clock, _plan_batch, _Stepper, _warp
 
     controller = None
     if closed:
         from undulate.control import make_controller
         controller = make_controller(scenes[0])
     bt = _plan_batch(scenes[:64], SimOptions(backend="warp", device="cpu"), None, controller)
-    affine = [compile_scene(c.scene, bt.options, push=c.index.ctrl_push.size > 0,
-                            loads=c.index.sens_load.size > 0, servo="affine") for c in bt.compiled]
     # MuJoCo Warp's determinism as on a GPU (off by default there, on by default on the CPU device):
     # 12 of a pair's 41 modules and 16 of a pack's 50 differ between the two
     gpu = "1" if _warp.determinism("cuda") else "0"
-    was, os.environ["UNDULATE_WARP_DETERMINISTIC"] = os.environ.get("UNDULATE_WARP_DETERMINISTIC"), gpu
-    try:
-        rollout = _warp.WarpRollout(bt.compiled, affine, bt.options, "cpu")
-    finally:
-        if was is None:
-            os.environ.pop("UNDULATE_WARP_DETERMINISTIC")
-        else:
-            os.environ["UNDULATE_WARP_DETERMINISTIC"] = was
+    with mock.patch.dict(os.environ, {"UNDULATE_WARP_DETERMINISTIC": gpu}):
+        runner = _Stepper(bt, 0, _Clock()).runner  # the backend's own models of the batch (not stepped)
     # a CUDA launch's block size: its own, else 256 (warp's _resolve_launch_block_dim; on the CPU it is 1)
     return [(mod, 256 if bd is None or bd <= 0 else int(bd))
-            for g in rollout.groups for mod, bd in _warp._traced_modules(g)]
+            for g in runner.groups for mod, bd in _warp._traced_modules(g)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -123,8 +117,8 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(seen)} model structures in {t_rec:.0f} s", flush=True)
     modules: dict = {}
     structures = []
-    for key, (n, scenes, closed) in sorted(seen.items(), key=lambda kv: kv[0][1]):
-        mods = _traced(scenes, closed)
+    for key, (n, scenes) in sorted(seen.items(), key=lambda kv: kv[0][1]):
+        mods = _traced(scenes, closed=key[-2])
         new = 0
         for mod, bd in mods:
             if (mod.name, bd) not in modules:
