@@ -33,11 +33,12 @@ if [ -n "${SITE:-}" ] && [ -d "$SITE/warp-kernels" ]; then
     # a module whose hash matches loads from there instead of compiling at a model's first step
     # (Warp's start-up banner may go to stdout too: the path is the last line)
     KCACHE=$(python3 -c "import warp; warp.config.quiet = True; warp.init(); print(warp.config.kernel_cache_dir)" | tail -n 1)
-    case "$KCACHE" in /*) ;; *) echo "gpu_check: no kernel cache directory from Warp ($KCACHE)"; KCACHE=/nonexistent/x ;; esac
     VER=$(python3 -c "import json, sys; print(json.load(open(sys.argv[1]))['cache_dir'])" "$SITE/warp-kernels/kernels.json")
-    [ "$KCACHE" != /nonexistent/x ] && mkdir -p "$KCACHE" && cp -rn "$SITE/warp-kernels/$VER"/. "$KCACHE"/ \
-        && export UNDULATE_PRECOMPILED_KERNELS=$(ls "$SITE/warp-kernels/$VER" | wc -l) \
-        && echo "gpu_check: $UNDULATE_PRECOMPILED_KERNELS precompiled kernel modules copied to $KCACHE" \
-        || echo "gpu_check: copying the precompiled kernels failed (they compile at first steps)"
+    if [ "${KCACHE#/}" != "$KCACHE" ] && mkdir -p "$KCACHE" && cp -rn "$SITE/warp-kernels/$VER"/. "$KCACHE"/; then
+        export UNDULATE_PRECOMPILED_KERNELS=$(ls "$SITE/warp-kernels/$VER" | wc -l)
+        echo "gpu_check: $UNDULATE_PRECOMPILED_KERNELS precompiled kernel modules copied to $KCACHE"
+    else
+        echo "gpu_check: copying the precompiled kernels to Warp's cache ($KCACHE) failed (they compile at first steps)"
+    fi
 fi
 exec python3 "$HERE/benchmarks/bench_gpu_check.py" "$OUTDIR" "$@"
