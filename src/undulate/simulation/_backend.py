@@ -12,6 +12,7 @@ from ._env import env_count
 
 BACKEND_ENV, DEVICE_ENV = "UNDULATE_BACKEND", "UNDULATE_DEVICE"
 WARP_PROCESSES_ENV = "UNDULATE_WARP_PROCESSES"
+LONE_ENV = "UNDULATE_WARP_LONE_SWIMMERS"
 WARP_PROCESSES_MAX = 256
 
 
@@ -48,6 +49,28 @@ def warp_processes() -> int:
     work (models, control tables, Datasets, run files), which on a GPU is most of a large sweep's time
     (docs/gpu.md, "The host's share of a sweep"); more processes are not yet measured on a GPU."""
     return env_count(WARP_PROCESSES_ENV, 1, WARP_PROCESSES_MAX)
+
+
+def lone_swimmers_backend(device: str | None) -> str:
+    """The engine that steps a scene of one swimmer when the Warp backend is asked for on ``device``:
+    ``UNDULATE_WARP_LONE_SWIMMERS`` (``mujoco`` or ``warp``), else ``mujoco`` on a GPU and ``warp``
+    on Warp's CPU device.
+
+    Why a GPU hands lone swimmers to the cores: a lone swimmer touches nothing but the channel
+    walls, and its batches are small (a study's free swimmers, 1-36 at a time), where a GPU step
+    costs the same ~0.32 ms as a model of a thousand worlds (an H200, 2026-11-27) and a core steps a
+    9-link swimmer in ~25 us.  The free swimmers are also the reproduction's longest chain of steps
+    that must follow one another (sensitivity's equal-A search: up to three 30 s runs in turn).  Such
+    runs step on MuJoCo (float64, the MuJoCo backend's results bitwise), and their Datasets say so
+    (attrs ``backend``); a sweep's identity records the rule (:func:`undulate.sweep._store.backend_identity`),
+    so runs of one rule are never served for the other.  On Warp's CPU device nothing is gained, and
+    the tests step lone swimmers on Warp there."""
+    raw = os.environ.get(LONE_ENV)
+    if raw:
+        if raw not in SimOptions.BACKENDS:
+            raise ParameterError(LONE_ENV, "'mujoco' or 'warp' (environment variable)", raw)
+        return raw
+    return "warp" if str(device or "").split(":")[0] == "cpu" else "mujoco"
 
 
 def check_backend(options: SimOptions) -> SimOptions:

@@ -13,7 +13,7 @@ import numpy as np
 from ..errors import ParameterError
 from ..params import Scene, SimOptions
 from ..scene import CompiledScene, auto_timestep, build, servo_damping_rate_per_s, snap_timestep
-from ._backend import check_backend
+from ._backend import check_backend, lone_swimmers_backend
 
 RK4_DAMPING_STEP = 1.0
 """``rate dt`` allowed for the servo damping under ``rk4`` (its real-axis stability limit is 2.79)."""
@@ -22,8 +22,12 @@ RK4_DAMPING_STEP = 1.0
 def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
     """``options`` with a concrete time step (the explicit one, or the
     time-step rule's, :func:`undulate.scene.auto_timestep`, for ``scene``) and
-    a concrete backend and device (:func:`default_backend` where left out)."""
+    a concrete backend and device (:func:`default_backend` where left out).  A scene of one swimmer
+    asked of the Warp backend steps where :func:`lone_swimmers_backend` says (on a GPU: MuJoCo)."""
     options = check_backend(options)
+    if (options.backend == "warp" and scene.n_swimmers == 1
+            and lone_swimmers_backend(options.device) == "mujoco"):
+        options = dataclasses.replace(options, backend="mujoco", device=None)
     if options.timestep_s is not None:
         return options
     dt = auto_timestep(scene)

@@ -146,7 +146,8 @@ def function_id(fn: Callable) -> str:
 def backend_identity() -> str:
     """The session's default stepping backend as a sweep's identity records it: ``"mujoco"``, or
     ``"warp DEVICE float32 (mujoco-warp X, warp-lang Y)"``, with `` nondeterministic`` after the
-    precision where MuJoCo Warp's determinism is off (:func:`undulate.simulation.use_backend`,
+    precision where MuJoCo Warp's determinism is off and ``, lone swimmers on mujoco`` where scenes of
+    one swimmer step on the cores (:func:`undulate.simulation._backend.lone_swimmers_backend`) (:func:`undulate.simulation.use_backend`,
     :func:`undulate.simulation._warp.determinism`).  Runs of one backend are never served for another."""
     from ..simulation import backend_attrs, default_backend
     from ..params import SimOptions
@@ -156,9 +157,12 @@ def backend_identity() -> str:
         return "mujoco"
     from ..simulation import _warp
 
+    from ..simulation._backend import lone_swimmers_backend
+
     a = backend_attrs(SimOptions(backend=backend, device=_warp.resolve_device(device)))
     nondet = " nondeterministic" if a["warp_determinism"] == "none" else ""
-    return f"warp {a['device']} {a['precision']}{nondet} ({a['backend_versions']})"
+    lone = ", lone swimmers on mujoco" if lone_swimmers_backend(a["device"]) == "mujoco" else ""
+    return f"warp {a['device']} {a['precision']}{nondet}{lone} ({a['backend_versions']})"
 
 
 def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:

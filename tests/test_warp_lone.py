@@ -1,0 +1,93 @@
+"""Lone swimmers on the cores when the Warp backend is asked for (``UNDULATE_WARP_LONE_SWIMMERS``,
+:func:`undulate.simulation._backend.lone_swimmers_backend`): on a GPU by default, here on Warp's CPU
+device by setting it.  A routed run is the MuJoCo backend's run, bitwise, and says so; a scene of two
+swimmers still steps on Warp; a sweep's identity records the rule, so its runs are never served
+under the other rule."""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+import pytest
+
+from undulate import Scene, SimOptions
+from undulate.errors import ParameterError
+from undulate.params import Gait
+from undulate.simulation import simulate, simulate_batch
+from undulate.simulation._backend import LONE_ENV, lone_swimmers_backend
+
+pytest.importorskip("warp", reason="the gpu extra (mujoco-warp, warp-lang) is not installed")
+pytest.importorskip("mujoco_warp")
+
+WARP = dict(backend="warp", device="cpu")
+
+
+def test_the_rule_is_the_cores_on_a_gpu_and_warp_on_its_cpu_device_unless_set(monkeypatch):
+    monkeypatch.delenv(LONE_ENV, raising=False)
+    assert lone_swimmers_backend("cuda") == "mujoco"
+    assert lone_swimmers_backend("cpu") == "warp"
+    monkeypatch.setenv(LONE_ENV, "warp")
+    assert lone_swimmers_backend("cuda") == "warp"
+    monkeypatch.setenv(LONE_ENV, "mujoco")
+    assert lone_swimmers_backend("cpu") == "mujoco"
+    monkeypatch.setenv(LONE_ENV, "gpu")
+    with pytest.raises(ParameterError, match=LONE_ENV):
+        lone_swimmers_backend("cpu")
+
+
+def test_a_routed_lone_swimmer_is_the_mujoco_run_and_a_pair_still_steps_on_warp(monkeypatch):
+    monkeypatch.setenv(LONE_ENV, "mujoco")
+    opts = dict(duration_s=0.5, sample_rate_hz=50.0)
+    lone = Scene(phases_rad=(0.0,))
+    w, m = simulate(lone, SimOptions(**opts, **WARP)), simulate(lone, SimOptions(**opts))
+    assert w.attrs["backend"] == "mujoco" and w.attrs["precision"] == "float64"
+    np.testing.assert_array_equal(w["x"].values, m["x"].values)
+    pair = simulate(Scene(phases_rad=(0.0, 1.0)), SimOptions(**opts, **WARP))
+    assert pair.attrs["backend"] == "warp"
+    monkeypatch.setenv(LONE_ENV, "warp")
+    assert simulate(lone, SimOptions(**opts, **WARP)).attrs["backend"] == "warp"
+
+
+def test_a_routed_batch_steps_on_every_core_and_each_run_is_its_run_alone(monkeypatch):
+    from undulate import simulation
+
+    monkeypatch.setenv(LONE_ENV, "mujoco")
+    threads = []
+    real = simulation._WarmRollout.__init__
+
+    def spy(self, models, nthread):
+        threads.append(nthread)
+        real(self, models, nthread)
+
+    monkeypatch.setattr(simulation._WarmRollout, "__init__", spy)
+    scenes = [Scene(phases_rad=(0.0,), gait=dataclasses.replace(Gait(), amplitude_rad=a)) for a in (0.5, 0.8, 1.1)]
+    opts = SimOptions(duration_s=0.5, sample_rate_hz=50.0)
+    batch = simulate_batch(scenes, dataclasses.replace(opts, **WARP))
+    assert threads == [simulation._cores(3)]
+    for sc, ds in zip(scenes, batch):
+        np.testing.assert_array_equal(ds["x"].values, simulate(sc, opts)["x"].values)
+
+
+def test_a_sweeps_identity_records_the_rule_and_a_change_of_rule_recomputes(tmp_path, monkeypatch):
+    from undulate.studies._runners import lone_swimmer
+    from undulate.sweep import Grid, run_sweep
+
+    fn = functools.partial(lone_swimmer, duration_s=6.5)  # the amplitude reads 3 periods of 2 s
+    grid = Grid(points=[{"amplitude_rad": a} for a in (0.6, 0.8)], seed=0)
+    monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+    monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
+    monkeypatch.delenv(LONE_ENV, raising=False)
+    on_warp = run_sweep(fn, grid, tmp_path / "s", progress=False)
+    assert on_warp.n_computed == 2
+    assert "lone swimmers" not in on_warp.identity["backend"]
+    monkeypatch.setenv(LONE_ENV, "mujoco")
+    routed = run_sweep(fn, grid, tmp_path / "s", progress=False)
+    assert routed.identity["backend"].startswith("warp cpu float32, lone swimmers on mujoco")
+    assert routed.n_computed == 2 and routed.n_reused == 0 and routed.stale  # not the Warp runs
+    monkeypatch.delenv("UNDULATE_BACKEND")
+    monkeypatch.delenv("UNDULATE_DEVICE")
+    on_mujoco = run_sweep(fn, grid, tmp_path / "m", workers=1, progress=False)
+    for var in ("amplitude_m", "speed_m_s", "mean_joint_error_rad"):
+        np.testing.assert_array_equal(routed.dataset[var].values, on_mujoco.dataset[var].values)
