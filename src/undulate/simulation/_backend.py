@@ -58,8 +58,8 @@ def lone_swimmers_backend(device: str | None) -> str:
 
     Why a GPU hands lone swimmers to the cores: a lone swimmer touches nothing but the channel
     walls, and its batches are small (a study's free swimmers, 1-36 at a time), where a GPU step
-    costs the same ~0.32 ms as a model of a thousand worlds (an H200, 2026-11-27) and a core steps a
-    9-link swimmer in ~25 us.  The free swimmers are also the reproduction's longest chain of steps
+    costs the same ~0.32 ms as a model of a thousand worlds (an H200, 2026-11-27) and one core steps a
+    9-link swimmer in ~14 us (MuJoCo on a 2-core VM).  The free swimmers are also the reproduction's longest chain of steps
     that must follow one another (sensitivity's equal-A search: up to three 30 s runs in turn).  Such
     runs step on MuJoCo (float64, the MuJoCo backend's results bitwise), and their Datasets say so
     (attrs ``backend``); a sweep's identity records the rule (:func:`undulate.sweep._store.backend_identity`),

@@ -146,9 +146,10 @@ def function_id(fn: Callable) -> str:
 def backend_identity() -> str:
     """The session's default stepping backend as a sweep's identity records it: ``"mujoco"``, or
     ``"warp DEVICE float32 (mujoco-warp X, warp-lang Y)"``, with `` nondeterministic`` after the
-    precision where MuJoCo Warp's determinism is off and ``, lone swimmers on mujoco`` where scenes of
-    one swimmer step on the cores (:func:`undulate.simulation._backend.lone_swimmers_backend`) (:func:`undulate.simulation.use_backend`,
-    :func:`undulate.simulation._warp.determinism`).  Runs of one backend are never served for another."""
+    precision where MuJoCo Warp's determinism is off (:func:`undulate.simulation.use_backend`,
+    :func:`undulate.simulation._warp.determinism`), then ``, lone swimmers on mujoco`` where scenes of
+    one swimmer step on the cores (:func:`undulate.simulation._backend.lone_swimmers_backend`).  Runs
+    of one backend, or of one rule for lone swimmers, are never served for another."""
     from ..simulation import backend_attrs, default_backend
     from ..params import SimOptions
 
@@ -156,7 +157,6 @@ def backend_identity() -> str:
     if backend == "mujoco":
         return "mujoco"
     from ..simulation import _warp
-
     from ..simulation._backend import lone_swimmers_backend
 
     a = backend_attrs(SimOptions(backend=backend, device=_warp.resolve_device(device)))
