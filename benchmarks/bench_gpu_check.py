@@ -334,11 +334,12 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     wall = time.perf_counter() - t
     (OUT / f"repro-{tag}.log").write_text(tail)
     rec = {"args": args, "rc": rc, "wall_s": wall}
-    from unittest import mock
+    if "warp" in args:  # where its lone swimmers stepped (on a GPU by default: the cores)
+        from unittest import mock
 
-    from undulate.simulation._backend import lone_swimmers_backend
-    with mock.patch.dict(os.environ, env, clear=True):  # where its lone swimmers stepped (on a GPU: the cores)
-        rec["lone_swimmers"] = lone_swimmers_backend(DEVICE)
+        from undulate.simulation._backend import lone_swimmers_backend
+        with mock.patch.dict(os.environ, env, clear=True):
+            rec["lone_swimmers"] = lone_swimmers_backend(DEVICE)
     if env.get("CUDA_DEVICE_MAX_CONNECTIONS"):  # set by the side-by-side step where it helped
         rec["cuda_device_max_connections"] = env["CUDA_DEVICE_MAX_CONNECTIONS"]
     if stats.exists():  # Warp models' first steps: kernel compilation (unless cached) and graph capture
