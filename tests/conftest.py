@@ -30,3 +30,23 @@ def whole_plans():
         for name, info in list(_registry._REGISTRY.items()):
             mp.setitem(_registry._REGISTRY, name, dataclasses.replace(info, stages=None))
         yield
+
+
+@pytest.fixture(scope="session")
+def benchmark_script():
+    """``benchmark_script("bench_NAME")``: the script ``benchmarks/bench_NAME.py`` as a module (the
+    benchmarks are scripts, not a package), loaded once a session, for tests of their own logic."""
+    import importlib.util
+    from pathlib import Path
+
+    loaded: dict = {}
+
+    def load(name: str):
+        if name not in loaded:
+            path = Path(__file__).resolve().parents[1] / "benchmarks" / f"{name}.py"
+            spec = importlib.util.spec_from_file_location(name, path)
+            loaded[name] = importlib.util.module_from_spec(spec)
+            spec.loader.exec_module(loaded[name])
+        return loaded[name]
+
+    return load

@@ -4,13 +4,10 @@ verdicts compared, and a claim it did not reach is not reported as a difference.
 
 from __future__ import annotations
 
-import importlib.util
 import json
 from pathlib import Path
 
 import pytest
-
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_gpu_check.py"
 
 XI1, XI34, XI32 = (f"pairs:xi = {x}: contact drives pairs to a steady dx that follows the compatibility line"
                    for x in ("1", "3/4", "3/2"))
@@ -18,11 +15,8 @@ G3 = "groups:groups of 3 follow the compatibility line with more scatter than pa
 
 
 @pytest.fixture(scope="module")
-def check():
-    spec = importlib.util.spec_from_file_location("bench_gpu_check", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+def check(benchmark_script):
+    return benchmark_script("bench_gpu_check")
 
 
 def _study_file(out: Path, study: str, verdicts: dict) -> None:

@@ -7,10 +7,8 @@ cache would miss on the GPU and these tests say so before a lease is spent on it
 
 from __future__ import annotations
 
-import importlib.util
 import math
 import sys
-from pathlib import Path
 
 import pytest
 
@@ -19,15 +17,10 @@ from undulate import Scene
 warp = pytest.importorskip("warp", reason="the gpu extra (mujoco-warp, warp-lang) is not installed")
 pytest.importorskip("mujoco_warp")
 
-SCRIPT = Path(__file__).resolve().parents[1] / "benchmarks" / "bench_gpu_kernels.py"
-
 
 @pytest.fixture(scope="module")
-def kernels():
-    spec = importlib.util.spec_from_file_location("bench_gpu_kernels", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+def kernels(benchmark_script):
+    return benchmark_script("bench_gpu_kernels")
 
 
 class _AsCuda:
