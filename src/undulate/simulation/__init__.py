@@ -49,6 +49,7 @@ from ._backend import (BACKEND_ENV, DEVICE_ENV, backend_attrs, check_backend,  #
                        default_backend, use_backend, warp_processes)
 from ._checkpoint import Checkpoint, _starts
 from ._compile import RK4_DAMPING_STEP, compile_scene, controls, resolve_options  # noqa: F401
+from ._env import usable_cpus
 from ._gather import Gather, _gathering
 from ._mujoco import _WarmRollout, _initial_state, _log_mujoco_warning, _state_layout  # noqa: F401
 from ._record import (RECORDABLE, _check_fits, _link_angles, _MemoryRecorder, _NetCDFRecorder,  # noqa: F401
@@ -427,21 +428,12 @@ def simulate_batch(
                                progress=progress, start=start)
 
 
-def _cores(most: int) -> int:
-    """The CPUs this process may use, at most ``most``."""
-    try:
-        n = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        n = os.cpu_count() or 1
-    return max(1, min(most, n))
-
-
 def _simulate_batch_now(scenes, options, *, nthread=0, out=None, controller=None, stop=None, progress=None,
                         start=None, compiled=None):
     """:func:`simulate_batch` in this call, never gathered (``compiled``: see :func:`_plan_batch`)."""
     bt = _plan_batch(scenes, options, out, controller, compiled)
     if nthread == 0 and bt.nb > 1 and bt.options.backend == "mujoco" and check_backend(bt.requested).backend == "warp":
-        nthread = _cores(bt.nb)  # lone swimmers handed to the cores by the Warp backend: all of them
+        nthread = min(bt.nb, usable_cpus())  # lone swimmers handed to the cores by the Warp backend: all of them
     starts = _starts(bt, start)
     clock = _Clock()
     recorders = _Recorders(bt, stop)

@@ -1,5 +1,5 @@
 """Integer settings read from the environment (the Warp backend's ``UNDULATE_WARP_*``): one rule for
-all of them, in a module that imports neither backend."""
+all of them, in a module that imports neither backend; and the CPUs this process may use."""
 
 from __future__ import annotations
 
@@ -20,3 +20,13 @@ def env_count(name: str, default: int, most: int = 10**6) -> int:
     if not 1 <= n <= most:
         raise ParameterError(name, f"an integer from 1 to {most}", raw)
     return n
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may use (its affinity where the platform has one)."""
+    if hasattr(os, "process_cpu_count"):  # Python >= 3.13
+        return os.process_cpu_count() or 1
+    try:
+        return len(os.sched_getaffinity(0))
+    except AttributeError:  # pragma: no cover - macOS, Windows
+        return os.cpu_count() or 1

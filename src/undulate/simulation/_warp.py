@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ParameterError, UndulateError
-from ._env import env_count
+from ._env import env_count, usable_cpus
 
 __all__ = ["WarpRollout", "available", "require", "capacities", "CapacityError", "DEVICES", "PRECISION"]
 
@@ -646,11 +646,7 @@ def steps_per_graph(device: str = "cuda") -> int:
 def compile_workers() -> int:
     """Threads that compile a Warp model's kernels at once: ``UNDULATE_WARP_COMPILE_WORKERS``, or
     the CPUs this process may use (1: one module after another, as Warp's first step does)."""
-    try:
-        cpus = len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        cpus = os.cpu_count() or 1
-    return env_count("UNDULATE_WARP_COMPILE_WORKERS", cpus)
+    return env_count("UNDULATE_WARP_COMPILE_WORKERS", usable_cpus())
 
 
 def _traced_modules(group: "_Group") -> list:

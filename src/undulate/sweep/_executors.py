@@ -33,12 +33,9 @@ MAX_ATTEMPTS = 3
 
 def default_workers() -> int:
     """Cores this process may use."""
-    if hasattr(os, "process_cpu_count"):  # Python >= 3.13
-        return os.process_cpu_count() or 1
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # pragma: no cover - macOS, Windows
-        return os.cpu_count() or 1
+    from ..simulation._env import usable_cpus
+
+    return usable_cpus()
 
 
 def run_serial(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost) -> None:
