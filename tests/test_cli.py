@@ -130,3 +130,29 @@ def test_option_defaults_come_from_the_parameter_types():
     assert d["waves_per_body"] == Gait().waves_per_body and d["frequency"] == Gait().frequency_hz
     assert d["duration"] == SimOptions().duration_s and d["sample_rate"] == SimOptions().sample_rate_hz
     assert d["controller"] == ControllerParams().kind and d["control_rate"] == ControllerParams().control_rate_hz
+
+
+def _help_texts(command, path=("undulate",)):
+    """(where, text) for the help of ``command``, its options and arguments and every sub-command."""
+    yield " ".join(path), command.help or ""
+    for p in command.params:
+        yield f"{' '.join(path)} {p.name}", getattr(p, "help", None) or ""
+    for name, sub in getattr(command, "commands", {}).items():  # a group: every sub-command
+        yield from _help_texts(sub, (*path, name))
+
+
+def test_every_help_text_survives_the_rich_markup_typer_renders_it_with():
+    """Typer reads help as Rich markup, so an unescaped ``[gpu]`` in ``pip install 'undulate[gpu]'`` vanished
+    from ``--help``.  Every command's and option's help must render to exactly its text (``\\[`` being the
+    escape for a literal bracket)."""
+    import typer
+    from rich.text import Text
+
+    from undulate.cli import app
+
+    assert app.rich_markup_mode == "rich"  # if this changes, so does what the check below must compare
+    texts = list(_help_texts(typer.main.get_command(app)))
+    assert {"undulate reproduce backend", "undulate robot run ids", "undulate track video"} <= {w for w, _ in texts}
+    eaten = {w: t for w, t in texts if Text.from_markup(t).plain != t.replace("\\[", "[")}
+    assert not eaten, eaten
+    assert any("\\[gpu]" in t for _, t in texts)  # the one that was eaten

@@ -36,8 +36,9 @@ app = typer.Typer(
 )
 
 
+# Typer renders help as Rich markup: "\\[" keeps a literal "[" (tests/test_cli.py checks every help text)
 _BACKEND_HELP = ("Physics engine: mujoco (MuJoCo's C engine on the CPU, float64) or warp (MuJoCo Warp: a "
-                 "study's runs become the worlds of one GPU model, float32; needs pip install 'undulate[gpu]').")
+                 "study's runs become the worlds of one GPU model, float32; needs pip install 'undulate\\[gpu]').")
 _DEVICE_HELP = "The warp backend's device: cuda or cpu (default: cuda if present). Only with --backend warp."
 
 
