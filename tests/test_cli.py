@@ -147,6 +147,7 @@ def test_every_help_text_survives_the_rich_markup_typer_renders_it_with():
     escape for a literal bracket)."""
     import typer
     from rich.text import Text
+    from typer.testing import CliRunner
 
     from undulate.cli import app
 
@@ -156,3 +157,5 @@ def test_every_help_text_survives_the_rich_markup_typer_renders_it_with():
     eaten = {w: t for w, t in texts if Text.from_markup(t).plain != t.replace("\\[", "[")}
     assert not eaten, eaten
     assert any("\\[gpu]" in t for _, t in texts)  # the one that was eaten
+    shown = CliRunner().invoke(app, ["reproduce", "--help"], env={"COLUMNS": "200"}, terminal_width=200).output
+    assert "pip install 'undulate[gpu]'" in shown, shown
