@@ -225,6 +225,26 @@ def _check_run_follows_the_gait(protocol, tmp_path):
     assert ds.attrs["read_timeouts"] == 0 and 45 < ds.attrs["control_rate_achieved"] < 55
 
 
+@pytest.mark.parametrize("stall_at_tick, stall_s, ran", [(10, 0.1, 46), (48, 1.0, 48)])
+def test_every_tick_either_runs_or_is_counted_as_skipped(monkeypatch, stall_at_tick, stall_s, ran):
+    """A host that stalls makes the loop skip to the current tick.  Each skipped tick is counted, those past the
+    end too (a stall in the last ticks ended the run with them uncounted: 57 ran + 3 counted of 61 on a loaded
+    machine).  The stall is a clock that jumps ``stall_s`` while sleeping towards ``stall_at_tick``."""
+    from undulate.robot import runner
+
+    class StallingClock(runner._VirtualClock):
+        def sleep_until(self, t):
+            super().sleep_until(t)
+            if abs(t - stall_at_tick / 50) < 1e-9:  # 50 Hz
+                self.t += stall_s
+
+    monkeypatch.setattr(runner, "_VirtualClock", StallingClock)
+    cfg = RobotConfig(scene=_scene(phases=(0.0,)), ids=(1, 2), protocol=1, port=None, duration_s=1.0)
+    ds = dry_run(cfg)
+    assert cfg.n_ticks == 51 and ds.sizes["time"] == ran
+    assert ds.sizes["time"] + ds.attrs["ticks_skipped"] == cfg.n_ticks
+
+
 def test_dry_run_writes_the_commands_a_run_sends(tmp_path, capsys):
     out = tmp_path / "dry.nc"
     rc = main(["robot", "run", "--ids", "1,2,3,4", "--phases", "0,90", "--duration", "2", "--out", str(out),

@@ -506,10 +506,10 @@ def _loop(cfg: RobotConfig, ctl: Controller, rec: _Recorder, io, clock, sleep_un
         now = clock()
         late = now - (t0 + k * dt)
         if late > dt and k > 0:  # fell behind: skip to the current tick (never send a burst)
-            k_now = int((now - t0) / dt)
-            if k_now >= cfg.n_ticks:
+            k_now = min(int((now - t0) / dt), cfg.n_ticks)
+            rec.notes["skipped"] = rec.notes.get("skipped", 0) + (k_now - k)  # every tick ran or is counted
+            if k_now == cfg.n_ticks:
                 break
-            rec.notes["skipped"] = rec.notes.get("skipped", 0) + (k_now - k)
             k, late = k_now, now - (t0 + k_now * dt)
         t = k * dt
         angle, velocity = ctl.commands(np.array([t, t + dt]), *sensed)
