@@ -315,8 +315,8 @@ def test_bootstrap_estimates_carry_the_level_they_were_formed_at():
 
 
 def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, monkeypatch):
-    """The Warp backend steps the last stage's runs first (a stage costs a GPU about the same at any
-    number of worlds); the looks then read them from the stores and must be the staged plan's own:
+    """The Warp backend on a GPU steps the last stage's runs first (a stage costs a GPU about the same
+    at any number of worlds); the looks then read them from the stores and must be the staged plan's own:
     the same stages, levels, runs and verdicts, with nothing computed at the looks."""
     from undulate.studies import _registry, run_study
 
@@ -333,6 +333,39 @@ def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, mon
     assert pre["claims"][0]["verdict"] == plain["claims"][0]["verdict"]
     assert pre["summary"] == plain["summary"]
     assert sum(1 for s in pre["sweeps"] if s.get("prefetch")) == 1
+
+
+@pytest.mark.parametrize("backend, device, env, expected", [
+    ("mujoco", None, None, False),
+    ("warp", "cuda", None, True),
+    ("warp", "cuda:1", None, True),
+    ("warp", "cpu", None, False),  # each world costs its own steps there: only the looks' runs
+    ("warp", "cpu", "1", True),
+    ("warp", "cuda", "0", False),
+    ("mujoco", None, "1", False),  # the setting is the Warp backend's
+])
+def test_studies_step_their_last_stage_first_on_a_gpu_only(monkeypatch, backend, device, env, expected):
+    """The prefetch rule (:func:`undulate.simulation._backend.warp_prefetch`): by device, unless
+    ``UNDULATE_WARP_PREFETCH`` says; a study on the Warp backend still runs wide on either device."""
+    from undulate.studies import _registry
+
+    monkeypatch.setenv("UNDULATE_BACKEND", backend)
+    for var, value in (("UNDULATE_DEVICE", device), ("UNDULATE_WARP_PREFETCH", env)):
+        if value is None:
+            monkeypatch.delenv(var, raising=False)
+        else:
+            monkeypatch.setenv(var, value)
+    assert _registry._prefetching() is expected
+    assert _registry._wide(1) is (backend == "warp")
+
+
+def test_a_prefetch_setting_other_than_1_or_0_is_refused(monkeypatch):
+    from undulate.errors import ParameterError
+    from undulate.simulation._backend import warp_prefetch
+
+    monkeypatch.setenv("UNDULATE_WARP_PREFETCH", "yes")
+    with pytest.raises(ParameterError, match="UNDULATE_WARP_PREFETCH"):
+        warp_prefetch("cuda")
 
 
 def test_a_decided_claim_stays_decided_while_the_study_runs_on(tmp_path, staged, monkeypatch):

@@ -634,10 +634,10 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     """An explaining study's runs before the studies it explains have finished (the reproduction does
     this where it runs wide, :func:`_wide`, so that the explaining study does not start its long chains
     only once the others end): a stage's dataset with every explanation taken as needed, into the
-    stores the study reads when it then runs.  On the Warp backend its last stage's (a few more worlds
-    cost the device little, and the study steps its last stage first there, :func:`_prefetch`); on
-    the MuJoCo backend its first stage's (later stages cost the cores their runs, and are made only if
-    a look needs them).  Nothing is
+    stores the study reads when it then runs.  On the Warp backend on a GPU its last stage's (a few
+    more worlds cost the device little, and the study steps its last stage first there,
+    :func:`_prefetch`); elsewhere its first stage's (later stages cost the cores their runs, and are
+    made only if a look needs them).  Nothing is
     written but the runs, and nothing is judged: the study's own run, once the studies it explains
     have finished, reads what its looks need from the stores (a run's result is a function of its
     parameters and seed) and computes what is missing; runs it skips are left unread.  Returns what
@@ -706,11 +706,21 @@ def _claim_verdicts(out_dir: Path, config: StudyConfig) -> dict[tuple[str, str],
     return out
 
 
-def _prefetching() -> bool:
-    """Whether studies step their last stage first (:func:`_prefetch`): on the Warp backend."""
+def _on_warp() -> bool:
+    """Whether the session's runs step on the Warp backend (:func:`undulate.simulation.default_backend`)."""
     from ..simulation import default_backend
 
     return default_backend()[0] == "warp"
+
+
+def _prefetching() -> bool:
+    """Whether studies step their last stage first (:func:`_prefetch`): on the Warp backend on a GPU
+    (:func:`undulate.simulation._backend.warp_prefetch`, which ``UNDULATE_WARP_PREFETCH`` overrides)."""
+    from ..simulation import default_backend
+    from ..simulation._backend import warp_prefetch
+
+    backend, device = default_backend()
+    return backend == "warp" and warp_prefetch(device)
 
 
 WIDE_WORKERS = 8
@@ -728,7 +738,7 @@ def _wide(workers: int | None, scheduler: Any = None) -> bool:
     step costs about the same for one world as for hundreds), or on at least ``WIDE_WORKERS`` local
     worker processes (``workers``; None: every core this process may use).  Not with a Dask scheduler
     (its size is the cluster's, unknown here).  Results never depend on it."""
-    if _prefetching():
+    if _on_warp():
         return True
     if scheduler is not None:
         return False
@@ -738,12 +748,13 @@ def _wide(workers: int | None, scheduler: Any = None) -> bool:
 
 
 def _prefetch(info: Study, ctx: "StudyContext", plans: tuple[Any, ...]) -> dict[str, Any] | None:
-    """On the Warp backend, the last stage's runs before the first look: a stage costs the device about
-    the same whatever its number of worlds, so every stage's runs (nested: the last stage holds them
-    all) are stepped in one go and the looks then read them from the sweep stores.  The looks, their
-    levels and their verdicts are the staged plan's (a look never sees a run its stage would not have
-    made); runs a decided claim did not need are computed and left unread.  None on the MuJoCo
-    backend, or with one stage; else what was computed (``n_runs``, ``n_computed``, ``wall_s``)."""
+    """On the Warp backend on a GPU (:func:`_prefetching`), the last stage's runs before the first look:
+    a stage costs the device about the same whatever its number of worlds, so every stage's runs
+    (nested: the last stage holds them all) are stepped in one go and the looks then read them from the
+    sweep stores.  The looks, their levels and their verdicts are the staged plan's (a look never sees a
+    run its stage would not have made); runs a decided claim did not need are computed and left unread.
+    None on the MuJoCo backend, on Warp's CPU device, or with one stage; else what was computed
+    (``n_runs``, ``n_computed``, ``wall_s``)."""
     if len(plans) < 2 or not _prefetching():
         return None
     t0, first = time.perf_counter(), len(ctx.sweeps)
