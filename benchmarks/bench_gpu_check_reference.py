@@ -8,8 +8,9 @@ Reads each reproduction folder's ``claims.json`` and ``reproduce.json`` and writ
 ``benchmarks/gpu_check.sh --cpu-verdicts OUT.json`` compares the Warp backend's verdicts against, so
 the device's minutes are not spent re-running the CPU reproductions.  MuJoCo's results are a
 function of the code, the parameters and the seed, so the reference must come from the commit the
-check runs, or one with the same ``src`` tree (``git rev-parse COMMIT:src``; both recorded here, and
-the sources' digest, which the check compares with its own: ``cpu_reference_same_code``).
+check runs, or one whose reproduction code is the same: the digest of the files a reproduction runs
+(:func:`reproduction_files`), which the check compares with its own (``cpu_reference_same_code``).
+The commit and its ``src`` tree (``git rev-parse COMMIT:src``) are recorded too.
 """
 
 from __future__ import annotations
@@ -23,22 +24,37 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parent.parent / "src" / "undulate"
 
 
-def _warp_files() -> set[str]:
-    """The Warp backend's modules (``undulate._source.BACKEND_MODULES["warp"]``) as paths under the
-    package: left out of the digest, as out of a MuJoCo sweep's code hash, since the MuJoCo backend's
-    results do not depend on them."""
-    from undulate._source import BACKEND_MODULES
+ENTRY_FILES = ("__init__.py", "cli.py", "_cliutil.py")
+"""The command line's own files, hashed as they are (their imports are not followed: the robot's and
+the tracker's commands it mounts do not run in a reproduction): the ``reproduce`` command's options
+and their defaults."""
 
-    return {m.split(".", 1)[1].replace(".", "/") + ".py" for m in BACKEND_MODULES["warp"]}
+
+def reproduction_files(root: Path = SRC) -> list[str]:
+    """The package files (paths under ``root``, sorted) a reproduction's MuJoCo results and verdicts
+    come from: ``undulate.reproduce`` and every study module (the study registry imports each public
+    module of ``undulate.studies`` by name), with every ``undulate`` module they import, at the top or
+    inside a function (:func:`undulate._source.closure`, the import graph a sweep's code hash follows),
+    and :data:`ENTRY_FILES`.  The Warp backend's modules are left out, as from a MuJoCo sweep's code
+    hash (``undulate._source.BACKEND_MODULES``).  The robot driver, the tracker, plotting and the
+    report are not reached, so an edit there leaves the reference valid."""
+    from undulate._source import BACKEND_MODULES, closure, import_graph, module_files
+
+    files = module_files(root)
+    graph = import_graph(root)
+    studies = [m for m in files if m.startswith("undulate.studies.") and m.count(".") == 2
+               and not m.rsplit(".", 1)[1].startswith("_")]
+    mods = closure(["undulate.reproduce", *studies], graph) - set(BACKEND_MODULES["warp"])
+    paths = {files[m].relative_to(root).as_posix() for m in mods} | set(ENTRY_FILES)
+    return sorted(paths)
 
 
 def src_digest(root: Path = SRC) -> str:
-    """SHA-256 of the package's Python sources but the Warp backend's (paths and contents, in order):
-    the same on the device machine, which has no git, as here for code whose MuJoCo results are the same."""
-    h, warp = hashlib.sha256(), _warp_files()
-    for f in sorted(root.rglob("*.py")):
-        if f.relative_to(root).as_posix() not in warp:
-            h.update(f.relative_to(root).as_posix().encode() + b"\0" + f.read_bytes() + b"\0")
+    """SHA-256 of :func:`reproduction_files` (paths and contents, in order): the same on the device
+    machine, which has no git, as here for code whose MuJoCo reproductions are the same."""
+    h = hashlib.sha256()
+    for rel in reproduction_files(root):
+        h.update(rel.encode() + b"\0" + (root / rel).read_bytes() + b"\0")
     return h.hexdigest()
 
 

@@ -65,3 +65,28 @@ def test_more_hardware_queues_are_kept_only_where_they_cut_the_crowded_step(chec
     assert not check.more_queues_help(default, "timeout")
     assert not check.more_queues_help(None, _side_by_side({1: 0.35, 16: 0.9}))
     assert not check.more_queues_help(_side_by_side({1: 0.4}), _side_by_side({1: 0.2}))  # one model: no crowd
+
+
+@pytest.mark.parametrize("edited, moves", [
+    ("studies/packing.py", True),          # a study
+    ("simulation/_mujoco.py", True),       # the engine it reaches through imports
+    ("cli.py", True),                      # the command's options and defaults
+    ("robot/runner.py", False),            # the robot driver: not run by a reproduction
+    ("track/tracker.py", False),
+    ("simulation/_warp.py", False),        # the Warp backend: not MuJoCo's results
+])
+def test_the_cpu_references_digest_follows_the_code_a_reproduction_runs(tmp_path, benchmark_script, edited, moves):
+    """The GPU check's CPU reference is valid while its digest matches: an edit a reproduction on the
+    MuJoCo backend runs moves it, an edit elsewhere in the package does not."""
+    import shutil
+
+    ref = benchmark_script("bench_gpu_check_reference")
+    root = tmp_path / "undulate"
+    shutil.copytree(ref.SRC, root, ignore=shutil.ignore_patterns("__pycache__"))
+    before = ref.src_digest(root)
+    assert before == ref.src_digest(ref.SRC)
+    files = ref.reproduction_files(root)
+    assert "reproduce.py" in files and "studies/packing.py" in files and (edited in files) is moves
+    with open(root / edited, "a") as f:
+        f.write("\n# an edit\n")
+    assert (ref.src_digest(root) != before) is moves
