@@ -8,7 +8,7 @@ import os
 
 from ..errors import ParameterError
 from ..params import SimOptions
-from ._env import env_count
+from ._env import env_count, env_switch, is_cpu_device
 
 BACKEND_ENV, DEVICE_ENV = "UNDULATE_BACKEND", "UNDULATE_DEVICE"
 WARP_PROCESSES_ENV = "UNDULATE_WARP_PROCESSES"
@@ -71,7 +71,7 @@ def lone_swimmers_backend(device: str | None) -> str:
         if raw not in SimOptions.BACKENDS:
             raise ParameterError(LONE_ENV, "'mujoco' or 'warp' (environment variable)", raw)
         return raw
-    return "warp" if str(device or "").split(":")[0] == "cpu" else "mujoco"
+    return "warp" if is_cpu_device(device) else "mujoco"
 
 
 def warp_prefetch(device: str | None) -> bool:
@@ -85,16 +85,11 @@ def warp_prefetch(device: str | None) -> bool:
     costs its own steps, so the runs no look reads are time lost: full mode's packing study would step
     its last stage's 182 jammed packs where its first look, which decides on the MuJoCo backend, reads
     28.  The looks and verdicts are the staged plan's either way (:mod:`tests.test_staged_verdicts`)."""
-    raw = os.environ.get(PREFETCH_ENV)
-    if raw:
-        if raw not in ("0", "1"):
-            raise ParameterError(PREFETCH_ENV, "'1' or '0' (environment variable)", raw)
-        return raw == "1"
-    if device is None:
+    if device is None and not os.environ.get(PREFETCH_ENV):  # the default needs the device
         from . import _warp
 
         device = _warp.resolve_device(None)
-    return str(device).split(":")[0] != "cpu"
+    return env_switch(PREFETCH_ENV, not is_cpu_device(device))
 
 
 def check_backend(options: SimOptions) -> SimOptions:

@@ -1,5 +1,6 @@
-"""Integer settings read from the environment (the Warp backend's ``UNDULATE_WARP_*``): one rule for
-all of them, in a module that imports neither backend; and the CPUs this process may use."""
+"""Settings read from the environment (the Warp backend's ``UNDULATE_WARP_*``): one rule for the
+integers and one for the switches, in a module that imports neither backend; which devices are Warp's
+CPU device; and the CPUs this process may use."""
 
 from __future__ import annotations
 
@@ -20,6 +21,21 @@ def env_count(name: str, default: int, most: int = 10**6) -> int:
     if not 1 <= n <= most:
         raise ParameterError(name, f"an integer from 1 to {most}", raw)
     return n
+
+
+def env_switch(name: str, default: bool) -> bool:
+    """The on/off environment setting ``name`` (``1`` or ``0``), or ``default`` where it is unset."""
+    raw = os.environ.get(name)
+    if not raw:
+        return default
+    if raw not in ("0", "1"):
+        raise ParameterError(name, "'1' or '0' (environment variable)", raw)
+    return raw == "1"
+
+
+def is_cpu_device(device: str | None) -> bool:
+    """Whether ``device`` (``cpu``, ``cuda``, ``cuda:1``...) is Warp's CPU device."""
+    return str(device or "").split(":")[0] == "cpu"
 
 
 def usable_cpus() -> int:

@@ -43,7 +43,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ParameterError, UndulateError
-from ._env import env_count, usable_cpus
+from ._env import env_count, env_switch, is_cpu_device, usable_cpus
 
 __all__ = ["WarpRollout", "available", "require", "capacities", "CapacityError", "DEVICES", "PRECISION"]
 
@@ -612,10 +612,8 @@ def determinism(device: str = "cuda") -> int:
     _, mjw = require()
     from mujoco_warp._src.types import DeterminismType
 
-    raw = os.environ.get("UNDULATE_WARP_DETERMINISTIC") or ("1" if _is_cpu(device) else "0")
-    if raw not in ("0", "1"):
-        raise ParameterError("UNDULATE_WARP_DETERMINISTIC", "0 or 1", raw)
-    return int(DeterminismType.ALL if raw == "1" else DeterminismType.NONE)
+    on = env_switch("UNDULATE_WARP_DETERMINISTIC", is_cpu_device(device))
+    return int(DeterminismType.ALL if on else DeterminismType.NONE)
 
 
 def _beyond_determinism(error: Exception) -> bool:
@@ -624,10 +622,6 @@ def _beyond_determinism(error: Exception) -> bool:
     text = str(error)
     return (type(error).__name__ == "WarpDeterminismError" or "atomic-update slots" in text
             or "signed 32-bit integer" in text)
-
-
-def _is_cpu(device: str | None) -> bool:
-    return str(device or "").split(":")[0] == "cpu"
 
 
 STEPS_PER_GRAPH = 16
@@ -640,7 +634,7 @@ way) and capturing 16 steps costs each new model ~0.4 s."""
 def steps_per_graph(device: str = "cuda") -> int:
     """Steps in one captured graph on ``device``: ``UNDULATE_WARP_STEPS_PER_GRAPH``, else
     :data:`STEPS_PER_GRAPH` on a GPU and 1 on Warp's CPU device."""
-    return env_count("UNDULATE_WARP_STEPS_PER_GRAPH", 1 if _is_cpu(device) else STEPS_PER_GRAPH, 1000)
+    return env_count("UNDULATE_WARP_STEPS_PER_GRAPH", 1 if is_cpu_device(device) else STEPS_PER_GRAPH, 1000)
 
 
 def compile_workers() -> int:
