@@ -320,6 +320,30 @@ def test_the_impulse_line_counts_each_abs_dphi_once():
     np.testing.assert_allclose(np.nanmean(p1, axis=1), u)
 
 
+def test_row_means_are_numpys_nanmean_and_nan_without_a_warning_for_an_empty_row():
+    """The impulse line's means per |dphi| (C.row_means): np.nanmean's values bitwise, and a row with
+    no run (failed, or an explanation not run) NaN without NumPy's "Mean of empty slice" warning, which
+    every quick reproduction printed twice (the sensitivity study's impulse line, not run in quick)."""
+    import warnings
+
+    from undulate.studies import _analysis as C
+
+    rng = np.random.default_rng(3)
+    for _ in range(200):
+        a = rng.normal(size=(int(rng.integers(1, 6)), int(rng.integers(1, 7)))) * 10 ** rng.uniform(-3, 3)
+        a[rng.random(a.shape) < 0.4] = np.nan
+        a[0] = np.nan  # at least one empty row
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            ref = np.nanmean(a, axis=1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            got = C.row_means(a)
+        assert np.array_equal(got, ref, equal_nan=True)
+    np.testing.assert_array_equal(C.row_means([1.0, np.nan, 3.0]), [1.0, np.nan, 3.0])  # one value a row
+    assert C.row_means(np.zeros((0, 0))).shape == (0,)
+
+
 def test_two_period_impulse_runs_give_a_longer_runs_impulse_and_escape_bitwise():
     """The impulse runs last the two periods they read (IMPULSE_DURATION_S = 2 T): the impulse over
     [0, 2T] and the first period's mean dx of a 3-period run are the same numbers, bitwise; the short run

@@ -171,6 +171,18 @@ def by_abs_dphi(dphi, values) -> tuple[np.ndarray, np.ndarray]:
     return u, out
 
 
+def row_means(values) -> np.ndarray:
+    """Each row's mean over its values that are not NaN (:func:`by_abs_dphi`'s NaN-padded rows), as
+    ``np.nanmean(values, axis=1)`` gives it, but NaN without NumPy's "Mean of empty slice" warning for
+    a row with none (its runs failed or were not run)."""
+    v = np.asarray(values, float)
+    v = v.reshape(len(v), -1 if v.size else 0)
+    ok = ~np.isnan(v)
+    n = ok.sum(axis=1)
+    total = np.where(ok, v, 0.0).sum(axis=1)
+    return np.divide(total, n, out=np.full(n.shape, np.nan), where=n > 0)
+
+
 # ------------------------------------------------------------------ analysis
 def stepped(run: xr.Dataset) -> xr.Dataset:
     """A run cut to the samples it stepped: a run its stopping rule ended early

@@ -806,7 +806,7 @@ def _linear(idphi, impulse) -> tuple[stats.LineFit, bool | None, str]:
     R^2 interval above R2_MIN and the slope's above 0: True, False when one lies wholly outside, None when
     one straddles or has no interval) and the verdict (``no result`` only without the intervals)."""
     u, pooled = C.by_abs_dphi(idphi, impulse)  # +-dphi: one design point (C.by_abs_dphi)
-    f = stats.line_fit(u, np.nanmean(pooled, axis=1))
+    f = stats.line_fit(u, C.row_means(pooled))
     missing = not (f.r2.has_interval and f.slope.has_interval)
     ok = None if missing else stats.decide([f.r2.above(R2_MIN, "R^2"), f.slope.above(0.0, "slope")])
     return f, ok, _verdict(ok, missing)
@@ -832,7 +832,7 @@ def _summary_impulse(ds: xr.Dataset) -> tuple[dict[str, Any], list[dict]]:
             allv = ds["impulse_drag_all"].values[k]
             with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows: failed or not run (NaN)
-                f, ok, verdict = _linear(idphi, np.nanmean(allv, axis=1))
+                f, ok, verdict = _linear(idphi, C.row_means(allv))
                 spread = float(np.nanmedian((np.nanmax(allv, 1) / np.nanmin(allv, 1))[big]))
                 esc = float(np.nanmean(ds["impulse_drag_escape"].values[k][big]))
             pot_drag.append({"case_id": str(impulse_case(float(c))), "drag_N_s_per_m": float(c),
