@@ -90,3 +90,19 @@ def test_the_cpu_references_digest_follows_the_code_a_reproduction_runs(tmp_path
     with open(root / edited, "a") as f:
         f.write("\n# an edit\n")
     assert (ref.src_digest(root) != before) is moves
+
+
+def test_the_lease_plan_names_a_cpu_reference_that_exists():
+    """docs/gpu.md's lease command gives the check its MuJoCo verdicts (``--cpu-verdicts FILE``): the file
+    it names is in the repository and holds a quick and a full reproduction's 17 paper verdicts each with
+    the digest of the sources they came from (a remake's edit once left the command naming no file)."""
+    import re
+
+    root = Path(__file__).resolve().parents[1]
+    plan = (root / "docs" / "gpu.md").read_text()
+    named = re.findall(r"gpu_check_lease\.sh [^`]*--cpu-verdicts (\S+?)`", plan)
+    assert named, "docs/gpu.md: no lease command with --cpu-verdicts FILE"
+    for rel in set(named):
+        ref = json.loads((root / rel).read_text())
+        for mode in ("quick", "full"):
+            assert len(ref[mode]["verdicts"]) == 17 and len(ref[mode]["src_sha256"]) == 64
