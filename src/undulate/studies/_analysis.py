@@ -16,6 +16,7 @@ phi_lower``; compatibility is ``dx = lambda (dphi / 2 pi + n)``.
 from __future__ import annotations
 
 import math
+import warnings
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -176,11 +177,9 @@ def row_means(values) -> np.ndarray:
     ``np.nanmean(values, axis=1)`` gives it, but NaN without NumPy's "Mean of empty slice" warning for
     a row with none (its runs failed or were not run)."""
     v = np.asarray(values, float)
-    v = v.reshape(len(v), -1 if v.size else 0)
-    ok = ~np.isnan(v)
-    n = ok.sum(axis=1)
-    total = np.where(ok, v, 0.0).sum(axis=1)
-    return np.divide(total, n, out=np.full(n.shape, np.nan), where=n > 0)
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", "Mean of empty slice", RuntimeWarning)
+        return np.nanmean(v.reshape(len(v), -1 if v.size else 0), axis=1)
 
 
 # ------------------------------------------------------------------ analysis
