@@ -13,7 +13,9 @@ pack-throughput, determinism, sweep, side-by-side):
   reported apart (``compile_s``).
 * ``quick-warp``, ``full-warp`` -- ``undulate reproduce --quick`` / ``--full`` with ``--backend warp``,
   each in a fresh folder: wall time, the Warp models' first steps (kernel compilation unless cached,
-  reported apart), per-study times and the verdicts, compared claim by claim with the MuJoCo
+  reported apart), where the models' time went (``warp_timeline``: models stepping at once, a step's
+  time against that number, the host's share; ``benchmarks/bench_warp_timeline.py``), per-study times and
+  the verdicts, compared claim by claim with the MuJoCo
   backend's (``--cpu-verdicts``: made elsewhere from the same commit by
   ``benchmarks/bench_gpu_check_reference.py``; or step ``quick-cpu``'s, quick on the MuJoCo backend
   here, with every core).
@@ -323,7 +325,8 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     cmd = [sys.executable, "-c", "import sys; from undulate.cli import main; sys.exit(main(sys.argv[1:]))",
            "reproduce", "--out", str(out), *args]
     stats = OUT / f"repro-{tag}.warp-first-steps.jsonl"
-    env = {**env, "UNDULATE_WARP_STATS": str(stats)}
+    timeline = OUT / f"repro-{tag}.warp-timeline.jsonl"  # every Warp model's chunks (benchmarks/bench_warp_timeline.py)
+    env = {**env, "UNDULATE_WARP_STATS": str(stats), "UNDULATE_WARP_TIMELINE": str(timeline)}
     t = time.perf_counter()
     try:
         r = subprocess.run(cmd, capture_output=True, text=True, timeout=max(10.0, timeout), env=env)
@@ -347,6 +350,8 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
         rec["warp_models"] = len(firsts)
         rec["warp_first_steps_s"] = sum(x["first_step_s"] for x in firsts)
         rec["warp_steps_per_graph"] = sorted({x.get("steps_per_graph", 1) for x in firsts})
+    if timeline.exists():  # where the Warp models' time went: how many stepped at once, a step's time then
+        rec["warp_timeline"] = _timeline(timeline)
     claims = out / "claims.json"
     if claims.exists():
         c = json.loads(claims.read_text())
@@ -361,6 +366,19 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
 
 
 STUDY_FILES = "the finished studies' NAME.json (the reproduction was cut short)"
+
+
+def _timeline(path: Path):
+    """``benchmarks/bench_warp_timeline.py``'s summary of a reproduction's Warp timeline (or why there is none)."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    try:
+        import bench_warp_timeline as warp_timeline
+
+        return warp_timeline.summarise(warp_timeline.load(path))
+    except Exception as e:  # noqa: BLE001 - a figure missing, never the check stopped
+        return f"error: {type(e).__name__}: {e}"
+    finally:
+        sys.path.pop(0)
 
 
 def study_verdicts(out: Path) -> dict:

@@ -106,3 +106,29 @@ def test_the_lease_plan_names_a_cpu_reference_that_exists():
         ref = json.loads((root / rel).read_text())
         for mode in ("quick", "full"):
             assert len(ref[mode]["verdicts"]) == 17 and len(ref[mode]["src_sha256"]) == 64
+
+
+def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(benchmark_script, tmp_path):
+    """``benchmarks/bench_warp_timeline.py`` on a timeline worked out by hand: models A and B (one
+    structure, 18 worlds) step [0, 1] s together, A again [1.5, 2.5], C (another structure, 1 world,
+    its first chunk) [2, 3]; Unix times as the backend writes them, A's chunks on two lines."""
+    tl = benchmark_script("bench_warp_timeline")
+    t0 = 1.8e9
+    s1, s2 = [10, 10, 4, 17, 14, 0.0006], [15, 15, 6, 25, 20, 0.0006]
+    lines = [{"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0", "chunks": [[t0, 1.0, 100, 0]]},
+             {"pid": 1, "group": 1, "structure": s1, "nworld": 18, "device": "cuda:0", "chunks": [[t0, 1.0, 100, 0]]},
+             {"pid": 1, "group": 2, "structure": s2, "nworld": 1, "device": "cuda:0", "chunks": [[t0 + 2, 1.0, 10, 1]]},
+             {"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0", "chunks": [[t0 + 1.5, 1.0, 50, 0]]}]
+    path = tmp_path / "timeline.jsonl"
+    path.write_text("".join(json.dumps(x) + "\n" for x in lines))
+    s = tl.summarise(tl.load(path))
+    assert (s["models"], s["structures"], s["chunks"], s["world_steps"]) == (3, 2, 4, 150 * 18 + 100 * 18 + 10)
+    assert s["span_s"] == pytest.approx(3.0, abs=1e-6) and s["no_model_s"] == pytest.approx(0.5, abs=1e-6)
+    assert s["models_at_once"]["mean"] == pytest.approx(4 / 2.5, abs=1e-5) and s["models_at_once"]["max"] == 2
+    assert s["structures_at_once"]["mean"] == pytest.approx(3 / 2.5, abs=1e-5) and s["structures_at_once"]["max"] == 2
+    assert s["first_chunks_s"] == pytest.approx(1.0)
+    # A and B's first chunks stepped two at once (10 ms a step); A's second, 1.5 on average (20 ms); C compiled
+    assert set(s["ms_per_step"]) == {"1", "2-3"}
+    assert s["ms_per_step"]["2-3"] == {"ms_per_step": pytest.approx(10.0, rel=1e-5), "chunks": 2, "steps": 200}
+    assert s["ms_per_step"]["1"] == {"ms_per_step": pytest.approx(20.0, rel=1e-5), "chunks": 1, "steps": 50}
+    assert s["host_share"] == pytest.approx(0.5 / 4.5, abs=1e-5)  # A's 0.5 s between its chunks

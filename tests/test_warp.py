@@ -536,6 +536,34 @@ def test_a_gather_of_two_structures_steps_them_side_by_side(monkeypatch):
         assert _max_dx(simulate(sc, opts), got[i]) < 1e-9
 
 
+def test_the_timeline_records_every_step_of_each_warp_model(monkeypatch, tmp_path, benchmark_script):
+    """``UNDULATE_WARP_TIMELINE``: two structures gathered side by side are two models in the file,
+    each with every step of its run (the duration over its own time step) in chunks of the batch's
+    chunk length, its first chunk marked (it compiled and captured); ``benchmarks/bench_warp_timeline.py``
+    reads it.  Without the variable nothing is written."""
+    path = tmp_path / "timeline.jsonl"
+    monkeypatch.setenv("UNDULATE_WARP_TIMELINE", str(path))
+    opts = SimOptions(duration_s=0.3, chunk_steps=120, **WARP)
+    scenes = [Scene(phases_rad=(0.0, 1.0)), Scene(phases_rad=(0.0, 1.0, 2.0))]
+    _gathered(scenes, opts)
+    tl = benchmark_script("bench_warp_timeline")
+    models = tl.load(path)
+    assert sorted(m["structure"][1] for m in models) == [10, 15]  # nv: the pair's, the group's
+    for m in models:
+        dt = m["structure"][-1]
+        steps = m["chunks"][:, 2]
+        assert steps.sum() == round(0.3 / dt) and (steps <= 120).all() and m["nworld"] == 1
+        assert m["chunks"][:, 3].tolist() == [1] + [0] * (len(steps) - 1)
+        assert (np.diff(m["chunks"][:, 0]) > 0).all() and (m["chunks"][:, 1] > 0).all()
+    s = tl.summarise(models)
+    assert (s["models"], s["structures"]) == (2, 2) and s["world_steps"] == sum(round(0.3 / m["structure"][-1])
+                                                                                for m in models)
+    monkeypatch.delenv("UNDULATE_WARP_TIMELINE")
+    path.unlink()
+    simulate(scenes[0], opts)
+    assert not path.exists()
+
+
 @pytest.mark.parametrize("cached", [True, False])
 def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(monkeypatch, cached):
     """Grouping a gathered batch compiles each call's scene to learn its structure; the batch's plan

@@ -360,6 +360,10 @@ class _Group:
         self.bufs = None
         self.stepped = False  # its kernels compiled (a first step taken)
         self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
+        from ._warp_timeline import Timeline
+
+        self.timeline = Timeline((mjm.nq, mjm.nv, mjm.nu, mjm.nsensordata, mjm.ngeom, float(mjm.opt.timestep)),
+                                 nw, device)
 
     def _new_data(self):
         """The worlds' Warp data at the first state (the current device): one ``put_data`` of the
@@ -434,21 +438,26 @@ class _Group:
         qpos, qvel, sensors (nw, rows, ...) float64, then the depths, forces and first bad steps), the
         warm starts after, and the overflow bitmask per world."""
         wp, _ = require()
+        start, t0 = time.time(), time.perf_counter()  # the timeline's: this chunk captures if
+        capture = not self.graphs or self.bufs[0].shape[0] < nstep  # first, or its buffers grow
         host = [np.ascontiguousarray(x, dtype=np.float32) for x in (qpos, qvel, warm, table)]
         with wp.ScopedDevice(self.device):
             if self.stream is None:  # Warp's CPU device (no streams): one thread steps at a time
                 with _DEVICE_LOCK:
                     self._ready(nstep, host)
                     self._launch(nstep, host)
-                    return self._download()
-            if not self.graphs or self.bufs[0].shape[0] < nstep:
-                with _DEVICE_LOCK, wp.ScopedStream(self.stream):  # allocation, compilation, capture
-                    self._ready(nstep, host)
-            # Then on this group's own stream, every call naming it: threads stepping other groups
-            # (studies side by side, gathered sweeps) overlap with it on the device.  (Warp's current
-            # stream is per device, not per thread: it is only changed under the lock above.)
-            self._launch(nstep, host)
-            return self._download()
+                    out = self._download()
+            else:
+                if capture:
+                    with _DEVICE_LOCK, wp.ScopedStream(self.stream):  # allocation, compilation, capture
+                        self._ready(nstep, host)
+                # Then on this group's own stream, every call naming it: threads stepping other groups
+                # (studies side by side, gathered sweeps) overlap with it on the device.  (Warp's current
+                # stream is per device, not per thread: it is only changed under the lock above.)
+                self._launch(nstep, host)
+                out = self._download()
+        self.timeline.chunk(start, time.perf_counter() - t0, nstep, capture)
+        return out
 
     def _upload(self, host) -> None:
         """The chunk's first state (qpos, qvel, warm start) and control table, and the step counter
@@ -871,4 +880,6 @@ class WarpRollout:
             f"so the run stops (undulate.simulation._warp.capacities sizes them from the scene)")
 
     def close(self) -> None:
+        for g in self.groups:
+            g.timeline.flush()
         self.groups = []

@@ -1,0 +1,131 @@
+"""What a run's Warp models did, from their timeline (``UNDULATE_WARP_TIMELINE``; measured, never asserted).
+
+    python benchmarks/bench_warp_timeline.py TIMELINE.jsonl [--json]
+
+The backend appends every chunk a Warp model steps to the timeline
+(:mod:`undulate.simulation._warp_timeline`).  This reads one run's timeline -- typically a whole
+reproduction on the Warp backend, the GPU check's ``quick-warp`` -- and says where its time went:
+
+* ``models_at_once`` -- how many models were inside a chunk at once, averaged over the time any
+  was (``mean``), and at most (``max``);
+* ``ms_per_step`` -- a steady chunk's wall time per step (chunks that compiled or captured graphs
+  left out), step-weighted, by how many models stepped at once during it (its time-weighted mean,
+  itself included: ``1`` is [1, 2), then ``2-3``, ``4-7``, ``8-15``, ``16+``): the H200's ~8x
+  slowdown with ~20 models (2026-11-27) would show as the ``16+`` figure against the ``1`` one.
+  On Warp's CPU device a chunk's time includes its wait for the device (one model steps at a time);
+* ``structures_at_once`` -- how many distinct model structures (sizes and time step) were stepping
+  at once, averaged like ``models_at_once``: their ratio bounds what gathering concurrent models of
+  one structure into one model could remove (an upper bound: their runs' options, durations and
+  start times differ too);
+* ``host_share`` -- of each model's life (its first chunk's start to its last chunk's end), the part
+  outside its chunks (its batch's host work between chunks, or another model of the same batch
+  stepping), over every model;
+* ``no_model_s`` -- time within the span when no model was stepping (the cores' lone swimmers, the
+  studies' looks, kernel compilation outside a chunk).
+
+:func:`summarise` returns those as a dict (the GPU check stores it with each reproduction).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+import numpy as np
+
+BINS = ((1, 2, "1"), (2, 4, "2-3"), (4, 8, "4-7"), (8, 16, "8-15"), (16, np.inf, "16+"))
+
+
+def load(path: str | Path) -> list[dict]:
+    """The timeline's models: ``{"model": (pid, group), "structure", "nworld", "device", "chunks":
+    (n, 4) array of [start_unix_s, wall_s, steps, first]}``, their lines joined, chunks in time order."""
+    models: dict = {}
+    for line in Path(path).read_text(encoding="utf-8").splitlines():
+        if not line.strip():
+            continue
+        x = json.loads(line)
+        m = models.setdefault((x["pid"], x["group"]), {"model": (x["pid"], x["group"]), "structure": tuple(x["structure"]),
+                                                         "nworld": x["nworld"], "device": x["device"], "chunks": []})
+        m["chunks"] += x["chunks"]
+    for m in models.values():
+        c = np.asarray(m["chunks"], dtype=float).reshape(-1, 4)
+        m["chunks"] = c[np.argsort(c[:, 0], kind="stable")]
+    return list(models.values())
+
+
+def _occupancy(starts: np.ndarray, ends: np.ndarray, labels: np.ndarray):
+    """The step functions of the number of intervals open, and of distinct ``labels`` among them:
+    (breakpoints t[0..n], count and distinct on each [t[i], t[i+1]))."""
+    t = np.unique(np.concatenate([starts, ends]))
+    count = np.zeros(len(t) - 1, dtype=int)
+    distinct = np.zeros(len(t) - 1, dtype=int)
+    i0, i1 = np.searchsorted(t, starts), np.searchsorted(t, ends)
+    for lab in np.unique(labels):
+        cover = np.zeros(len(t), dtype=int)
+        sel = labels == lab
+        np.add.at(cover, i0[sel], 1)
+        np.add.at(cover, i1[sel], -1)
+        open_ = np.cumsum(cover)[:-1]
+        count += open_
+        distinct += open_ > 0
+    return t, count, distinct
+
+
+def summarise(models: list[dict]) -> dict:
+    """Where the models' time went (the module's docstring says what each figure is)."""
+    chunks = [m["chunks"] for m in models if len(m["chunks"])]
+    if not chunks:
+        return {"models": len(models), "chunks": 0}
+    structures = {s: i for i, s in enumerate(dict.fromkeys(m["structure"] for m in models))}
+    c = np.concatenate(chunks)
+    lab = np.concatenate([np.full(len(m["chunks"]), structures[m["structure"]]) for m in models if len(m["chunks"])])
+    nworld = np.concatenate([np.full(len(m["chunks"]), m["nworld"]) for m in models if len(m["chunks"])])
+    start, wall, steps, first = c[:, 0] - c[:, 0].min(), c[:, 1], c[:, 2], c[:, 3] > 0  # from the first start
+    end = start + wall
+    t, count, distinct = _occupancy(start, end, lab)
+    dt = np.diff(t)
+    busy = count > 0
+    span = float(end.max() - start.min())
+    # each chunk's mean number of models stepping at once (itself included), from the step function
+    cum = np.concatenate([[0.0], np.cumsum(count * dt)])
+    at = (np.interp(end, t, cum) - np.interp(start, t, cum)) / np.maximum(wall, 1e-12)
+    at = np.where(wall > 0, at, 1.0)
+    steady = ~first & (steps > 0)
+    per_bin = {}
+    for lo, hi, name in BINS:
+        sel = steady & (at >= lo - 1e-6) & (at < hi - 1e-6)  # Unix times: ~1e-7 s apart
+        if sel.any():
+            per_bin[name] = {"ms_per_step": 1e3 * float(wall[sel].sum() / steps[sel].sum()), "chunks": int(sel.sum()),
+                             "steps": int(steps[sel].sum())}
+    life = sum(float(m["chunks"][-1, 0] + m["chunks"][-1, 1] - m["chunks"][0, 0]) for m in models if len(m["chunks"]))
+    inside = float(wall.sum())
+    return {
+        "models": len(models), "structures": len(structures), "chunks": int(len(c)), "span_s": span,
+        "world_steps": int((steps * nworld).sum()), "world_steps_per_s": float((steps * nworld).sum() / span) if span else None,
+        "first_chunks_s": float(wall[first].sum()),
+        "models_at_once": {"mean": float((count * dt)[busy].sum() / dt[busy].sum()) if busy.any() else 0.0,
+                           "max": int(count.max())},
+        "structures_at_once": {"mean": float((distinct * dt)[busy].sum() / dt[busy].sum()) if busy.any() else 0.0,
+                               "max": int(distinct.max())},
+        "ms_per_step": per_bin,
+        "host_share": (life - inside) / life if life > 0 else None,
+        "no_model_s": float(dt[~busy].sum()),
+    }
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("timeline")
+    p.add_argument("--json", action="store_true", help="print the summary as one JSON object")
+    a = p.parse_args()
+    s = summarise(load(a.timeline))
+    if a.json:
+        print(json.dumps(s))
+        return
+    for k, v in s.items():
+        print(f"{k}: {v}")
+
+
+if __name__ == "__main__":
+    main()
