@@ -797,6 +797,26 @@ def test_code_hash_counts_the_selected_backend_only(monkeypatch):
     assert code_hash(pair_point) != cpu
 
 
+def test_every_module_only_the_warp_backend_imports_is_one_of_its_modules():
+    """A module reached only through the Warp backend's modules is left out of a MuJoCo sweep's code
+    hash and of the GPU check's CPU reference only if ``BACKEND_MODULES`` names it: a new module
+    imported by ``_warp`` alone and not named there would make every MuJoCo result stale."""
+    from undulate._source import BACKEND_MODULES, import_graph
+
+    graph = import_graph()
+    importers: dict[str, set] = {m: set() for m in graph}
+    for m, deps in graph.items():
+        for x in deps:
+            importers[x].add(m)
+    only_warp = set(BACKEND_MODULES["warp"])
+    grown = True
+    while grown:  # a module all of whose importers are the Warp backend's is the Warp backend's
+        new = {m for m in graph if m not in only_warp and importers[m] and importers[m] <= only_warp}
+        only_warp |= new
+        grown = bool(new)
+    assert only_warp == set(BACKEND_MODULES["warp"])
+
+
 def test_backend_warp_without_the_extra_is_one_line_and_exit_2(tmp_path):
     """A machine without mujoco-warp: `--backend warp` names the extra, exit 2, no traceback, no file."""
     code = ("import sys, builtins\n"
