@@ -21,7 +21,11 @@ reproduction on the Warp backend, the GPU check's ``quick-warp`` -- and says whe
   outside its chunks (its batch's host work between chunks, or another model of the same batch
   stepping), over every model;
 * ``no_model_s`` -- time within the span when no model was stepping (the cores' lone swimmers, the
-  studies' looks, kernel compilation outside a chunk).
+  studies' looks, kernel compilation outside a chunk);
+* ``joinable`` -- for a window W of 1 s and 5 s, the models whose first chunk began within W after
+  an earlier model's of the same structure (``models``, and their share of the world-steps): those a
+  gatherer waiting W for same-structure batches could have stepped as worlds of that earlier model
+  (again a bound: options and durations may differ).
 
 :func:`summarise` returns those as a dict (the GPU check stores it with each reproduction).
 """
@@ -72,6 +76,23 @@ def _occupancy(starts: np.ndarray, ends: np.ndarray, labels: np.ndarray):
     return t, count, distinct
 
 
+def joinable(models: list[dict], window_s: float) -> dict:
+    """The models whose first chunk began within ``window_s`` after an earlier same-structure model's."""
+    firsts: dict = {}
+    for m in models:
+        if len(m["chunks"]):
+            firsts.setdefault(m["structure"], []).append((float(m["chunks"][0, 0]), m))
+    n, ws, total = 0, 0.0, 0.0
+    for group in firsts.values():
+        group.sort(key=lambda x: x[0])
+        for i, (t, m) in enumerate(group):
+            w = float((m["chunks"][:, 2] * m["nworld"]).sum())
+            total += w
+            if i and t - group[i - 1][0] <= window_s:
+                n, ws = n + 1, ws + w
+    return {"models": n, "world_step_share": ws / total if total else 0.0}
+
+
 def summarise(models: list[dict]) -> dict:
     """Where the models' time went (the module's docstring says what each figure is)."""
     chunks = [m["chunks"] for m in models if len(m["chunks"])]
@@ -111,6 +132,7 @@ def summarise(models: list[dict]) -> dict:
         "ms_per_step": per_bin,
         "host_share": (life - inside) / life if life > 0 else None,
         "no_model_s": float(dt[~busy].sum()),
+        "joinable": {f"{w:g}s": joinable(models, w) for w in (1.0, 5.0)},
     }
 
 

@@ -7,6 +7,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 XI1, XI34, XI32 = (f"pairs:xi = {x}: contact drives pairs to a steady dx that follows the compatibility line"
@@ -132,3 +133,11 @@ def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(ben
     assert s["ms_per_step"]["2-3"] == {"ms_per_step": pytest.approx(10.0, rel=1e-5), "chunks": 2, "steps": 200}
     assert s["ms_per_step"]["1"] == {"ms_per_step": pytest.approx(20.0, rel=1e-5), "chunks": 1, "steps": 50}
     assert s["host_share"] == pytest.approx(0.5 / 4.5, abs=1e-5)  # A's 0.5 s between its chunks
+    # B began with A (one structure): a gatherer could have stepped B's worlds in A's model; C is alone
+    for w in ("1s", "5s"):
+        assert s["joinable"][w] == {"models": 1, "world_step_share": pytest.approx(1800 / 4510)}
+    # a model D of C's structure beginning 3 s after C: joinable within 5 s, not within 1 s
+    d = {"model": (1, 3), "structure": tuple(s2), "nworld": 1, "device": "cuda:0", "chunks": np.array([[t0 + 5, 1.0, 30, 0]])}
+    models = tl.load(path) + [d]
+    assert tl.joinable(models, 1.0)["models"] == 1 and tl.joinable(models, 5.0) == {
+        "models": 2, "world_step_share": pytest.approx((1800 + 30) / (4510 + 30))}
