@@ -33,6 +33,7 @@ reproduction on the Warp backend, the GPU check's ``quick-warp`` -- and says whe
 from __future__ import annotations
 
 import argparse
+import gzip
 import json
 from pathlib import Path
 
@@ -42,10 +43,12 @@ BINS = ((1, 2, "1"), (2, 4, "2-3"), (4, 8, "4-7"), (8, 16, "8-15"), (16, np.inf,
 
 
 def load(path: str | Path) -> list[dict]:
-    """The timeline's models: ``{"model": (pid, group), "structure", "nworld", "device", "chunks":
+    """The timeline's models (FILE, or FILE.gz): ``{"model": (pid, group), "structure", "nworld", "device", "chunks":
     (n, 4) array of [start_unix_s, wall_s, steps, first]}``, their lines joined, chunks in time order."""
     models: dict = {}
-    for line in Path(path).read_text(encoding="utf-8").splitlines():
+    path = Path(path)
+    text = gzip.decompress(path.read_bytes()).decode("utf-8") if path.suffix == ".gz" else path.read_text(encoding="utf-8")
+    for line in text.splitlines():
         if not line.strip():
             continue
         x = json.loads(line)

@@ -4,6 +4,7 @@ verdicts compared, and a claim it did not reach is not reported as a difference.
 
 from __future__ import annotations
 
+import gzip
 import json
 from pathlib import Path
 
@@ -123,6 +124,9 @@ def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(ben
     path = tmp_path / "timeline.jsonl"
     path.write_text("".join(json.dumps(x) + "\n" for x in lines))
     s = tl.summarise(tl.load(path))
+    gz = tmp_path / "timeline.jsonl.gz"
+    gz.write_bytes(gzip.compress(path.read_bytes()))
+    assert tl.summarise(tl.load(gz)) == s  # a timeline kept compressed (benchmarks/results) reads the same
     assert (s["models"], s["structures"], s["chunks"], s["world_steps"]) == (3, 2, 4, 150 * 18 + 100 * 18 + 10)
     assert s["span_s"] == pytest.approx(3.0, abs=1e-6) and s["no_model_s"] == pytest.approx(0.5, abs=1e-6)
     assert s["models_at_once"]["mean"] == pytest.approx(4 / 2.5, abs=1e-5) and s["models_at_once"]["max"] == 2
