@@ -47,13 +47,15 @@ def load(path: str | Path) -> list[dict]:
     (n, 4) array of [start_unix_s, wall_s, steps, first]}``, their lines joined, chunks in time order."""
     models: dict = {}
     path = Path(path)
-    text = gzip.decompress(path.read_bytes()).decode("utf-8") if path.suffix == ".gz" else path.read_text(encoding="utf-8")
+    raw = path.read_bytes()
+    text = (gzip.decompress(raw) if path.suffix == ".gz" else raw).decode("utf-8")
     for line in text.splitlines():
         if not line.strip():
             continue
         x = json.loads(line)
-        m = models.setdefault((x["pid"], x["group"]), {"model": (x["pid"], x["group"]), "structure": tuple(x["structure"]),
-                                                         "nworld": x["nworld"], "device": x["device"], "chunks": []})
+        key = (x["pid"], x["group"])
+        m = models.setdefault(key, {"model": key, "structure": tuple(x["structure"]), "nworld": x["nworld"],
+                                    "device": x["device"], "chunks": []})
         m["chunks"] += x["chunks"]
     for m in models.values():
         c = np.asarray(m["chunks"], dtype=float).reshape(-1, 4)
@@ -126,7 +128,8 @@ def summarise(models: list[dict]) -> dict:
     inside = float(wall.sum())
     return {
         "models": len(models), "structures": len(structures), "chunks": int(len(c)), "span_s": span,
-        "world_steps": int((steps * nworld).sum()), "world_steps_per_s": float((steps * nworld).sum() / span) if span else None,
+        "world_steps": int((steps * nworld).sum()),
+        "world_steps_per_s": float((steps * nworld).sum() / span) if span else None,
         "first_chunks_s": float(wall[first].sum()),
         "models_at_once": {"mean": float((count * dt)[busy].sum() / dt[busy].sum()) if busy.any() else 0.0,
                            "max": int(count.max())},

@@ -120,7 +120,8 @@ def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(ben
     lines = [{"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0", "chunks": [[t0, 1.0, 100, 0]]},
              {"pid": 1, "group": 1, "structure": s1, "nworld": 18, "device": "cuda:0", "chunks": [[t0, 1.0, 100, 0]]},
              {"pid": 1, "group": 2, "structure": s2, "nworld": 1, "device": "cuda:0", "chunks": [[t0 + 2, 1.0, 10, 1]]},
-             {"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0", "chunks": [[t0 + 1.5, 1.0, 50, 0]]}]
+             {"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0",
+              "chunks": [[t0 + 1.5, 1.0, 50, 0]]}]
     path = tmp_path / "timeline.jsonl"
     path.write_text("".join(json.dumps(x) + "\n" for x in lines))
     s = tl.summarise(tl.load(path))
@@ -141,7 +142,8 @@ def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(ben
     for w in ("1s", "5s"):
         assert s["joinable"][w] == {"models": 1, "world_step_share": pytest.approx(1800 / 4510)}
     # a model D of C's structure beginning 3 s after C: joinable within 5 s, not within 1 s
-    d = {"model": (1, 3), "structure": tuple(s2), "nworld": 1, "device": "cuda:0", "chunks": np.array([[t0 + 5, 1.0, 30, 0]])}
+    d = {"model": (1, 3), "structure": tuple(s2), "nworld": 1, "device": "cuda:0",
+         "chunks": np.array([[t0 + 5, 1.0, 30, 0]])}
     models = tl.load(path) + [d]
     assert tl.joinable(models, 1.0)["models"] == 1 and tl.joinable(models, 5.0) == {
         "models": 2, "world_step_share": pytest.approx((1800 + 30) / (4510 + 30))}
