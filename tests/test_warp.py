@@ -491,18 +491,19 @@ def test_a_divergence_found_on_the_device_is_diagnosed_as_on_the_host(monkeypatc
     assert t[0] == t[1] and "interpenetration" in str(dev.value)
 
 
-def _gathered(scenes, opts):
-    """Each scene simulated on its own thread, the threads' calls gathered (as a sweep's runs are):
-    ``(the Gather, {index: Dataset})``."""
+def _gathered(scenes, opts, starts=None):
+    """Each scene simulated on its own thread (from ``starts[i]``, a Checkpoint or None), the threads'
+    calls gathered (as a sweep's runs are): ``(the Gather, {index: Dataset})``."""
     import threading
 
     from undulate import simulation
 
     gather, got = simulation.Gather(len(scenes)), {}
+    starts = starts or [None] * len(scenes)
 
     def one(i):
         try:
-            got[i] = simulate_batch([scenes[i]], opts)[0]
+            got[i] = simulate_batch([scenes[i]], opts, start=starts[i])[0]
         finally:
             gather.thread_done()
 
@@ -562,6 +563,26 @@ def test_the_timeline_records_every_step_of_each_warp_model(monkeypatch, tmp_pat
     path.unlink()
     simulate(scenes[0], opts)
     assert not path.exists()
+
+
+def test_runs_going_on_from_checkpoints_of_one_time_are_gathered_into_one_batch():
+    """Calls that go on from checkpoints (the packing study's stopped runs continued) are gathered
+    with those whose checkpoints have the same time, never with runs from rest or from another
+    time; each run is bitwise its batch stepped without gathering."""
+    from undulate import Checkpoint
+
+    opts = SimOptions(duration_s=0.3, **WARP)
+    scenes = [Scene(phases_rad=(0.0, d)) for d in (0.5, 1.0, 2.0, 3.0)]
+    ends = [Checkpoint.of(simulate(sc, SimOptions(duration_s=t, **WARP)))
+            for sc, t in zip(scenes[:3], (0.2, 0.2, 0.1))]
+    gather, got = _gathered(scenes, opts, starts=[*ends, None])
+    assert sorted(gather.batches) == [1, 1, 2]
+    want = [*simulate_batch(scenes[:2], opts, start=ends[:2]), simulate(scenes[2], opts, start=ends[2]),
+            simulate(scenes[3], opts)]
+    for i, w in enumerate(want):
+        assert (float(got[i]["time"][0]) > 0) == (i < 3)  # the first three after their checkpoints
+        for v in ("time", "x", "y", "joint_error"):
+            np.testing.assert_array_equal(got[i][v].values, w[v].values)
 
 
 @pytest.mark.parametrize("cached", [True, False])

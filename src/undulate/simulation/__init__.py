@@ -421,9 +421,9 @@ def simulate_batch(
     (:func:`undulate._physics.meter`).
     """
     g = _gathering()
-    if g is not None and out is None and controller is None and progress is None and start is None and (
+    if g is not None and out is None and controller is None and progress is None and (
             stop is None or not callable(stop) or len(scenes) == 1):
-        return g.submit(list(scenes), options, stop, _simulate_batch_now)
+        return g.submit(list(scenes), options, stop, _simulate_batch_now, start)
     return _simulate_batch_now(scenes, options, nthread=nthread, out=out, controller=controller, stop=stop,
                                progress=progress, start=start)
 

@@ -10,6 +10,7 @@ import xarray as xr
 
 from .. import _physics
 from ..params import SimOptions
+from ._checkpoint import Checkpoint
 from ._compile import compile_scene, resolve_options
 
 class _NoStop:
@@ -22,8 +23,9 @@ class _NoStop:
 
 
 class _Request:
-    def __init__(self, scenes, options, stop, run):
+    def __init__(self, scenes, options, stop, run, start=None):
         self.scenes, self.options, self.stop, self.run = scenes, options, stop, run
+        self.start = None if start is None else [start] if isinstance(start, Checkpoint) else list(start)
         self.result = self.error = None
         self.done = False
         self.physics = (0.0, 0)
@@ -33,6 +35,18 @@ class _Request:
         if self.stop is None:
             return [_NoStop() for _ in self.scenes]
         return [self.stop] if callable(self.stop) else list(self.stop)
+
+    def start_key(self) -> tuple[bool, float | None]:
+        """(whether the call can join a batch, its checkpoints' one time in s or None from rest):
+        calls that go on from checkpoints join only calls whose checkpoints have the same time
+        (a batch steps from one time); a call whose own checkpoints are malformed or of several
+        times runs alone (it raises there, naming ``start``)."""
+        if self.start is None:
+            return True, None
+        if len(self.start) != len(self.scenes) or not all(isinstance(c, Checkpoint) for c in self.start):
+            return False, None
+        times = {round(c.time_s, 9) for c in self.start}
+        return len(times) == 1, min(times)
 
 
 class Gather:
@@ -44,8 +58,10 @@ class Gather:
     on the MuJoCo backend bitwise, on Warp to float32 rounding of the solver's reductions).
 
     Used by the sweep runner for the Warp backend (:func:`undulate.sweep.run_sweep`): a study's
-    runs, each in its own thread, reach the GPU together.  Calls with ``out``, ``controller``,
-    ``progress`` or ``start`` run at once, alone.  If a gathered batch fails (one scene diverges),
+    runs, each in its own thread, reach the GPU together.  Calls that go on from checkpoints
+    (``start``) are gathered with the calls whose checkpoints have the same time (e.g. the packing
+    study's stopped runs continued, :func:`undulate.studies.packing.packing_continue`).  Calls with
+    ``out``, ``controller`` or ``progress`` run at once, alone.  If a gathered batch fails (one scene diverges),
     its calls are run again one at a time so that only the failing one raises."""
 
     def __init__(self, n_threads: int, progress: Callable[[float, float, int], None] | None = None):
@@ -74,10 +90,10 @@ class Gather:
 
         return hook
 
-    def submit(self, scenes, options, stop, run) -> list[xr.Dataset]:
+    def submit(self, scenes, options, stop, run, start=None) -> list[xr.Dataset]:
         """Wait for the other threads, then step the calls together; ``run(scenes, options, stop=,
-        progress=)`` steps one batch now (:func:`undulate.simulation._simulate_batch_now`)."""
-        req = _Request(scenes, options or SimOptions(), stop, run)
+        progress=, start=)`` steps one batch now (:func:`undulate.simulation._simulate_batch_now`)."""
+        req = _Request(scenes, options or SimOptions(), stop, run, start)
         with self.cond:
             self.pending.append(req)
             if len(self.pending) < self.live:
@@ -130,18 +146,19 @@ class Gather:
 
         scenes = [sc for r in group for sc in r.scenes]
         rules = [rule for r in group for rule in r.rules()]
+        starts = None if group[0].start is None else [c for r in group for c in r.start]
         with self.cond:
             self.batches.append(len(scenes))
             hook = self._report(len(self.batches), len(scenes))
         try:
             with _physics.meter() as tally:  # this batch's physics, shared among its calls
                 dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules, progress=hook,
-                                                compiled=_compiled(group))
+                                                start=starts, compiled=_compiled(group))
         except Exception:  # noqa: BLE001 - isolate the failing call
             for r in group:
                 try:
                     with _physics.meter() as tally:
-                        r.result = contextvars.Context().run(r.run, r.scenes, r.options, stop=r.stop)
+                        r.result = contextvars.Context().run(r.run, r.scenes, r.options, stop=r.stop, start=r.start)
                     r.physics = tally.read()
                 except Exception as e:  # noqa: BLE001
                     r.error = e
@@ -166,7 +183,8 @@ def _compiled(group: list[_Request]) -> dict[int, tuple]:
 
 def _gather_groups(reqs: list[_Request]) -> list[list[_Request]]:
     """Calls that can be stepped as one batch: same resolved options and one structure (the
-    compiled models' sizes), and for closed-loop scenes one gait, controller and link count."""
+    compiled models' sizes), for closed-loop scenes one gait, controller and link count, and the
+    same start (from rest, or checkpoints of one time: :meth:`_Request.start_key`)."""
     keys = []
     for r in reqs:
         opts = [resolve_options(sc, r.options) for sc in r.scenes]
@@ -176,13 +194,16 @@ def _gather_groups(reqs: list[_Request]) -> list[list[_Request]]:
         r.compiled = (push, cs)  # the batch's plan takes it rather than compiling the scene again
         m = cs.model
         closed = r.scenes[0].controller.closed_loop
-        keys.append((json.dumps(o.to_dict(), sort_keys=True, default=str), len({x.timestep_s for x in opts}) == 1,
+        joins, start_s = r.start_key()
+        joins = joins and len({x.timestep_s for x in opts}) == 1
+        keys.append((json.dumps(o.to_dict(), sort_keys=True, default=str), joins,
                      (m.nq, m.nv, m.nu, m.na, m.nsensordata, m.ngeom), r.scenes[0].forces_N is not None,
-                     repr((r.scenes[0].gait, r.scenes[0].controller, r.scenes[0].geometry.n_links)) if closed else ""))
+                     repr((r.scenes[0].gait, r.scenes[0].controller, r.scenes[0].geometry.n_links)) if closed else "",
+                     start_s))
     out = []
     for key in dict.fromkeys(keys):
         group = [r for r, k in zip(reqs, keys) if k == key]
-        if not key[1]:  # a call whose own scenes need different time steps: alone (it raises there)
+        if not key[1]:  # a call whose own scenes need different time steps or start times: alone (raises there)
             out += [[r] for r in group]
         else:
             out.append(group)

@@ -353,7 +353,8 @@ class _Timeline:
     """
 
     def __init__(self, structure: tuple, nworld: int, device: str):
-        """``structure``: what two models must share to be one (sizes and time step), as numbers."""
+        """``structure``: what two models must share to be one, as numbers: the sizes a gathered batch
+        shares (nq, nv, nu, na, nsensordata, ngeom; ``na`` since 2026-11-28) and the time step (last)."""
         self.path = os.environ.get(TIMELINE_ENV) or None
         self.head = {"pid": os.getpid(), "group": next(_TIMELINE_IDS), "structure": list(structure),
                      "nworld": int(nworld), "device": device}
@@ -419,8 +420,8 @@ class _Group:
         self.bufs = None
         self.stepped = False  # its kernels compiled (a first step taken)
         self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
-        self.timeline = _Timeline((mjm.nq, mjm.nv, mjm.nu, mjm.nsensordata, mjm.ngeom, float(mjm.opt.timestep)),
-                                 nw, device)
+        self.timeline = _Timeline((mjm.nq, mjm.nv, mjm.nu, mjm.na, mjm.nsensordata, mjm.ngeom,
+                                   float(mjm.opt.timestep)), nw, device)
 
     def _new_data(self):
         """The worlds' Warp data at the first state (the current device): one ``put_data`` of the
