@@ -25,7 +25,11 @@ reproduction on the Warp backend, the GPU check's ``quick-warp`` -- and says whe
 * ``joinable`` -- for a window W of 1 s and 5 s, the models whose first chunk began within W after
   an earlier model's of the same structure (``models``, and their share of the world-steps): those a
   gatherer waiting W for same-structure batches could have stepped as worlds of that earlier model
-  (again a bound: options and durations may differ).
+  (again a bound: options and durations may differ);
+* ``studies`` -- per study (the first part of a model's ``label``, the sweep its gathered batch
+  stepped for; ``-`` for models without one): its models, sweeps and world-steps, and when its first
+  chunk began and its last ended (s from the timeline's first chunk): on a GPU, where every study
+  runs at once, the study that ends last is the reproduction's chain.
 
 :func:`summarise` returns those as a dict (the GPU check stores it with each reproduction).
 """
@@ -43,8 +47,9 @@ BINS = ((1, 2, "1"), (2, 4, "2-3"), (4, 8, "4-7"), (8, 16, "8-15"), (16, np.inf,
 
 
 def load(path: str | Path) -> list[dict]:
-    """The timeline's models (FILE, or FILE.gz): ``{"model": (pid, group), "structure", "nworld", "device", "chunks":
-    (n, 4) array of [start_unix_s, wall_s, steps, first]}``, their lines joined, chunks in time order."""
+    """The timeline's models (FILE, or FILE.gz): ``{"model": (pid, group), "structure", "nworld", "device", "label",
+    "chunks": (n, 4) array of [start_unix_s, wall_s, steps, first]}``, their lines joined, chunks in time order
+    (``label`` "" in timelines written before it was recorded)."""
     models: dict = {}
     path = Path(path)
     raw = path.read_bytes()
@@ -55,7 +60,7 @@ def load(path: str | Path) -> list[dict]:
         x = json.loads(line)
         key = (x["pid"], x["group"])
         m = models.setdefault(key, {"model": key, "structure": tuple(x["structure"]), "nworld": x["nworld"],
-                                    "device": x["device"], "chunks": []})
+                                    "device": x["device"], "label": x.get("label", ""), "chunks": []})
         m["chunks"] += x["chunks"]
     for m in models.values():
         c = np.asarray(m["chunks"], dtype=float).reshape(-1, 4)
@@ -96,6 +101,27 @@ def joinable(models: list[dict], window_s: float) -> dict:
             if i and t - group[i - 1][0] <= window_s:
                 n, ws = n + 1, ws + w
     return {"models": n, "world_step_share": ws / total if total else 0.0}
+
+
+def by_study(models: list[dict]) -> dict:
+    """Per study (a model's ``label`` up to its first ``/``; ``-`` without one): ``{"models", "sweeps",
+    "world_steps", "first_s", "last_s"}``, times from the timeline's first chunk, in order of ending."""
+    live = [m for m in models if len(m["chunks"])]
+    if not live:
+        return {}
+    t0 = min(float(m["chunks"][0, 0]) for m in live)
+    out: dict = {}
+    for m in live:
+        label = m.get("label") or "-"
+        s = out.setdefault(label.split("/")[0], {"models": 0, "sweeps": set(), "world_steps": 0,
+                                                 "first_s": np.inf, "last_s": -np.inf})
+        c = m["chunks"]
+        s["models"] += 1
+        s["sweeps"].add(label)
+        s["world_steps"] += int((c[:, 2] * m["nworld"]).sum())
+        s["first_s"] = min(s["first_s"], float(c[0, 0]) - t0)
+        s["last_s"] = max(s["last_s"], float((c[:, 0] + c[:, 1]).max()) - t0)
+    return {k: {**v, "sweeps": len(v["sweeps"])} for k, v in sorted(out.items(), key=lambda kv: kv[1]["last_s"])}
 
 
 def summarise(models: list[dict]) -> dict:
@@ -139,6 +165,7 @@ def summarise(models: list[dict]) -> dict:
         "host_share": (life - inside) / life if life > 0 else None,
         "no_model_s": float(dt[~busy].sum()),
         "joinable": {f"{w:g}s": joinable(models, w) for w in (1.0, 5.0)},
+        "studies": by_study(models),
     }
 
 

@@ -117,10 +117,14 @@ def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(ben
     tl = benchmark_script("bench_warp_timeline")
     t0 = 1.8e9
     s1, s2 = [10, 10, 4, 17, 14, 0.0006], [15, 15, 6, 25, 20, 0.0006]
-    lines = [{"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0", "chunks": [[t0, 1.0, 100, 0]]},
-             {"pid": 1, "group": 1, "structure": s1, "nworld": 18, "device": "cuda:0", "chunks": [[t0, 1.0, 100, 0]]},
-             {"pid": 1, "group": 2, "structure": s2, "nworld": 1, "device": "cuda:0", "chunks": [[t0 + 2, 1.0, 10, 1]]},
-             {"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0",
+    pa, pb, pk = "pairs/xi-1-quick-seed0", "pairs/xi-3-quick-seed0", "packing/brackets-1-quick-seed0"
+    lines = [{"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0", "label": pa,
+              "chunks": [[t0, 1.0, 100, 0]]},
+             {"pid": 1, "group": 1, "structure": s1, "nworld": 18, "device": "cuda:0", "label": pb,
+              "chunks": [[t0, 1.0, 100, 0]]},
+             {"pid": 1, "group": 2, "structure": s2, "nworld": 1, "device": "cuda:0", "label": pk,
+              "chunks": [[t0 + 2, 1.0, 10, 1]]},
+             {"pid": 1, "group": 0, "structure": s1, "nworld": 18, "device": "cuda:0", "label": pa,
               "chunks": [[t0 + 1.5, 1.0, 50, 0]]}]
     path = tmp_path / "timeline.jsonl"
     path.write_text("".join(json.dumps(x) + "\n" for x in lines))
@@ -141,9 +145,18 @@ def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(ben
     # B began with A (one structure): a gatherer could have stepped B's worlds in A's model; C is alone
     for w in ("1s", "5s"):
         assert s["joinable"][w] == {"models": 1, "world_step_share": pytest.approx(1800 / 4510)}
-    # a model D of C's structure beginning 3 s after C: joinable within 5 s, not within 1 s
+    # per study, in order of ending: pairs (A and B, two sweeps) [0, 2.5] s, packing (C) [2, 3] s
+    assert list(s["studies"]) == ["pairs", "packing"]
+    assert s["studies"]["pairs"] == {"models": 2, "sweeps": 2, "world_steps": 4500,
+                                     "first_s": pytest.approx(0.0), "last_s": pytest.approx(2.5, abs=1e-6)}
+    assert s["studies"]["packing"] == {"models": 1, "sweeps": 1, "world_steps": 10,
+                                       "first_s": pytest.approx(2.0, abs=1e-6), "last_s": pytest.approx(3.0, abs=1e-6)}
+    # a model D of C's structure beginning 3 s after C: joinable within 5 s, not within 1 s; without a
+    # label (a timeline written before labels, or a call not gathered) its study is "-"
     d = {"model": (1, 3), "structure": tuple(s2), "nworld": 1, "device": "cuda:0",
          "chunks": np.array([[t0 + 5, 1.0, 30, 0]])}
     models = tl.load(path) + [d]
     assert tl.joinable(models, 1.0)["models"] == 1 and tl.joinable(models, 5.0) == {
         "models": 2, "world_step_share": pytest.approx((1800 + 30) / (4510 + 30))}
+    assert tl.by_study(models)["-"] == {"models": 1, "sweeps": 1, "world_steps": 30,
+                                        "first_s": pytest.approx(5.0, abs=1e-6), "last_s": pytest.approx(6.0, abs=1e-6)}

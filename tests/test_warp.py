@@ -8,6 +8,7 @@ benchmarks/gpu_check.sh.
 from __future__ import annotations
 
 import functools
+import json
 import math
 import subprocess
 import sys
@@ -240,21 +241,26 @@ def _count_batches(monkeypatch) -> list[int]:
 
 def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_path, monkeypatch):
     """On the Warp backend a sweep's runs are gathered into one batch (one world each); its store
-    records the backend, and switching backend recomputes instead of reusing."""
+    records the backend, and switching backend recomputes instead of reusing.  The batch's Warp model
+    is named in the timeline by its sweep's folder (``STUDY/SWEEP``)."""
     from undulate.studies._runners import group_point
     from undulate.sweep import Grid, run_sweep
 
     fn = functools.partial(group_point, duration_s=1.0)
     grid = Grid(points=[{"dphi_rad": d} for d in (0.0, 2.0)], seed=0)
-    cpu = run_sweep(fn, grid, tmp_path / "s", workers=1, progress=False)
+    where = tmp_path / "groups" / "s"
+    cpu = run_sweep(fn, grid, where, workers=1, progress=False)
     assert cpu.identity["backend"] == "mujoco"
     batches = _count_batches(monkeypatch)
     monkeypatch.setenv("UNDULATE_BACKEND", "warp")
     monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
-    gpu = run_sweep(fn, grid, tmp_path / "s", progress=False)
+    monkeypatch.setenv("UNDULATE_WARP_TIMELINE", str(tmp_path / "timeline.jsonl"))
+    gpu = run_sweep(fn, grid, where, progress=False)
     assert gpu.identity["backend"].startswith("warp cpu float32")
     assert gpu.n_computed == 2 and gpu.n_reused == 0 and gpu.stale  # the MuJoCo runs were not served
     assert batches == [2]  # both runs' simulations in one batch
+    lines = [json.loads(x) for x in (tmp_path / "timeline.jsonl").read_text().splitlines()]
+    assert {(x["label"], x["nworld"]) for x in lines} == {("groups/s", 2)}
     a = cpu.dataset["x"].values
     b = gpu.dataset["x"].values
     assert np.abs(a - b).max() < 3e-3  # m, at the group runs' 2 ms step

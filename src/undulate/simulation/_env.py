@@ -1,12 +1,18 @@
 """Settings read from the environment (the Warp backend's ``UNDULATE_WARP_*``): one rule for the
 integers and one for the switches, in a module that imports neither backend; which devices are Warp's
-CPU device; and the CPUs this process may use."""
+CPU device; the CPUs this process may use; and the label of the gathered batch stepping in this context."""
 
 from __future__ import annotations
 
+import contextvars
 import os
 
 from ..errors import ParameterError
+
+BATCH_LABEL: contextvars.ContextVar[str] = contextvars.ContextVar("undulate_batch_label", default="")
+"""What a gathered batch steps for (its sweep: ``STUDY/SWEEP``, :attr:`undulate.simulation.Gather.label`),
+set while it steps; the Warp backend's timeline names its models by it
+(:class:`undulate.simulation._warp._Timeline`)."""
 
 
 def env_count(name: str, default: int, most: int = 10**6) -> int:

@@ -3,6 +3,7 @@ backend as the worlds of one model."""
 
 from __future__ import annotations
 
+import contextvars
 import json
 from collections.abc import Callable
 
@@ -12,6 +13,7 @@ from .. import _physics
 from ..params import SimOptions
 from ._checkpoint import Checkpoint
 from ._compile import compile_scene, resolve_options
+from ._env import BATCH_LABEL
 
 class _NoStop:
     """The stopping rule of a scene that has none, in a gathered batch (it never ends a run)."""
@@ -64,12 +66,15 @@ class Gather:
     ``out``, ``controller`` or ``progress`` run at once, alone.  If a gathered batch fails (one scene diverges),
     its calls are run again one at a time so that only the failing one raises."""
 
-    def __init__(self, n_threads: int, progress: Callable[[float, float, int], None] | None = None):
+    def __init__(self, n_threads: int, progress: Callable[[float, float, int], None] | None = None,
+                 label: str = ""):
         """``progress``: called as ``progress(done, total, worlds)`` while a batch steps (after each
         of its chunks): the simulated world-seconds done and in all of the batches stepping now, and
-        their worlds (the sweep's progress display, :meth:`undulate.sweep._progress.Progress.stepping`)."""
+        their worlds (the sweep's progress display, :meth:`undulate.sweep._progress.Progress.stepping`).
+        ``label``: what the batches step for (:data:`BATCH_LABEL`; the sweep runner's ``STUDY/SWEEP``)."""
         import threading
 
+        self.label = str(label)
         self.live = int(n_threads)
         self.pending: list[_Request] = []
         self.cond = threading.Condition()
@@ -140,10 +145,14 @@ class Gather:
                     r.done = True
                 self.cond.notify_all()
 
+    def _context(self) -> contextvars.Context:
+        """A fresh context for a batch's call: none of the calling threads' variables, the label set."""
+        ctx = contextvars.Context()
+        ctx.run(BATCH_LABEL.set, self.label)
+        return ctx
+
     def _run_group(self, group: list[_Request]) -> None:
         """Step one group's calls as one batch; if it fails, each call alone (only the failing ones raise)."""
-        import contextvars
-
         scenes = [sc for r in group for sc in r.scenes]
         rules = [rule for r in group for rule in r.rules()]
         starts = None if group[0].start is None else [c for r in group for c in r.start]
@@ -152,13 +161,13 @@ class Gather:
             hook = self._report(len(self.batches), len(scenes))
         try:
             with _physics.meter() as tally:  # this batch's physics, shared among its calls
-                dss = contextvars.Context().run(group[0].run, scenes, group[0].options, stop=rules, progress=hook,
+                dss = self._context().run(group[0].run, scenes, group[0].options, stop=rules, progress=hook,
                                                 start=starts, compiled=_compiled(group))
         except Exception:  # noqa: BLE001 - isolate the failing call
             for r in group:
                 try:
                     with _physics.meter() as tally:
-                        r.result = contextvars.Context().run(r.run, r.scenes, r.options, stop=r.stop, start=r.start)
+                        r.result = self._context().run(r.run, r.scenes, r.options, stop=r.stop, start=r.start)
                     r.physics = tally.read()
                 except Exception as e:  # noqa: BLE001
                     r.error = e

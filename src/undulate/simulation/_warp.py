@@ -45,7 +45,7 @@ import mujoco
 import numpy as np
 
 from ..errors import ParameterError, UndulateError
-from ._env import env_count, env_switch, is_cpu_device, usable_cpus
+from ._env import BATCH_LABEL, env_count, env_switch, is_cpu_device, usable_cpus
 
 __all__ = ["WarpRollout", "available", "require", "capacities", "CapacityError", "DEVICES", "PRECISION"]
 
@@ -346,10 +346,11 @@ class _Timeline:
     that number, how much of a model's life was the host's, and how many of the models stepping at
     once shared one structure (what gathering them into one model could remove).
 
-    A line is ``{"pid", "group", "structure", "nworld", "device", "chunks": [[start_unix_s, wall_s,
-    steps, first], ...]}`` (``first``: the call compiled or captured the model's graphs), written each
-    second of a model's stepping and when its batch ends, so a run cut short loses at most its last
-    second.  Several processes may append to one file (whole lines, each in one write).
+    A line is ``{"pid", "group", "structure", "nworld", "device", "label", "chunks": [[start_unix_s,
+    wall_s, steps, first], ...]}`` (``first``: the call compiled or captured the model's graphs;
+    ``label``: the sweep a gathered batch steps for, ``STUDY/SWEEP-MODE-seedS...``, since 2026-11-28,
+    else ""), written each second of a model's stepping and when its batch ends, so a run cut short
+    loses at most its last second.  Several processes may append to one file (whole lines, each in one write).
     """
 
     def __init__(self, structure: tuple, nworld: int, device: str):
@@ -357,7 +358,7 @@ class _Timeline:
         shares (nq, nv, nu, na, nsensordata, ngeom; ``na`` since 2026-11-28) and the time step (last)."""
         self.path = os.environ.get(TIMELINE_ENV) or None
         self.head = {"pid": os.getpid(), "group": next(_TIMELINE_IDS), "structure": list(structure),
-                     "nworld": int(nworld), "device": device}
+                     "nworld": int(nworld), "device": device, "label": BATCH_LABEL.get()}
         self.rows: list[list] = []
         self.written = time.perf_counter()
 

@@ -128,7 +128,8 @@ def _run_gathered(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Out
 
     from ..simulation import Gather
 
-    gather = Gather(len(runs), progress=STEP_PROGRESS.get())
+    sweep = Path(runs_dir).parent  # the store's folder: OUT/.sweeps/STUDY/SWEEP
+    gather = Gather(len(runs), progress=STEP_PROGRESS.get(), label=f"{sweep.parent.name}/{sweep.name}")
     outcomes: list[Outcome | None] = [None] * len(runs)
 
     def work(i: int, run: Run) -> None:
