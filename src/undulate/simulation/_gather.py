@@ -63,8 +63,8 @@ class Gather:
     runs, each in its own thread, reach the GPU together.  Calls that go on from checkpoints
     (``start``) are gathered with the calls whose checkpoints have the same time (e.g. the packing
     study's stopped runs continued, :func:`undulate.studies.packing.packing_continue`).  Calls with
-    ``out``, ``controller`` or ``progress`` run at once, alone.  If a gathered batch fails (one scene diverges),
-    its calls are run again one at a time so that only the failing one raises."""
+    ``out``, ``controller`` or ``progress`` run at once, alone.  If a gathered batch fails (one scene
+    diverges), its calls are run again one at a time so that only the failing one raises."""
 
     def __init__(self, n_threads: int, progress: Callable[[float, float, int], None] | None = None,
                  label: str = ""):
@@ -162,7 +162,7 @@ class Gather:
         try:
             with _physics.meter() as tally:  # this batch's physics, shared among its calls
                 dss = self._context().run(group[0].run, scenes, group[0].options, stop=rules, progress=hook,
-                                                start=starts, compiled=_compiled(group))
+                                          start=starts, compiled=_compiled(group))
         except Exception:  # noqa: BLE001 - isolate the failing call
             for r in group:
                 try:
