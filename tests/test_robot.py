@@ -353,8 +353,11 @@ def test_isolated_read_timeouts_give_nan_readings_never_nan_commands(tmp_path):
                                                                      coupling=2.0))
         threading.Timer(1.2, bus.drop, args=(2, 3)).start()  # during the gait (homing takes ~0.7 s)
         ds = run_robot(cfg, log=lambda m: None)
-    assert ds.attrs["completed"] == 1 and ds.attrs["read_timeouts"] == 3
-    assert np.isnan(ds["joint_angle"].values[:, 0, 1]).sum() == 3
+    # id 2's three dropped replies are three time-outs, each one NaN reading; on a loaded machine the
+    # emulator may also answer some other read too late: a time-out too, counted and NaN the same way
+    angles = ds["joint_angle"].values
+    assert ds.attrs["completed"] == 1 and ds.attrs["read_timeouts"] == np.isnan(angles).sum() >= 3
+    assert np.isnan(angles[:, 0, 1]).sum() >= 3
     assert np.isfinite(ds["joint_command"].values).all() and np.isfinite(ds["gait_phase"].values).all()
 
 
