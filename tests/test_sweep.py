@@ -171,7 +171,7 @@ def test_progress_lines_when_not_a_terminal(tmp_path):
     grid = Grid(axes={"damping_Nms": [0.1, -0.05, 0.2, 0.3], "length_m": [0.5]})
     run_sweep(sweep_funcs.pendulum, grid, tmp_path / "p", workers=1, stream=log)
     text = log.getvalue()
-    assert "4 runs, 0 already in" in text
+    assert "sweep p: 4 runs of sweep_funcs.pendulum, 0 already in" in text  # the start line, by its store
     assert "sweep p: 4/4 runs (100%), 1 failed" in text and "runs/s" in text and "ETA" in text  # named by its store
     assert "sweep done" in text and "1 run(s) FAILED" in text and "damping_Nms=-0.05" in text
 

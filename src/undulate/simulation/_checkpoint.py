@@ -44,11 +44,18 @@ class Checkpoint:
         return float(self.state[0])
 
 
-def _starts(bt: "_Batch", start) -> list[Checkpoint] | None:
-    """The batch's checkpoints, one per scene (None: every scene from rest), validated."""
+def as_list(start) -> list | None:
+    """A call's ``start`` as a list (one Checkpoint, or one per scene; None: from rest), not yet validated."""
     if start is None:
         return None
-    starts = [start] if isinstance(start, Checkpoint) else list(start)
+    return [start] if isinstance(start, Checkpoint) else list(start)
+
+
+def _starts(bt: "_Batch", start) -> list[Checkpoint] | None:
+    """The batch's checkpoints, one per scene (None: every scene from rest), validated."""
+    starts = as_list(start)
+    if starts is None:
+        return None
     if len(starts) != bt.nb or not all(isinstance(c, Checkpoint) for c in starts):
         raise ParameterError("start", f"a Checkpoint, or one per scene ({bt.nb})", start)
     if bt.ctl is not None:

@@ -11,7 +11,7 @@ import xarray as xr
 
 from .. import _physics
 from ..params import SimOptions
-from ._checkpoint import Checkpoint
+from ._checkpoint import Checkpoint, as_list
 from ._compile import compile_scene, resolve_options
 from ._env import BATCH_LABEL
 
@@ -27,7 +27,7 @@ class _NoStop:
 class _Request:
     def __init__(self, scenes, options, stop, run, start=None):
         self.scenes, self.options, self.stop, self.run = scenes, options, stop, run
-        self.start = None if start is None else [start] if isinstance(start, Checkpoint) else list(start)
+        self.start = as_list(start)
         self.result = self.error = None
         self.done = False
         self.physics = (0.0, 0)

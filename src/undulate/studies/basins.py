@@ -118,7 +118,8 @@ def _refinement(scan_dx0, final, n: int) -> list[float]:
 
 
 def dataset(ctx: StudyContext, p: BasinsPlan):
-    """Run the basins study on plan ``p``: the dphi = 0 scan and its refinement, then the grid."""
+    """Run the basins study on plan ``p``: the dphi = 0 scan and its refinement, and the grid (side
+    by side where the study runs wide, :meth:`StudyContext.together`)."""
     import xarray as xr
 
     from ..sweep import Grid
@@ -127,12 +128,20 @@ def dataset(ctx: StudyContext, p: BasinsPlan):
     lam = Gait().wavelength_m(geo.length_m)
     amp = float(ctx.lone_swimmer()["amplitude_m"])
 
-    # 8a: coarse scan at dphi = 0, then refine each side's bracket
-    s0 = _scan(ctx, "scan", p.scan_dx0, p.duration_s).isel(replicate=0)
-    extra = _refinement(s0["dx0_over_lambda"].values, s0["dx_final_over_lambda"].values, p.refine)
-    if extra:
-        ref = _scan(ctx, "refine", extra, p.duration_s)
-        s0 = xr.concat([s0, ref.isel(replicate=0)], dim="dx0_over_lambda").sortby("dx0_over_lambda")
+    def scan():  # 8a: coarse scan at dphi = 0, then refine each side's bracket
+        s0 = _scan(ctx, "scan", p.scan_dx0, p.duration_s).isel(replicate=0)
+        extra = _refinement(s0["dx0_over_lambda"].values, s0["dx_final_over_lambda"].values, p.refine)
+        if extra:
+            ref = _scan(ctx, "refine", extra, p.duration_s)
+            s0 = xr.concat([s0, ref.isel(replicate=0)], dim="dx0_over_lambda").sortby("dx0_over_lambda")
+        return s0
+
+    def grid():  # 8b: the (dx0, dphi) grid, independent of the scan
+        fn = functools.partial(pair_point, duration_s=p.duration_s, stop=PAIR_STOP)
+        axes = {"dx0_over_lambda": p.grid_dx0, "dphi_rad": p.grid_dphi}
+        return ctx.sweep("grid", fn, Grid(axes=axes, seed=ctx.config.seed)).isel(replicate=0)
+
+    s0, g = ctx.together(scan, grid)
     x0 = s0["dx0_over_lambda"].values
     xf = s0["dx_final_over_lambda"].values
     ret = returns_to_zero(xf) & np.isfinite(xf)
@@ -141,10 +150,6 @@ def dataset(ctx: StudyContext, p: BasinsPlan):
         inner, outer = bracket_threshold(x0[side], ret[side])
         sides[label] = (inner, outer)
 
-    # 8b: the (dx0, dphi) grid
-    fn = functools.partial(pair_point, duration_s=p.duration_s, stop=PAIR_STOP)
-    grid = Grid(axes={"dx0_over_lambda": p.grid_dx0, "dphi_rad": p.grid_dphi}, seed=ctx.config.seed)
-    g = ctx.sweep("grid", fn, grid).isel(replicate=0)
     X0, P = np.meshgrid(g["dx0_over_lambda"].values, g["dphi_rad"].values, indexing="ij")
     clearance = theory.lateral_clearance_m(PAIR_CHANNEL_M, amp, geo.width_m)
     th = theory.sinusoid_basin_displacement(X0 * lam, P, amp, lam, dy_m=clearance) / lam

@@ -332,12 +332,14 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
 
     grid = Grid(axes={"controller": list(CONTROLLERS), "n_swimmers": p["n_swimmers"], "spacing_m": p["spacing_m"]},
                 replicates=p["replicates"], seed=ctx.config.seed)
-    ds = _label(ctx.sweep("runs", functools.partial(group_runs, duration_s=p["duration_s"], stop=GROUP_SYNC_STOP),
-                             grid, batched=True))
-    free = ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed))
+    runs, free, probe = ctx.together(  # independent: side by side where the study runs wide
+        lambda: ctx.sweep("runs", functools.partial(group_runs, duration_s=p["duration_s"], stop=GROUP_SYNC_STOP),
+                          grid, batched=True),
+        lambda: ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed)),
+        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed)))
+    ds = _label(runs)
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})
-    probe = ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed))
     ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")
     ds["dphi_rad"].attrs.update(units="rad", long_name="held phase difference of the H probe (pair, 0.13 m)")
     ds["spacing_m"].attrs.update(units="m", long_name="channel width per swimmer")

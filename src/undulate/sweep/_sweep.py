@@ -21,8 +21,8 @@ from . import _executors, _worker
 from ._grid import Grid
 from ._progress import Progress
 from .._source import check_unchanged
-from ._store import (ENGINE, MERGED, Store, atomic_write_netcdf, function_id, make_manifest, merge, run_provenance,
-                     write_failure)
+from ._store import (ENGINE, MERGED, Store, atomic_write_netcdf, function_id, function_name, make_manifest, merge,
+                     run_provenance, write_failure)
 from ._worker import EXISTS, FAILED, OK, Chunk, Outcome
 
 log = logging.getLogger("undulate.sweep")
@@ -293,13 +293,14 @@ def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, s
     try:
         n_workers, size, where, chunks = _chunks(fn, grid, store, todo, workers=workers, client=client, batch=batch,
                                                  batched=batched)
-        # named by its store's folder: sweeps side by side (a reproduction's studies) print between each other
+        # named by its store's folder: sweeps side by side (a reproduction's studies) print between each other;
+        # the function's whole bound call is in the store's manifest (sweep_function)
         bar = Progress(len(runs), len(runs) - len(todo), enabled=progress, stream=stream,
                        label=f"sweep {Path(store.root).name}")
         if todo:
             bar.write(
-                f"sweep {function_id(fn)}: {len(runs)} runs, {len(runs) - len(todo)} already in {store.root}, "
-                f"{len(todo)} to compute on {where} in tasks of {size}"
+                f"{bar.label}: {len(runs)} runs of {function_name(fn)}, {len(runs) - len(todo)} already in "
+                f"{store.root}, {len(todo)} to compute on {where} in tasks of {size}"
             )
         executor = "dask" if client is not None else ("serial" if n_workers == 1 else "local")
         tally = _Tally(store, bar, executor)
