@@ -7,7 +7,8 @@ architecture without a device (``wp.compile_aot_module``). So this script:
 
 1. runs ``undulate reproduce`` (quick by default) on the MuJoCo backend in this process, one worker,
    recording every batch it asks for (:func:`undulate.simulation._plan_batch`);
-2. for each model structure, builds the Warp backend's models for its largest batch on Warp's CPU
+2. for each model structure (but the lone swimmers', which a GPU steps on the cores,
+   :func:`undulate.simulation._backend.lone_swimmers_backend`), builds the Warp backend's models for its largest batch on Warp's CPU
    device, with MuJoCo Warp's determinism as on a GPU (``UNDULATE_WARP_DETERMINISTIC``, default off
    there), and traces one step as the backend does before a first step
    (:func:`undulate.simulation._warp._traced_modules`): the modules and their CUDA block sizes;
@@ -117,7 +118,14 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(seen)} model structures in {t_rec:.0f} s", flush=True)
     modules: dict = {}
     structures = []
+    from undulate.simulation._backend import lone_swimmers_backend
+
+    lone_on_cores = lone_swimmers_backend("cuda") == "mujoco"
     for key, (n, scenes) in sorted(seen.items(), key=lambda kv: kv[0][1]):
+        if lone_on_cores and all(sc.n_swimmers == 1 for sc in scenes):  # a GPU steps them on MuJoCo
+            structures.append({"nv": key[1], "ngeom": key[5], "batches": n, "lone_swimmers_on_mujoco": True})
+            print(f"nv {key[1]:3d} ngeom {key[5]:4d}: lone swimmers, stepped on the cores on a GPU", flush=True)
+            continue
         mods = _traced(scenes, closed=key[-2])
         new = 0
         for mod, bd in mods:
