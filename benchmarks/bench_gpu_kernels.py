@@ -8,10 +8,11 @@ architecture without a device (``wp.compile_aot_module``). So this script:
 1. runs ``undulate reproduce`` (quick by default) on the MuJoCo backend in this process, one worker,
    recording every batch it asks for (:func:`undulate.simulation._plan_batch`);
 2. for each model structure (but the lone swimmers', which a GPU steps on the cores,
-   :func:`undulate.simulation._backend.lone_swimmers_backend`), builds the Warp backend's models for its largest batch on Warp's CPU
-   device, with MuJoCo Warp's determinism as on a GPU (``UNDULATE_WARP_DETERMINISTIC``, default off
-   there), and traces one step as the backend does before a first step
-   (:func:`undulate.simulation._warp._traced_modules`): the modules and their CUDA block sizes;
+   :func:`undulate.simulation._backend.lone_swimmers_backend`), builds the Warp backend's models for
+   its largest batch on Warp's CPU device, with MuJoCo Warp's determinism as on a GPU
+   (``UNDULATE_WARP_DETERMINISTIC``, default off there), and traces one step as the backend does
+   before a first step (:func:`undulate.simulation._warp._traced_modules`): the modules and their
+   CUDA block sizes;
 3. compiles each module for ``sm_90`` (H100, H200) both ways Warp may load it there: a CUBIN, and PTX
    for ``sm_75`` (Warp's default PTX target, used where the device's driver is at least as new as
    Warp's CUDA toolkit), into ``OUTDIR/<warp version>/`` laid out as Warp's kernel cache;
@@ -107,6 +108,8 @@ def main(argv: list[str] | None = None) -> int:
     wp.init()
     from warp._src.context import runtime
 
+    from undulate.simulation._backend import lone_swimmers_backend
+
     t0 = time.perf_counter()
     batches = args.outdir / "batches.pkl"  # the recorded batches, kept: a second run only traces and compiles
     if batches.exists():
@@ -118,8 +121,6 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(seen)} model structures in {t_rec:.0f} s", flush=True)
     modules: dict = {}
     structures = []
-    from undulate.simulation._backend import lone_swimmers_backend
-
     lone_on_cores = lone_swimmers_backend("cuda") == "mujoco"
     for key, (n, scenes) in sorted(seen.items(), key=lambda kv: kv[0][1]):
         if lone_on_cores and all(sc.n_swimmers == 1 for sc in scenes):  # a GPU steps them on MuJoCo
