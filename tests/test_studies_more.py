@@ -1,9 +1,11 @@
 """Studies packing, basins, confinement, potential and swimming (paper Figs. 7-10, Methods).
 
 The analysis functions are checked against synthetic data with known
-answers; every study runs for real (no mocks) in quick mode through the
-registry and writes its four files, and the physics each one is there to
-show is asserted on the quick result.
+answers; every study runs for real (no mocks) and the physics each one is
+there to show is asserted on its result: by default on a reduced plan run
+through the study's ``dataset`` (swimming: its whole quick plan, through the
+registry, with its four files); under the ``slow`` marker on the whole quick
+plan through the registry.
 """
 
 from __future__ import annotations
@@ -164,8 +166,27 @@ def test_swimming_quick(quick_runs):
     assert "runs" in {p.name for p in (out / ".sweeps" / "swimming").rglob("runs")}
 
 
+@pytest.mark.slow
 def test_confinement_quick(quick_runs):
+    """The whole quick plan (44 runs); test_confinement_reduced runs by default."""
     ds, summary, _ = quick_runs("confinement")
+    _check_confinement(ds, summary)
+
+
+def test_confinement_reduced(tmp_path):
+    """A reduced real confinement run: the tightest and the widest quick channel, five starts near
+    dx0 = 0 (10 runs, of 44 quick): the central state is a point at d/2A = 0.6 and broadens at 1.5."""
+    ds = confinement.dataset(_context(tmp_path, "confinement"),
+                             confinement.ConfinementPlan([0.6, 1.5], np.linspace(-0.4, 0.4, 5)))
+    _units("confinement", ds)
+    summary = confinement.summary(ds)
+    _check_confinement(ds, summary)
+    w = ds["central_width"].values
+    assert w[-1] > w[0] + 0.05  # strictly broader: starts at +-0.2 lambda no longer all end at 0
+    confinement.figure(ds).savefig(tmp_path / "confinement.png")
+
+
+def _check_confinement(ds, summary):
     w = ds["central_width"].values
     assert np.all(np.isfinite(w))
     # the central state broadens (never narrows) as the walls move apart
@@ -174,8 +195,25 @@ def test_confinement_quick(quick_runs):
     assert np.all(np.abs(ds["dx_final_over_lambda"].sel(dx0=0.0, method="nearest")) < 0.05)
 
 
+@pytest.mark.slow
 def test_potential_quick(quick_runs):
+    """The whole quick plan (36 impulse and 45 force runs); test_potential_reduced runs by default."""
     ds, summary, _ = quick_runs("potential")
+    _check_potential(ds, summary, min_stiffnesses=6)
+
+
+def test_potential_reduced(tmp_path):
+    """A reduced real potential run: 7 dphi x 2 common phases, 2 beta x 2 d/2A x 3 forces (26 runs, of 81
+    quick)."""
+    p = potential.PotentialPlan(np.pi * np.array([-1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0]), [30, 60], [0.8, 1.2],
+                                [0.02, 0.1, 0.3], impulse_phi0=(0.0, np.pi))
+    ds = potential.dataset(_context(tmp_path, "potential"), p)
+    _units("potential", ds)
+    _check_potential(ds, potential.summary(ds), min_stiffnesses=4)
+    potential.figure(ds).savefig(tmp_path / "potential.png")
+
+
+def _check_potential(ds, summary, min_stiffnesses: int):
     imp = ds["impulse"]
     # (a) contact grows with the detuning from compatibility (on both sides)
     for sign in (1, -1):
@@ -193,16 +231,41 @@ def test_potential_quick(quick_runs):
     assert np.all(ci[ok][:, 0] <= ds["stiffness"].values[ok]) and np.all(ds["stiffness"].values[ok] <= ci[ok][:, 1])
     # (b-d) a linear, positive stiffness that falls as the walls move apart
     k = ds["stiffness"]
-    assert int(np.isfinite(k).sum()) >= 6
+    assert int(np.isfinite(k).sum()) >= min_stiffnesses
     assert float(np.nanmin(k)) > 0
     for b in ds["beta"].values:
         kb = k.sel(beta=b).values
         assert kb[0] > kb[-1]
 
 
+@pytest.mark.slow
 def test_basins_quick(quick_runs):
+    """The whole quick plan (29 scan and 81 grid runs); test_basins_reduced runs by default."""
     ds, summary, _ = quick_runs("basins")
     _check_basins(ds, summary)
+
+
+def test_basins_reduced(tmp_path):
+    """A reduced real basins run: six starts and one refinement a side, a 3 x 3 grid (17 runs, of 110
+    quick)."""
+    p = basins.BasinsPlan([-0.8, -0.45, -0.1, 0.1, 0.45, 0.8], 1, [-0.5, 0.0, 0.5], [-np.pi / 2, 0.0, np.pi / 2])
+    ds = basins.dataset(_context(tmp_path, "basins"), p)
+    _units("basins", ds)
+    _check_basins(ds, basins.summary(ds))
+    assert ds.sizes["start"] == 8  # the six starts and one refinement inside each side's bracket
+    basins.figure(ds).savefig(tmp_path / "basins.png")
+
+
+def _context(tmp_path, name: str):
+    """A quick study's context writing under ``tmp_path`` (for a reduced plan run through ``dataset``)."""
+    return studies.StudyContext(studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0), name, progress=False)
+
+
+def _units(name: str, ds) -> None:
+    """What the registry checks before it writes a study's file: units on every numeric variable."""
+    from undulate.studies._registry import _check_units
+
+    _check_units(name, ds)
 
 
 @pytest.mark.slow
@@ -243,9 +306,9 @@ def _check_packing(ds, summary):
 
 def test_packing_reduced(tmp_path):
     """A reduced real packing run (the quick run, 40 runs of 50 swimmers, is marked slow)."""
-    cfg = studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0)
-    ctx = studies.StudyContext(cfg, "packing", progress=False)
-    ds = packing.dataset(ctx, packing.PackingPlan([0.0, 2 * np.pi], [1.0, 3.0], draws=1, duration_s=4.0))
+    plan = packing.PackingPlan([0.0, 2 * np.pi], [1.0, 3.0], draws=1, duration_s=4.0)
+    ds = packing.dataset(_context(tmp_path, "packing"), plan)
+    _units("packing", ds)
     summary = packing.summary(ds)
     _check_packing(ds, summary)
     # the in-phase group fits at rho~ = 3 without contact; a full phase spread does not
