@@ -60,6 +60,17 @@ def test_measured_h_is_antisymmetric_for_identical_bodies(law):
     assert abs(total.value) < 0.1 * scale and total.low < 0.1 * scale and total.high > -0.1 * scale
 
 
+def test_probes_stepped_as_one_batch_are_each_their_run_alone():
+    """The H probe's batched sweep function (the study's): points of both ``hold_x`` interleaved come
+    back in their order, each bitwise the probe run on its own."""
+    pts = [{"dphi_rad": d, "hold_x": h} for d, h in ((-2.0, True), (0.5, False), (1.5, True), (2.5, False))]
+    batch = P.probe_runs(pts, [0] * len(pts), duration_s=4.0)
+    assert len(batch) == len(pts)
+    for p, got in zip(pts, batch):
+        xr.testing.assert_identical(got, P.probe_run(p, 0, duration_s=4.0))
+    assert not np.allclose(batch[0]["H"], batch[2]["H"])  # the points' own runs, not one repeated
+
+
 def _grid_summary(controller: str, dphi0, dphi, duration_s: float):
     """The study's judgement on the closed-loop pairs it shares with synchronization-pairs (each
     ending once its lock is decided) against H measured on ``dphi``."""
@@ -68,8 +79,8 @@ def _grid_summary(controller: str, dphi0, dphi, duration_s: float):
     fn, _ = closed_loop_pairs_sweep(dphi0, duration_s, 0)
     runs = fn([{"controller": controller, "hold_x": True, "dphi0_rad": d} for d in dphi0], [0] * len(dphi0))
     v = xr.concat([r[["dphi"]] for r in runs], dim="dphi0_rad")
-    h = xr.concat([P.probe_run({"dphi_rad": d, "hold_x": True}, 0)["H"].sel(law=controller) for d in dphi],
-                  dim=xr.DataArray(dphi, dims="dphi_rad", name="dphi_rad"))
+    probes = P.probe_runs([{"dphi_rad": d, "hold_x": True} for d in dphi], [0] * len(dphi))  # as the study does
+    h = xr.concat([r["H"].sel(law=controller) for r in probes], dim=xr.DataArray(dphi, dims="dphi_rad", name="dphi_rad"))
     return P._one(v, h)
 
 

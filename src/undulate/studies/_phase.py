@@ -1,6 +1,6 @@
 """Shared by the closed-loop studies: the controllers they compare, and the phase-interaction probe.
 
-:func:`probe_run` measures ``H(dphi)`` by phase reduction (see
+:func:`probe_run` (:func:`probe_runs` in batches) measures ``H(dphi)`` by phase reduction (see
 :mod:`undulate.studies.phase_interaction`); :func:`stable_zeros`,
 :func:`predicted` read the locked states it predicts.
 """
@@ -42,29 +42,50 @@ def probe_run(point: dict, seed: int, *, duration_s: float = PROBE_S):
     """Phase reduction at a held phase difference (sweep function): the pair runs the open-loop gait
     at ``point["dphi_rad"]`` (``hold_x`` as given); at every control update each closed-loop law of
     :data:`CONTROLLERS` is evaluated on what the servos sensed (``phase_velocity``); per gait period
-    after the first, ``H = -(<dpsi_1/dt> - <dpsi_0/dt>)`` (rad/s; dphi = phi_1 - phi_0, phi = 2 pi f t - psi)."""
+    after the first, ``H = -(<dpsi_1/dt> - <dpsi_0/dt>)`` (rad/s; dphi = phi_1 - phi_0, phi = 2 pi f t - psi).
+    One point of :func:`probe_runs`."""
+    return probe_runs([point], [seed], duration_s=duration_s)[0]
+
+
+def probe_runs(points: list[dict], seeds: list[int], *, duration_s: float = PROBE_S) -> list:
+    """:func:`probe_run` on several points (batched sweep function): the probes of one ``hold_x`` are
+    stepped together as one batch (on the Warp backend the worlds of one model), each bitwise its run
+    alone (a scene's run does not depend on the others, and the open-loop commands not on what the
+    probe senses)."""
+    from ._runners import _in_batches
+
+    return _in_batches([bool(p["hold_x"]) for p in points],
+                       lambda hold_x, idx: _probe_batch([float(points[i]["dphi_rad"]) for i in idx], hold_x,
+                                                        duration_s))
+
+
+def _probe_batch(dphi_rad: list[float], hold_x: bool, duration_s: float) -> list:
+    """The probes at held phase differences ``dphi_rad`` (rad), positions held or not, in one batch."""
     import xarray as xr
 
     from ..control import SensingOpenLoop, make_controller
-    from ..simulation import simulate
+    from ..simulation import simulate_batch
 
-    sc = Scene(phases_rad=(0.0, float(point["dphi_rad"])), channel=Channel(width_m=PAIR_CHANNEL_M),
-               hold_x=bool(point["hold_x"]))
+    scenes = [Scene(phases_rad=(0.0, d), channel=Channel(width_m=PAIR_CHANNEL_M), hold_x=hold_x) for d in dphi_rad]
+    sc = scenes[0]  # gait, geometry and controller settings: the batch's
     probe = SensingOpenLoop(sc.gait, sc.geometry.n_links, CONTROLLERS["relay"].control_rate_hz)
-    simulate(sc, SimOptions(duration_s=duration_s, record=("x",)), controller=probe)
-    t, psi, angle, vel, load = (np.array([s[k] for s in probe.sensed]) for k in range(5))
-    psi, angle, vel, load = psi[:, 0], angle[:, 0], vel[:, 0], load[:, 0]  # the batch of one scene
+    simulate_batch(scenes, SimOptions(duration_s=duration_s, record=("x",)), controller=probe)
+    t, psi, angle, vel, load = (np.array([s[k] for s in probe.sensed]) for k in range(5))  # time, scene, ...
     period = sc.gait.period_s
     k = np.floor(t / period + 1e-9).astype(int)
     periods = np.arange(1, int(duration_s / period + 1e-9))
-    h = np.full((len(CONTROLLERS), periods.size), np.nan)
-    for i, p in enumerate(CONTROLLERS.values()):
-        w = make_controller(dataclasses.replace(sc, controller=p)).phase_velocity(psi, angle, vel, load)
-        dh = -(w[:, 1] - w[:, 0])
-        h[i] = [dh[k == j].mean() for j in periods]
-    return xr.Dataset({"H": (("law", "period"), h, {"units": "rad/s",
-                                                    "long_name": "period-mean d dphi/dt the law would command"})},
-                      coords={"law": ("law", list(CONTROLLERS)), "period": ("period", periods, {"units": "1"})})
+    laws = [make_controller(dataclasses.replace(sc, controller=p)) for p in CONTROLLERS.values()]
+    out = []
+    for b in range(len(scenes)):
+        h = np.full((len(CONTROLLERS), periods.size), np.nan)
+        for i, law in enumerate(laws):
+            w = law.phase_velocity(psi[:, b], angle[:, b], vel[:, b], load[:, b])
+            dh = -(w[:, 1] - w[:, 0])
+            h[i] = [dh[k == j].mean() for j in periods]
+        attrs = {"units": "rad/s", "long_name": "period-mean d dphi/dt the law would command"}
+        out.append(xr.Dataset({"H": (("law", "period"), h, attrs)},
+                              coords={"law": ("law", list(CONTROLLERS)), "period": ("period", periods, {"units": "1"})}))
+    return out
 
 
 def _sign(h: stats.Estimate) -> int:

@@ -74,9 +74,10 @@ def h_probe_phases(quick: bool) -> list[float]:
 
 
 def h_probe_sweep(dphi_rad: Sequence[float], seed: int) -> tuple[Callable, Grid]:
-    """``(fn, grid)`` of the closed-loop pairs' H(dphi) probe (:func:`._phase.probe_run`), positions
-    held and free, at each held phase difference of ``dphi_rad`` (rad)."""
-    from ._phase import probe_run
+    """``(fn, grid)`` of the closed-loop pairs' H(dphi) probe (batched: ``ctx.shared_sweep(...,
+    batched=True)``; :func:`._phase.probe_runs`), positions held and free, at each held phase difference
+    of ``dphi_rad`` (rad)."""
+    from ._phase import probe_runs
 
-    return probe_run, Grid(axes={"hold_x": [True, False], "dphi_rad": [float(d) for d in dphi_rad]}, seed=seed)
+    return probe_runs, Grid(axes={"hold_x": [True, False], "dphi_rad": [float(d) for d in dphi_rad]}, seed=seed)
 

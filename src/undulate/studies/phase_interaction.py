@@ -43,9 +43,9 @@ from ._shared import h_probe_phases, h_probe_sweep
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
-                     _sign, predicted, probe_run, stable_zeros)
+                     _sign, predicted, probe_run, probe_runs, stable_zeros)
 
-__all__ = ["probe_run", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]
+__all__ = ["probe_run", "probe_runs", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]
 
 TAIL_S = 4.0
 DRIFT_RAD_S = 0.02
@@ -73,7 +73,7 @@ def dataset(ctx: StudyContext, p: dict[str, Any]):
     pairs, probe = ctx.together(  # independent: side by side where the study runs wide
         lambda: ctx.shared_sweep("closed-loop-pairs", *closed_loop_pairs_sweep(p["dphi0_rad"], p["duration_s"],
                                                                               ctx.config.seed), batched=True),
-        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed)))
+        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed), batched=True))
     ds = _label(pairs)[["dphi", "force_start", "force_end", "stopped_at_s", "run_failed"]]
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")

@@ -336,7 +336,7 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
         lambda: ctx.sweep("runs", functools.partial(group_runs, duration_s=p["duration_s"], stop=GROUP_SYNC_STOP),
                           grid, batched=True),
         lambda: ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed)),
-        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed)))
+        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed), batched=True))
     ds = _label(runs)
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})
