@@ -316,7 +316,7 @@ def test_the_paper_and_prx_claims_are_two_tables_with_their_own_counts(tables_re
 
 def test_interrupted_reproduction_resumes_without_redoing_finished_studies(tmp_path):
     out = tmp_path / "r"
-    cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only", "compatibility,pairs"]
+    cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only", "compatibility,groups"]
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                             start_new_session=True)
     deadline = time.time() + 240
@@ -329,8 +329,9 @@ def test_interrupted_reproduction_resumes_without_redoing_finished_studies(tmp_p
     first = (out / "compatibility.json").stat().st_mtime_ns
     state = json.loads((out / "reproduce.json").read_text())
     assert state["studies"]["compatibility"]["ok"]
+    assert not state["studies"].get("groups", {}).get("ok")  # killed mid-way through it
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "compatibility: done earlier" in r.stdout
     assert (out / "compatibility.json").stat().st_mtime_ns == first  # not recomputed
-    assert (out / "pairs.json").exists() and (out / "index.html").exists()
+    assert (out / "groups.json").exists() and (out / "index.html").exists()

@@ -266,7 +266,7 @@ def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resume
     import subprocess
 
     out = tmp_path / "r"
-    cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only", "pairs,groups",
+    cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only", "groups,confinement",
            "--workers", "2"]
     # SIGINT as a terminal delivers it, even where this test runs as a background job (which starts
     # with SIGINT ignored, and Python then never raises KeyboardInterrupt)
@@ -297,4 +297,4 @@ def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resume
     assert not left.strip(), left
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stdout + r.stderr
-    assert (out / "pairs.json").exists() and (out / "groups.json").exists() and (out / "index.html").exists()
+    assert (out / "groups.json").exists() and (out / "confinement.json").exists() and (out / "index.html").exists()
