@@ -19,6 +19,7 @@ import xarray as xr
 
 from undulate import studies
 from undulate.studies import _runners, basins, confinement, packing, potential
+from undulate.studies._registry import _check_units  # what the registry checks before it writes a file
 
 pytestmark = pytest.mark.usefixtures("whole_plans")  # the physics of the whole quick plan, in one look
 
@@ -178,7 +179,7 @@ def test_confinement_reduced(tmp_path):
     dx0 = 0 (10 runs, of 44 quick): the central state is a point at d/2A = 0.6 and broadens at 1.5."""
     ds = confinement.dataset(_context(tmp_path, "confinement"),
                              confinement.ConfinementPlan([0.6, 1.5], np.linspace(-0.4, 0.4, 5)))
-    _units("confinement", ds)
+    _check_units("confinement", ds)
     summary = confinement.summary(ds)
     _check_confinement(ds, summary)
     w = ds["central_width"].values
@@ -208,7 +209,7 @@ def test_potential_reduced(tmp_path):
     p = potential.PotentialPlan(np.pi * np.array([-1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0]), [30, 60], [0.8, 1.2],
                                 [0.02, 0.1, 0.3], impulse_phi0=(0.0, np.pi))
     ds = potential.dataset(_context(tmp_path, "potential"), p)
-    _units("potential", ds)
+    _check_units("potential", ds)
     _check_potential(ds, potential.summary(ds), min_stiffnesses=4)
     potential.figure(ds).savefig(tmp_path / "potential.png")
 
@@ -250,7 +251,7 @@ def test_basins_reduced(tmp_path):
     quick)."""
     p = basins.BasinsPlan([-0.8, -0.45, -0.1, 0.1, 0.45, 0.8], 1, [-0.5, 0.0, 0.5], [-np.pi / 2, 0.0, np.pi / 2])
     ds = basins.dataset(_context(tmp_path, "basins"), p)
-    _units("basins", ds)
+    _check_units("basins", ds)
     _check_basins(ds, basins.summary(ds))
     assert ds.sizes["start"] == 8  # the six starts and one refinement inside each side's bracket
     basins.figure(ds).savefig(tmp_path / "basins.png")
@@ -259,13 +260,6 @@ def test_basins_reduced(tmp_path):
 def _context(tmp_path, name: str):
     """A quick study's context writing under ``tmp_path`` (for a reduced plan run through ``dataset``)."""
     return studies.StudyContext(studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0), name, progress=False)
-
-
-def _units(name: str, ds) -> None:
-    """What the registry checks before it writes a study's file: units on every numeric variable."""
-    from undulate.studies._registry import _check_units
-
-    _check_units(name, ds)
 
 
 @pytest.mark.slow
@@ -308,7 +302,7 @@ def test_packing_reduced(tmp_path):
     """A reduced real packing run (the quick run, 40 runs of 50 swimmers, is marked slow)."""
     plan = packing.PackingPlan([0.0, 2 * np.pi], [1.0, 3.0], draws=1, duration_s=4.0)
     ds = packing.dataset(_context(tmp_path, "packing"), plan)
-    _units("packing", ds)
+    _check_units("packing", ds)
     summary = packing.summary(ds)
     _check_packing(ds, summary)
     # the in-phase group fits at rho~ = 3 without contact; a full phase spread does not
