@@ -17,6 +17,7 @@ import xarray as xr
 from mujoco import rollout
 
 from undulate.errors import DivergenceError
+from undulate.sweep import batched_sweep_function
 
 _PENDULUM = """
 <mujoco model="damped pendulum">
@@ -70,6 +71,13 @@ def pendulum(point: dict, seed: int) -> xr.Dataset:
 def pendulum_batch(points: list[dict], seeds: list[int]) -> list[xr.Dataset]:
     """The batched form of :func:`pendulum` (``run_sweep(..., batched=True)``)."""
     return [pendulum(p, s) for p, s in zip(points, seeds)]
+
+
+@batched_sweep_function
+def pendulum_batch_marked(points: list[dict], seeds: list[int], *, scale: float = 1.0) -> list[xr.Dataset]:
+    """:func:`pendulum_batch`, marked as a batched sweep function (``run_sweep`` needs no ``batched=True``);
+    ``scale`` multiplies the damping (a keyword a ``functools.partial`` can bind)."""
+    return [pendulum({**p, "damping_Nms": p["damping_Nms"] * scale}, s) for p, s in zip(points, seeds)]
 
 
 def swimmer_pair(point: dict, seed: int) -> xr.Dataset:

@@ -110,6 +110,25 @@ def test_local_pool_equals_serial(serial, tmp_path):
     xr.testing.assert_identical(res.dataset.drop_attrs(), serial.dataset.drop_attrs())
 
 
+def test_a_marked_batched_sweep_function_runs_batched_without_being_told(serial, tmp_path):
+    """``@batched_sweep_function`` is read by ``run_sweep`` (also through a partial): the same runs as the
+    one-point function, the same sweep identity as ``batched=True``; ``batched=False`` for it is refused."""
+    from undulate.sweep import is_batched_sweep_function
+
+    fn = functools.partial(sweep_funcs.pendulum_batch_marked, scale=1.0)
+    assert is_batched_sweep_function(fn) and not is_batched_sweep_function(sweep_funcs.pendulum_batch)
+    res = run_sweep(fn, GRID, tmp_path / "m", workers=1, progress=False)
+    assert res.n_computed == GRID.n_runs
+    xr.testing.assert_identical(_data(res.dataset).drop_attrs(), _data(serial.dataset).drop_attrs())
+    assert json.loads((tmp_path / "m" / "manifest.json").read_text())["batched"] is True
+    again = run_sweep(fn, GRID, tmp_path / "m", workers=1, progress=False, batched=True)  # the same sweep
+    assert again.n_reused == GRID.n_runs and again.n_computed == 0
+    for bad, says in ((False, "pendulum_batch_marked, a batched sweep function"), ("yes", "True, False or None")):
+        with pytest.raises(ParameterError, match=says) as e:
+            run_sweep(fn, GRID, tmp_path / f"refused-{bad}", workers=1, progress=False, batched=bad)
+        assert e.value.name == "batched" and not (tmp_path / f"refused-{bad}").exists()
+
+
 def test_dask_local_cluster_equals_serial(serial, tmp_path):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None) as cl:

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..params import Channel, Scene, SimOptions
 from ..stopping import PhaseStop
-from ..sweep import Grid
+from ..sweep import Grid, batched_sweep_function
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS
 from ._points import SyncPoint
@@ -50,6 +50,7 @@ def pair_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, sto
     return pair_runs([point], [seed], duration_s=duration_s, stop=stop)[0]
 
 
+@batched_sweep_function
 def pair_runs(points: list[dict], seeds: list[int], *, duration_s: float = PAIR_DURATION_S,
               stop: PhaseStop | None = None):
     """:func:`pair_run` on several points (batched sweep function): the pairs of one controller and
@@ -107,7 +108,7 @@ def pair_stages(quick: bool) -> tuple[dict[str, Any], ...]:
 
 
 def closed_loop_pairs_sweep(dphi0_rad: Sequence[float], duration_s: float, seed: int) -> tuple[Callable, Grid]:
-    """``(fn, grid)`` of the closed-loop pairs (batched: ``ctx.shared_sweep(..., batched=True)``):
+    """``(fn, grid)`` of the closed-loop pairs (``fn`` a batched sweep function, :func:`pair_runs`):
     :func:`pair_runs` for each controller, positions held and free, from each initial phase
     difference of ``dphi0_rad`` (rad), up to ``duration_s``, each ending once its lock is decided
     (:data:`PAIR_SYNC_STOP`)."""

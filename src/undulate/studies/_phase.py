@@ -15,6 +15,7 @@ import numpy as np
 
 from .. import stats
 from ..params import Channel, ControllerParams, Scene, SimOptions
+from ..sweep import batched_sweep_function
 from ._criteria import PAIR_CHANNEL_M
 
 PAIR_COUPLING = 2.0
@@ -47,6 +48,7 @@ def probe_run(point: dict, seed: int, *, duration_s: float = PROBE_S):
     return probe_runs([point], [seed], duration_s=duration_s)[0]
 
 
+@batched_sweep_function
 def probe_runs(points: list[dict], seeds: list[int], *, duration_s: float = PROBE_S) -> list:
     """:func:`probe_run` on several points (batched sweep function): the probes of one ``hold_x`` are
     stepped together as one batch (on the Warp backend the worlds of one model), each bitwise its run

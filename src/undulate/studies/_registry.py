@@ -400,7 +400,7 @@ class StudyContext:
         return (Path(self.config.out_dir) / ".sweeps" / (folder or self.name)
                 / f"{part}-{self.config.mode}-seed{self.config.seed}{_backend_suffix()}")
 
-    def shared_sweep(self, part: str, fn: Callable, grid: Grid, *, batched: bool = False) -> xr.Dataset:
+    def shared_sweep(self, part: str, fn: Callable, grid: Grid, *, batched: bool | None = None) -> xr.Dataset:
         """:meth:`sweep` in the store every study of this output folder shares,
         ``OUT/.sweeps/_shared/PART-{quick|full}-seedS``: for the sweeps defined once in
         :mod:`._shared` and run by more than one study (computed by the first, reused by the
@@ -408,10 +408,11 @@ class StudyContext:
         return self.sweep(part, fn, grid, where=self.sweep_dir(part, "_shared"), batched=batched)
 
     def sweep(self, part: str, fn: Callable, grid: Grid, *, where: Path | None = None,
-              batched: bool = False) -> xr.Dataset:
+              batched: bool | None = None) -> xr.Dataset:
         """Run ``fn`` over ``grid`` (resumable; recomputed if its code or arguments changed).
-        ``batched``: ``fn(points, seeds) -> list[Dataset]`` runs a task's points at once
-        (:func:`undulate.sweep.run_sweep`).
+        ``batched``: ``fn(points, seeds) -> list[Dataset]`` runs a task's points at once; None (the
+        default) reads it from ``fn``'s mark (:func:`undulate.sweep.batched_sweep_function`,
+        :func:`undulate.sweep.run_sweep`).
 
         Returns the merged Dataset (dims ``grid.dims + ("replicate",)``; failed
         runs NaN and flagged ``run_failed``; they are listed in the study's

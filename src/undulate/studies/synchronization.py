@@ -48,6 +48,7 @@ import numpy as np
 from .. import stats, theory
 from ..params import Channel, Scene, SimOptions
 from ..stopping import PhaseStop
+from ..sweep import batched_sweep_function
 from ._criteria import PAIR_CHANNEL_M
 from ._phase import CONTROLLERS, PAIR_COUPLING, _label
 from ._closed_loop_pairs import (LOCK_TOL_RAD, PAIR_DURATION_S, PAIR_SYNC_STOP, RECORD, TAIL_S,  # noqa: F401
@@ -83,6 +84,7 @@ def group_run(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S, st
     return group_runs([point], [seed], duration_s=duration_s, stop=stop)[0]
 
 
+@batched_sweep_function
 def group_runs(points: list[dict], seeds: list[int], *, duration_s: float = PAIR_DURATION_S,
                stop: PhaseStop | None = None):
     """:func:`group_run` on several points (batched sweep function): the groups of one controller
@@ -320,7 +322,7 @@ def pair_summary(ds) -> dict[str, Any]:
 
 def pair_dataset(ctx: StudyContext, p: dict[str, Any]):
     ds = _label(ctx.shared_sweep("closed-loop-pairs", *closed_loop_pairs_sweep(p["dphi0_rad"], p["duration_s"],
-                                                                               ctx.config.seed), batched=True))
+                                                                               ctx.config.seed)))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     ds.attrs.update(title="closed-loop pairs: phase locking", channel_width_m=PAIR_CHANNEL_M,
                     duration_s=p["duration_s"], phase_oscillator_coupling=PAIR_COUPLING)
@@ -334,9 +336,9 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
                 replicates=p["replicates"], seed=ctx.config.seed)
     runs, free, probe = ctx.together(  # independent: side by side where the study runs wide
         lambda: ctx.sweep("runs", functools.partial(group_runs, duration_s=p["duration_s"], stop=GROUP_SYNC_STOP),
-                          grid, batched=True),
+                          grid),
         lambda: ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed)),
-        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed), batched=True))
+        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed)))
     ds = _label(runs)
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})

@@ -11,6 +11,8 @@ See docs/sweeps.md for the store layout, resuming, Dask and SLURM.
 
 from ._grid import Grid, Run
 from ._executors import warm_workers
-from ._sweep import RunFailure, SweepFailed, SweepResult, load_sweep, run_sweep
+from ._sweep import (RunFailure, SweepFailed, SweepResult, batched_sweep_function, is_batched_sweep_function,
+                     load_sweep, run_sweep)
 
-__all__ = ["Grid", "Run", "RunFailure", "SweepFailed", "SweepResult", "load_sweep", "run_sweep", "warm_workers"]
+__all__ = ["Grid", "Run", "RunFailure", "SweepFailed", "SweepResult", "batched_sweep_function",
+           "is_batched_sweep_function", "load_sweep", "run_sweep", "warm_workers"]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import math
@@ -140,6 +141,39 @@ def _provenance() -> dict[str, str]:
     return provenance()
 
 
+BATCHED_MARK = "__undulate_batched_sweep__"
+
+
+def batched_sweep_function(fn: Callable[..., Any]) -> Callable[..., Any]:
+    """Mark ``fn(points: list[dict], seeds: list[int]) -> list[Dataset]`` as a batched sweep function:
+    :func:`run_sweep` then hands it a task's points at once without being told (``batched=None``),
+    also through a ``functools.partial`` of it.  Returns ``fn`` itself, marked."""
+    setattr(fn, BATCHED_MARK, True)
+    return fn
+
+
+def is_batched_sweep_function(fn: Callable[..., Any]) -> bool:
+    """Whether ``fn`` (or the function a ``functools.partial`` chain wraps) is marked by
+    :func:`batched_sweep_function`."""
+    while isinstance(fn, functools.partial):
+        fn = fn.func
+    return bool(getattr(fn, BATCHED_MARK, False))
+
+
+def _resolve_batched(fn: Callable[..., Any], batched: bool | None) -> bool:
+    """``run_sweep``'s ``batched``: None takes the function's mark; False for a marked function is
+    refused (it would be called with one point where it takes a list)."""
+    marked = is_batched_sweep_function(fn)
+    if batched is None:
+        return marked
+    if not isinstance(batched, bool):
+        raise ParameterError("batched", "True, False or None (None: as the function is marked)", batched)
+    if marked and not batched:
+        raise ParameterError("batched", f"True or None for {function_name(fn)}, a batched sweep function "
+                                        "(fn(points, seeds) -> list of Datasets)", batched)
+    return batched
+
+
 def run_sweep(
     fn: Callable[..., Any],
     grid: Grid,
@@ -149,7 +183,7 @@ def run_sweep(
     scheduler: Any = None,
     progress: bool = True,
     batch: int | None = None,
-    batched: bool = False,
+    batched: bool | None = None,
     stream: TextIO | None = None,
 ) -> SweepResult:
     """Run ``fn`` on every point (and replicate) of ``grid``; resumable.
@@ -160,8 +194,10 @@ def run_sweep(
         ``fn(point: dict, seed: int) -> xarray.Dataset``; a top-level (picklable)
         function, or a ``functools.partial`` of one.  Every returned Dataset
         must have the same variables, dimensions and coordinates, and be
-        writable to netCDF.  With ``batched=True``: ``fn(points: list[dict],
-        seeds: list[int]) -> list[Dataset]`` on a chunk of runs at once.
+        writable to netCDF.  A batched sweep function (``batched=True``, or
+        marked with :func:`batched_sweep_function`, which ``batched=None``
+        reads): ``fn(points: list[dict], seeds: list[int]) -> list[Dataset]``
+        on a chunk of runs at once.
     grid:
         The points, replicates and base seed (:class:`Grid`).
     out_dir:
@@ -194,7 +230,7 @@ def run_sweep(
     identical results.
     """
     t_start = time.monotonic()
-    _check_arguments(fn, grid, workers, scheduler, batch)
+    batched = _check_arguments(fn, grid, workers, scheduler, batch, batched)
     if scheduler is None and workers != 1:
         _check_importable(fn)
 
@@ -220,8 +256,9 @@ def run_sweep(
     return result
 
 
-def _check_arguments(fn, grid, workers, scheduler, batch) -> None:
-    """:func:`run_sweep`'s arguments, validated (one ParameterError naming the first bad one)."""
+def _check_arguments(fn, grid, workers, scheduler, batch, batched) -> bool:
+    """:func:`run_sweep`'s arguments, validated (one ParameterError naming the first bad one);
+    returns whether ``fn`` runs batched (:func:`_resolve_batched`)."""
     if not callable(fn):
         raise ParameterError("fn", "a callable fn(point, seed) -> xarray.Dataset", fn)
     if not isinstance(grid, Grid):
@@ -232,6 +269,7 @@ def _check_arguments(fn, grid, workers, scheduler, batch) -> None:
         raise ParameterError("workers", "left out when a Dask scheduler is given (the cluster sets the workers)", workers)
     if batch is not None and (isinstance(batch, bool) or not isinstance(batch, int) or batch < 1):
         raise ParameterError("batch", "an integer >= 1 (runs per task), or None (automatic)", batch)
+    return _resolve_batched(fn, batched)
 
 
 def _report_stale(store: Store, progress: bool, stream: TextIO | None) -> None:
