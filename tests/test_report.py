@@ -335,3 +335,36 @@ def test_interrupted_reproduction_resumes_without_redoing_finished_studies(tmp_p
     assert "compatibility: done earlier" in r.stdout
     assert (out / "compatibility.json").stat().st_mtime_ns == first  # not recomputed
     assert (out / "groups.json").exists() and (out / "index.html").exists()
+
+
+def test_an_animation_is_kept_only_while_its_code_and_parameters_are_those_it_was_made_from(tmp_path):
+    """A reproduction rerun into the same folder keeps an animation whose stamp (code hash, scene,
+    duration, caption, drawing) is the current one, and draws it again when any of them changed, or
+    when its GIF is gone."""
+    import xarray as xr
+
+    from undulate import reproduce as rep
+    from undulate._io import write_netcdf
+
+    stem, caption, kw, _ = rep.ANIMATIONS[0]
+    gif, nc = tmp_path / "animations" / f"{stem}.gif", tmp_path / "animations" / f"{stem}.nc"
+
+    def make(duration_s=0.3, caption=caption):
+        rep._make_animation(tmp_path, stem, caption, kw, duration_s)
+        with xr.open_dataset(nc) as ds:
+            return gif.stat().st_mtime_ns, json.loads(ds.attrs["animation_stamp"]), float(ds["time"].values[-1])
+
+    first, stamp, t_end = make()
+    assert stamp["duration_s"] == 0.3 and stamp["scene"] == json.loads(json.dumps(kw)) and len(stamp["code"]) == 16
+    assert t_end == pytest.approx(0.3, abs=0.11)  # recorded at 10 Hz
+    assert make()[0] == first  # the same stamp: kept
+    longer, stamp, t_end = make(0.5)  # another duration: drawn again
+    assert longer != first and stamp["duration_s"] == 0.5 and t_end == pytest.approx(0.5, abs=0.11)
+    assert make(0.5, caption + ".")[0] != longer  # another caption: drawn again
+    ds = xr.load_dataset(nc)
+    ds.attrs["animation_stamp"] = json.dumps({**json.loads(ds.attrs["animation_stamp"]), "code": "0" * 16})
+    write_netcdf(ds, nc)  # as if made by other code
+    redrawn = make(0.5, caption + ".")[0]
+    assert make(0.5, caption + ".")[0] == redrawn  # its stamp is current again
+    gif.unlink()
+    assert make(0.5, caption + ".")[0] != redrawn and gif.is_file()

@@ -8,6 +8,8 @@ recomputes any computed by other code or arguments.  Progress
 and wall times are kept in ``DIR/reproduce.json`` (written atomically after
 every study), so an interrupted reproduction re-run continues where it
 stopped.  A study that raises is recorded as failed; the others go on.
+An animation is kept only while its code, scene, duration and drawing are
+those it was made from (:func:`_animation_stamp`); otherwise it is drawn again.
 """
 
 from __future__ import annotations
@@ -78,6 +80,35 @@ def _study_done(out: Path, name: str, quick: bool, seed: int = 0) -> bool:
     return is_current(name, StudyConfig(out_dir=out, quick=quick, seed=seed))
 
 
+#: How an animation is drawn: its recording rate (Hz), frame stride, frames per second (twice real
+#: time) and resolution; part of what :func:`_animation_stamp` records.
+ANIMATION_DRAWING = {"sample_rate_hz": 10.0, "stride": 1, "fps": 20, "dpi": 70}
+
+
+def _animation_stamp(caption: str, kw: dict, duration: float) -> str:
+    """What an animation was made from, kept in its ``.nc`` (attribute ``animation_stamp``): the hash of
+    the code that simulates and draws it, its scene, duration (s), caption and drawing settings.  An
+    animation is drawn again unless the stamp is this one (never reused once its code or parameters
+    changed)."""
+    from ._source import code_hash
+
+    return json.dumps({"code": code_hash(_make_animation), "scene": kw, "duration_s": float(duration),
+                       "caption": caption, **ANIMATION_DRAWING}, sort_keys=True)
+
+
+def _animation_current(gif: Path, nc: Path, stamp: str) -> bool:
+    """``gif`` exists and ``nc`` records ``stamp`` (an unreadable ``nc`` is not current)."""
+    import xarray as xr
+
+    if not (gif.is_file() and nc.is_file()):
+        return False
+    try:
+        with xr.open_dataset(nc) as ds:
+            return ds.attrs.get("animation_stamp") == stamp
+    except (OSError, ValueError):
+        return False
+
+
 def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: float) -> dict:
     from .animate import animate
     from .params import Channel, Scene, SimOptions
@@ -87,15 +118,19 @@ def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: floa
     anim_dir = out / "animations"
     anim_dir.mkdir(exist_ok=True)
     gif, nc = anim_dir / f"{stem}.gif", anim_dir / f"{stem}.nc"
-    if not gif.is_file():
+    stamp = _animation_stamp(caption, kw, duration)
+    if not _animation_current(gif, nc, stamp):
         sc = Scene(phases_rad=tuple(math.radians(p) for p in kw["phases_deg"]),
                    channel=Channel(width_m=kw["channel_width_m"]))
         sc = Scene(phases_rad=sc.phases_rad, channel=sc.channel, dx0_m=kw["dx0_over_lambda"] * sc.wavelength_m)
         # an illustration, one scene: stepped by MuJoCo on the CPU whatever the session's backend
         # (one world is the GPU's slowest case, and each worker process would compile its kernels)
-        ds = simulate(sc, SimOptions(duration_s=duration, sample_rate_hz=10, backend="mujoco"))
+        d = ANIMATION_DRAWING
+        ds = simulate(sc, SimOptions(duration_s=duration, sample_rate_hz=d["sample_rate_hz"], backend="mujoco"))
+        ds.attrs["animation_stamp"] = stamp
+        gif.unlink(missing_ok=True)  # the stamp below is the gif's: a gif drawn from another stays out
         write_netcdf(ds, nc)
-        animate(ds, gif, stride=1, fps=20, dpi=70, title=caption)  # twice real time
+        animate(ds, gif, stride=d["stride"], fps=d["fps"], dpi=d["dpi"], title=caption)
     return {"file": f"animations/{gif.name}", "data": f"animations/{nc.name}", "caption": caption}
 
 
