@@ -70,18 +70,33 @@ BAD = [
 ]
 
 
-@pytest.mark.parametrize("args, param", BAD, ids=[" ".join(a) for a, _ in BAD])
-def test_bad_input_one_line_exit_2_no_file(tmp_path, args, param):
-    out = tmp_path / "bad.nc"
-    r = run("simulate", *args, "--duration" if "--duration" not in args else "--quiet",
-            *(["1"] if "--duration" not in args else []), "--out", str(out))
+BAD_IDS = [" ".join(a) for a, _ in BAD]
+
+
+@pytest.fixture(scope="module")
+def bad_runs(tmp_path_factory):
+    """Each bad input run as its own real subprocess, in its own empty folder, a few at a time (each
+    process spends its time importing): ``{id: (CompletedProcess, folder)}``."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    def one(case):
+        (args, _), folder = case, tmp_path_factory.mktemp("bad")
+        dur = ["--duration", "1"] if "--duration" not in args else ["--quiet"]
+        return run("simulate", *args, *dur, "--out", str(folder / "bad.nc")), folder
+
+    with ThreadPoolExecutor(4) as pool:
+        return dict(zip(BAD_IDS, pool.map(one, BAD)))
+
+
+@pytest.mark.parametrize("args, param", BAD, ids=BAD_IDS)
+def test_bad_input_one_line_exit_2_no_file(bad_runs, args, param):
+    r, folder = bad_runs[" ".join(args)]
     assert r.returncode == 2, (r.stdout, r.stderr)
     lines = r.stderr.strip().splitlines()
     assert len(lines) == 1, r.stderr
     assert lines[0].startswith("error:") and param in lines[0]
     assert "Traceback" not in r.stderr
-    assert not out.exists()
-    assert list(tmp_path.iterdir()) == []
+    assert list(folder.iterdir()) == []  # no output, no partial file
 
 
 def test_unwritable_output_path(tmp_path):

@@ -1,5 +1,6 @@
 """The reproduction page in a real headless Chromium (the claims table fits the screen and links
-every claim's section); the report leaves ``claims.json`` alone; resuming a reproduction."""
+every claim's section); the report leaves ``claims.json`` alone; an animation is drawn again only when
+what made it changed.  An interrupted reproduction resuming: tests/test_side_by_side.py."""
 
 from __future__ import annotations
 
@@ -7,10 +8,7 @@ import json
 import os
 import re
 import shutil
-import signal
 import subprocess
-import sys
-import time
 
 import numpy as np
 import pytest
@@ -312,29 +310,6 @@ def test_the_paper_and_prx_claims_are_two_tables_with_their_own_counts(tables_re
     assert any(PRX_UNDECIDED_REASON in s and "about 52" in s for s in m["sec"])  # the section: boundary and runs
     assert "Stages: 2 of 3 ran (stopped early: nothing left undecided)" in m["studies"]
     assert "24 runs (12 computed) at 98.5 % intervals" in m["studies"]
-
-
-def test_interrupted_reproduction_resumes_without_redoing_finished_studies(tmp_path):
-    out = tmp_path / "r"
-    cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only", "compatibility,groups"]
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            start_new_session=True)
-    deadline = time.time() + 240
-    while not (out / "compatibility.json").exists() and time.time() < deadline and proc.poll() is None:
-        time.sleep(0.2)
-    assert (out / "compatibility.json").exists()
-    time.sleep(1.0)
-    os.killpg(proc.pid, signal.SIGKILL)  # interrupt mid-way through the next study
-    proc.wait()
-    first = (out / "compatibility.json").stat().st_mtime_ns
-    state = json.loads((out / "reproduce.json").read_text())
-    assert state["studies"]["compatibility"]["ok"]
-    assert not state["studies"].get("groups", {}).get("ok")  # killed mid-way through it
-    r = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
-    assert r.returncode == 0, r.stdout + r.stderr
-    assert "compatibility: done earlier" in r.stdout
-    assert (out / "compatibility.json").stat().st_mtime_ns == first  # not recomputed
-    assert (out / "groups.json").exists() and (out / "index.html").exists()
 
 
 def test_an_animation_is_kept_only_while_its_code_and_parameters_are_those_it_was_made_from(tmp_path):

@@ -259,29 +259,31 @@ def test_the_page_says_which_studies_beyond_the_paper_were_not_run(tmp_path):
 
 
 def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resumes(tmp_path):
-    """SIGINT while two studies run: the sweeps in flight stop at their next chunk, the command exits
-    130 within seconds, no worker process is left, and the same command then finishes the job."""
+    """SIGINT while two studies run, after a third has finished: the sweeps in flight stop at their next
+    chunk, the command exits 130 within seconds, no worker process is left, the state file says which
+    study finished, and the same command then finishes the job without redoing the finished study."""
     import os
     import signal
     import subprocess
 
     out = tmp_path / "r"
-    cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only", "groups,confinement",
-           "--workers", "2"]
+    cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only",
+           "compatibility,groups,confinement", "--workers", "2"]
     # SIGINT as a terminal delivers it, even where this test runs as a background job (which starts
     # with SIGINT ignored, and Python then never raises KeyboardInterrupt)
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     lines, deadline = [], time.time() + 240
-    while time.time() < deadline:  # both studies started, and a sweep is handing runs to the workers
-        line = proc.stdout.readline()
+    while time.time() < deadline:  # compatibility done; groups and confinement side by side, confinement's
+        line = proc.stdout.readline()  # grid handed to the workers
         if not line:
             break
         lines.append(line)
-        if (sum("running (quick)" in x for x in lines) == 2
-                and any("to compute on 2 local processes" in x for x in lines)):
+        if "grid-quick-seed0" in line and "to compute on 2 local processes" in line:
             break
     assert proc.poll() is None, "".join(lines)
+    assert any("compatibility: done" in x for x in lines) and not any("groups: done" in x for x in lines)
+    first = (out / "compatibility.json").stat().st_mtime_ns
     t0 = time.time()
     os.kill(proc.pid, signal.SIGINT)  # as a terminal's Ctrl-C reaches the command
     rest, _ = proc.communicate(timeout=60)
@@ -295,6 +297,10 @@ def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resume
             break
         time.sleep(0.1)
     assert not left.strip(), left
+    state = json.loads((out / "reproduce.json").read_text())["studies"]
+    assert state["compatibility"]["ok"] and not state.get("confinement", {}).get("ok")
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stdout + r.stderr
+    assert "compatibility: done earlier" in r.stdout
+    assert (out / "compatibility.json").stat().st_mtime_ns == first  # not recomputed
     assert (out / "groups.json").exists() and (out / "confinement.json").exists() and (out / "index.html").exists()

@@ -18,7 +18,7 @@ import pytest
 import xarray as xr
 
 from undulate import studies
-from undulate.studies import _runners, basins, confinement, packing, potential
+from undulate.studies import _runners, basins, confinement, packing, potential, swimming
 from undulate.studies._registry import _check_units  # what the registry checks before it writes a file
 
 pytestmark = pytest.mark.usefixtures("whole_plans")  # the physics of the whole quick plan, in one look
@@ -149,8 +149,27 @@ def quick_runs(tmp_path_factory):
     return get
 
 
+@pytest.mark.slow
 def test_swimming_quick(quick_runs):
+    """The whole quick plan (nine phases); test_swimming_reduced runs by default."""
     ds, summary, out = quick_runs("swimming")
+    _check_swimming(ds, summary)
+    # resuming: a second call reuses every run
+    studies.run_study("swimming", out, quick=True, seed=0)
+    assert "runs" in {p.name for p in (out / ".sweeps" / "swimming").rglob("runs")}
+
+
+def test_swimming_reduced(tmp_path):
+    """A reduced real swimming run: five of the nine quick phases in both modes (10 runs and the lone
+    swimmers, of 18 and the lone swimmers quick)."""
+    ds = swimming.dataset(_context(tmp_path, "swimming"), swimming.SwimmingPlan(np.linspace(-np.pi, np.pi, 5)))
+    _check_units("swimming", ds)
+    assert ds.sizes["dphi"] == 5
+    _check_swimming(ds, swimming.summary(ds))
+    swimming.figure(ds).savefig(tmp_path / "swimming.png")
+
+
+def _check_swimming(ds, summary):
     # the lone swimmer advances head first (toward -x) in the fluid; on the viscous ground
     # it only creeps (the integrator's O(dt) drift)
     assert 0.004 < summary["lone_swimmer_speed_m_s"] < 0.02
@@ -160,11 +179,9 @@ def test_swimming_quick(quick_runs):
     sw = ds["dx_final_over_lambda"].sel(mode="swimming")
     # small detuning: swimming pairs settle where non-swimming ones do
     small = np.abs(ds["dphi"]) <= np.pi / 4 + 1e-9
+    assert int(small.sum()) >= 1
     np.testing.assert_allclose(sw.where(small, drop=True),
                                ds["dx_final_over_lambda"].sel(mode="viscous").where(small, drop=True), atol=0.05)
-    # resuming: a second call reuses every run
-    studies.run_study("swimming", out, quick=True, seed=0)
-    assert "runs" in {p.name for p in (out / ".sweeps" / "swimming").rglob("runs")}
 
 
 @pytest.mark.slow
