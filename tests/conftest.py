@@ -50,3 +50,16 @@ def benchmark_script():
         return loaded[name]
 
     return load
+
+
+@pytest.fixture(scope="module")
+def warm_pool():
+    """One warm pool of worker processes for a whole test module's sweeps, as ``run_study`` and
+    ``reproduce`` keep one for a whole study or reproduction (:func:`undulate.sweep.warm_workers`):
+    for modules that run studies' sweeps through their ``dataset`` directly, where each sweep would
+    otherwise start its processes again (~1.5 s of imports each).  Not for tests of the pools
+    themselves, nor for a module that changes the environment or the code its workers import."""
+    from undulate.sweep import warm_workers
+
+    with warm_workers():
+        yield

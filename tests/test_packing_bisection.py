@@ -6,6 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.usefixtures("warm_pool")  # the sweeps of this module share one pool of worker processes
+
 
 def _search(column_above, failed_at=(), known=()):
     """Run bisection_probes to the end on a synthetic column; the indices it ran."""

@@ -14,7 +14,7 @@ from undulate.studies import names, run_study
 from undulate.studies import _analysis as C
 from undulate.studies._analysis import group_records
 
-pytestmark = pytest.mark.usefixtures("whole_plans")  # the physics of the whole quick plan, in one look
+pytestmark = pytest.mark.usefixtures("whole_plans", "warm_pool")  # the physics of the whole quick plan, in one look
 
 
 def _run(tmp_path_factory, name):
