@@ -268,18 +268,18 @@ def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resume
 
     out = tmp_path / "r"
     cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only",
-           "compatibility,groups,confinement", "--workers", "2"]
+           "compatibility,groups,swimming", "--workers", "2"]
     # SIGINT as a terminal delivers it, even where this test runs as a background job (which starts
     # with SIGINT ignored, and Python then never raises KeyboardInterrupt)
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
                             preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     lines, deadline = [], time.time() + 240
-    while time.time() < deadline:  # compatibility done; groups and confinement side by side, confinement's
-        line = proc.stdout.readline()  # grid handed to the workers
+    while time.time() < deadline:  # compatibility done; groups and swimming side by side, swimming's pairs
+        line = proc.stdout.readline()  # handed to the workers
         if not line:
             break
         lines.append(line)
-        if "grid-quick-seed0" in line and "to compute on 2 local processes" in line:
+        if "/swimming/pairs-quick-seed0" in line and "to compute on 2 local processes" in line:
             break
     assert proc.poll() is None, "".join(lines)
     assert any("compatibility: done" in x for x in lines) and not any("groups: done" in x for x in lines)
@@ -298,9 +298,9 @@ def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resume
         time.sleep(0.1)
     assert not left.strip(), left
     state = json.loads((out / "reproduce.json").read_text())["studies"]
-    assert state["compatibility"]["ok"] and not state.get("confinement", {}).get("ok")
+    assert state["compatibility"]["ok"] and not state.get("swimming", {}).get("ok")
     r = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
     assert r.returncode == 0, r.stdout + r.stderr
     assert "compatibility: done earlier" in r.stdout
     assert (out / "compatibility.json").stat().st_mtime_ns == first  # not recomputed
-    assert (out / "groups.json").exists() and (out / "confinement.json").exists() and (out / "index.html").exists()
+    assert (out / "groups.json").exists() and (out / "swimming.json").exists() and (out / "index.html").exists()
