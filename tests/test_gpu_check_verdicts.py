@@ -69,6 +69,20 @@ def test_more_hardware_queues_are_kept_only_where_they_cut_the_crowded_step(chec
     assert not check.more_queues_help(_side_by_side({1: 0.4}), _side_by_side({1: 0.2}))  # one model: no crowd
 
 
+@pytest.fixture(scope="module")
+def src_copy(tmp_path_factory, benchmark_script):
+    """A copy of the package's source tree and its reproduction digest, made once for the module (each
+    test edits one file and puts it back)."""
+    import shutil
+
+    ref = benchmark_script("bench_gpu_check_reference")
+    root = tmp_path_factory.mktemp("src") / "undulate"
+    shutil.copytree(ref.SRC, root, ignore=shutil.ignore_patterns("__pycache__"))
+    before = ref.src_digest(root)
+    assert before == ref.src_digest(ref.SRC)
+    return ref, root, before
+
+
 @pytest.mark.parametrize("edited, moves", [
     ("studies/packing.py", True),          # a study
     ("simulation/_mujoco.py", True),       # the engine it reaches through imports
@@ -77,21 +91,19 @@ def test_more_hardware_queues_are_kept_only_where_they_cut_the_crowded_step(chec
     ("track/tracker.py", False),
     ("simulation/_warp.py", False),        # the Warp backend: not MuJoCo's results
 ])
-def test_the_cpu_references_digest_follows_the_code_a_reproduction_runs(tmp_path, benchmark_script, edited, moves):
+def test_the_cpu_references_digest_follows_the_code_a_reproduction_runs(src_copy, edited, moves):
     """The GPU check's CPU reference is valid while its digest matches: an edit a reproduction on the
     MuJoCo backend runs moves it, an edit elsewhere in the package does not."""
-    import shutil
-
-    ref = benchmark_script("bench_gpu_check_reference")
-    root = tmp_path / "undulate"
-    shutil.copytree(ref.SRC, root, ignore=shutil.ignore_patterns("__pycache__"))
-    before = ref.src_digest(root)
-    assert before == ref.src_digest(ref.SRC)
+    ref, root, before = src_copy
+    assert ref.src_digest(root) == before  # the copy as made (every earlier test put its file back)
     files = ref.reproduction_files(root)
     assert "reproduce.py" in files and "studies/packing.py" in files and (edited in files) is moves
-    with open(root / edited, "a") as f:
-        f.write("\n# an edit\n")
-    assert (ref.src_digest(root) != before) is moves
+    text = (root / edited).read_bytes()
+    try:
+        (root / edited).write_bytes(text + b"\n# an edit\n")
+        assert (ref.src_digest(root) != before) is moves
+    finally:
+        (root / edited).write_bytes(text)
 
 
 def test_the_lease_plan_names_a_cpu_reference_that_exists():
