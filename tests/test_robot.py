@@ -455,7 +455,11 @@ def test_closed_loop_controller_runs_on_the_bus():
         ds = run_robot(cfg, controller=ctl, log=lambda m: None)
         assert [bus.torque(i) for i in (1, 2, 3, 4)] == [0, 0, 0, 0]
     load = ds["servo_load"].values
-    assert np.isfinite(load).all() and np.abs(load).max() > 0.1
+    # a reply the emulated bus sends too late is a NaN reading, counted, and the controller holds the last good
+    # one (test_isolated_read_timeouts_give_nan_readings_never_nan_commands): on a busy machine a few happen
+    missed = ~np.isfinite(load)
+    assert ds.attrs["read_timeouts"] == missed.sum() and missed.mean() < 0.1
+    assert np.nanmax(np.abs(load)) > 0.1
     free = 2 * np.pi * 0.5 * ds["time"].values[:, None] - np.array([0, 1])[None]
     assert np.abs(ds["gait_phase"].values - free).max() > 0.05  # the load moved the phase
     assert ds.attrs["controller"] == "phase-oscillator"
