@@ -3,9 +3,9 @@
 The analysis functions are checked against synthetic data with known
 answers; every study runs for real (no mocks) and the physics each one is
 there to show is asserted on its result: by default on a reduced plan run
-through the study's ``dataset`` (swimming: its whole quick plan, through the
-registry, with its four files); under the ``slow`` marker on the whole quick
-plan through the registry.
+through the study's ``dataset``; under the ``slow`` marker on the whole quick
+plan through the registry, with its four files (in the default run
+tests/test_studies_pairs.py runs pairs and groups that way).
 """
 
 from __future__ import annotations
