@@ -119,7 +119,7 @@ def test_a_marked_batched_sweep_function_runs_batched_without_being_told(serial,
     assert is_batched_sweep_function(fn) and not is_batched_sweep_function(sweep_funcs.pendulum_batch)
     res = run_sweep(fn, GRID, tmp_path / "m", workers=1, progress=False)
     assert res.n_computed == GRID.n_runs
-    xr.testing.assert_identical(_data(res.dataset).drop_attrs(), _data(serial.dataset).drop_attrs())
+    xr.testing.assert_identical(res.dataset.drop_attrs(), serial.dataset.drop_attrs())
     assert json.loads((tmp_path / "m" / "manifest.json").read_text())["batched"] is True
     again = run_sweep(fn, GRID, tmp_path / "m", workers=1, progress=False, batched=True)  # the same sweep
     assert again.n_reused == GRID.n_runs and again.n_computed == 0
