@@ -343,3 +343,43 @@ def test_an_animation_is_kept_only_while_its_code_and_parameters_are_those_it_wa
     assert make(0.5, caption + ".")[0] == redrawn  # its stamp is current again
     gif.unlink()
     assert make(0.5, caption + ".")[0] != redrawn and gif.is_file()
+
+
+def test_current_animations_are_kept_without_a_worker_and_only_the_stale_one_is_drawn(tmp_path, monkeypatch):
+    """The reproduction checks its animations' stamps itself: a rerun with every animation current starts
+    no worker process, and one whose GIF is gone is the only one drawn again."""
+    from undulate import reproduce as rep
+    from undulate.sweep import _executors
+
+    anims = rep._animations(tmp_path, 0.3, log=pytest.fail, workers=1)
+    assert [a["file"] for a in anims] == [f"animations/{stem}.gif" for stem, *_ in rep.ANIMATIONS]
+    gifs = [tmp_path / a["file"] for a in anims]
+    made = [g.stat().st_mtime_ns for g in gifs]
+
+    def no_pool(n):
+        raise AssertionError(f"a pool of {n} was started for animations that are current")
+
+    monkeypatch.setattr(_executors, "local_pool", no_pool)
+    assert rep._animations(tmp_path, 0.3, log=pytest.fail, workers=2) == anims
+    assert [g.stat().st_mtime_ns for g in gifs] == made
+    gifs[1].unlink()
+    assert rep._animations(tmp_path, 0.3, log=pytest.fail, workers=2) == anims  # one to draw: drawn here
+    assert [g.stat().st_mtime_ns for g in gifs[::2]] == made[::2] and gifs[1].stat().st_mtime_ns != made[1]
+
+
+def test_animation_duration_is_validated(tmp_path, capfd):
+    """``--animation-s`` (and ``reproduce(animation_s=...)``): seconds, at least two frames; anything else
+    is one line naming it, exit code 2, nothing written."""
+    from undulate.cli import main
+    from undulate.errors import ParameterError
+    from undulate.reproduce import MIN_ANIMATION_S, reproduce
+
+    out = tmp_path / "r"
+    for bad in ("0", "-1", "nan", "inf", "0.1", "abc"):
+        assert main(["reproduce", "--out", str(out), "--animation-s", bad]) == 2, bad
+        err = capfd.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and err[0].startswith("error:") and "--animation-s" in err[0], (bad, err)
+    for bad in (0.1, float("nan"), "2", True):
+        with pytest.raises(ParameterError, match="animation_s"):
+            reproduce(out, studies=["compatibility"], animation_s=bad, log=pytest.fail)
+    assert not out.exists() and MIN_ANIMATION_S == pytest.approx(0.2)

@@ -268,7 +268,7 @@ def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resume
 
     out = tmp_path / "r"
     cmd = [sys.executable, "-m", "undulate.cli", "reproduce", "--out", str(out), "--only",
-           "compatibility,groups,swimming", "--workers", "2"]
+           "compatibility,groups,swimming", "--workers", "2", "--animation-s", "0.3"]
     # SIGINT as a terminal delivers it, even where this test runs as a background job (which starts
     # with SIGINT ignored, and Python then never raises KeyboardInterrupt)
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,

@@ -339,13 +339,17 @@ def reproduce(
              "Default: the paper's studies only."),
     backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
     device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
+    animation_s: Optional[float] = typer.Option(
+        None, "--animation-s", help="Simulated seconds of each animation, at least 0.2 (default: each its own, "
+                                    "16-24 s). The studies and their claims do not depend on it."),
 ) -> None:
     """Reproduce the paper: every study, animations, and OUT/index.html."""
     from . import studies as registry
-    from .reproduce import reproduce as run_all
+    from .reproduce import check_animation_s, reproduce as run_all
 
     try:
         _check_workers(workers, scheduler)
+        check_animation_s(animation_s, "--animation-s")
         _use_backend(backend, device)
         if out.exists() and not out.is_dir():
             raise ParameterError("--out", "a directory", str(out))
@@ -359,7 +363,8 @@ def reproduce(
         _fail(str(e), 2)
     try:
         path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
-                                 log=lambda m: typer.echo(m), workers=workers, beyond_paper=beyond_paper)
+                                 log=lambda m: typer.echo(m), workers=workers, beyond_paper=beyond_paper,
+                                 animation_s=animation_s)
     except SourceChangedError as e:
         _fail(str(e), 1)
     failed = [s["name"] for s in statuses if not s["ok"]]

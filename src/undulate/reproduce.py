@@ -23,6 +23,7 @@ from typing import Any, Callable
 
 from ._io import atomic_output
 from ._source import SourceChangedError
+from .errors import ParameterError
 
 __all__ = ["reproduce", "ANIMATIONS"]
 
@@ -131,7 +132,12 @@ def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: floa
         gif.unlink(missing_ok=True)  # the stamp below is the gif's: a gif drawn from another stays out
         write_netcdf(ds, nc)
         animate(ds, gif, stride=d["stride"], fps=d["fps"], dpi=d["dpi"], title=caption)
-    return {"file": f"animations/{gif.name}", "data": f"animations/{nc.name}", "caption": caption}
+    return _animation_entry(stem, caption)
+
+
+def _animation_entry(stem: str, caption: str) -> dict:
+    """The report's entry for animation ``stem``: its GIF and data, relative to the output folder."""
+    return {"file": f"animations/{stem}.gif", "data": f"animations/{stem}.nc", "caption": caption}
 
 
 def _animations(out: Path, animation_s: float | None, log: Callable[[str], None], workers: int | None) -> list[dict]:
@@ -144,12 +150,17 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
 
     jobs = [(stem, caption, kw, dur if animation_s is None else animation_s) for stem, caption, kw, dur in ANIMATIONS]
     done: dict[str, dict] = {}
-    n = min(workers or default_workers(), len(jobs))
+    anim_dir = out / "animations"
+    for stem, caption, kw, dur in jobs:  # current ones are kept here, without starting a worker for them
+        if _animation_current(anim_dir / f"{stem}.gif", anim_dir / f"{stem}.nc", _animation_stamp(caption, kw, dur)):
+            done[stem] = _animation_entry(stem, caption)
+    todo = [j for j in jobs if j[0] not in done]
+    n = min(workers or default_workers(), len(todo))
     if n > 1:
         try:
             with local_pool(n) as pool:
                 futs = {stem: pool.submit(_make_animation, out, stem, caption, kw, dur)
-                        for stem, caption, kw, dur in jobs}
+                        for stem, caption, kw, dur in todo}
                 for stem, fut in futs.items():
                     try:
                         done[stem] = fut.result()
@@ -181,7 +192,8 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     15-minute budget on 2 cores is theirs; the page says what was left out).
     Ignored when ``studies`` names the studies.
 
-    ``animation_s`` overrides the simulated duration of each animation (s).
+    ``animation_s`` overrides the simulated duration of each animation (s, at least
+    :data:`MIN_ANIMATION_S`); an animation still current (same code, scene, duration and drawing) is kept.
     ``workers``: local worker processes (default: every core this process may
     use); one pool of them stays warm across every study's sweeps.
     ``side_by_side``: studies run at once (threads sharing that pool; an explaining study waits for
@@ -201,6 +213,7 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     from .sweep import warm_workers
 
     StudyConfig(out_dir=Path(out_dir), quick=quick, scheduler=scheduler, seed=seed, workers=workers)  # validate first
+    check_animation_s(animation_s)
     log = _one_line_at_a_time(log)
     if studies is None:
         beyond = bool(beyond_paper)
@@ -212,6 +225,23 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     with warm_workers(None if scheduler is not None else workers):
         return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers,
                           side_by_side)
+
+
+#: The shortest animation (s): two frames at the drawing's recording rate.
+MIN_ANIMATION_S = 2.0 / ANIMATION_DRAWING["sample_rate_hz"]
+
+
+def check_animation_s(animation_s: float | None, name: str = "animation_s") -> None:
+    """``animation_s`` is None (each animation's own duration) or a finite number of seconds, at least
+    :data:`MIN_ANIMATION_S`; else a :class:`~undulate.errors.ParameterError` naming it (as ``name``)."""
+    if animation_s is None:
+        return
+    import numbers
+
+    ok = (isinstance(animation_s, numbers.Real) and not isinstance(animation_s, bool)
+          and math.isfinite(animation_s) and animation_s >= MIN_ANIMATION_S)
+    if not ok:
+        raise ParameterError(name, f"seconds, at least {MIN_ANIMATION_S:g} (two frames)", animation_s)
 
 
 def _one_line_at_a_time(log: Callable[[str], None]) -> Callable[[str], None]:

@@ -86,10 +86,16 @@ def read_run_file(path: Path, data: bytes | None = None) -> tuple[xr.Dataset, di
 
 
 # ---- identity of a sweep -------------------------------------------------
-def function_name(fn: Callable) -> str:
-    """``module.qualname`` of the function under any ``functools.partial`` layers."""
+def unwrapped(fn: Callable) -> Callable:
+    """The function under any ``functools.partial`` layers of ``fn`` (``fn`` itself if none)."""
     while isinstance(fn, functools.partial):
         fn = fn.func
+    return fn
+
+
+def function_name(fn: Callable) -> str:
+    """``module.qualname`` of the function under any ``functools.partial`` layers."""
+    fn = unwrapped(fn)
     module = getattr(fn, "__module__", None) or type(fn).__module__
     name = getattr(fn, "__qualname__", None) or type(fn).__qualname__
     return f"{module}.{name}"

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import functools
 import json
 import logging
 import math
@@ -23,7 +22,7 @@ from ._grid import Grid
 from ._progress import Progress
 from .._source import check_unchanged
 from ._store import (ENGINE, MERGED, Store, atomic_write_netcdf, function_id, function_name, make_manifest, merge,
-                     run_provenance, write_failure)
+                     run_provenance, unwrapped, write_failure)
 from ._worker import EXISTS, FAILED, OK, Chunk, Outcome
 
 log = logging.getLogger("undulate.sweep")
@@ -155,9 +154,7 @@ def batched_sweep_function(fn: Callable[..., Any]) -> Callable[..., Any]:
 def is_batched_sweep_function(fn: Callable[..., Any]) -> bool:
     """Whether ``fn`` (or the function a ``functools.partial`` chain wraps) is marked by
     :func:`batched_sweep_function`."""
-    while isinstance(fn, functools.partial):
-        fn = fn.func
-    return bool(getattr(fn, BATCHED_MARK, False))
+    return bool(getattr(unwrapped(fn), BATCHED_MARK, False))
 
 
 def _resolve_batched(fn: Callable[..., Any], batched: bool | None) -> bool:
