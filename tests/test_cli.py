@@ -1,4 +1,4 @@
-"""The command line, run as a real subprocess: contract options, output, and bad input."""
+"""The command line, run as a real subprocess: contract options, output, and bad input (each bad input\nalso through the entry point in this process)."""
 
 from __future__ import annotations
 
@@ -73,30 +73,41 @@ BAD = [
 BAD_IDS = [" ".join(a) for a, _ in BAD]
 
 
-@pytest.fixture(scope="module")
-def bad_runs(tmp_path_factory):
-    """Each bad input run as its own real subprocess, in its own empty folder, a few at a time (each
-    process spends its time importing): ``{id: (CompletedProcess, folder)}``."""
-    from concurrent.futures import ThreadPoolExecutor
+def _bad_args(args: list[str], folder) -> list[str]:
+    dur = ["--duration", "1"] if "--duration" not in args else ["--quiet"]
+    return ["simulate", *args, *dur, "--out", str(folder / "bad.nc")]
 
-    def one(case):
-        (args, _), folder = case, tmp_path_factory.mktemp("bad")
-        dur = ["--duration", "1"] if "--duration" not in args else ["--quiet"]
-        return run("simulate", *args, *dur, "--out", str(folder / "bad.nc")), folder
 
-    with ThreadPoolExecutor(4) as pool:
-        return dict(zip(BAD_IDS, pool.map(one, BAD)))
+def _one_line_error(rc: int, err: str, param: str) -> None:
+    assert rc == 2, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error:") and param in lines[0]
+    assert "Traceback" not in err
 
 
 @pytest.mark.parametrize("args, param", BAD, ids=BAD_IDS)
-def test_bad_input_one_line_exit_2_no_file(bad_runs, args, param):
-    r, folder = bad_runs[" ".join(args)]
-    assert r.returncode == 2, (r.stdout, r.stderr)
-    lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1, r.stderr
-    assert lines[0].startswith("error:") and param in lines[0]
-    assert "Traceback" not in r.stderr
-    assert list(folder.iterdir()) == []  # no output, no partial file
+def test_bad_input_one_line_exit_2_no_file(tmp_path, capfd, args, param):
+    """The command's own entry point, in this process (stderr read at the file-descriptor level)."""
+    from undulate.cli import main
+
+    rc = main(_bad_args(args, tmp_path))
+    _one_line_error(rc, capfd.readouterr().err, param)
+    assert list(tmp_path.iterdir()) == []  # no output, no partial file
+
+
+def test_bad_input_as_a_user_meets_it(tmp_path_factory):
+    """A value error, an unparsable value and a non-finite one, each in a fresh process as a user runs
+    the command: the same one line, exit code 2, nothing written."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    cases = [c for c in BAD if " ".join(c[0]) in ("--phases 0,abc", "--links abc", "--duration inf")]
+    folders = [tmp_path_factory.mktemp("bad") for _ in cases]
+    with ThreadPoolExecutor(len(cases)) as pool:
+        done = list(pool.map(lambda c, f: run(*_bad_args(c[0], f)), cases, folders))
+    for (_, param), r, folder in zip(cases, done, folders):
+        _one_line_error(r.returncode, r.stderr, param)
+        assert list(folder.iterdir()) == []
 
 
 def test_unwritable_output_path(tmp_path):
