@@ -4,6 +4,20 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 
 
 import pytest  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from alone_lock import beside_others  # noqa: E402
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """On a pytest-xdist worker, each test (its fixtures' setup and teardown included) holds the
+    workers' shared lock, and a test marked ``alone`` holds it exclusively (``alone_lock``)."""
+    if not hasattr(item.config, "workerinput"):  # one process: nothing runs beside a test
+        yield
+        return
+    with beside_others(Path(item.config.option.basetemp).parent, item.get_closest_marker("alone") is not None):
+        yield
 
 
 @pytest.fixture(autouse=True)

@@ -145,6 +145,7 @@ def test_a_long_run_announces_its_estimate_before_its_progress(tmp_path, monkeyp
     assert res.stderr.startswith("estimated compute time: ")
 
 
+@pytest.mark.alone  # two wall times of this process, not of the other worker's test
 def test_estimate_is_within_a_factor_3_of_the_measured_compute_time(tmp_path):
     """A moderate run (4 swimmers of 12 links, 8 s: a few seconds of stepping): the estimate from
     about a second of calibration against the same run's stepping time.  Loose: both are wall

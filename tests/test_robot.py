@@ -20,6 +20,8 @@ import pytest
 import xarray as xr
 
 pytest.importorskip("dynamixel_sdk")
+# the emulated servos answer in real time (the SDK's packet timeout): nothing runs beside these tests
+pytestmark = pytest.mark.alone
 
 sys.path.insert(0, str(Path(__file__).parent))
 from dxl_emulator import ServoBus, crc16, p1_packet, p1_checksum, p2_packet, stuff, unstuff  # noqa: E402
