@@ -1,10 +1,10 @@
 import os
+from pathlib import Path
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
 
 import pytest  # noqa: E402
-from pathlib import Path  # noqa: E402
 
 from alone_lock import beside_others  # noqa: E402
 

@@ -1,4 +1,5 @@
-"""The command line, run as a real subprocess: contract options, output, and bad input (each bad input\nalso through the entry point in this process)."""
+"""The command line, run as a real subprocess: contract options, output, and bad input (each bad input
+also through the entry point in this process)."""
 
 from __future__ import annotations
 
@@ -102,6 +103,7 @@ def test_bad_input_as_a_user_meets_it(tmp_path_factory):
     from concurrent.futures import ThreadPoolExecutor
 
     cases = [c for c in BAD if " ".join(c[0]) in ("--phases 0,abc", "--links abc", "--duration inf")]
+    assert len(cases) == 3
     folders = [tmp_path_factory.mktemp("bad") for _ in cases]
     with ThreadPoolExecutor(len(cases)) as pool:
         done = list(pool.map(lambda c, f: run(*_bad_args(c[0], f)), cases, folders))
