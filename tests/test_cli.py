@@ -187,3 +187,20 @@ def test_every_help_text_survives_the_rich_markup_typer_renders_it_with():
     assert any("\\[gpu]" in t for _, t in texts)  # the one that was eaten
     shown = CliRunner().invoke(app, ["reproduce", "--help"], env={"COLUMNS": "200"}, terminal_width=200).output
     assert "pip install 'undulate[gpu]'" in shown, shown
+
+
+def test_python_dash_m_undulate_lists_the_studies_in_one_column():
+    """``python -m undulate`` is the command line; ``studies`` starts every description in one column
+    (the longest name sets it)."""
+    from undulate import studies
+
+    out = subprocess.run([sys.executable, "-m", "undulate", "studies"], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    lines = out.stdout.splitlines()
+    names = studies.names()
+    assert [ln.split()[0] for ln in lines] == names
+    starts = {ln.index(studies.describe(n).description[:20]) for ln, n in zip(lines, names)}
+    assert starts == {max(map(len, names)) + 2}
+    bad = subprocess.run([sys.executable, "-m", "undulate", "simulate", "--duration", "-1"], capture_output=True,
+                         text=True, timeout=120)
+    assert bad.returncode == 2 and len(bad.stderr.strip().splitlines()) == 1 and "--duration" in bad.stderr

@@ -279,8 +279,10 @@ def list_studies() -> None:
     """List the registered studies."""
     from . import studies
 
-    for name in studies.names():
-        typer.echo(f"{name:14s} {studies.describe(name)}")
+    names = studies.names()
+    width = max(map(len, names), default=0)
+    for name in names:
+        typer.echo(f"{name:{width}s}  {studies.describe(name)}")
 
 
 _WORKERS_HELP = ("Local worker processes (default: the cores this process may use); results do not depend "
@@ -308,7 +310,7 @@ def study(
     backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
     device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
 ) -> None:
-    """Run one paper study: writes OUT/NAME.nc, OUT/NAME.png (+ .pdf) and OUT/NAME.json."""
+    """Run one study: writes OUT/NAME.nc, OUT/NAME.png (+ .pdf) and OUT/NAME.json."""
     from . import studies
 
     try:

@@ -1,0 +1,71 @@
+"""The intervals of root-mean-square and standard-deviation estimates: a claim "the RMS residual lies
+below 0.1 lambda" holds on the upper bound, so an upper bound that falls short of the truth more
+often than it says makes ``holds`` too easy."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from undulate import stats
+
+
+def _rows(which: str):
+    if which == "rms":
+        return lambda a, axis=-1: np.sqrt(np.mean(a * a, axis=axis))
+    return lambda a, axis=-1: np.std(a, axis=axis)
+
+
+@pytest.mark.parametrize("n", [9, 30])
+@pytest.mark.parametrize("which", ["rms", "std"])
+def test_rms_and_std_intervals_cover_better_than_the_percentile_bootstrap(n, which):
+    """Normal samples (sd 1, mean 0.5: RMS sqrt(1.25), sd 1) of 9 and 30 points, 400 seeded trials.
+    The percentile bootstrap, used until 2026-11-29, puts the truth above its 95 % interval far more
+    often than the nominal 2.5 % (measured here: RMS 15.5 % at n = 9, 8.3 % at n = 30; std 29.5 %,
+    14.3 %). The BCa intervals of :func:`stats.rms` and :func:`stats.std` miss it less often on the
+    same samples (RMS 12.5 %, 5.8 %; std 16.8 %, 8.3 %) without missing the lower side more than
+    twice the nominal rate."""
+    truth = math.sqrt(1.25) if which == "rms" else 1.0
+    fn, rows = getattr(stats, which), _rows(which)
+    rng = np.random.default_rng(2024)
+    trials, new, old = 400, np.zeros(2), np.zeros(2)
+    for _ in range(trials):
+        x = rng.normal(0.5, 1.0, n)
+        e = fn(x)
+        _, lo, hi = stats.bootstrap(rows, x, vectorized=True)
+        new += (truth < e.low, truth > e.high)
+        old += (truth < lo, truth > hi)
+    new, old = new / trials, old / trials
+    assert new[1] <= old[1] - 0.02, (new, old)
+    assert new[0] <= 0.05, (new, old)
+    if n == 30:
+        assert new[1] <= 0.09, (new, old)
+
+
+def test_root_mean_square_estimates_say_their_method_and_level():
+    rng = np.random.default_rng(1)
+    x = rng.normal(0, 0.05, 49)
+    e = stats.rms(x)
+    assert e.method == "bootstrap BCa" and e.n == 49 and e.level == stats.CONFIDENCE
+    assert e.low < e.value < e.high and e.value == pytest.approx(np.sqrt(np.mean(x * x)))
+    assert 0 < e.stderr < e.high - e.low
+    with stats.at_level(0.99):
+        wide = stats.rms(x)
+    assert wide.level == 0.99 and wide.low < e.low and wide.high > e.high
+    assert stats.rms(x) == e  # seeded: the same data give the same interval
+    s = stats.std(x)
+    assert s.value == pytest.approx(np.std(x)) and s.low < s.value < s.high
+    assert math.isnan(stats.rms([0.1, 0.2]).low) and stats.rms([0.1, 0.2]).n == 2  # too few points
+    assert math.isnan(stats.rms([]).value)
+    flat = stats.rms([0.1, -0.1, 0.1, -0.1, 0.1])  # every resample gives 0.1: an exact interval
+    assert (flat.low, flat.value, flat.high) == pytest.approx((0.1, 0.1, 0.1))
+
+
+def test_from_dict_passes_an_estimate_through_and_refuses_other_objects():
+    e = stats.Estimate(1.0, 0.01, 0.98, 1.02, 9, "t")
+    assert stats.Estimate.from_dict(e) is e
+    assert math.isnan(stats.Estimate.from_dict(None).value)
+    with pytest.raises(TypeError, match="Estimate.from_dict"):
+        stats.Estimate.from_dict(1.0)
