@@ -113,37 +113,46 @@ def _numbers(ds: xr.Dataset) -> dict:
     return {k: v.values for k, v in ds.variables.items() if v.dtype.kind in "biufc"}
 
 
+@pytest.fixture(scope="module")
+def quick_folders(tmp_path_factory):
+    """The two folders every study of the slow suite runs into, in the registry's order (a study
+    reuses the sweeps an earlier one shares with it, as in a reproduction)."""
+    root = tmp_path_factory.mktemp("quick")
+    return root / "a", root / "b"
+
+
 @pytest.mark.slow
-def test_every_registered_study_in_quick_mode(tmp_path):
-    for name in studies.names():
-        a, b = tmp_path / "a", tmp_path / "b"
-        studies.run_study(name, a, quick=True, progress=False)
-        doc = json.loads((a / f"{name}.json").read_text())
-        ds = xr.load_dataset(a / f"{name}.nc", engine="h5netcdf")
-        for k, v in ds.variables.items():
-            if v.dtype.kind in "iufc":
-                assert "units" in v.attrs, (name, k)
-        judged = [c for c in doc["claims"] if c["verdict"] in ("holds", "fails", "undecided")]
-        # an undecided claim names the boundary its interval straddles
-        assert all("straddles" in c["reason"] or "overlaps" in c["reason"]
-                   for c in judged if c["verdict"] == "undecided"), (name, judged)
-        # the one designed "no result": phase-interaction where the measured H is zero at every held dphi
-        # (free pairs that stop touching), never for want of runs
-        unjudged = [c for c in doc["claims"] if c not in judged]
-        assert all(name == "phase-interaction" and c["verdict"] == "no result" and "H is zero" in c["reason"]
-                   for c in unjudged), (name, unjudged)
-        assert doc["n_failed"] == 0 and (judged or not doc["claims"]), (name, doc["claims"])  # compatibility: none
-        # a second run into the same folder computes nothing and gives the same numbers
-        studies.run_study(name, a, quick=True, progress=False)
-        again = json.loads((a / f"{name}.json").read_text())
-        assert again["n_computed"] == 0, (name, again["sweeps"])
-        assert again["summary"] == doc["summary"] and again["claims"] == doc["claims"]
-        # deterministic: a fresh folder gives identical numbers
-        studies.run_study(name, b, quick=True, progress=False)
-        fresh = json.loads((b / f"{name}.json").read_text())
-        assert fresh["summary"] == doc["summary"], name
-        ds_b = xr.load_dataset(b / f"{name}.nc", engine="h5netcdf")
-        na, nb = _numbers(ds), _numbers(ds_b)
-        assert na.keys() == nb.keys()
-        for k in na:
-            np.testing.assert_array_equal(na[k], nb[k], err_msg=f"{name}: {k}")
+@pytest.mark.parametrize("name", studies.names())
+def test_every_registered_study_in_quick_mode(name, quick_folders):
+    """One study a case (``-k NAME`` runs one alone: it then makes the sweeps it shares itself)."""
+    a, b = quick_folders
+    studies.run_study(name, a, quick=True, progress=False)
+    doc = json.loads((a / f"{name}.json").read_text())
+    ds = xr.load_dataset(a / f"{name}.nc", engine="h5netcdf")
+    for k, v in ds.variables.items():
+        if v.dtype.kind in "iufc":
+            assert "units" in v.attrs, (name, k)
+    judged = [c for c in doc["claims"] if c["verdict"] in ("holds", "fails", "undecided")]
+    # an undecided claim names the boundary its interval straddles
+    assert all("straddles" in c["reason"] or "overlaps" in c["reason"]
+               for c in judged if c["verdict"] == "undecided"), (name, judged)
+    # the one designed "no result": phase-interaction where the measured H is zero at every held dphi
+    # (free pairs that stop touching), never for want of runs
+    unjudged = [c for c in doc["claims"] if c not in judged]
+    assert all(name == "phase-interaction" and c["verdict"] == "no result" and "H is zero" in c["reason"]
+               for c in unjudged), (name, unjudged)
+    assert doc["n_failed"] == 0 and (judged or not doc["claims"]), (name, doc["claims"])  # compatibility: none
+    # a second run into the same folder computes nothing and gives the same numbers
+    studies.run_study(name, a, quick=True, progress=False)
+    again = json.loads((a / f"{name}.json").read_text())
+    assert again["n_computed"] == 0, (name, again["sweeps"])
+    assert again["summary"] == doc["summary"] and again["claims"] == doc["claims"]
+    # deterministic: a fresh folder gives identical numbers
+    studies.run_study(name, b, quick=True, progress=False)
+    fresh = json.loads((b / f"{name}.json").read_text())
+    assert fresh["summary"] == doc["summary"], name
+    ds_b = xr.load_dataset(b / f"{name}.nc", engine="h5netcdf")
+    na, nb = _numbers(ds), _numbers(ds_b)
+    assert na.keys() == nb.keys()
+    for k in na:
+        np.testing.assert_array_equal(na[k], nb[k], err_msg=f"{name}: {k}")
