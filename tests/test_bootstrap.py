@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
+import pytest
 
 
 def test_vectorized_bootstrap_equals_one_call_per_resample():
@@ -26,7 +29,81 @@ def test_vectorized_bootstrap_equals_one_call_per_resample():
             (lambda a: float(np.sqrt(np.mean(a * a))), lambda a, axis=-1: np.sqrt(np.mean(a * a, axis=axis)), (y,)),
             (lambda a: float(np.std(a)), lambda a, axis=-1: np.std(a, axis=axis), (y,)),
         ]
-        for one, rows, samples in pairs:
-            ref = stats.bootstrap(one, *samples, seed=11)
-            vec = stats.bootstrap(rows, *samples, seed=11, vectorized=True)
+        for (one, rows, samples), method in itertools.product(pairs, stats.BOOTSTRAP_METHODS):
+            ref = stats.bootstrap(one, *samples, seed=11, method=method)
+            vec = stats.bootstrap(rows, *samples, seed=11, vectorized=True, method=method)
             np.testing.assert_allclose(vec, ref, rtol=1e-12, atol=1e-14, equal_nan=True)
+
+
+def _scipy_bca(rows, *samples, seed):
+    import warnings
+
+    from scipy import stats as st
+
+    from undulate import stats
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = st.bootstrap(samples, rows, paired=True, vectorized=True, n_resamples=stats.N_RESAMPLES,
+                           method="BCa", rng=np.random.default_rng(seed))
+    return res.standard_error, res.confidence_interval.low, res.confidence_interval.high
+
+
+def test_bca_interval_is_scipys_where_every_resample_is_defined():
+    """With no undefined resample the package's BCa interval (its own z0 and jackknife acceleration on
+    scipy's resamples) is ``scipy.stats.bootstrap(method="BCa")``'s, for one and two paired samples,
+    vectorized or not, and at another level; the percentile one is the distribution's percentiles."""
+    from undulate import stats
+
+    rng = np.random.default_rng(3)
+    for n in (5, 12, 40):
+        x = rng.normal(size=n)
+        y = 0.8 * x + 0.6 * rng.normal(size=n)
+        z = rng.lognormal(size=n)
+        cases = [
+            (lambda a, b, axis=-1: stats._pearson_rows(a, b, axis) ** 2,
+             lambda a, b: float(np.corrcoef(a, b)[0, 1] ** 2), (x, y)),
+            (lambda a, axis=-1: np.sqrt(np.mean(a * a, axis=axis)), lambda a: float(np.sqrt(np.mean(a * a))), (z,)),
+            (lambda a, axis=-1: np.mean(a, axis=axis), lambda a: float(np.mean(a)), (z,)),
+        ]
+        for rows, one, samples in cases:
+            if n == 5 and len(samples) == 2:
+                continue  # a resample of 5 pairs can have no spread: scipy's interval is NaN (below)
+            ref = _scipy_bca(rows, *samples, seed=11)
+            np.testing.assert_allclose(stats.bootstrap(rows, *samples, seed=11, vectorized=True), ref, rtol=1e-10)
+            np.testing.assert_allclose(stats.bootstrap(one, *samples, seed=11), ref, rtol=1e-10)
+    with stats.at_level(0.99):
+        wide = stats.bootstrap(cases[1][0], z, seed=11, vectorized=True)
+    narrow = stats.bootstrap(cases[1][0], z, seed=11, vectorized=True)
+    assert wide[1] < narrow[1] < narrow[2] < wide[2]
+    se, lo, hi = stats.bootstrap(cases[1][0], z, seed=11, vectorized=True, method="percentile")
+    assert se == pytest.approx(narrow[0]) and (lo, hi) != pytest.approx(narrow[1:])
+
+
+def test_bca_interval_leaves_undefined_resamples_out():
+    """R^2 of 5 points: some resamples repeat one point and have no spread (R^2 undefined). scipy's BCa
+    interval is then NaN; the package's leaves those resamples out (and says NaN only when over half
+    are undefined or the sample's own statistic is)."""
+    from undulate import stats
+
+    x = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
+    y = np.array([0.1, 0.9, 2.3, 2.8, 4.2])
+
+    def r2(a, b, axis=-1):
+        return stats._pearson_rows(a, b, axis) ** 2
+
+    assert np.isnan(_scipy_bca(r2, x, y, seed=11)[1])
+    se, lo, hi = stats.bootstrap(r2, x, y, vectorized=True)
+    value = float(np.corrcoef(x, y)[0, 1] ** 2)
+    assert 0 < se and lo < value <= hi <= 1.0
+    fit = stats.line_fit(x, y)
+    assert fit.r2.method == "bootstrap BCa" and (fit.r2.low, fit.r2.high) == pytest.approx((lo, hi))
+    assert np.isnan(stats.bootstrap(r2, x, np.ones(5), vectorized=True)[1])  # R^2 of the sample undefined
+    assert np.isnan(stats.bootstrap(r2, x[:2], y[:2], vectorized=True)[1])  # fewer than 3 points
+
+
+def test_bootstrap_refuses_an_unknown_method():
+    from undulate import stats
+
+    with pytest.raises(ValueError, match="method must be one of BCa, percentile"):
+        stats.bootstrap(np.mean, np.arange(5.0), method="basic")

@@ -34,7 +34,7 @@ def test_rms_and_std_intervals_cover_better_than_the_percentile_bootstrap(n, whi
     for _ in range(trials):
         x = rng.normal(0.5, 1.0, n)
         e = fn(x)
-        _, lo, hi = stats.bootstrap(rows, x, vectorized=True)
+        _, lo, hi = stats.bootstrap(rows, x, vectorized=True, method="percentile")
         new += (truth < e.low, truth > e.high)
         old += (truth < lo, truth > hi)
     new, old = new / trials, old / trials

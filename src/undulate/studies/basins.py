@@ -234,7 +234,7 @@ def summary(ds) -> dict[str, Any]:
         "grid_shape": list(sim.shape),
         "grid_sign_agreement_with_theory": agree,
         "grid_correlation_with_theory": stats.Estimate(corr, se, lo, hi, int(ok.sum()),
-                                                       "Pearson r, bootstrap percentile",
+                                                       "Pearson r, bootstrap BCa",
                                                        stats.level()).to_dict(),
         "grid_not_steady": int((~ds["grid_steady"].values).sum()),
         "n_grid_failed": int(ds["grid_run_failed"].values.sum()),

@@ -134,7 +134,7 @@ def stiffness_fit(dF, dx, valid=None, min_points: int = 3) -> dict[str, stats.Es
         return float(-cc / kk) if kk != 0 else float("nan")
 
     se, lo, hi = stats.bootstrap(dx0_of, x, f)
-    return {"k": fit.slope, "dx0": stats.Estimate(float(-c / k), se, lo, hi, int(f.size), "bootstrap percentile",
+    return {"k": fit.slope, "dx0": stats.Estimate(float(-c / k), se, lo, hi, int(f.size), "bootstrap BCa",
                                 stats.level()),
             "r2": fit.r2}
 
@@ -352,7 +352,7 @@ def _collapse_rms(x, logk) -> stats.Estimate:
     ok = np.isfinite(x) & np.isfinite(logk)
     v = _collapse_rms_value(x, logk)
     se, lo, hi = stats.bootstrap(_collapse_rms_value, x[ok], logk[ok])
-    return stats.Estimate(v, se, lo, hi, int(ok.sum()), "bootstrap percentile", stats.level())
+    return stats.Estimate(v, se, lo, hi, int(ok.sum()), "bootstrap BCa", stats.level())
 
 
 def _r2_without_scatter_value(x, y, noise_var) -> float:
@@ -408,7 +408,7 @@ def impulse_r2_without_phase_scatter(dphi, impulse_all) -> stats.Estimate:
     x, y, nv = _split_half_means(dphi, impulse_all)
     value = _r2_without_scatter_value(x, y, nv) if x.size >= 3 else math.nan
     se, lo, hi = stats.bootstrap(_r2_without_scatter_value, x, y, nv)
-    return stats.Estimate(value, se, lo, hi, int(x.size), "bootstrap percentile over |dphi|", stats.level())
+    return stats.Estimate(value, se, lo, hi, int(x.size), "bootstrap BCa over |dphi|", stats.level())
 
 
 def summary(ds) -> dict[str, Any]:
@@ -440,7 +440,7 @@ def summary(ds) -> dict[str, Any]:
                     for a, s_, (lo, hi), n, m in zip(v, se, ci, ds["fit_n"].values[i],
                                                       [method] * len(v))]
 
-        method = "k: linregress stderr, t interval; dx0, R^2: bootstrap percentile"
+        method = "k: linregress stderr, t interval; dx0, R^2: bootstrap BCa"
         nan = np.full(R.size, np.nan)
         per_beta[f"{b:g}"] = {
             "amplitude_m": float(ds["amplitude"].values[i]),
