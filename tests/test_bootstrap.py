@@ -107,3 +107,34 @@ def test_bootstrap_refuses_an_unknown_method():
 
     with pytest.raises(ValueError, match="method must be one of BCa, percentile"):
         stats.bootstrap(np.mean, np.arange(5.0), method="basic")
+
+
+def test_rms_and_std_are_scipys_bca_and_clusters_resample_design_points_together():
+    """stats.rms / stats.std: scipy's BCa interval of the plain statistic (to rounding); with clusters
+    of one value each, the same; with the residuals of a symmetric dphi grid, whose +dphi and -dphi
+    values are one design point seen mirrored, the interval is that of the design points (each
+    resampled whole), wider than the one that counts every value apart, and the value is unchanged."""
+    from undulate import stats
+
+    rng = np.random.default_rng(8)
+    x = rng.normal(0.3, 1.0, 15)
+    for fn, rows in ((stats.rms, lambda a, axis=-1: np.sqrt(np.mean(a * a, axis=axis))),
+                     (stats.std, lambda a, axis=-1: np.std(a, axis=axis))):
+        e = fn(x)
+        np.testing.assert_allclose((e.stderr, e.low, e.high), _scipy_bca(rows, x, seed=stats.BOOTSTRAP_SEED),
+                                   rtol=1e-10)
+        one = fn(x, clusters=np.arange(x.size))
+        np.testing.assert_allclose((one.value, one.low, one.high), (e.value, e.low, e.high), rtol=1e-10)
+    dphi = np.linspace(-np.pi, np.pi, 17)
+    half = rng.normal(0.0, 0.05, 9)  # residual at |dphi|: -r at -dphi (a mirror image), one value at 0
+    res = np.where(dphi < 0, -1.0, 1.0) * half[np.round(np.abs(dphi) / (np.pi / 8)).astype(int)]
+    apart, together = stats.rms(res), stats.rms(res, clusters=np.round(np.abs(dphi), 9))
+    assert together.value == pytest.approx(apart.value) and together.n == apart.n == 17
+    assert together.method == "bootstrap BCa over clusters"
+    assert together.high - together.low > 1.2 * (apart.high - apart.low)
+    assert together.low < together.value < together.high
+    assert np.isnan(stats.rms(res[:4], clusters=[0, 0, 1, 1]).low)  # two clusters: no interval
+    with pytest.raises(ValueError, match="one label per value"):
+        stats.rms(res, clusters=[0, 1])
+    with_nan = stats.rms(np.append(res, np.nan), clusters=np.append(np.round(np.abs(dphi), 9), 9.0))
+    assert (with_nan.value, with_nan.low, with_nan.high) == pytest.approx((together.value, together.low, together.high))

@@ -476,7 +476,7 @@ def rank_correlation(x, y, *, seed: int | None = None) -> Estimate:
                     level())
 
 
-def _root_mean_square(values, centred: bool, seed: int | None) -> Estimate:
+def _root_mean_square(values, centred: bool, seed: int | None, clusters=None) -> Estimate:
     """``sqrt(mean(c**2))`` of the finite ``values`` (``c``: the values, less their mean if ``centred``),
     with a bias-corrected and accelerated (BCa) bootstrap interval (:func:`bootstrap`).
 
@@ -488,40 +488,55 @@ def _root_mean_square(values, centred: bool, seed: int | None) -> Estimate:
     normal samples but is unstable on the studies' residuals (mirror pairs give equal squares, and
     near-zero spreads in resamples): tried and set aside.  ``stderr``: the bootstrap distribution's
     standard deviation.  An exact interval when every resample gives the value (all ``c**2`` equal);
-    NaN with no values, no interval with fewer than 3.
+    NaN with no values, no interval with fewer than 3 values or 3 clusters.
+
+    ``clusters``: one label per value; the values of a label are resampled together (a cluster
+    bootstrap), as one design point: a study's residuals at +dphi and -dphi are one pair seen mirrored,
+    nearly equal in size, and resampled apart they would count each design point twice and narrow the
+    interval.  The value is the same with or without clusters (every value counts once).
     """
-    method = "bootstrap BCa"
-    (v,) = _clean(values)
+    method = "bootstrap BCa" if clusters is None else "bootstrap BCa over clusters"
+    v = np.asarray(values, float).ravel()
+    labels = np.arange(v.size) if clusters is None else np.asarray(clusters).ravel()
+    if labels.shape != v.shape:
+        raise ValueError(f"clusters must give one label per value ({v.size}), not {labels.size}")
+    keep = np.isfinite(v)
+    v, labels = v[keep], labels[keep]
     if v.size == 0:
         return Estimate(math.nan, method=method)
-
-    def f(a, axis=-1):
-        a = np.moveaxis(np.asarray(a, float), axis, -1)
-        c = a - a.mean(axis=-1, keepdims=True) if centred else a
-        return np.sqrt(np.mean(c * c, axis=-1))
-
-    n, value = int(v.size), float(f(v))
-    if n < 3:
-        return Estimate(value, n=n, method=method)
     c = v - v.mean() if centred else v
+    n, value = int(v.size), float(np.sqrt(np.mean(c * c)))
+    _, which = np.unique(labels, return_inverse=True)
+    k = int(which.max()) + 1
+    if n < 3 or k < 3:
+        return Estimate(value, n=n, method=method)
     if np.ptp(c * c) == 0:
         return Estimate(value, 0.0, value, value, n, method, level())
-    se, lo, hi = bootstrap(f, v, seed=seed, vectorized=True)
+    # per cluster: the count, the sum and the sum of squares of c (c centred on the whole sample's mean:
+    # a resample's variance is then a difference of small sums, with no cancellation)
+    count, total, squares = (np.bincount(which, w, minlength=k) for w in (None, c, c * c))
+
+    def f(cnt, tot, sq, axis=-1):
+        m = np.sum(cnt, axis=axis)
+        ms = np.sum(sq, axis=axis) / m - (np.sum(tot, axis=axis) / m) ** 2 * centred
+        return np.sqrt(np.maximum(ms, 0.0))
+
+    se, lo, hi = bootstrap(f, count, total, squares, seed=seed, vectorized=True)
     if not (math.isfinite(lo) and math.isfinite(hi)):
         return Estimate(value, n=n, method=method)
     return Estimate(value, se, lo, hi, n, method, level())
 
 
-def rms(values, *, seed: int | None = None) -> Estimate:
+def rms(values, *, seed: int | None = None, clusters=None) -> Estimate:
     """Root mean square of the finite ``values``, with a BCa bootstrap 95 % interval
-    (:func:`_root_mean_square`)."""
-    return _root_mean_square(values, False, seed)
+    (:func:`_root_mean_square`; ``clusters``: labels of values resampled together)."""
+    return _root_mean_square(values, False, seed, clusters)
 
 
-def std(values, *, seed: int | None = None) -> Estimate:
+def std(values, *, seed: int | None = None, clusters=None) -> Estimate:
     """Standard deviation (ddof = 0) of the finite ``values``, with a BCa bootstrap 95 % interval
-    (:func:`_root_mean_square` of the centred values)."""
-    return _root_mean_square(values, True, seed)
+    (:func:`_root_mean_square` of the centred values; ``clusters``: labels of values resampled together)."""
+    return _root_mean_square(values, True, seed, clusters)
 
 
 def mean(values) -> Estimate:

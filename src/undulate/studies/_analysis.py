@@ -439,10 +439,13 @@ def band_excess(dx_m, dphi_rad, dy_m, amplitude_m, wavelength_m):
     return lam / (2 * np.pi) * np.maximum(0.0, np.abs(psi) - half)
 
 
-def rms(values: Sequence[float] | np.ndarray) -> stats.Estimate:
-    """Root mean square over the finite values, with a seeded bootstrap 95 % interval
-    (:func:`undulate.stats.rms`; NaN when there are none)."""
-    return stats.rms(values)
+def rms(values: Sequence[float] | np.ndarray, dphi=None) -> stats.Estimate:
+    """Root mean square over the finite values, with a seeded BCa bootstrap 95 % interval
+    (:func:`undulate.stats.rms`; NaN when there are none).  ``dphi``: each value's phase difference
+    (radians); the values at +dphi and -dphi are then resampled together (:func:`abs_dphi_keys`): the
+    pair at -dphi is the pair at +dphi mirrored (:func:`by_abs_dphi`), so their residuals are one
+    design point seen twice, and dphi = +-pi one state."""
+    return stats.rms(values, clusters=None if dphi is None else abs_dphi_keys(dphi))
 
 
 FALLS_RULE = ("the RMS residual rises at no step in N beyond its uncertainty (no 95 % interval lies wholly above "

@@ -144,21 +144,22 @@ def xi_summary(ds: xr.Dataset, xi: float) -> dict:
         open_ = np.abs(dphi) < np.pi - 1e-9
         fit_open = C.compatibility_fit(y[open_], dphi[open_], unwrap=False)
         res = d["residual_over_lambda"].values
+        paper = _on_paper_phases(dphi)
         out.update({
             "slope": fit.slope.to_dict(),
             "intercept": fit.intercept.to_dict(),
             "r2": fit.r2.to_dict(),
             "slope_open_interval": fit_open.slope.to_dict(),
-            "rms_residual_over_lambda": C.rms(res).to_dict(),
-            "rms_residual_m": C.rms(d["residual"].values).to_dict(),
+            "rms_residual_over_lambda": C.rms(res, dphi).to_dict(),
+            "rms_residual_m": C.rms(d["residual"].values, dphi).to_dict(),
             "max_abs_residual_over_lambda": float(np.nanmax(np.abs(res))) if ok.any() else None,
-            "rms_residual_over_lambda_paper_phases": C.rms(res[_on_paper_phases(dphi)]).to_dict(),
-            "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam).to_dict(),
+            "rms_residual_over_lambda_paper_phases": C.rms(res[paper], dphi[paper]).to_dict(),
+            "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam, dphi).to_dict(),
         })
     else:
         out.update({"slope": None, "intercept": None, "slope_open_interval": None,
                     "rms_residual_over_lambda": None, "rms_residual_m": None,
-                    "dx_std": stats.std(d["dx_steady"].values).to_dict(),
+                    "dx_std": stats.std(d["dx_steady"].values, clusters=C.abs_dphi_keys(dphi)).to_dict(),
                     "note": "standing wave: lambda = inf, no compatible dx; dx in metres only"})
     return out
 

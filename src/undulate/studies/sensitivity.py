@@ -654,7 +654,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
 def _line(y, dphi) -> dict[str, Any]:
     fit = C.compatibility_fit(y, dphi)
     res = theory.compatibility_residual(np.asarray(y, float), np.asarray(dphi, float), 1.0)
-    return {"slope": fit.slope, "rms": C.rms(res)}
+    return {"slope": fit.slope, "rms": C.rms(res, dphi)}
 
 
 def line_checks(slope: stats.Estimate, rms: stats.Estimate) -> list[stats.Check]:
@@ -736,7 +736,8 @@ def _summary_cases(ds: xr.Dataset, skipped: frozenset[str] = frozenset()) -> tup
                  "amplitude_m": float(c["amplitude"]), "wavelength_m": float(c["wavelength"]),
                  "slope": fit["slope"].to_dict(),
                  "rms_residual_over_lambda": fit["rms"].to_dict(),
-                 "rms_residual_over_lambda_open_interval": C.rms(c["residual_over_lambda"].values[open_]).to_dict(),
+                 "rms_residual_over_lambda_open_interval": C.rms(c["residual_over_lambda"].values[open_],
+                                                                 dphi[open_]).to_dict(),
                  "n_runs": int(np.isfinite(y).sum()), "n_steady": int(c["steady"].values.sum()),
                  "follows_line": follows_line(fit["slope"], fit["rms"]),
                  "follows_line_verdict": line_verdict(fit["slope"], fit["rms"])}
@@ -902,7 +903,7 @@ def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
         ok = np.isfinite(dphi) & np.isfinite(dx)
         dphi, dx = dphi[ok], dx[ok]
         fit = C.compatibility_fit(dx, dphi)
-        rms = C.rms(c["group_residual_over_lambda"].values[ok])
+        rms = C.rms(c["group_residual_over_lambda"].values[ok], dphi)
         if size == 2:
             ref_rms = rms
         entry = {"case_id": str(group_case(size, w)), "group_size": size, "channel_width_m": w,

@@ -60,7 +60,7 @@ def slope_and_rms(dphi_rad, dx_over_lambda) -> tuple[stats.Estimate, stats.Estim
     uncertainties."""
     fit = compatibility_fit(dx_over_lambda, dphi_rad)
     r = theory.compatibility_residual(np.asarray(dx_over_lambda, float), np.asarray(dphi_rad, float), 1.0)
-    return fit.slope, fit.intercept, rms(r)
+    return fit.slope, fit.intercept, rms(r, dphi_rad)
 
 
 def dataset(ctx: StudyContext, p: SwimmingPlan):
