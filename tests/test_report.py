@@ -383,3 +383,17 @@ def test_animation_duration_is_validated(tmp_path, capfd):
         with pytest.raises(ParameterError, match="animation_s"):
             reproduce(out, studies=["compatibility"], animation_s=bad, log=pytest.fail)
     assert not out.exists() and MIN_ANIMATION_S == pytest.approx(0.2)
+
+
+def test_animation_option_help_states_the_codes_limits():
+    """The ``--animation-s`` help names the least duration and the animations' own durations; the CLI
+    does not import :mod:`undulate.reproduce` to build its help (start-up time), so the numbers are
+    written there and checked here against the code."""
+    from typer.main import get_command
+
+    from undulate.cli import app
+    from undulate.reproduce import ANIMATIONS, MIN_ANIMATION_S
+
+    (opt,) = [p for p in get_command(app).commands["reproduce"].params if p.name == "animation_s"]
+    own = [a[-1] for a in ANIMATIONS]
+    assert f"at least {MIN_ANIMATION_S:g}" in opt.help and f"{min(own):g}-{max(own):g} s" in opt.help, opt.help
