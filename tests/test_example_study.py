@@ -44,7 +44,7 @@ def test_the_example_study_registers_nests_and_runs_to_judged_claims(tmp_path, d
     assert doc["n_failed"] == 0 and doc["n_computed"] > 0
     assert [c["verdict"] in ("holds", "fails", "undecided") for c in doc["claims"]] == [True, True], doc["claims"]
     rms = doc["summary"]["rms_shift_over_lambda"]
-    assert rms["method"] == "bootstrap BCa" and rms["ci95"][0] <= rms["value"] <= rms["ci95"][1]
+    assert rms["method"] == "bootstrap BCa over clusters" and rms["ci95"][0] <= rms["value"] <= rms["ci95"][1]
     assert {p.suffix for p in tmp_path.glob("drag.*")} == {".nc", ".png", ".pdf", ".json"}
     studies.run_study("drag", tmp_path, quick=True, workers=1, progress=False)
     again = json.loads((tmp_path / "drag.json").read_text())
