@@ -3,8 +3,8 @@
 Two 3-link swimmers in a channel d = 0.13 m start straight, laterally in
 contact, at dx0 = 0; swimmer 0 (lower) has phase 0, swimmer 1 (upper) phase
 dphi.  They run 15 gait periods (30 s) at every dphi of the paper's nine
-``{-1, -3/4, ..., 1} pi`` (full mode: 49 values over [-pi, pi], which contain
-the nine) and every xi in {0, 3/4, 1, 3/2}.  The steady offset
+``{-1, -3/4, ..., 1} pi`` (full mode: up to 193 values over [-pi, pi], which
+contain the nine) and every xi in {0, 3/4, 1, 3/2}.  The steady offset
 ``dx = x_upper - x_lower`` is compared with the compatibility branches
 ``dx = lambda (dphi / 2 pi + n)`` (paper Eq. (compatibility)).
 
@@ -38,6 +38,11 @@ from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, SAMPLE_RATE_HZ, TIME
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
 FULL_PHASES = 49  # step pi/24; contains the paper's nine values
+FULL_REFINE = 4
+"""Full mode's cap: every step of the :data:`FULL_PHASES` grid cut into this many (193 dphi, step pi/96),
+its fourth look (:func:`stages`).  Sized on 2026-11-29 by the runs the xi = 3/4 claim's RMS interval
+needed at the third look once +dphi and -dphi were resampled together (~102 dphi at 97 %, more at a
+fourth look's 97.5 %): the next nested grid above, 193 (``explorations/pairs_cap.py``)."""
 
 
 @dataclass(frozen=True)
@@ -49,8 +54,9 @@ class Plan:
 
 
 def plan(quick: bool) -> Plan:
-    """Quick: the paper's nine dphi; full: 49 over [-pi, pi] (step pi/24, containing the nine)."""
-    dphis = C.paper_phases() if quick else C.phase_grid(FULL_PHASES)
+    """Quick: the paper's nine dphi; full: 193 over [-pi, pi] (step pi/96, containing the nine; the 49 of
+    step pi/24 bitwise every fourth: :data:`FULL_REFINE`)."""
+    dphis = C.paper_phases() if quick else C.refined(C.phase_grid(FULL_PHASES), FULL_REFINE)
     return Plan(tuple(float(p) for p in dphis))
 
 
@@ -231,12 +237,14 @@ def figure(ds: xr.Dataset):
 
 
 def stages(quick: bool) -> tuple[Plan, ...]:
-    """The plan in looks (:mod:`._stages`): quick 5, 9 dphi; full 13, 25, 49 (every 4th, 2nd, all)."""
-    return tuple(Plan(d) for d in thinned(plan(quick).dphi_rad, strides(quick)))
+    """The plan in looks (:mod:`._stages`): quick 5, 9 dphi; full 13, 25, 49, 193 (every 16th, 8th, 4th,
+    all: the mode's three looks on the 49 and a fourth on the cap, :data:`FULL_REFINE`)."""
+    steps = strides(quick) if quick else tuple(FULL_REFINE * s for s in strides(False)) + (1,)
+    return tuple(Plan(d) for d in thinned(plan(quick).dphi_rad, steps))
 
 
 register(Study(
     name="pairs", paper_figure="3", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
-    description="Pairs of 3-link swimmers (d = 0.13 m, 30 s) at nine (full: 49) phase differences "
+    description="Pairs of 3-link swimmers (d = 0.13 m, 30 s) at nine (full: up to 193) phase differences "
                 "and xi in {0, 3/4, 1, 3/2}: dx(t), steady dx vs dphi with the compatibility lines, "
                 "slope and RMS error per xi."))
