@@ -23,6 +23,8 @@ from undulate.studies import Claim, Study, Verdict, register  # noqa: E402
 from undulate.sweep import Grid  # noqa: E402
 
 REGION = (-2.0, 2.0)
+MIN_POINTS = 2
+"""Fewer runs than this give the claim ``no result`` (set by a test)."""
 STAGE_POINTS = (6, 12, 24)
 KILL_AT = 0.1 + 0.01 * 9  # a point of stage 2 only
 
@@ -54,6 +56,8 @@ def summary(ds):
 
 def _judge(s):
     m = stats.Estimate.from_dict(s["mean_start_angle"])
+    if m.n < MIN_POINTS:
+        return Verdict.none(f"{m.n} runs, fewer than {MIN_POINTS}", value=s)
     return Verdict.of([m.within(*REGION, "mean start angle (rad)")], f"mean start angle {m:.3f} rad", s)
 
 

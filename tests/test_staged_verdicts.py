@@ -23,7 +23,7 @@ import pytest
 
 from undulate import stats
 from undulate.stats import Check, Estimate, decide
-from undulate.studies._registry import FAILS, HOLDS, UNDECIDED, Verdict
+from undulate.studies._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, Verdict
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
@@ -169,6 +169,22 @@ def test_an_undecided_claim_adds_stages_and_reuses_runs(tmp_path, staged, monkey
     for s in looks[:-1]:
         assert s["undecided"]  # a stage is added only while the claim is undecided (and decidable)
     assert [s["confidence_level"] for s in looks] == list(stats.look_levels(3)[:len(looks)])
+
+
+def test_no_result_at_a_look_adds_a_stage(tmp_path, staged, monkeypatch):
+    """A claim with ``no result`` at a look (too few runs for its number) is open, not decided: the next
+    stage is run, and its runs decide it (quick mode too: no futility estimate without an interval)."""
+    from undulate.studies import run_study
+
+    monkeypatch.setattr(staged, "REGION", (-5.0, 5.0))
+    monkeypatch.setattr(staged, "MIN_POINTS", 7)  # the first look's 6 runs give no result
+    monkeypatch.setattr(staged, "STAGE_POINTS", (6, 12))
+    run_study("_staged", tmp_path, quick=True, workers=1, progress=False)
+    doc = _doc(tmp_path, "_staged")
+    claim = doc["claims"][0]
+    assert [s["verdicts"][claim["claim"]] for s in doc["stages"]] == [NO_RESULT, HOLDS]
+    assert doc["stages"][0]["undecided"] == [claim["claim"]] and not doc["stages"][0]["futile"]
+    assert claim["verdict"] == HOLDS and claim["decided_at"]["stage"] == 2
 
 
 def test_a_claim_the_cap_cannot_decide_stops_for_futility(tmp_path, staged, monkeypatch):

@@ -667,13 +667,14 @@ def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
 def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], growth_left: float) -> list[str]:
     """What another stage may still decide after a look: undecided claims, except those whose interval
     would need more than ``growth_left`` times the runs it rests on (quick mode's cap cannot decide them:
-    a futility stop, which never turns a claim into ``holds`` or ``fails``), and explanations whose claim
-    fails (the others are moot: :meth:`StudyContext.needs_explanation`)."""
+    a futility stop, which never turns a claim into ``holds`` or ``fails``); claims with ``no result``
+    (too few design points or runs with a result for an interval: more runs may give one); and
+    explanations whose claim fails (the others are moot: :meth:`StudyContext.needs_explanation`)."""
     def decidable(c: dict[str, Any]) -> bool:
         g = c.get("growth_needed")
         return g is None or g <= growth_left
 
-    return ([c["claim"] for c in claims if c["verdict"] == UNDECIDED and decidable(c)]
+    return ([c["claim"] for c in claims if (c["verdict"] == UNDECIDED and decidable(c)) or c["verdict"] == NO_RESULT]
             + [f"explanation of {e['claim']}" for e in explanations if e["shown"] is None and e["needed"]])
 
 
