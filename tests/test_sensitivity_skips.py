@@ -4,6 +4,7 @@ fails, or its verdict is unknown); a skipped group is NaN rows made without a ru
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 from types import SimpleNamespace
@@ -237,3 +238,38 @@ def test_a_frozen_group_keeps_the_plan_of_the_look_that_decided_it(decided, monk
     y = ds["dx_final_over_lambda"].values[is_links]
     ran_here = np.isin(ds["dphi"].values, first.dphi_rad) if decided else np.ones(ds.sizes["dphi"], bool)
     assert (y[:, ran_here] == 1.0).all() and np.isnan(y[:, ~ran_here]).all()
+
+
+def test_the_xi1_cases_stay_on_their_phases_while_an_open_group_runs_the_cap(monkeypatch):
+    """Full mode's third look (33 pair phases, the cap sized for the swimming explanation): the swimming
+    step runs all 33, the xi = 1 steps (the table's only) their 17, bitwise the second look's, and their
+    cases sit on the 33's axis with NaN at the 16 phases they did not run."""
+    _stub_running_groups(monkeypatch)
+    seen = {}
+
+    def xi1_step(r, part):
+        seen.setdefault("xi1", []).append(np.asarray(r.dphis))
+        cases = [r.case(c, "f", str(c), np.ones((len(r.dphis), 3))) for c in pair_cases(r.p)
+                 if c.case_set is CaseSet.XI1]
+        return cases[:len(S.MODEL_LEVELS)] if part == 0 else cases[len(S.MODEL_LEVELS):]
+
+    monkeypatch.setattr(S, "_data_xi1_model", lambda r: xi1_step(r, 0))
+    monkeypatch.setattr(S, "_data_xi1_windows", lambda r: xi1_step(r, 1))
+    real_swim = S._data_swimming
+
+    def swim_step(r):
+        seen["swimming"] = np.asarray(r.dphis)
+        return real_swim(dataclasses.replace(r, skipped=frozenset(S.SKIPPABLE_GROUPS)))
+
+    monkeypatch.setattr(S, "_data_swimming", swim_step)
+    second, third = S.stages(False)[1:]
+    assert (len(second.dphi_rad), len(third.dphi_rad), len(third.xi1_phases)) == (17, 33, 17)
+    ctx = FakeContext(not_needed={e.study for e in EXPLANATIONS} - {"swimming"}, quick=False)
+    ds = S.dataset(ctx, third)
+    np.testing.assert_array_equal(seen["swimming"], third.dphi_rad)
+    for ran in seen["xi1"]:
+        assert ran.tobytes() == np.asarray(second.dphi_rad).tobytes()
+    is_xi1 = ds["claim"].values == CaseSet.XI1.value
+    y = ds["dx_final_over_lambda"].values[is_xi1]
+    on17 = np.isin(ds["dphi"].values, second.dphi_rad)
+    assert on17.sum() == 17 and (y[:, on17] == 1.0).all() and np.isnan(y[:, ~on17]).all()

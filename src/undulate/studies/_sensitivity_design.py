@@ -193,6 +193,14 @@ class Plan:
     group_draws: int = C.GROUP_DRAWS[True]
     impulse_dphi_rad: tuple[float, ...] = _IMPULSE_QUICK[0]
     impulse_phi0_rad: tuple[float, ...] = _IMPULSE_QUICK[1]
+    xi1_dphi_rad: tuple[float, ...] | None = None
+    """The pair phases of the xi = 1 cases, which feed the table only (no explanation), a subset of
+    ``dphi_rad``; None: all of ``dphi_rad``."""
+
+    @property
+    def xi1_phases(self) -> tuple[float, ...]:
+        """The xi = 1 cases' pair phases (:attr:`xi1_dphi_rad`, or all of ``dphi_rad``)."""
+        return self.dphi_rad if self.xi1_dphi_rad is None else self.xi1_dphi_rad
 
 
 def spaced_channel_m(n_swimmers: int) -> float:
@@ -207,28 +215,43 @@ and potential studies, whose runs it shares (every second value): its explanatio
 claims that fail, and a quick reader waits for them least."""
 
 
-def thinned_plan(p: Plan, k: int, k_dphi: int | None = None) -> Plan:
-    """``p`` on every ``k``-th value of its groups' and impulse grids and ``k_dphi``-th (default ``k``)
-    of its pair phases, with ``1/k`` of its random draws of four: a look of the plan (its values are
-    ``p``'s, bitwise, so the runs are the shared ones)."""
+def thinned_plan(p: Plan, k: int, k_dphi: int | None = None, k_xi1: int | None = None) -> Plan:
+    """``p`` on every ``k``-th value of its groups' and impulse grids, ``k_dphi``-th (default ``k``)
+    of its pair phases and ``k_xi1``-th (default ``k_dphi``) of its xi = 1 cases' phases, with ``1/k``
+    of its random draws of four: a look of the plan (its values are ``p``'s, bitwise, so the runs are
+    the shared ones)."""
     k_dphi = k if k_dphi is None else k_dphi
+    k_xi1 = k_dphi if k_xi1 is None else k_xi1
     return dataclasses.replace(p, dphi_rad=p.dphi_rad[::k_dphi], group_dphi_rad=p.group_dphi_rad[::k],
                                group_draws=max(1, p.group_draws // k), impulse_dphi_rad=p.impulse_dphi_rad[::k],
-                               impulse_phi0_rad=p.impulse_phi0_rad[::k])
+                               impulse_phi0_rad=p.impulse_phi0_rad[::k],
+                               xi1_dphi_rad=None if p.xi1_dphi_rad is None else p.xi1_dphi_rad[::k_xi1])
+
+
+FULL_PAIR_REFINE = 2
+"""Full mode's cap of pair phases: the 17 (step pi/8) with every step cut in two, 33 (step pi/16),
+reached at the third look (:func:`undulate.studies.sensitivity.stages`).  Sized on 2026-11-29 by the
+swimming explanation's check (the pairs criterion at 0.5 N s/m): at the third look, on the second's 17 dphi
+(9 distinct |dphi|, +dphi and -dphi resampled together; 97 %), its RMS residual 0.060 [0.029, 0.104] lambda
+straddled 0.1 and needed ~1.2x its runs; the next nested grid is 33.  The xi = 1 cases feed the table
+only and stay on the 17."""
 
 
 def plan(quick: bool) -> Plan:
     """Quick: every second one of the paper's nine dphi (5), xi = 3/2 at N = 3 and 8, the link-number
     sets at the ends of the range, N = 3 and 9 (the explanation's contrast is their fall from 3 to 9; at
     full's first look it is 8.6-12.6 times the two-change set's, so the ends decide it), 3 confinement
-    starts, the groups' and impulse grids thinned the same way (:data:`QUICK_THINNING`); full: 17 dphi
-    (step pi/8), xi = 3/2 at N = 3, 4, 6, 8, the link-number sets at N = 3, 5, 7, 9, 5 starts.  The groups cases take the groups study's design
-    (:func:`._analysis.group_phases`, :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of
-    four swimmers, thinned to 5 and 4; full 33 dphi and 40 draws), so that only the channel differs."""
+    starts, the groups' and impulse grids thinned the same way (:data:`QUICK_THINNING`); full: 33 dphi
+    (step pi/16; the xi = 1 cases, which feed the table only, on every second: 17, step pi/8:
+    :data:`FULL_PAIR_REFINE`), xi = 3/2 at N = 3, 4, 6, 8, the link-number sets at N = 3, 5, 7, 9,
+    5 starts.  The groups cases take the groups study's design (:func:`._analysis.group_phases`,
+    :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of four swimmers, thinned to 5 and 4;
+    full 33 dphi and 40 draws), so that only the channel differs."""
     if quick:  # one look, on the groups' and potential's first quick look
         return thinned_plan(Plan(tuple(float(p) for p in C.paper_phases()), links=(3, 9)), QUICK_THINNING)
     impulse_dphi, impulse_phi0 = _impulse_grid(False)
-    return Plan(tuple(float(p) for p in C.phase_grid(17)), xi32_links=(3, 4, 6, 8),
+    dphi = tuple(float(p) for p in C.refined(C.phase_grid(17), FULL_PAIR_REFINE))
+    return Plan(dphi, xi1_dphi_rad=dphi[::FULL_PAIR_REFINE], xi32_links=(3, 4, 6, 8),
                 confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),
                 group_dphi_rad=tuple(float(p) for p in C.group_phases(False)), group_draws=C.GROUP_DRAWS[False],
                 impulse_dphi_rad=impulse_dphi, impulse_phi0_rad=impulse_phi0)

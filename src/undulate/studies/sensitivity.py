@@ -94,7 +94,9 @@ rows read ``no result`` (:data:`NOT_RUN`) and its explanations are not judged
 explanation of which an earlier look decided is *frozen* (:func:`frozen_groups`): a later look keeps
 it on the plan of the look that decided them (its runs reused, NaN at the dphi that look did not run),
 since a decided explanation is never reopened; the attribute ``frozen_factor_groups`` (JSON, group ->
-look) names it.  The two xi = 1 groups feed the table only and always run.
+look) names it.  The two xi = 1 groups feed the table only and always run, on their own pair phases
+(:attr:`~._sensitivity_design.Plan.xi1_dphi_rad`: full mode's third look keeps them on the 17 of the
+second while the other groups still open run the cap's 33; NaN at the rest).
 """
 
 from __future__ import annotations
@@ -621,13 +623,14 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
 
     xi32, links, conf, groups, swim, imp = (on(g) for g in ("xi32", "links", "confinement", "groups", "swimming",
                                                            "impulse"))
+    xi1 = r if p.xi1_dphi_rad is None else r.on_plan(dataclasses.replace(p, dphi_rad=p.xi1_phases))
     # the factor groups' runs do not depend on each other (side by side on the Warp backend)
     (model, windows, xi32_cases, equal_a, guided, (conf_data, conf_coords), (group_data, group_coords),
      (swim_cases, swim_data), (imp_data, imp_coords)) = ctx.together(
-        lambda: _data_xi1_model(r), lambda: _data_xi1_windows(r), lambda: _data_xi32(xi32),
+        lambda: _data_xi1_model(xi1), lambda: _data_xi1_windows(xi1), lambda: _data_xi32(xi32),
         lambda: _data_links_equal_a(links), lambda: _data_links_guided(links), lambda: _data_confinement(conf),
         lambda: _data_groups(groups), lambda: _data_swimming(swim), lambda: _data_impulse(imp))
-    cases = (model + windows + r.cases_on_axis(xi32_cases, xi32)
+    cases = (r.cases_on_axis(model + windows, xi1) + r.cases_on_axis(xi32_cases, xi32)
              + r.cases_on_axis(equal_a + guided, links))
     if swim is not r:  # its one variable along dphi
         dims, speed, attrs = swim_data["swim_drag_pair_speed"]
@@ -975,15 +978,17 @@ def figure(ds: xr.Dataset):
 
 def stages(quick: bool) -> tuple[Plan, ...]:
     """The plan in looks, in step with the studies whose runs it shares (groups, potential): the pair
-    phases, the groups' phases and draws and the impulse grid thinned (:mod:`._stages`).  Quick mode:
-    one look, the quick plan (:data:`~._sensitivity_design.QUICK_THINNING`)."""
+    phases, the groups' phases and draws and the impulse grid thinned (:mod:`._stages`).  Full mode's
+    pair phases 9, 17, 33 (the xi = 1 cases' 9, 17, 17: :data:`~._sensitivity_design.FULL_PAIR_REFINE`).
+    Quick mode: one look, the quick plan (:data:`~._sensitivity_design.QUICK_THINNING`)."""
     from ._sensitivity_design import thinned_plan
     from ._stages import strides
 
     if quick:  # one look: the quick plan is already the groups' and potential's first look
         return (plan(True),)
     p = plan(False)
-    return tuple(thinned_plan(p, k, k_dphi) for k, k_dphi in zip(strides(False), (2, 1, 1)))
+    return tuple(thinned_plan(p, k, k_dphi, k_xi1)
+                 for k, k_dphi, k_xi1 in zip(strides(False), (4, 2, 1), (2, 1, 1)))
 
 
 register(Study(
