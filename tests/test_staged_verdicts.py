@@ -483,3 +483,55 @@ def test_a_group_size_whose_claim_is_decided_keeps_its_looks_runs(decided):
     assert got[2] == (looks[max(decided.values()) - 1] if len(decided) == 2 else looks[3])
     if "4" in decided:
         assert got[4].draws < looks[3].draws
+
+
+@pytest.mark.parametrize("decided, frozen", [
+    ({}, {}),
+    ({"0.75": 3}, {"0.75": 3}),
+    ({"1": 2}, {}),  # xi = 1 also feeds the standing-wave claim, still open
+    ({"1": 2, "standing": 3}, {"0": 3, "1": 3}),
+])
+def test_a_pairs_xi_whose_claims_are_decided_keeps_its_looks_runs(decided, frozen):
+    """The pairs study's fourth full look (193 dphi): an xi every claim reading which an earlier look
+    decided asks for that look's dphi only (made already); the dataset marks the rest not made (NaN, not
+    failed) and the summary counts only the runs made."""
+    import xarray as xr
+    from types import SimpleNamespace
+
+    from undulate.studies import pairs
+
+    looks = pairs.stages(False)
+    names = {"1": pairs.CLAIMS[0].claim, "0.75": pairs.CLAIMS[1].claim, "standing": pairs.CLAIMS[3].claim}
+    asked = []
+
+    class Ctx:
+        decided_claims = {names[k]: v for k, v in decided.items()}
+        config = SimpleNamespace(quick=False, seed=0)
+
+        def sweep(self, part, fn, grid):  # every run failed: no simulation
+            asked.extend(grid.points())
+            n = len(asked)
+            return xr.Dataset({"run_failed": (("point", "replicate"), np.ones((n, 1), bool))},
+                              coords={"time": np.arange(3.0)})
+
+        def together(self, *calls):
+            return [call() for call in calls]
+
+        def lone_swimmer(self, **kw):
+            return {"amplitude_m": 0.05}
+
+    ds = pairs.dataset(Ctx(), looks[3])
+    assert json.loads(ds.attrs["frozen_xi"]) == frozen
+    made = ds["run_made"].values
+    for i, x in enumerate(ds["xi"].values):
+        want = looks[frozen[f"{x:g}"] - 1].dphi_rad if f"{x:g}" in frozen else looks[3].dphi_rad
+        got = [p["dphi_rad"] for p in asked if p["waves_per_body"] == x]
+        assert got == list(want)
+        assert (made[i] == np.isin(ds["dphi"].values, want)).all()
+    assert len(asked) == made.sum() == ds["run_failed"].values.sum()
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s = pairs.summary(ds)
+    assert s["n_runs"] == len(asked) == s["n_failed"]

@@ -4,7 +4,8 @@ Two 3-link swimmers in a channel d = 0.13 m start straight, laterally in
 contact, at dx0 = 0; swimmer 0 (lower) has phase 0, swimmer 1 (upper) phase
 dphi.  They run 15 gait periods (30 s) at every dphi of the paper's nine
 ``{-1, -3/4, ..., 1} pi`` (full mode: up to 193 values over [-pi, pi], which
-contain the nine) and every xi in {0, 3/4, 1, 3/2}.  The steady offset
+contain the nine) and every xi in {0, 3/4, 1, 3/2}; at a later look an xi whose
+claims are decided keeps the runs of the look that decided them (:func:`xi_plans`).  The steady offset
 ``dx = x_upper - x_lower`` is compared with the compatibility branches
 ``dx = lambda (dphi / 2 pi + n)`` (paper Eq. (compatibility)).
 
@@ -21,6 +22,7 @@ This module is the template of the study protocol (``_registry``):
 from __future__ import annotations
 
 import functools
+import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -60,27 +62,69 @@ def plan(quick: bool) -> Plan:
     return Plan(tuple(float(p) for p in dphis))
 
 
+def _claims_reading(xi: float) -> tuple[str, ...]:
+    """The claims whose judge reads the runs at ``xi``: its own line claim; the standing-wave claim reads
+    xi = 0 and xi = 1 (its spread against xi = 1's RMS residual)."""
+    key = f"{xi:g}"
+    return tuple(c.claim for c, k in zip(CLAIMS, _CLAIM_XI) if key in k)
+
+
+def frozen_xi(xi: tuple[float, ...], decided: dict[str, int]) -> dict[float, int]:
+    """The xi every claim reading which an earlier look decided (``decided``: claim -> look,
+    :attr:`~._registry.StudyContext.decided_claims`), each with the latest such look."""
+    out = {}
+    for x in xi:
+        at = [decided.get(c) for c in _claims_reading(x)]
+        if at and all(k is not None for k in at):
+            out[float(x)] = max(at)
+    return out
+
+
+def xi_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[float, tuple[float, ...]]:
+    """The dphi each xi's runs follow at a look on plan ``p``: ``p``'s, or, for a frozen xi
+    (:func:`frozen_xi`), the plan's of the look that decided its claims (its runs are made, and a
+    decided claim is never reopened, so more of them would buy nothing)."""
+    looks, frozen = stages(quick), frozen_xi(p.xi, decided)
+    return {float(x): looks[frozen[float(x)] - 1].dphi_rad if float(x) in frozen else p.dphi_rad for x in p.xi}
+
+
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
-    """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset."""
-    grid = Grid(axes={"waves_per_body": list(p.xi), "dphi_rad": list(p.dphi_rad)}, seed=ctx.config.seed)
+    """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset.  An xi whose
+    claims an earlier look decided keeps that look's runs (:func:`xi_plans`)."""
+    plans = xi_plans(p, ctx.decided_claims, bool(ctx.config.quick))
+    points = [{"waves_per_body": float(x), "dphi_rad": float(d)} for x in p.xi for d in plans[float(x)]]
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
-    sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, grid),
+    sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, Grid(points=points, seed=ctx.config.seed)),
                               *(functools.partial(ctx.lone_swimmer, waves_per_body=x) for x in p.xi))
     amp = [float(ds["amplitude_m"]) for ds in lone]
-    return pairs_dataset(sim, np.array(amp))
+    ds = pairs_dataset(sim, np.array(amp), p.xi, p.dphi_rad, [plans[float(x)] for x in p.xi])
+    ds.attrs["frozen_xi"] = json.dumps({f"{x:g}": k for x, k in frozen_xi(p.xi, ctx.decided_claims).items()})
+    return ds
 
 
-def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray) -> xr.Dataset:
-    """The study dataset from the merged sweep and the free swimmers' A per xi (dims xi, dphi, time)."""
-    xi = sim["waves_per_body"].values.astype(float)
-    dphi = sim["dphi_rad"].values.astype(float)
+def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, xi, dphis, xi_dphis=None) -> xr.Dataset:
+    """The study dataset (dims xi, dphi, time) from the explicit-point sweep, its points ordered xi, dphi,
+    each ``xi`` over its own ``xi_dphis`` (default: ``dphis``; a frozen xi's, a subset of them:
+    :func:`xi_plans`), and the free swimmers' A per xi.  An (xi, dphi) without a run is NaN,
+    ``run_made`` False (and not ``run_failed``)."""
+    xi, dphi = np.asarray(xi, float), np.asarray(dphis, float)
+    xi_dphis = [dphi] * xi.size if xi_dphis is None else [np.asarray(d, float) for d in xi_dphis]
     lam = np.array([BODY_LENGTH_M / x if x > 0 else math.inf for x in xi])
     A = np.asarray(amplitude_m, float)
-    failed = sim["run_failed"].isel(replicate=0).values.astype(bool)
+    index = np.full((xi.size, dphi.size), -1)
+    k = 0
+    for i, d in enumerate(xi_dphis):
+        cols = C.positions(dphi, d)
+        index[i, cols] = np.arange(k, k + len(cols))
+        k += len(cols)
+    made = index >= 0
+    failed = made & sim["run_failed"].isel(replicate=0).values.astype(bool)[np.where(made, index, 0)]
     dims = ("xi", "dphi")
-    variables, dx_t = C.collect_pairs(
-        lambda idx: sim.isel(waves_per_body=idx[0], dphi_rad=idx[1], replicate=0),
-        failed, dphi[None, :], lam[:, None], A[:, None], dims)
+    variables, dx_t = C.collect_pairs(lambda idx: sim.isel(point=int(index[idx]), replicate=0),
+                                      failed | ~made, dphi[None, :], lam[:, None], A[:, None], dims)
+    variables["run_failed"] = xr.Variable(dims, failed, variables["run_failed"].attrs)
+    variables["run_made"] = xr.Variable(dims, made, {"long_name": "a run was made (False: a frozen xi's dphi "
+                                                                  "its look did not run; NaN values)"})
     time = sim["time"].values
     if dx_t is None:
         dx_t = np.full(failed.shape + time.shape, np.nan)
@@ -121,6 +165,11 @@ def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray) -> xr.Dataset:
     return ds
 
 
+def _made(d: xr.Dataset) -> np.ndarray:
+    """Where a run was made (every point of a dataset written before ``run_made`` existed)."""
+    return d["run_made"].values if "run_made" in d else np.ones(d["run_failed"].shape, bool)
+
+
 def _on_paper_phases(dphi: np.ndarray) -> np.ndarray:
     return np.isclose(dphi[:, None], C.paper_phases()[None, :], atol=1e-9).any(axis=1)
 
@@ -129,14 +178,15 @@ def xi_summary(ds: xr.Dataset, xi: float) -> dict:
     """Summary numbers of one xi (see the module docstring)."""
     d = ds.sel(xi=xi)
     dphi = d["dphi"].values
-    ok = ~d["run_failed"].values
+    made = _made(d)
+    ok = made & ~d["run_failed"].values
     lam = float(d["wavelength"])
     out = {
         "xi": xi,
         "wavelength_m": lam if math.isfinite(lam) else None,
         "amplitude_m": float(d["amplitude"]),
-        "n_runs": int(dphi.size),
-        "n_failed": int((~ok).sum()),
+        "n_runs": int(made.sum()),
+        "n_failed": int((made & ~ok).sum()),
         "n_steady": int(d["steady"].values[ok].sum()),
         "n_swapped": int(d["swapped"].values[ok].sum()),
         "dx_std_m": float(np.nanstd(d["dx_steady"].values)),
@@ -172,11 +222,12 @@ def xi_summary(ds: xr.Dataset, xi: float) -> dict:
 
 def summary(ds: xr.Dataset) -> dict:
     """Pure: the numbers of the study, per xi, with uncertainties (module docstring)."""
-    ok = ~ds["run_failed"].values
+    made = _made(ds)
+    ok = made & ~ds["run_failed"].values
     return {
         "per_xi": {f"{x:g}": xi_summary(ds, float(x)) for x in ds["xi"].values},
-        "n_runs": int(ok.size),
-        "n_failed": int((~ok).sum()),
+        "n_runs": int(made.sum()),
+        "n_failed": int((made & ~ok).sum()),
         "n_steady": int(ds["steady"].values[ok].sum()),
         "n_dphi": int(ds.sizes["dphi"]),
         "steady_rule": C.STEADY_RULE,
@@ -215,6 +266,8 @@ def _standing_wave_scatter(s: dict) -> Verdict:
                       f"std of steady dx at xi = 0: {std0:.3f} m; RMS residual at xi = 1: {rms1:.3f} m", value)
 
 
+_CLAIM_XI = (("1",), ("0.75",), ("1.5",), ("0", "1"))
+"""The xi (summary keys) each of :data:`CLAIMS` reads, in order (:func:`_claims_reading`)."""
 _CRITERION = (f"the 95 % interval of the slope lies within 1 +- {LINE_SLOPE_TOL} and that of the RMS residual "
               f"below {LINE_RMS_TOL} lambda (fails if either lies wholly outside; undecided if one straddles)")
 CLAIMS = tuple(
