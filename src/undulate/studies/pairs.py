@@ -3,8 +3,8 @@
 Two 3-link swimmers in a channel d = 0.13 m start straight, laterally in
 contact, at dx0 = 0; swimmer 0 (lower) has phase 0, swimmer 1 (upper) phase
 dphi.  They run 15 gait periods (30 s) at every dphi of the paper's nine
-``{-1, -3/4, ..., 1} pi`` (full mode: up to 193 values over [-pi, pi], which
-contain the nine) and every xi in {0, 3/4, 1, 3/2}; at a later look an xi whose
+``{-1, -3/4, ..., 1} pi`` (quick mode: up to 33, full mode: up to 193 values
+over [-pi, pi], which contain the nine) and every xi in {0, 3/4, 1, 3/2}; at a later look an xi whose
 claims are decided keeps the runs of the look that decided them (:func:`xi_plans`).  The steady offset
 ``dx = x_upper - x_lower`` is compared with the compatibility branches
 ``dx = lambda (dphi / 2 pi + n)`` (paper Eq. (compatibility)).
@@ -55,10 +55,21 @@ class Plan:
     xi: tuple[float, ...] = XI_VALUES
 
 
+QUICK_REFINE = 4
+"""Quick mode's cap: every step of the paper's nine dphi cut into this many (33 dphi, step pi/16), its
+third look (:func:`stages`).  Sized on 2026-11-29 by the runs the quick claims undecided on the nine
+needed at b112001's second look (96 %): xi = 3/4 (slope 0.955 [0.771, 1.14], RMS residual 0.065 [0.020,
+0.118] lambda) and the standing wave (std of dx at xi = 0 [0.002, 0.318] m against 3 x xi = 1's RMS
+residual [0.029, 0.079] m) each ~21 dphi; the next nested grid above, 33.  A pair run costs ~0.1
+physics core-s."""
+
+
 def plan(quick: bool) -> Plan:
-    """Quick: the paper's nine dphi; full: 193 over [-pi, pi] (step pi/96, containing the nine; the 49 of
-    step pi/24 bitwise every fourth: :data:`FULL_REFINE`)."""
-    dphis = C.paper_phases() if quick else C.refined(C.phase_grid(FULL_PHASES), FULL_REFINE)
+    """Quick: 33 over [-pi, pi] (step pi/16; the paper's nine bitwise every fourth:
+    :data:`QUICK_REFINE`); full: 193 (step pi/96, containing the nine; the 49 of step pi/24 bitwise every
+    fourth: :data:`FULL_REFINE`)."""
+    dphis = (C.refined(C.paper_phases(), QUICK_REFINE) if quick
+             else C.refined(C.phase_grid(FULL_PHASES), FULL_REFINE))
     return Plan(tuple(float(p) for p in dphis))
 
 
@@ -290,14 +301,17 @@ def figure(ds: xr.Dataset):
 
 
 def stages(quick: bool) -> tuple[Plan, ...]:
-    """The plan in looks (:mod:`._stages`): quick 5, 9 dphi; full 13, 25, 49, 193 (every 16th, 8th, 4th,
-    all: the mode's three looks on the 49 and a fourth on the cap, :data:`FULL_REFINE`)."""
-    steps = strides(quick) if quick else tuple(FULL_REFINE * s for s in strides(False)) + (1,)
+    """The plan in looks (:mod:`._stages`): the mode's looks on its grid and one more on the cap refined
+    from it: quick 5, 9, 33 dphi (every 8th, 4th, all: :data:`QUICK_REFINE`); full 13, 25, 49, 193 (every
+    16th, 8th, 4th, all: :data:`FULL_REFINE`)."""
+    refine = QUICK_REFINE if quick else FULL_REFINE
+    steps = tuple(refine * s for s in strides(quick)) + (1,)
     return tuple(Plan(d) for d in thinned(plan(quick).dphi_rad, steps))
 
 
 register(Study(
     name="pairs", paper_figure="3", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
-    description="Pairs of 3-link swimmers (d = 0.13 m, 30 s) at nine (full: up to 193) phase differences "
+    description="Pairs of 3-link swimmers (d = 0.13 m, 30 s) at the paper's nine phase differences (quick: up "
+                "to 33, full: up to 193) "
                 "and xi in {0, 3/4, 1, 3/2}: dx(t), steady dx vs dphi with the compatibility lines, "
                 "slope and RMS error per xi."))
