@@ -150,6 +150,25 @@ def positions(values, subset) -> list[int]:
     return [int(np.flatnonzero(np.isclose(v, d, rtol=0, atol=1e-12))[0]) for d in subset]
 
 
+def point_index(dphis, row_dphis) -> np.ndarray:
+    """Index of each (row, dphi) into an explicit-point sweep whose points run row by row, each row over
+    its own ``row_dphis[i]`` (a staged look's subset of ``dphis``: a frozen claim's runs); -1 where a
+    row has no run.  Shape ``(len(row_dphis), len(dphis))``."""
+    index = np.full((len(row_dphis), len(dphis)), -1)
+    k = 0
+    for i, d in enumerate(row_dphis):
+        cols = positions(dphis, d)
+        index[i, cols] = np.arange(k, k + len(cols))
+        k += len(cols)
+    return index
+
+
+def runs_made(d) -> np.ndarray:
+    """Where a study dataset ``d`` holds a run (its ``run_made`` variable; every point of a dataset written
+    before ``run_made`` existed)."""
+    return d["run_made"].values if "run_made" in d else np.ones(d["run_failed"].shape, bool)
+
+
 def abs_dphi_keys(dphi) -> np.ndarray:
     """|dphi| rounded to 1e-9 rad: equal for +dphi and -dphi of one grid (one design point, :func:`by_abs_dphi`)."""
     return np.round(np.abs(np.asarray(dphi, float).ravel()), 9)

@@ -126,13 +126,7 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray,
     lam = BODY_LENGTH_M / XI
     A = np.asarray(amplitude_m, float).reshape(nr, nn)
     rule_dphis = [dphis] * nr if rule_dphis is None else [np.asarray(d, float) for d in rule_dphis]
-    index = np.full((nr, nn, nd), -1)
-    k = 0
-    for r in range(nr):
-        cols = C.positions(dphis, rule_dphis[r])
-        for n in range(nn):
-            index[r, n, cols] = np.arange(k, k + len(cols))
-            k += len(cols)
+    index = C.point_index(dphis, [rule_dphis[r] for r in range(nr) for _ in range(nn)]).reshape(nr, nn, nd)
     made = index >= 0
     point_failed = sim["run_failed"].isel(replicate=0).values.astype(bool)
     failed = made & point_failed[np.where(made, index, 0)]
@@ -199,7 +193,7 @@ def summary(ds: xr.Dataset) -> dict:
         rows = {}
         for n in ds["n_links"].values:
             d = ds.sel(rule=rule, n_links=n)
-            made = _made(d)
+            made = C.runs_made(d)
             ok = made & ~d["run_failed"].values
             res = d["residual_over_lambda"].values
             fit = C.compatibility_fit(d["dx_steady_over_lambda"].values, dphi)
@@ -227,7 +221,7 @@ def summary(ds: xr.Dataset) -> dict:
             "rms_falls_with_n": falls,
             "outlier_note": note,  # None when no N's interval is wide
         }
-    made = _made(ds)
+    made = C.runs_made(ds)
     ok = made & ~ds["run_failed"].values
     return {
         "per_rule": per_rule,
@@ -247,11 +241,6 @@ def summary(ds: xr.Dataset) -> dict:
 
 
 E = stats.Estimate.from_dict
-
-
-def _made(d: xr.Dataset) -> np.ndarray:
-    """Where a run was made (every point of a dataset written before ``run_made`` existed)."""
-    return d["run_made"].values if "run_made" in d else np.ones(d["run_failed"].shape, bool)
 
 
 END_TO_END = 0.75

@@ -122,12 +122,7 @@ def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, xi, dphis, xi_dphis=
     xi_dphis = [dphi] * xi.size if xi_dphis is None else [np.asarray(d, float) for d in xi_dphis]
     lam = np.array([BODY_LENGTH_M / x if x > 0 else math.inf for x in xi])
     A = np.asarray(amplitude_m, float)
-    index = np.full((xi.size, dphi.size), -1)
-    k = 0
-    for i, d in enumerate(xi_dphis):
-        cols = C.positions(dphi, d)
-        index[i, cols] = np.arange(k, k + len(cols))
-        k += len(cols)
+    index = C.point_index(dphi, xi_dphis)
     made = index >= 0
     failed = made & sim["run_failed"].isel(replicate=0).values.astype(bool)[np.where(made, index, 0)]
     dims = ("xi", "dphi")
@@ -176,11 +171,6 @@ def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, xi, dphis, xi_dphis=
     return ds
 
 
-def _made(d: xr.Dataset) -> np.ndarray:
-    """Where a run was made (every point of a dataset written before ``run_made`` existed)."""
-    return d["run_made"].values if "run_made" in d else np.ones(d["run_failed"].shape, bool)
-
-
 def _on_paper_phases(dphi: np.ndarray) -> np.ndarray:
     return np.isclose(dphi[:, None], C.paper_phases()[None, :], atol=1e-9).any(axis=1)
 
@@ -189,7 +179,7 @@ def xi_summary(ds: xr.Dataset, xi: float) -> dict:
     """Summary numbers of one xi (see the module docstring)."""
     d = ds.sel(xi=xi)
     dphi = d["dphi"].values
-    made = _made(d)
+    made = C.runs_made(d)
     ok = made & ~d["run_failed"].values
     lam = float(d["wavelength"])
     out = {
@@ -233,7 +223,7 @@ def xi_summary(ds: xr.Dataset, xi: float) -> dict:
 
 def summary(ds: xr.Dataset) -> dict:
     """Pure: the numbers of the study, per xi, with uncertainties (module docstring)."""
-    made = _made(ds)
+    made = C.runs_made(ds)
     ok = made & ~ds["run_failed"].values
     return {
         "per_xi": {f"{x:g}": xi_summary(ds, float(x)) for x in ds["xi"].values},
