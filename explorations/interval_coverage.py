@@ -7,10 +7,13 @@ freedom, a normal with 10 % of points five times wider, uniform) and sizes 5-49,
 fraction of trials whose 95 % interval lies wholly below the truth ("upper miss") and wholly above
 it ("lower miss"), for:
 
-* ``BCa``: :func:`undulate.stats.rms` / :func:`undulate.stats.std` (the bias-corrected and
-  accelerated interval of :func:`undulate.stats.bootstrap`, the package's method since 2026-11-29);
-* ``percentile``: the percentile bootstrap of the same statistic (:func:`undulate.stats.bootstrap`,
-  the package's method before);
+* ``expanded BCa``: :func:`undulate.stats.rms` / :func:`undulate.stats.std`, the package's interval
+  since 2026-11-29 (later): the bias-corrected and accelerated interval of
+  :func:`undulate.stats.bootstrap` at Hesterberg's expanded levels (:func:`undulate.stats.expanded_z`);
+* ``BCa``: the same with the textbook normal quantile (``expand=False``; the package's method
+  earlier on 2026-11-29);
+* ``percentile``: the percentile bootstrap of the same statistic at the textbook levels (the
+  package's method before);
 * ``studentized``: a bootstrap-t on the log of the mean square (the same 2000 resamples), tried
   and set aside: it covers better on normal samples, but a resample whose squares are (nearly)
   equal divides by a (nearly) zero spread, and the studies' residuals come in mirror pairs with
@@ -38,6 +41,10 @@ DISTRIBUTIONS = {
     "uniform(-1, 1)": (lambda r, n: r.uniform(-1, 1, n), math.sqrt(1 / 3), math.sqrt(1 / 3)),
 }
 SIZES = (5, 9, 17, 30, 49)
+VARIANTS = {"expanded BCa": ("BCa", True), "BCa": ("BCa", False),
+            "expanded percentile": ("percentile", True), "percentile": ("percentile", False)}
+"""The paired tables' intervals: each method at Hesterberg's expanded levels (the package's since
+2026-11-29, later) and at the textbook ones."""
 
 
 def _rms_rows(a, axis=-1):
@@ -67,8 +74,10 @@ def intervals(x: np.ndarray, which: str) -> dict[str, tuple[float, float]]:
     """Each method's 95 % interval of ``which`` ("rms" or "std") of the sample ``x``."""
     e = getattr(stats, which)(x)
     rows = _rms_rows if which == "rms" else _std_rows
-    _, lo, hi = stats.bootstrap(rows, x, vectorized=True, method="percentile")
-    return {"BCa": (e.low, e.high), "percentile": (lo, hi), "studentized": _studentized(x, which == "std")}
+    _, blo, bhi = stats.bootstrap(rows, x, vectorized=True, expand=False)
+    _, lo, hi = stats.bootstrap(rows, x, vectorized=True, method="percentile", expand=False)
+    return {"expanded BCa": (e.low, e.high), "BCa": (blo, bhi), "percentile": (lo, hi),
+            "studentized": _studentized(x, which == "std")}
 
 
 def _pairs_table(trials: int) -> None:
@@ -84,19 +93,19 @@ def _pairs_table(trials: int) -> None:
     def rho_rows(a, b, axis=-1):
         return stats._pearson_rows(st.rankdata(a, axis=axis), st.rankdata(b, axis=axis), axis)
 
-    print("\n| statistic | rho | n | BCa: upper / lower miss | percentile: upper / lower miss |")
-    print("|---|---:|---:|---|---|")
+    print("\n| statistic | rho | n | " + " | ".join(f"{m}: upper / lower miss" for m in VARIANTS) + " |")
+    print("|---|---:|---:|" + "---|" * len(VARIANTS))
     for which, rows in (("R^2", r2_rows), ("Spearman", rho_rows)):
         for rho in (0.9, 0.95):
             truth = rho ** 2 if which == "R^2" else 6 / math.pi * math.asin(rho / 2)
-            for n in (9, 17, 37):
+            for n in (5, 9, 17, 37):
                 rng = np.random.default_rng(5)
-                miss = {"BCa": [0, 0], "percentile": [0, 0]}
+                miss = {m: [0, 0] for m in VARIANTS}
                 for _ in range(trials):
                     x = rng.normal(size=n)
                     y = rho * x + math.sqrt(1 - rho ** 2) * rng.normal(size=n)
-                    for m in miss:
-                        _, low, high = stats.bootstrap(rows, x, y, vectorized=True, method=m)
+                    for m, (method, expand) in VARIANTS.items():
+                        _, low, high = stats.bootstrap(rows, x, y, vectorized=True, method=method, expand=expand)
                         miss[m][0] += truth > high
                         miss[m][1] += truth < low
                 cells = " | ".join(f"{100 * u / trials:.1f} / {100 * lo / trials:.1f} %" for u, lo in miss.values())
@@ -110,19 +119,19 @@ def _median_table(trials: int) -> None:
     def med(a, axis=-1):
         return np.median(a, axis=axis)
 
-    print("\n| statistic | sample | n | BCa: upper / lower miss | percentile: upper / lower miss |")
-    print("|---|---|---:|---|---|")
+    print("\n| statistic | sample | n | " + " | ".join(f"{m}: upper / lower miss" for m in VARIANTS) + " |")
+    print("|---|---|---:|" + "---|" * len(VARIANTS))
     samples = {"lognormal(0, 1)": (lambda r, n: r.lognormal(0, 1, n), 1.0),
                "exponential(1)": (lambda r, n: r.exponential(1, n), math.log(2)),
                "normal(0, 1)": (lambda r, n: r.normal(0, 1, n), 0.0)}
     for name, (draw, truth) in samples.items():
         for n in (9, 17, 49):
             rng = np.random.default_rng(7)
-            miss = {m: [0, 0] for m in stats.BOOTSTRAP_METHODS}
+            miss = {m: [0, 0] for m in VARIANTS}
             for _ in range(trials):
                 x = draw(rng, n)
-                for m in stats.BOOTSTRAP_METHODS:
-                    _, lo, hi = stats.bootstrap(med, x, vectorized=True, method=m)
+                for m, (method, expand) in VARIANTS.items():
+                    _, lo, hi = stats.bootstrap(med, x, vectorized=True, method=method, expand=expand)
                     miss[m][0] += truth > hi
                     miss[m][1] += truth < lo
             cells = " | ".join(f"{100 * u / trials:.1f} / {100 * lo / trials:.1f} %" for u, lo in miss.values())
@@ -138,7 +147,7 @@ def main() -> None:
     if args.pairs or args.median:
         (_pairs_table if args.pairs else _median_table)(args.trials)
         return
-    methods = ("BCa", "percentile", "studentized")
+    methods = ("expanded BCa", "BCa", "percentile", "studentized")
     print("| statistic | sample | n | " + " | ".join(f"{m}: upper / lower miss" for m in methods) + " |")
     print("|---|---|---:|" + "---|" * len(methods))
     for which in ("rms", "std"):

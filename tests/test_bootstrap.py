@@ -50,8 +50,9 @@ def _scipy_bca(rows, *samples, seed):
 
 
 def test_bca_interval_is_scipys_where_every_resample_is_defined():
-    """With no undefined resample the package's BCa interval (its own z0 and jackknife acceleration on
-    scipy's resamples) is ``scipy.stats.bootstrap(method="BCa")``'s, for one and two paired samples,
+    """With no undefined resample the package's BCa interval at the textbook levels (``expand=False``; its
+    own z0 and jackknife acceleration on scipy's resamples) is ``scipy.stats.bootstrap(method="BCa")``'s,
+    for one and two paired samples,
     vectorized or not, and at another level; the percentile one is the distribution's percentiles."""
     from undulate import stats
 
@@ -70,8 +71,9 @@ def test_bca_interval_is_scipys_where_every_resample_is_defined():
             if n == 5 and len(samples) == 2:
                 continue  # a resample of 5 pairs can have no spread: scipy's interval is NaN (below)
             ref = _scipy_bca(rows, *samples, seed=11)
-            np.testing.assert_allclose(stats.bootstrap(rows, *samples, seed=11, vectorized=True), ref, rtol=1e-10)
-            np.testing.assert_allclose(stats.bootstrap(one, *samples, seed=11), ref, rtol=1e-10)
+            np.testing.assert_allclose(stats.bootstrap(rows, *samples, seed=11, vectorized=True, expand=False),
+                                       ref, rtol=1e-10)
+            np.testing.assert_allclose(stats.bootstrap(one, *samples, seed=11, expand=False), ref, rtol=1e-10)
     with stats.at_level(0.99):
         wide = stats.bootstrap(cases[1][0], z, seed=11, vectorized=True)
     narrow = stats.bootstrap(cases[1][0], z, seed=11, vectorized=True)
@@ -109,8 +111,9 @@ def test_bootstrap_refuses_an_unknown_method():
         stats.bootstrap(np.mean, np.arange(5.0), method="basic")
 
 
-def test_rms_and_std_are_scipys_bca_and_clusters_resample_design_points_together():
-    """stats.rms / stats.std: scipy's BCa interval of the plain statistic (to rounding); with clusters
+def test_rms_and_std_are_the_expanded_bca_and_clusters_resample_design_points_together():
+    """stats.rms / stats.std: the package's BCa interval of the plain statistic at the expanded levels
+    (the textbook ones: scipy's BCa interval, to rounding), wider than the textbook one; with clusters
     of one value each, the same; with the residuals of a symmetric dphi grid, whose +dphi and -dphi
     values are one design point seen mirrored, the interval is that of the design points (each
     resampled whole), wider than the one that counts every value apart, and the value is unchanged."""
@@ -121,8 +124,10 @@ def test_rms_and_std_are_scipys_bca_and_clusters_resample_design_points_together
     for fn, rows in ((stats.rms, lambda a, axis=-1: np.sqrt(np.mean(a * a, axis=axis))),
                      (stats.std, lambda a, axis=-1: np.std(a, axis=axis))):
         e = fn(x)
-        np.testing.assert_allclose((e.stderr, e.low, e.high), _scipy_bca(rows, x, seed=stats.BOOTSTRAP_SEED),
-                                   rtol=1e-10)
+        np.testing.assert_allclose((e.stderr, e.low, e.high), stats.bootstrap(rows, x, vectorized=True), rtol=1e-12)
+        textbook = stats.bootstrap(rows, x, vectorized=True, expand=False)
+        np.testing.assert_allclose(textbook, _scipy_bca(rows, x, seed=stats.BOOTSTRAP_SEED), rtol=1e-10)
+        assert e.low < textbook[1] < e.value < textbook[2] < e.high
         one = fn(x, clusters=np.arange(x.size))
         np.testing.assert_allclose((one.value, one.low, one.high), (e.value, e.low, e.high), rtol=1e-10)
     dphi = np.linspace(-np.pi, np.pi, 17)
@@ -138,3 +143,68 @@ def test_rms_and_std_are_scipys_bca_and_clusters_resample_design_points_together
         stats.rms(res, clusters=[0, 1])
     with_nan = stats.rms(np.append(res, np.nan), clusters=np.append(np.round(np.abs(dphi), 9), 9.0))
     assert (with_nan.value, with_nan.low, with_nan.high) == pytest.approx((together.value, together.low, together.high))
+
+
+def test_expanded_levels_are_hesterbergs():
+    """``expanded_z``: sqrt(n / (n - 1)) t_{n-1} ((1 + conf) / 2), the normal quantile in the limit; the
+    percentile interval at the expanded levels is the distribution's quantiles at Phi(-+z) and contains
+    the textbook one; BCa's levels past the transform's pole are the distribution's ends."""
+    from scipy import stats as st
+
+    from undulate import stats
+
+    assert stats.expanded_z(0.95, 9) == pytest.approx(np.sqrt(9 / 8) * st.t.ppf(0.975, 8))
+    assert stats.expanded_z(0.95, 5) == pytest.approx(3.1042, abs=1e-4)
+    assert stats.expanded_z(0.95, float("inf")) == pytest.approx(1.959964, abs=1e-6)
+    assert stats.expanded_z(0.95, 10 ** 7) == pytest.approx(1.959964, abs=1e-5)
+    zs = [stats.expanded_z(0.99, n) for n in (3, 5, 9, 17, 33, 1000)]
+    assert all(a > b for a, b in zip(zs, zs[1:])) and zs[-1] > st.norm.ppf(0.995)
+    x = np.random.default_rng(4).lognormal(size=11)
+    rows = lambda a, axis=-1: np.mean(a, axis=axis)  # noqa: E731
+    _, lo, hi = stats.bootstrap(rows, x, vectorized=True, method="percentile")
+    _, lo0, hi0 = stats.bootstrap(rows, x, vectorized=True, method="percentile", expand=False)
+    res = st.bootstrap((x,), rows, vectorized=True, n_resamples=stats.N_RESAMPLES, method="percentile",
+                       rng=np.random.default_rng(stats.BOOTSTRAP_SEED))
+    dist = res.bootstrap_distribution
+    z = stats.expanded_z(0.95, 11)
+    assert (lo, hi) == pytest.approx(tuple(np.quantile(dist, [st.norm.cdf(-z), st.norm.cdf(z)])))
+    assert (lo0, hi0) == pytest.approx(tuple(np.percentile(dist, [2.5, 97.5])))
+    assert lo < lo0 < hi0 < hi
+    dist = np.linspace(0.0, 1.0, 101)
+    jack = np.array([0.0, 0.0, 0.0, 0.0, 3.0])  # a skewed jackknife: acceleration a ~ -0.11
+    assert stats._bca_levels(dist, 0.5, jack, 30.0) == (0.0, pytest.approx(1.0, abs=1e-9))
+    assert stats._bca_levels(dist, 0.5, -jack, 30.0) == (pytest.approx(0.0, abs=1e-9), 1.0)
+
+
+@pytest.mark.parametrize("n, level, has_interval", [(3, 0.95, False), (4, 0.95, False), (5, 0.95, True),
+                                                     (5, 0.995, False), (6, 0.995, True)])
+def test_a_rank_correlation_has_an_interval_only_where_a_ranking_could_decide(n, level, has_interval):
+    """A perfect ranking of n points comes by chance once in n! orderings: below n! = 2 / (1 - level)
+    no data could exclude rho = 0, and every resample of a monotone sample gives rho = -1; so no
+    interval there (the value and its bootstrap spread only), the bootstrap's interval from that n on."""
+    from undulate import stats
+
+    x = np.arange(float(n))
+    with stats.at_level(level):
+        e = stats.rank_correlation(x, -x)
+        check = e.below(0.0, "rho")
+    assert e.value == pytest.approx(-1.0) and e.n == n and e.level == level
+    assert e.has_interval is has_interval
+    if has_interval:
+        assert (e.low, e.high) == pytest.approx((-1.0, -1.0)) and check.state is True
+    else:
+        assert check.state is None and "no interval" in check.text and "too few points" in e.method
+
+
+def test_ties_in_x_count_as_fewer_orderings():
+    """The packing study ranks every draw's threshold against its phase spread: its x repeat. Four
+    spreads of one draw (4! = 24 orderings) give no 99 % interval; four of two draws (8! / 2!^4 = 2520)
+    do, and a falling sample's holds."""
+    from undulate import stats
+
+    phi = np.repeat([0.0, 1.5, 3.1, 6.2], 2)
+    thr = np.array([5.1, 5.0, 4.2, 4.4, 3.0, 3.3, 2.1, 2.0])
+    with stats.at_level(0.99):
+        one, two = stats.rank_correlation(phi[::2], thr[::2]), stats.rank_correlation(phi, thr)
+    assert not one.has_interval and one.value == pytest.approx(-1.0)
+    assert two.has_interval and two.below(0.0).state is True and two.n == 8

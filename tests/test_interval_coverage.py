@@ -69,3 +69,24 @@ def test_from_dict_passes_an_estimate_through_and_refuses_other_objects():
     assert math.isnan(stats.Estimate.from_dict(None).value)
     with pytest.raises(TypeError, match="Estimate.from_dict"):
         stats.Estimate.from_dict(1.0)
+
+
+@pytest.mark.parametrize("n", [9, 17])
+def test_expanded_levels_miss_the_truth_less_often(n):
+    """The package's levels (Hesterberg's expanded ones, ``stats.expanded_z``) against the textbook
+    normal quantile, on the same BCa resamples: normal samples (mean 0.5, sd 1: RMS sqrt(1.25)) of 9
+    and 17 points, 400 seeded trials. Measured here: the truth above the RMS's interval in 10.2 % /
+    5.8 % of samples (textbook 12.5 % / 9.2 %), below it in 1.2 % / 1.0 % (2.2 % / 2.5 %)."""
+    truth = math.sqrt(1.25)
+    rows = _rows("rms")
+    rng = np.random.default_rng(2024)
+    trials, new, old = 400, np.zeros(2), np.zeros(2)
+    for _ in range(trials):
+        x = rng.normal(0.5, 1.0, n)
+        e = stats.rms(x)
+        _, lo, hi = stats.bootstrap(rows, x, vectorized=True, expand=False)
+        new += (truth < e.low, truth > e.high)
+        old += (truth < lo, truth > hi)
+    new, old = new / trials, old / trials
+    assert new[1] <= old[1] - 0.015, (new, old)
+    assert new[0] <= old[0] and new[0] <= 0.025, (new, old)
