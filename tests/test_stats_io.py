@@ -58,6 +58,9 @@ def test_rms_and_estimate_judgement():
     assert d == {"value": 1.0, "stderr": 0.05, "ci95": [0.9, 1.1], "n": 7, "method": "t",
                  "level": 0.95}
     assert stats.Estimate.from_dict(d) == stats.Estimate(1.0, 0.05, 0.9, 1.1, 7, "t")
+    # without an interval the spread is shown, unsigned whatever the value's format
+    assert f"{stats.Estimate(-0.5, 0.82):+.2f}" == "-0.50 ± 0.82"
+    assert f"{stats.Estimate(-0.5, 0.82, -1.0, 0.1):+.2f}" == "-0.50 [-1.00, +0.10]"
 
 
 def test_atomic_output_fsyncs_sets_umask_permissions_and_cleans_up(tmp_path):

@@ -196,8 +196,8 @@ class Estimate:
         s = format(self.value, spec)
         if self.has_interval:
             s += f" [{format(self.low, spec)}, {format(self.high, spec)}]"
-        elif math.isfinite(self.stderr):
-            s += f" ± {format(self.stderr, spec)}"
+        elif math.isfinite(self.stderr):  # a spread has no sign: "-0.50 ± 0.82", not "± +0.82"
+            s += f" ± {format(self.stderr, spec.replace('+', '').replace(' ', ''))}"
         return s
 
     def __str__(self) -> str:
