@@ -329,7 +329,9 @@ class Resumes:
         sr, (state, warm) = self._runs[self.key(point)]
         return sr, Checkpoint(state, warm)
 
-    def __repr__(self) -> str:
+    @property
+    def sha256(self) -> str:
+        """The hex digest of every stopped run's content, keys included."""
         import hashlib
 
         h = hashlib.sha256()
@@ -338,7 +340,10 @@ class Resumes:
             h.update(repr(k).encode())
             for a in (*(sr[n] for n in sorted(sr)), *end):
                 h.update(np.ascontiguousarray(a, dtype=float).tobytes())
-        return f"Resumes(sha256={h.hexdigest()[:16]}, runs={len(self._runs)})"
+        return h.hexdigest()
+
+    def __repr__(self) -> str:
+        return f"Resumes(sha256={self.sha256[:16]}, runs={len(self._runs)})"
 
 
 def density_threshold(rho_tilde, excess, failed=None) -> tuple[float, float, float]:
@@ -491,7 +496,9 @@ def _rerun_brackets(ctx: StudyContext, p: PackingPlan, cont, runs: _Runs):
         reruns += 1
         points = _points(p, todo)
         resume = Resumes({Resumes.key(pt): runs.stopped[w] for pt, w in zip(points, todo)})
-        got = ctx.sweep(f"brackets-{reruns}", functools.partial(cont, resume=resume),
+        # one store per set of stopped runs: a later look continues more of them (more draws), and a
+        # shared store would hold one look's continuations at a time, each look discarding the other's
+        got = ctx.sweep(f"brackets-{reruns}-{resume.sha256[:12]}", functools.partial(cont, resume=resume),
                         Grid(points=points, seed=ctx.config.seed))
         runs.take_sweep(got.isel(replicate=0), todo)
         runs.continued += len(todo)
