@@ -193,7 +193,7 @@ def test_a_rank_correlation_has_an_interval_only_where_a_ranking_could_decide(n,
     if has_interval:
         assert (e.low, e.high) == pytest.approx((-1.0, -1.0)) and check.state is True
     else:
-        assert check.state is None and "no interval" in check.text and "too few points" in e.method
+        assert check.state is None and "no interval" in check.text and "too few orderings" in e.method
 
 
 def test_ties_in_x_count_as_fewer_orderings():
