@@ -496,7 +496,7 @@ def rank_correlation(x, y, *, seed: int | None = None) -> Estimate:
     No interval (the value and its bootstrap standard error only) while the distinct orderings of the
     data, ``n!`` over the factorials of the tie counts in ``x`` and in ``y``, are fewer than ``2 / (1 -
     level)``: with no trend the most extreme ordering comes by chance once in that many, so no data
-    could exclude rho = 0 at the level (without ties: 5 points at 95 %, 6 at 97.5-99.5 %), whereas
+    could exclude rho = 0 at the level (without ties: 5 points up to 98.3 %, 6 up to 99.7 %), whereas
     every resample of a monotone sample is monotone and the bootstrap's interval is [-1, -1] (since
     2026-11-29; before, a quick reproduction judged rho = -1 [-1, -1] on 3 channel widths)."""
     from scipy import stats as st
