@@ -189,7 +189,7 @@ class _RecordingContext:
     def __init__(self, decided):
         from types import SimpleNamespace
 
-        self.decided_claims = decided
+        self.frozen_claims = decided
         self.config = SimpleNamespace(quick=False, seed=0)
         self.points = []
 

@@ -505,7 +505,7 @@ def test_a_pairs_xi_whose_claims_are_decided_keeps_its_looks_runs(decided, froze
     asked = []
 
     class Ctx:
-        decided_claims = {names[k]: v for k, v in decided.items()}
+        frozen_claims = {names[k]: v for k, v in decided.items()}
         config = SimpleNamespace(quick=False, seed=0)
 
         def sweep(self, part, fn, grid):  # every run failed: no simulation
@@ -535,3 +535,69 @@ def test_a_pairs_xi_whose_claims_are_decided_keeps_its_looks_runs(decided, froze
         warnings.simplefilter("ignore")
         s = pairs.summary(ds)
     assert s["n_runs"] == len(asked) == s["n_failed"]
+
+
+def test_a_futile_claims_runs_stay_where_it_was_found_futile(tmp_path, staged, monkeypatch):
+    """Quick mode, two claims: the mean on its boundary is futile at the first look (the cap's runs
+    would not decide it), while a claim with no result there (fewer than 7 runs) keeps the study going.
+    The second look is told the futile claim is frozen at the first (its runs need not grow), and it
+    stays futile there, whatever its growth estimate at the second look."""
+    from undulate.studies import Claim, Study, Verdict, register, run_study
+    from undulate.studies._registry import _REGISTRY
+
+    told = []
+
+    def dataset(ctx, plan):
+        told.append(dict(ctx.frozen_claims))
+        return staged.dataset(ctx, plan)
+
+    def summary(ds):
+        return {**staged.summary(ds), "n": int(ds.sizes["run"])}
+
+    def seven(s):
+        if s["n"] < 7:
+            return Verdict.none(f"{s['n']} runs, fewer than 7", value={"n": s["n"]})
+        return Verdict.judged(True, f"{s['n']} runs", {"n": s["n"]})
+
+    monkeypatch.setattr(staged, "REGION", (0.0, 5.0))
+    monkeypatch.setattr(staged, "STAGE_POINTS", (6, 12))  # quick mode's two looks (strides 2, 1)
+    register(Study(name="_futile", description="a futile claim beside an open one",
+                   plan=lambda quick: staged.damping(12),
+                   stages=lambda quick: tuple(staged.damping(n) for n in staged.STAGE_POINTS),
+                   dataset=dataset, summary=summary, figure=staged._figure,
+                   claims=(staged.CLAIM, Claim("at least 7 runs", "toy", "count >= 7", seven))))
+    try:
+        run_study("_futile", tmp_path, quick=True, workers=1, progress=False)
+    finally:
+        _REGISTRY.pop("_futile", None)
+    doc = _doc(tmp_path, "_futile")
+    first, second = doc["stages"]
+    assert first["futile"] == [staged.CLAIM.claim] and first["undecided"] == ["at least 7 runs"]
+    assert told == [{}, {staged.CLAIM.claim: 1}]
+    assert second["futile"] == [staged.CLAIM.claim] and second["undecided"] == []
+    mean, seven_runs = doc["claims"]
+    assert mean["verdict"] == UNDECIDED and seven_runs["verdict"] == HOLDS
+
+
+def test_a_potential_sweep_whose_claims_are_final_keeps_its_looks_runs():
+    """The potential study's impulse sweep feeds the impulse claim only, its force sweep the other three
+    (frozen once all three are, at the latest such look).  Quick mode's impulse claim found futile at the
+    first look leaves the second look nothing to run: its force grid is the first look's already."""
+    from undulate.studies import potential
+
+    looks = potential.stages(False)
+    impulse, harmonic, falls, collapse = (c.claim for c in potential.CLAIMS)
+
+    def grids(p):
+        return (p.impulse_dphi, p.impulse_phi0), (p.betas_deg, p.d_over_2A, p.forces_N)
+
+    for frozen, want_imp, want_force in [({}, 3, 3), ({impulse: 1}, 0, 3), ({harmonic: 1, falls: 2}, 3, 3),
+                                         ({harmonic: 1, falls: 3, collapse: 2}, 3, 2),
+                                         ({impulse: 2, harmonic: 2, falls: 2, collapse: 2}, 1, 1)]:
+        got = potential.sweep_plan(looks[3], frozen, False)
+        assert grids(got)[0] == grids(looks[want_imp])[0] and grids(got)[1] == grids(looks[want_force])[1]
+        assert got.duration_s == looks[3].duration_s
+        assert potential.frozen_sweeps(frozen) == {k: v + 1 for k, v in
+                                                   (("impulse", want_imp), ("force", want_force)) if v < 3}
+    quick = potential.stages(True)
+    assert grids(potential.sweep_plan(quick[1], {impulse: 1}, True)) == grids(quick[0])

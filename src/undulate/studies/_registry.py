@@ -46,7 +46,7 @@ import pkgutil
 import sys
 import threading
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Collection, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -378,6 +378,12 @@ class StudyContext:
         """``claim -> look``: this study's claims its earlier looks decided (holds or fails), which a later
         look never reopens (:func:`_keep_decided`); set by the staged run, so a study can keep the runs
         that feed only such claims on the plan of the look that decided them."""
+        self.frozen_claims: dict[str, int] = {}
+        """``claim -> look``: this study's claims whose runs are final, each with the look whose plan its
+        runs follow: the decided claims (as :attr:`decided_claims`) and the *futile* ones, undecided claims
+        the quick cap cannot decide (:func:`_open`), from the look that first found them so (a later look
+        may still decide one on the same runs at its own level).  A study keeps the runs that feed only
+        such claims on that look's plan (:func:`._stages.kept_plan`): more of them would buy nothing."""
         self.decided_explanations: dict[tuple[str, str], int] = {}
         """``(study, claim) -> look``: the explanations this study's earlier looks decided (shown or
         refuted), which a later look never reopens (:func:`_keep_decided`); set by the staged run, so a
@@ -664,15 +670,18 @@ def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
     return plans
 
 
-def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], growth_left: float) -> list[str]:
+def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], growth_left: float,
+          futile: Collection[str] = ()) -> list[str]:
     """What another stage may still decide after a look: undecided claims, except those whose interval
     would need more than ``growth_left`` times the runs it rests on (quick mode's cap cannot decide them:
-    a futility stop, which never turns a claim into ``holds`` or ``fails``); claims with ``no result``
-    (too few design points or runs with a result for an interval: more runs may give one); and
-    explanations whose claim fails (the others are moot: :meth:`StudyContext.needs_explanation`)."""
+    a futility stop, which never turns a claim into ``holds`` or ``fails``) and those an earlier look
+    found futile (``futile``: their runs stay where they were, :attr:`StudyContext.frozen_claims`);
+    claims with ``no result`` (too few design points or runs with a result for an interval: more runs
+    may give one); and explanations whose claim fails (the others are moot:
+    :meth:`StudyContext.needs_explanation`)."""
     def decidable(c: dict[str, Any]) -> bool:
         g = c.get("growth_needed")
-        return g is None or g <= growth_left
+        return c["claim"] not in futile and (g is None or g <= growth_left)
 
     return ([c["claim"] for c in claims if (c["verdict"] == UNDECIDED and decidable(c)) or c["verdict"] == NO_RESULT]
             + [f"explanation of {e['claim']}" for e in explanations if e["shown"] is None and e["needed"]])
@@ -812,6 +821,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     looks: list[dict[str, Any]] = []
     decided_claims: dict[Any, dict[str, Any]] = {}
     decided_explanations: dict[Any, dict[str, Any]] = {}
+    futile_at: dict[str, int] = {}
     with _physics.meter() as here:  # what this process simulates (serial sweeps, direct runs)
         prefetched = _prefetch(info, ctx, plans)
         for k, (plan, level) in enumerate(zip(plans, levels), start=1):
@@ -830,7 +840,11 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
                                          lambda e: e["shown"], at)
             ctx.decided_claims = {k: c["decided_at"]["stage"] for k, c in decided_claims.items()}
             ctx.decided_explanations = {k: e["decided_at"]["stage"] for k, e in decided_explanations.items()}
-            still = _open(claims, explanations, _growth_left(len(plans), k, config.quick))
+            still = _open(claims, explanations, _growth_left(len(plans), k, config.quick), futile_at)
+            for c in claims:  # futile from here on: its runs stay on this look's plan
+                if c["verdict"] == UNDECIDED and c["claim"] not in still:
+                    futile_at.setdefault(c["claim"], k)
+            ctx.frozen_claims = {**ctx.decided_claims, **futile_at}  # futile first: its runs stopped there
             mine = ctx.sweeps[first:]
             looks.append({**at, "n_runs": sum(s["n_runs"] for s in mine),
                           "n_computed": sum(s["n_computed"] for s in mine),

@@ -94,9 +94,10 @@ def plan(quick: bool) -> Plan:
 
 def size_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[int, Plan]:
     """The plan each group size's runs follow at a look on plan ``p``: ``p``, or, for a size whose claim an
-    earlier look decided (``decided``: claim -> look, :attr:`~._registry.StudyContext.decided_claims`),
-    that look's plan (frozen: its runs are made, and a decided claim is never reopened).  The reference
-    pairs feed both claims: frozen once both are decided (at the latest such look)."""
+    earlier look decided or found futile (``decided``: claim -> look,
+    :attr:`~._registry.StudyContext.frozen_claims`), that look's plan (frozen: its runs are made, and a
+    decided claim is never reopened, nor a futile one grown).  The reference pairs feed both claims:
+    frozen once both are (at the latest such look)."""
     looks, by_size = stages(quick), _decided_sizes(decided)
     plans = {n: kept_plan(looks, by_size, n, p) for n in SIZES}
     plans[2] = looks[max(by_size.values()) - 1] if len(by_size) == len(SIZES) else p
@@ -112,7 +113,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Groups of three and four, and pairs over the same dphi range (the scatter they are compared with);
     a size whose claim an earlier look decided keeps that look's runs (:func:`size_plans`)."""
     seed = ctx.config.seed
-    plans = size_plans(p, ctx.decided_claims, bool(ctx.config.quick))
+    plans = size_plans(p, ctx.frozen_claims, bool(ctx.config.quick))
     def size(n: int) -> xr.Dataset:
         return ctx.shared_sweep(group_part(n), *group_sweep(n, plans[n].pairs if n == 2 else plans[n].dphi_rad,
                                                              plans[n].draws, seed))
@@ -121,7 +122,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                                           lambda: ctx.lone_swimmer(waves_per_body=XI))
     A = float(lone["amplitude_m"])
     ds = groups_dataset({2: two, 3: three, 4: four}, A)
-    ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in _decided_sizes(ctx.decided_claims).items()})
+    ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in _decided_sizes(ctx.frozen_claims).items()})
     return ds
 
 

@@ -91,16 +91,16 @@ def plan(quick: bool) -> Plan:
 
 def rule_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[str, Plan]:
     """The plan each rule's runs follow at a look on plan ``p``: ``p``, or, for a rule whose claim an
-    earlier look decided (``decided``: claim -> look, :attr:`~._registry.StudyContext.decided_claims`),
-    that look's plan (frozen: its runs are made, and a decided claim is never reopened, so more of them
-    would buy nothing)."""
+    earlier look decided or found futile (``decided``: claim -> look,
+    :attr:`~._registry.StudyContext.frozen_claims`), that look's plan (frozen: its runs are made, and a
+    decided claim is never reopened, nor a futile one grown, so more of them would buy nothing)."""
     looks = stages(quick)
     return {rule: kept_plan(looks, decided, c.claim, p) for rule, c in zip(RULES, CLAIMS)}
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     dphis = np.asarray(p.dphi_rad, float)
-    decided = ctx.decided_claims
+    decided = ctx.frozen_claims
     plans = rule_plans(p, decided, bool(ctx.config.quick))
     gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]
     sim_points = [{**g, "dphi_rad": float(d)} for g in gaits for d in plans[g["beta_rule"]].dphi_rad]

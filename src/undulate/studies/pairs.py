@@ -81,8 +81,8 @@ def _claims_reading(xi: float) -> tuple[str, ...]:
 
 
 def frozen_xi(xi: tuple[float, ...], decided: dict[str, int]) -> dict[float, int]:
-    """The xi every claim reading which an earlier look decided (``decided``: claim -> look,
-    :attr:`~._registry.StudyContext.decided_claims`), each with the latest such look."""
+    """The xi every claim reading which an earlier look decided or found futile (``decided``:
+    claim -> look, :attr:`~._registry.StudyContext.frozen_claims`), each with the latest such look."""
     out = {}
     for x in xi:
         at = [decided.get(c) for c in _claims_reading(x)]
@@ -102,14 +102,14 @@ def xi_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[float, tuple
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset.  An xi whose
     claims an earlier look decided keeps that look's runs (:func:`xi_plans`)."""
-    plans = xi_plans(p, ctx.decided_claims, bool(ctx.config.quick))
+    plans = xi_plans(p, ctx.frozen_claims, bool(ctx.config.quick))
     points = [{"waves_per_body": float(x), "dphi_rad": float(d)} for x in p.xi for d in plans[float(x)]]
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
     sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, Grid(points=points, seed=ctx.config.seed)),
                               *(functools.partial(ctx.lone_swimmer, waves_per_body=x) for x in p.xi))
     amp = [float(ds["amplitude_m"]) for ds in lone]
     ds = pairs_dataset(sim, np.array(amp), p.xi, p.dphi_rad, [plans[float(x)] for x in p.xi])
-    ds.attrs["frozen_xi"] = json.dumps({f"{x:g}": k for x, k in frozen_xi(p.xi, ctx.decided_claims).items()})
+    ds.attrs["frozen_xi"] = json.dumps({f"{x:g}": k for x, k in frozen_xi(p.xi, ctx.frozen_claims).items()})
     return ds
 
 

@@ -186,10 +186,36 @@ def plan(quick: bool) -> PotentialPlan:
                          impulse_phi0=phi0)
 
 
+def frozen_sweeps(frozen: dict[str, int]) -> dict[str, int]:
+    """``sweep -> look`` for the sweeps every claim reading which is final (``frozen``: claim -> look,
+    :attr:`~._registry.StudyContext.frozen_claims`), each with the latest such look: ``impulse`` feeds
+    the first claim, ``force`` the other three."""
+    reading = {"impulse": CLAIMS[:1], "force": CLAIMS[1:]}
+    return {part: max(frozen[c.claim] for c in cs) for part, cs in reading.items()
+            if all(c.claim in frozen for c in cs)}
+
+
+def sweep_plan(p: PotentialPlan, frozen: dict[str, int], quick: bool) -> PotentialPlan:
+    """The plan a look on ``p`` runs: ``p``, with a frozen sweep's grids (:func:`frozen_sweeps`) those of
+    the look that froze it (its runs are made; its claims are decided, never reopened, or futile, never
+    grown)."""
+    looks, at = stages(quick), frozen_sweeps(frozen)
+    imp = looks[at["impulse"] - 1] if "impulse" in at else p
+    force = looks[at["force"] - 1] if "force" in at else p
+    return PotentialPlan(imp.impulse_dphi, force.betas_deg, force.d_over_2A, force.forces_N, p.duration_s,
+                         impulse_phi0=imp.impulse_phi0)
+
+
 def dataset(ctx: StudyContext, p: PotentialPlan):
-    """Run the potential study on plan ``p``: the impulse sweep, free swimmers per beta, the force sweep."""
+    """Run the potential study on plan ``p``: the impulse sweep, free swimmers per beta, the force sweep;
+    a sweep whose claims an earlier look decided or found futile keeps that look's runs
+    (:func:`sweep_plan`)."""
+    import json
+
     import xarray as xr
 
+    frozen = ctx.frozen_claims
+    p = sweep_plan(p, frozen, bool(ctx.config.quick))
     geo = SwimmerGeometry()
     lam = Gait().wavelength_m(geo.length_m)
     (imp_all, impulse, fit_a), (amps, g) = ctx.together(lambda: _impulse_part(ctx, p), lambda: _force_sweep(ctx, p))
@@ -221,6 +247,7 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
             "impulse_fit_abs": list(fit_a),
             "wavelength_m": lam,
             "interval_level": float(stats.level()),
+            "frozen_sweeps": json.dumps(frozen_sweeps(frozen)),
         },
     )
     return ds
