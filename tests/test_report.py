@@ -250,9 +250,10 @@ def tables_report(tmp_path_factory):
                      reason=PRX_UNDECIDED_REASON if v == "undecided" else ""),
             "reference": "prx2021", "runs_needed": 52 if v == "undecided" else None}
            for c, v in (("self-oscillating", "holds"), ("phase-oscillator", "fails"), ("relay", "undecided"))]
+    relay = prx[2]["claim"]
     stages = [{"stage": k, "of": 3, "confidence_level": lvl, "n_runs": n, "n_computed": n - m,
-               "verdicts": {}, "undecided": u}
-              for k, lvl, n, m, u in ((1, 0.995, 12, 0, ["x"]), (2, 0.985, 24, 12, []))]
+               "verdicts": {}, "undecided": u, "futile": f}
+              for k, lvl, n, m, u, f in ((1, 0.995, 12, 0, ["x"], []), (2, 0.985, 24, 12, [], [relay]))]
     (out / "alpha.json").write_text(json.dumps({"claims": old, "files": []}))
     (out / "beta.json").write_text(json.dumps({"claims": new, "files": []}))
     (out / "sync.json").write_text(json.dumps({"claims": prx, "files": [], "stages": stages}))
@@ -308,7 +309,8 @@ def test_the_paper_and_prx_claims_are_two_tables_with_their_own_counts(tables_re
     assert "straddles 0.8" in central[-1] and "about 37 runs would decide it" in central[-1]
     assert len(m["un"]) >= 2 and len(set(m["un"])) == 1 and m["un"][0] != m["ok"]  # its own badge style
     assert any(PRX_UNDECIDED_REASON in s and "about 52" in s for s in m["sec"])  # the section: boundary and runs
-    assert "Stages: 2 of 3 ran (stopped early: nothing left undecided)" in m["studies"]
+    assert ("Stages: 2 of 3 ran (stopped early: the rest futile (the cap could not decide them): relay: "
+            "synchronization sharply reduces the interaction force)") in m["studies"]
     assert "24 runs (12 computed) at 98.5 % intervals" in m["studies"]
 
 
@@ -397,3 +399,25 @@ def test_animation_option_help_states_the_codes_limits():
     (opt,) = [p for p in get_command(app).commands["reproduce"].params if p.name == "animation_s"]
     own = [a[-1] for a in ANIMATIONS]
     assert f"at least {MIN_ANIMATION_S:g}" in opt.help and f"{min(own):g}-{max(own):g} s" in opt.help, opt.help
+
+
+@pytest.mark.parametrize("last, why", [
+    ({"stage": 1, "of": 2, "undecided": [], "futile": []}, "stopped early: nothing left undecided"),
+    ({"stage": 1, "of": 2, "undecided": [], "futile": ["a", "b"]},
+     "stopped early: the rest futile (the cap could not decide them): a; b"),
+    ({"stage": 2, "of": 2, "undecided": ["k falls"], "futile": ["a"]},
+     "still undecided after the last: k falls; futile (the cap could not decide them; their runs stopped "
+     "growing): a"),
+    ({"stage": 2, "of": 2, "undecided": [], "futile": []}, "all ran"),
+    ({"stage": 2, "of": 2, "undecided": ["k falls"]}, "still undecided after the last: k falls"),  # before futility
+])
+def test_the_stages_line_says_why_a_study_stopped(last, why):
+    """A study's stages line names the claims still open after its last look and, apart from them, those
+    left futile (the quick cap could not decide them); a study that stopped early stopped because nothing
+    was left undecided, or because what was left was futile."""
+    from undulate.report import _stages
+
+    looks = [{"stage": 1, "of": 2, "n_runs": 6, "n_computed": 6, "undecided": ["k falls"], "futile": []}]
+    (line,) = _stages({"stages": (looks + [last]) if last["stage"] == 2 else [last]})
+    k = last["stage"]
+    assert f"Stages: {k} of 2 ran ({why}); stage 1: " in line

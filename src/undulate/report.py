@@ -165,7 +165,9 @@ def _study_numbers(doc: dict[str, Any]) -> list[str]:
 
 def _stages(doc: dict[str, Any]) -> list[str]:
     """One line on the stages a study ran (``NAME.json["stages"]``): how many of how many, the runs
-    and the confidence level of each look, and why it stopped; nothing for a study file without them."""
+    and the confidence level of each look, and why it stopped (the claims still open, and those left
+    futile: more runs within the cap would not decide them, so their runs stopped growing); nothing for
+    a study file without them."""
     looks = [s for s in doc.get("stages") or [] if isinstance(s, dict)]
     if not looks:
         return []
@@ -179,9 +181,14 @@ def _stages(doc: dict[str, Any]) -> list[str]:
 
     if of == 1:
         return [f"<p class='stages'>One stage: {_esc(look(last))}.</p>"]
-    still = last.get("undecided") or []
-    why = ("stopped early: nothing left undecided" if k < of
-           else f"still undecided after the last: {'; '.join(map(str, still))}" if still else "all ran")
+    still, futile = ("; ".join(map(str, last.get(key) or [])) for key in ("undecided", "futile"))
+    if k < of:
+        why = f"stopped early: the rest futile (the cap could not decide them): {futile}" if futile else \
+            "stopped early: nothing left undecided"
+    else:
+        why = "; ".join(([f"still undecided after the last: {still}"] if still else [])
+                        + ([f"futile (the cap could not decide them; their runs stopped growing): {futile}"]
+                           if futile else [])) or "all ran"
     return [f"<p class='stages'>Stages: {k} of {of} ran ({_esc(why)}); "
             + "; ".join(f"stage {_esc(s.get('stage', i + 1))}: {_esc(look(s))}" for i, s in enumerate(looks))
             + ".</p>"]
