@@ -7,10 +7,10 @@ coarser ``linspace``, keeps the shared values bitwise equal.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-__all__ = ["thinned", "QUICK_STRIDES", "FULL_STRIDES", "strides", "kept_plan"]
+__all__ = ["thinned", "QUICK_STRIDES", "FULL_STRIDES", "strides", "kept_plan", "frozen_parts"]
 
 QUICK_STRIDES = (2, 1)
 """Quick mode: two looks, at every second value of the mode's grid, then all of it."""
@@ -35,3 +35,16 @@ def kept_plan(looks: Sequence[Any], decided_at: dict[Any, int], key: Any, curren
     ``current``: the plan of the look that decided it (``decided_at[key]``, 1-based into ``looks``, the
     study's stages), else ``current``.  A decided claim is never reopened, so its runs stay those made."""
     return looks[decided_at[key] - 1] if key in decided_at else current
+
+
+def frozen_parts(reading: Mapping[Any, Iterable[str]], frozen: Mapping[str, int]) -> dict[Any, int]:
+    """``part -> look`` for the parts of a study's runs (an xi, a sweep) every claim reading which is final
+    (``reading``: part -> the claims that read it; ``frozen``: claim -> look,
+    :attr:`~._registry.StudyContext.frozen_claims`), each with the latest such look; a part no claim
+    reads is never frozen."""
+    out = {}
+    for part, claims in reading.items():
+        at = [frozen.get(c) for c in claims]
+        if at and all(k is not None for k in at):
+            out[part] = max(at)
+    return out

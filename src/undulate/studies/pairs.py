@@ -35,7 +35,7 @@ from ..sweep import Grid
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import strides, thinned
+from ._stages import frozen_parts, strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
@@ -83,12 +83,7 @@ def _claims_reading(xi: float) -> tuple[str, ...]:
 def frozen_xi(xi: tuple[float, ...], decided: dict[str, int]) -> dict[float, int]:
     """The xi every claim reading which an earlier look decided or found futile (``decided``:
     claim -> look, :attr:`~._registry.StudyContext.frozen_claims`), each with the latest such look."""
-    out = {}
-    for x in xi:
-        at = [decided.get(c) for c in _claims_reading(x)]
-        if at and all(k is not None for k in at):
-            out[float(x)] = max(at)
-    return out
+    return frozen_parts({float(x): _claims_reading(x) for x in xi}, decided)
 
 
 def xi_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[float, tuple[float, ...]]:

@@ -46,6 +46,7 @@ Both are drawn; the measured offset is expected between or below them
 from __future__ import annotations
 
 import functools
+import json
 import math
 import warnings
 from typing import Any
@@ -57,7 +58,7 @@ from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, R2_MIN
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import strides
+from ._stages import frozen_parts, strides
 from ..stopping import SteadyStop
 from ._runners import pair_point
 from ._shared import impulse_sweep
@@ -190,9 +191,7 @@ def frozen_sweeps(frozen: dict[str, int]) -> dict[str, int]:
     """``sweep -> look`` for the sweeps every claim reading which is final (``frozen``: claim -> look,
     :attr:`~._registry.StudyContext.frozen_claims`), each with the latest such look: ``impulse`` feeds
     the first claim, ``force`` the other three."""
-    reading = {"impulse": CLAIMS[:1], "force": CLAIMS[1:]}
-    return {part: max(frozen[c.claim] for c in cs) for part, cs in reading.items()
-            if all(c.claim in frozen for c in cs)}
+    return frozen_parts({"impulse": [c.claim for c in CLAIMS[:1]], "force": [c.claim for c in CLAIMS[1:]]}, frozen)
 
 
 def sweep_plan(p: PotentialPlan, frozen: dict[str, int], quick: bool) -> PotentialPlan:
@@ -210,8 +209,6 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
     """Run the potential study on plan ``p``: the impulse sweep, free swimmers per beta, the force sweep;
     a sweep whose claims an earlier look decided or found futile keeps that look's runs
     (:func:`sweep_plan`)."""
-    import json
-
     import xarray as xr
 
     frozen = ctx.frozen_claims
