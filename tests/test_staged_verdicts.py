@@ -481,6 +481,8 @@ def test_a_group_size_whose_claim_is_decided_keeps_its_looks_runs(decided):
     assert got[3] == (looks[decided["3"] - 1] if "3" in decided else looks[3])
     assert got[4] == (looks[decided["4"] - 1] if "4" in decided else looks[3])
     assert got[2] == (looks[max(decided.values()) - 1] if len(decided) == 2 else looks[3])
+    frozen = groups.frozen_sizes({claims[n]: k for n, k in decided.items()})
+    assert frozen == {int(n): k for n, k in decided.items()} | ({2: max(decided.values())} if len(decided) == 2 else {})
     if "4" in decided:
         assert got[4].draws < looks[3].draws
 

@@ -29,7 +29,7 @@ from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, PAIR_CHA
 from . import _analysis as C
 from ._analysis import group_records
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import kept_plan, strides, thinned
+from ._stages import frozen_parts, kept_plan, strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S
 from ._shared import group_part, group_sweep
 
@@ -93,25 +93,25 @@ def plan(quick: bool) -> Plan:
 
 
 def size_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[int, Plan]:
-    """The plan each group size's runs follow at a look on plan ``p``: ``p``, or, for a size whose claim an
+    """The plan each group size's runs follow at a look on plan ``p``: ``p``, or, for a frozen size
+    (:func:`frozen_sizes`), the plan of the look from which it is frozen (its runs are made, and a
+    decided claim is never reopened, nor a futile one grown)."""
+    looks, frozen = stages(quick), frozen_sizes(decided)
+    return {n: kept_plan(looks, frozen, n, p) for n in (2, *SIZES)}
+
+
+def frozen_sizes(decided: dict[str, int]) -> dict[int, int]:
+    """Group size -> the look from which its runs are frozen, for the sizes every claim reading which an
     earlier look decided or found futile (``decided``: claim -> look,
-    :attr:`~._registry.StudyContext.frozen_claims`), that look's plan (frozen: its runs are made, and a
-    decided claim is never reopened, nor a futile one grown).  The reference pairs feed both claims:
-    frozen once both are (at the latest such look)."""
-    looks, by_size = stages(quick), _decided_sizes(decided)
-    plans = {n: kept_plan(looks, by_size, n, p) for n in SIZES}
-    plans[2] = looks[max(by_size.values()) - 1] if len(by_size) == len(SIZES) else p
-    return plans
-
-
-def _decided_sizes(decided: dict[str, int]) -> dict[int, int]:
-    """Group size -> the look that decided its claim, for the sizes ``decided`` (claim -> look) names."""
-    return {n: decided[c.claim] for n, c in zip(SIZES, CLAIMS) if c.claim in decided}
+    :attr:`~._registry.StudyContext.frozen_claims`): three and four with their own claim, the reference
+    pairs (size 2, read by both claims) once both are final, at the latest such look."""
+    reading = {2: [c.claim for c in CLAIMS], **{n: [c.claim] for n, c in zip(SIZES, CLAIMS)}}
+    return frozen_parts(reading, decided)
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Groups of three and four, and pairs over the same dphi range (the scatter they are compared with);
-    a size whose claim an earlier look decided keeps that look's runs (:func:`size_plans`)."""
+    a size whose claims an earlier look decided or found futile keeps that look's runs (:func:`size_plans`)."""
     seed = ctx.config.seed
     plans = size_plans(p, ctx.frozen_claims, bool(ctx.config.quick))
     def size(n: int) -> xr.Dataset:
@@ -122,7 +122,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
                                           lambda: ctx.lone_swimmer(waves_per_body=XI))
     A = float(lone["amplitude_m"])
     ds = groups_dataset({2: two, 3: three, 4: four}, A)
-    ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in _decided_sizes(ctx.frozen_claims).items()})
+    ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in frozen_sizes(ctx.frozen_claims).items()})
     return ds
 
 

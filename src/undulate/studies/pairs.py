@@ -5,8 +5,8 @@ contact, at dx0 = 0; swimmer 0 (lower) has phase 0, swimmer 1 (upper) phase
 dphi.  They run 15 gait periods (30 s) at every dphi of the paper's nine
 ``{-1, -3/4, ..., 1} pi`` (quick mode: up to 33, full mode: up to 193 values
 over [-pi, pi], which contain the nine) and every xi in {0, 3/4, 1, 3/2}; at a later look an xi whose
-claims are decided keeps the runs of the look that decided them (:func:`xi_plans`).  The steady offset
-``dx = x_upper - x_lower`` is compared with the compatibility branches
+claims are decided or found futile keeps the runs of the look that made them final (:func:`xi_plans`).
+The steady offset ``dx = x_upper - x_lower`` is compared with the compatibility branches
 ``dx = lambda (dphi / 2 pi + n)`` (paper Eq. (compatibility)).
 
 Summary per xi: the slope of dx/lambda against dphi/2pi with its standard
@@ -88,15 +88,15 @@ def frozen_xi(xi: tuple[float, ...], decided: dict[str, int]) -> dict[float, int
 
 def xi_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[float, tuple[float, ...]]:
     """The dphi each xi's runs follow at a look on plan ``p``: ``p``'s, or, for a frozen xi
-    (:func:`frozen_xi`), the plan's of the look that decided its claims (its runs are made, and a
-    decided claim is never reopened, so more of them would buy nothing)."""
+    (:func:`frozen_xi`), the plan's of the look from which it is frozen (its runs are made, and a
+    decided claim is never reopened, nor a futile one grown, so more of them would buy nothing)."""
     looks, frozen = stages(quick), frozen_xi(p.xi, decided)
     return {float(x): looks[frozen[float(x)] - 1].dphi_rad if float(x) in frozen else p.dphi_rad for x in p.xi}
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset.  An xi whose
-    claims an earlier look decided keeps that look's runs (:func:`xi_plans`)."""
+    claims an earlier look decided or found futile keeps that look's runs (:func:`xi_plans`)."""
     plans = xi_plans(p, ctx.frozen_claims, bool(ctx.config.quick))
     points = [{"waves_per_body": float(x), "dphi_rad": float(d)} for x in p.xi for d in plans[float(x)]]
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
