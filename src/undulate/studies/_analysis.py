@@ -422,24 +422,31 @@ def unwrap_to_line(dx_over_lambda, dphi_rad) -> np.ndarray:
 
 
 SLOPE_METHOD = (
-    "ordinary least squares (scipy.stats.linregress: slope and intercept with standard errors, "
-    "Student-t 95 % intervals; R^2 with a seeded bootstrap interval) of dx/lambda against dphi/2pi "
-    "over every run with a result, after moving each dx/lambda by whole wavelengths onto the branch "
-    "nearest the n = 0 line dx/lambda = dphi/2pi (i.e. dphi/2pi + nearest-branch residual; this "
-    "undoes the wrap at dphi = +-pi, which is one physical state); 'slope_open_interval' is the "
-    "same fit without unwrapping over |dphi| < pi only"
+    "least squares of dx/lambda against dphi/2pi over every run with a result, after moving each "
+    "dx/lambda by whole wavelengths onto the branch nearest the n = 0 line dx/lambda = dphi/2pi (i.e. "
+    "dphi/2pi + nearest-branch residual; this undoes the wrap at dphi = +-pi, which is one physical "
+    "state). On a study's mirror-symmetric dphi grid (pairs, links, swimming, the sensitivity study's "
+    "pair cases) the runs at +dphi and -dphi are one design point seen mirrored: the slope's Student-t "
+    "interval counts the pairs (the half-differences regressed through the origin, G - 1 degrees of "
+    "freedom; stats.mirrored_line_fit) and R^2's BCa bootstrap resamples each pair together; a run "
+    "whose mirror has no result is left out. Over the neighbour pairs of groups (no mirror grid): "
+    "scipy.stats.linregress, t interval on n - 2 degrees of freedom, R^2 by a row bootstrap. "
+    "'slope_open_interval' is the same fit without unwrapping over |dphi| < pi only"
 )
 
 
-def compatibility_fit(dx_over_lambda, dphi_rad, unwrap: bool = True) -> stats.LineFit:
-    """Fit ``dx/lambda`` against ``dphi/2pi`` (see :data:`SLOPE_METHOD`); NaNs are skipped."""
+def compatibility_fit(dx_over_lambda, dphi_rad, unwrap: bool = True, *, mirrored: bool = True) -> stats.LineFit:
+    """Fit ``dx/lambda`` against ``dphi/2pi`` (see :data:`SLOPE_METHOD`); NaNs are skipped.
+    ``mirrored`` (default): the dphi are a mirror-symmetric grid, one run each
+    (:func:`~undulate.stats.mirrored_line_fit`; ``ValueError`` otherwise); ``False``: rows as
+    independent points (:func:`~undulate.stats.line_fit`; the groups' neighbour pairs)."""
     y = np.asarray(dx_over_lambda, float).ravel()
     x = np.asarray(dphi_rad, float).ravel()
     ok = np.isfinite(x) & np.isfinite(y)
     x, y = x[ok], y[ok]
     if unwrap:
         y = unwrap_to_line(y, x)
-    return stats.line_fit(x / (2 * np.pi), y)
+    return (stats.mirrored_line_fit if mirrored else stats.line_fit)(x / (2 * np.pi), y)
 
 
 def band_excess(dx_m, dphi_rad, dy_m, amplitude_m, wavelength_m):

@@ -204,7 +204,7 @@ def summary(ds: xr.Dataset) -> dict:
         runs = ds["run_group_size"].values == n
         res = ds["residual_over_lambda"].values[sel]
         dphi = ds["dphi"].values[sel]  # +dphi and -dphi: one design point mirrored (resampled together)
-        fit = C.compatibility_fit(ds["dx_steady_over_lambda"].values[sel], dphi)
+        fit = C.compatibility_fit(ds["dx_steady_over_lambda"].values[sel], dphi, mirrored=False)
         run_of = ds["run_index"].values[sel]
         changed = [bool(ds["order_changed"].values[sel][run_of == r][0]) for r in np.unique(run_of)]
         per[str(n)] = {

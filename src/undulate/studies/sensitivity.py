@@ -905,7 +905,7 @@ def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
         dphi, dx = c["group_dphi"].values, c["group_dx_over_lambda"].values
         ok = np.isfinite(dphi) & np.isfinite(dx)
         dphi, dx = dphi[ok], dx[ok]
-        fit = C.compatibility_fit(dx, dphi)
+        fit = C.compatibility_fit(dx, dphi, mirrored=False)  # neighbour pairs: no mirror grid
         rms = C.rms(c["group_residual_over_lambda"].values[ok], dphi)
         if size == 2:
             ref_rms = rms
