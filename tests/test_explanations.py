@@ -166,28 +166,38 @@ def test_groups_explanation_needs_default_failing_and_the_pairs_spacing_meeting_
 @pytest.mark.parametrize("quick", [True, False])
 def test_groups_cases_rerun_the_groups_studys_own_design(quick):
     """Only the channel may differ from the groups study: the same phases (and reference pairs) and the
-    same number of random draws of four, in quick mode those of its first look (the sensitivity study's
-    one look), in full mode its second look (33 dphi, 40 draws; its cap grew past them, and the shared
-    runs must still be found value for value)."""
+    same number of random draws of four, in quick mode at each of its two looks the groups study's look
+    (5 dphi and 4 draws, then 9 and 8), in full mode its second look (33 dphi, 40 draws; its cap grew past
+    them, and the shared runs must still be found value for value)."""
     from undulate.studies import groups
 
-    g, p = (groups.stages(True)[0] if quick else groups.stages(False)[1]), S.plan(quick)
+    if quick:
+        looks = S.stages(True)
+        assert len(looks) == len(groups.stages(True)) == 2
+        for p, g in zip(looks, groups.stages(True)):
+            assert p.group_dphi_rad == g.dphi_rad and p.group_draws == g.draws
+        assert [(len(p.group_dphi_rad), p.group_draws) for p in looks] == [(5, 4), (9, 8)]
+        return
+    g, p = groups.stages(False)[1], S.plan(False)
     assert p.group_dphi_rad == g.dphi_rad and p.group_draws == g.draws
-    assert (len(p.group_dphi_rad), p.group_draws) == ((5, 4) if quick else (33, 40))
-    if not quick:
-        assert len(groups.plan(False).dphi_rad) > len(p.group_dphi_rad)
+    assert (len(p.group_dphi_rad), p.group_draws) == (33, 40)
+    assert len(groups.plan(False).dphi_rad) > len(p.group_dphi_rad)
 
 
 @pytest.mark.parametrize("quick", [True, False])
 def test_impulse_cases_rerun_the_potential_studys_own_design(quick):
     """The impulse runs at the default drag are the potential study's (its dphi and common phases, quick
     and full), so the sensitivity study's default row is the claim's own number; only the drag varies.
-    Full mode: the potential study's third look (37 x 8), which its cap (73 dphi) contains bitwise."""
+    Quick: each look the potential study's (5 x 2, then 9 x 4); full: the potential study's third look
+    (37 x 8), which its cap (73 dphi) contains bitwise."""
     from undulate.studies import potential
 
-    pot, p = (potential.stages(True)[0] if quick else potential.stages(False)[2]), S.plan(quick)
-    assert list(p.impulse_dphi_rad) == list(pot.impulse_dphi) and list(p.impulse_phi0_rad) == list(pot.impulse_phi0)
-    assert (len(p.impulse_dphi_rad), len(p.impulse_phi0_rad)) == ((5, 2) if quick else (37, 8))
+    pairs = (list(zip(S.stages(True), potential.stages(True))) if quick
+             else [(S.plan(False), potential.stages(False)[2])])
+    for p, pot in pairs:
+        assert list(p.impulse_dphi_rad) == list(pot.impulse_dphi) and list(p.impulse_phi0_rad) == list(pot.impulse_phi0)
+    sizes = [(len(p.impulse_dphi_rad), len(p.impulse_phi0_rad)) for p, _ in pairs]
+    assert sizes == ([(5, 2), (9, 4)] if quick else [(37, 8)])
 
 
 def test_spaced_channel_adds_the_pairs_spacing_per_extra_swimmer():

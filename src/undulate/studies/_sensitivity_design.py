@@ -22,7 +22,6 @@ from ..errors import UndulateError
 from ..params import SwimmerGeometry
 from . import _analysis as C
 from ._criteria import PAIR_CHANNEL_M
-from ._stages import QUICK_STRIDES
 from ._gaits import BETA_DEG  # noqa: F401 - the 3-link joint amplitude, re-exported
 
 __all__ = ["FACTORS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_cases", "pair_cases", "plan",
@@ -209,12 +208,6 @@ def spaced_channel_m(n_swimmers: int) -> float:
     return round(PAIR_CHANNEL_M + (int(n_swimmers) - 2) * PAIR_SPACING_M, 6)
 
 
-QUICK_THINNING = QUICK_STRIDES[0]
-"""Quick mode runs the sensitivity study in one look, on the grids of the first quick look of the groups
-and potential studies, whose runs it shares (every second value): its explanations matter only for
-claims that fail, and a quick reader waits for them least."""
-
-
 def thinned_plan(p: Plan, k: int, k_dphi: int | None = None, k_xi1: int | None = None) -> Plan:
     """``p`` on every ``k``-th value of its groups' and impulse grids, ``k_dphi``-th (default ``k``)
     of its pair phases and ``k_xi1``-th (default ``k_dphi``) of its xi = 1 cases' phases, with ``1/k``
@@ -238,17 +231,18 @@ only and stay on the 17."""
 
 
 def plan(quick: bool) -> Plan:
-    """Quick: every second one of the paper's nine dphi (5), xi = 3/2 at N = 3 and 8, the link-number
-    sets at the ends of the range, N = 3 and 9 (the explanation's contrast is their fall from 3 to 9; at
-    full's first look it is 8.6-12.6 times the two-change set's, so the ends decide it), 3 confinement
-    starts, the groups' and impulse grids thinned the same way (:data:`QUICK_THINNING`); full: 33 dphi
+    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, the link-number sets at the ends of the
+    range, N = 3 and 9 (the explanation's contrast is their fall from 3 to 9; at full's first look it is
+    8.6-12.6 times the two-change set's, so the ends decide it), 3 confinement starts, the groups' and
+    potential's quick grids; its first look every second value of them (:func:`~.sensitivity.stages`);
+    full: 33 dphi
     (step pi/16; the xi = 1 cases, which feed the table only, on every second: 17, step pi/8:
     :data:`FULL_PAIR_REFINE`), xi = 3/2 at N = 3, 4, 6, 8, the link-number sets at N = 3, 5, 7, 9,
     5 starts.  The groups cases take the groups study's design (:func:`._analysis.group_phases`,
     :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of four swimmers, thinned to 5 and 4;
     full 33 dphi and 40 draws), so that only the channel differs."""
-    if quick:  # one look, on the groups' and potential's first quick look
-        return thinned_plan(Plan(tuple(float(p) for p in C.paper_phases()), links=(3, 9)), QUICK_THINNING)
+    if quick:
+        return Plan(tuple(float(p) for p in C.paper_phases()), links=(3, 9))
     impulse_dphi, impulse_phi0 = _impulse_grid(False)
     dphi = tuple(float(p) for p in C.refined(C.phase_grid(17), FULL_PAIR_REFINE))
     return Plan(dphi, xi1_dphi_rad=dphi[::FULL_PAIR_REFINE], xi32_links=(3, 4, 6, 8),
