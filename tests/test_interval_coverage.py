@@ -130,7 +130,7 @@ def test_a_slope_on_mirrored_runs_counts_pairs_not_rows(g):
 def test_the_mirrored_fit_is_the_least_squares_slope_and_leaves_out_unpaired_rows():
     """On a complete grid the fold's slope equals the least-squares slope (its interval wider); a row whose
     mirror is NaN leaves the fit with its partner; one pair gives a slope without an interval; two rows on
-    one side of an |x| are no mirror design."""
+    one side of an |x|, or an x without its mirror, are no mirror design."""
     rng = np.random.default_rng(3)
     x, y = _mirrored_sample(rng, 8, True)
     fold, rows = stats.mirrored_line_fit(x, y), stats.line_fit(x, y)
@@ -144,5 +144,8 @@ def test_the_mirrored_fit_is_the_least_squares_slope_and_leaves_out_unpaired_row
     assert stats.mirrored_line_fit(x, y2).n == 15
     one = stats.mirrored_line_fit([-0.25, 0.0, 0.25], [-0.2, 0.01, 0.21])
     assert one.slope.value == pytest.approx(0.82) and not one.slope.has_interval
-    with pytest.raises(ValueError, match="at most one row"):
-        stats.mirrored_line_fit([0.25, 0.25, -0.25], [0.2, 0.21, -0.2])
+    for x_bad in ([0.25, 0.25, -0.25], [0.0, 0.25, 0.5, -0.5]):  # two rows on one side; no mirror of 0.25
+        assert not stats.is_mirror_design(x_bad)
+        with pytest.raises(ValueError, match="mirror-symmetric design"):
+            stats.mirrored_line_fit(x_bad, np.ones(len(x_bad)))
+    assert stats.is_mirror_design(x) and stats.is_mirror_design([0.0, 0.0, 0.1, -0.1])

@@ -44,9 +44,9 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Estimate", "LineFit", "line_fit", "mirrored_line_fit", "rank_correlation", "rms", "std", "mean",
-           "bootstrap", "expanded_z", "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level", "look_levels",
-           "interval_note", "Check", "decide", "all_of"]
+__all__ = ["Estimate", "LineFit", "line_fit", "mirrored_line_fit", "is_mirror_design", "rank_correlation", "rms",
+           "std", "mean", "bootstrap", "expanded_z", "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level",
+           "look_levels", "interval_note", "Check", "decide", "all_of"]
 
 CONFIDENCE = 0.95
 """The family-wise confidence of every claim's verdict: ``holds`` means 95 %."""
@@ -489,40 +489,50 @@ def line_fit(x, y, *, seed: int | None = None) -> LineFit:
     return LineFit(slope, icpt, Estimate(r2v, se, lo, hi, n, "bootstrap BCa", conf), n)
 
 
+def is_mirror_design(x) -> bool:
+    """Whether the finite ``x`` are a mirror-symmetric design: every ``x != 0`` once at ``+|x|`` and once
+    at ``-|x|`` (matched to 1e-9), any number of rows at ``x = 0``."""
+    x = np.asarray(x, float).ravel()
+    x = x[np.isfinite(x)]
+    key = np.round(np.abs(x), 9)
+    return all(np.sum(x[key == k] > 0) == 1 and np.sum(x[key == k] < 0) == 1 for k in np.unique(key[key > 0]))
+
+
 def mirrored_line_fit(x, y, *, seed: int | None = None) -> LineFit:
-    """Least squares of ``y`` on ``x`` over a mirror-symmetric design: every ``x != 0`` also at ``-x``, one
-    row each (a study's runs at +dphi and -dphi: one design point seen mirrored, their residuals nearly
-    opposite).  :func:`line_fit`'s t interval counts the two rows as independent and is too narrow by
-    about sqrt(2) there (docs/verdicts.md, "How an interval is formed"); here the pairs are the units.
+    """Least squares of ``y`` on ``x`` over a mirror-symmetric design (:func:`is_mirror_design`; a study's
+    runs at +dphi and -dphi, one design point seen mirrored, their residuals nearly opposite).
+    :func:`line_fit`'s t interval counts the two rows as independent and is too narrow by about sqrt(2)
+    there (docs/verdicts.md, "Staged runs"); here the pairs are the units.
 
     Slope: the half-differences ``d = (y(x) - y(-x)) / 2`` of the G complete pairs (the intercept
     cancels) regressed on ``x`` through the origin, Student's t on ``G - 1`` degrees of freedom; the
     value is the least-squares slope of the rows used.  Intercept: the mean of the half-sums
     ``(y(x) + y(-x)) / 2`` and of the rows at ``x = 0``, t on their count less one.  R^2: the least
     squares' over the rows used, BCa bootstrap resampling each pair together (:func:`bootstrap`).  Rows
-    used: the complete pairs and the rows at ``x = 0`` (a row whose mirror is missing or NaN is left
-    out); ``n`` counts them.  No interval for the slope with fewer than 2 pairs.  ``x`` values are
-    matched to 1e-9.  ``ValueError`` when some ``|x|`` has more than one row on a side.
+    used: the complete pairs and the rows at ``x = 0``; a pair one of whose ``y`` is NaN (a run without a
+    result) is left out, ``n`` counts the rest.  No interval for the slope with fewer than 2 pairs.
+    ``ValueError`` when the finite ``x`` are not a mirror-symmetric design.
     """
     from scipy import stats as st
 
-    x, y = _clean(x, y)
+    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+    y = y[np.isfinite(x)]
+    x = x[np.isfinite(x)]
+    if not is_mirror_design(x):
+        raise ValueError("mirrored_line_fit needs a mirror-symmetric design: every x != 0 once at +|x| and once "
+                         "at -|x|")
     key = np.round(np.abs(x), 9)
-    xs, d, halves, zeros, labels = [], [], [], [], np.full(x.size, -1)
-    for k in np.unique(key):
-        rows = np.flatnonzero(key == k)
-        if k == 0:
-            zeros += [float(y[i]) for i in rows]
-            labels[rows] = np.arange(rows.size) + x.size  # each row at x = 0 is its own unit
-            continue
-        up, down = rows[x[rows] > 0], rows[x[rows] < 0]
-        if up.size > 1 or down.size > 1:
-            raise ValueError(f"mirrored_line_fit needs at most one row at each x, not {rows.size} at |x| = {k:g}")
-        if up.size and down.size:
+    xs, d, halves, labels = [], [], [], np.full(x.size, -1)
+    zeros = [i for i in np.flatnonzero(key == 0) if np.isfinite(y[i])]
+    labels[zeros] = np.arange(len(zeros)) + x.size  # each row at x = 0 is its own unit
+    for k in np.unique(key[key > 0]):
+        up, down = int(np.flatnonzero((key == k) & (x > 0))[0]), int(np.flatnonzero((key == k) & (x < 0))[0])
+        if np.isfinite(y[up]) and np.isfinite(y[down]):
             xs.append(float(k))
-            d.append((y[up[0]] - y[down[0]]) / 2)
-            halves.append((y[up[0]] + y[down[0]]) / 2)
-            labels[[up[0], down[0]]] = len(xs) - 1
+            d.append((y[up] - y[down]) / 2)
+            halves.append((y[up] + y[down]) / 2)
+            labels[[up, down]] = len(xs) - 1
+    zeros = [float(y[i]) for i in zeros]
     used = labels >= 0
     xu, yu, lab = x[used], y[used], labels[used]
     xs_, d_ = np.asarray(xs), np.asarray(d)

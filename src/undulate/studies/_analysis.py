@@ -425,28 +425,37 @@ SLOPE_METHOD = (
     "least squares of dx/lambda against dphi/2pi over every run with a result, after moving each "
     "dx/lambda by whole wavelengths onto the branch nearest the n = 0 line dx/lambda = dphi/2pi (i.e. "
     "dphi/2pi + nearest-branch residual; this undoes the wrap at dphi = +-pi, which is one physical "
-    "state). On a study's mirror-symmetric dphi grid (pairs, links, swimming, the sensitivity study's "
-    "pair cases) the runs at +dphi and -dphi are one design point seen mirrored: the slope's Student-t "
+    "state). On a mirror-symmetric dphi grid (every |dphi| once at +dphi and once at -dphi: the pairs, "
+    "links, swimming and sensitivity studies' grids) the runs at +dphi and -dphi are one design point "
+    "seen mirrored: the slope's Student-t "
     "interval counts the pairs (the half-differences regressed through the origin, G - 1 degrees of "
     "freedom; stats.mirrored_line_fit) and R^2's BCa bootstrap resamples each pair together; a run "
-    "whose mirror has no result is left out. Over the neighbour pairs of groups (no mirror grid): "
-    "scipy.stats.linregress, t interval on n - 2 degrees of freedom, R^2 by a row bootstrap. "
+    "whose mirror has no result is left out. Over another grid, and the neighbour pairs of groups (no "
+    "mirror grid): scipy.stats.linregress, t interval on n - 2 degrees of freedom, R^2 by a row bootstrap. "
     "'slope_open_interval' is the same fit without unwrapping over |dphi| < pi only"
 )
 
 
-def compatibility_fit(dx_over_lambda, dphi_rad, unwrap: bool = True, *, mirrored: bool = True) -> stats.LineFit:
-    """Fit ``dx/lambda`` against ``dphi/2pi`` (see :data:`SLOPE_METHOD`); NaNs are skipped.
-    ``mirrored`` (default): the dphi are a mirror-symmetric grid, one run each
-    (:func:`~undulate.stats.mirrored_line_fit`; ``ValueError`` otherwise); ``False``: rows as
-    independent points (:func:`~undulate.stats.line_fit`; the groups' neighbour pairs)."""
+def compatibility_fit(dx_over_lambda, dphi_rad, unwrap: bool = True, *,
+                      mirrored: bool | None = None) -> stats.LineFit:
+    """Fit ``dx/lambda`` against ``dphi/2pi`` (see :data:`SLOPE_METHOD`); rows without a result (NaN) are
+    skipped.  ``mirrored``: True, the dphi are a mirror-symmetric grid, one run each
+    (:func:`~undulate.stats.mirrored_line_fit`: the slope's interval counts the mirror pairs; ``ValueError``
+    if they are not); False, rows as independent points (:func:`~undulate.stats.line_fit`: the groups'
+    neighbour pairs); None (default), True where the dphi given (with or without a result) are such a grid
+    (:func:`~undulate.stats.is_mirror_design`)."""
     y = np.asarray(dx_over_lambda, float).ravel()
     x = np.asarray(dphi_rad, float).ravel()
-    ok = np.isfinite(x) & np.isfinite(y)
-    x, y = x[ok], y[ok]
+    design = np.isfinite(x)
+    x, y = x[design], y[design]
     if unwrap:
-        y = unwrap_to_line(y, x)
-    return (stats.mirrored_line_fit if mirrored else stats.line_fit)(x / (2 * np.pi), y)
+        y = unwrap_to_line(y, x)  # NaN stays NaN
+    if mirrored is None:
+        mirrored = stats.is_mirror_design(x)
+    if mirrored:
+        return stats.mirrored_line_fit(x / (2 * np.pi), y)
+    ok = np.isfinite(y)
+    return stats.line_fit(x[ok] / (2 * np.pi), y[ok])
 
 
 def band_excess(dx_m, dphi_rad, dy_m, amplitude_m, wavelength_m):

@@ -231,18 +231,19 @@ only and stay on the 17."""
 
 
 def plan(quick: bool) -> Plan:
-    """Quick: the paper's nine dphi, xi = 3/2 at N = 3 and 8, the link-number sets at the ends of the
-    range, N = 3 and 9 (the explanation's contrast is their fall from 3 to 9; at full's first look it is
-    8.6-12.6 times the two-change set's, so the ends decide it), 3 confinement starts, the groups' and
-    potential's quick grids; its first look every second value of them (:func:`~.sensitivity.stages`);
-    full: 33 dphi
+    """Quick: the paper's nine dphi (the xi = 1 cases, which feed the table only, every second: 5),
+    xi = 3/2 at N = 3 and 8, the link-number sets at the ends of the range, N = 3 and 9 (the
+    explanation's contrast is their fall from 3 to 9; at full's first look it is 8.6-12.6 times the
+    two-change set's, so the ends decide it), 3 confinement starts, the groups' and potential's quick
+    grids; its first look every second value of them (:func:`~.sensitivity.stages`); full: 33 dphi
     (step pi/16; the xi = 1 cases, which feed the table only, on every second: 17, step pi/8:
     :data:`FULL_PAIR_REFINE`), xi = 3/2 at N = 3, 4, 6, 8, the link-number sets at N = 3, 5, 7, 9,
     5 starts.  The groups cases take the groups study's design (:func:`._analysis.group_phases`,
     :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of four swimmers, thinned to 5 and 4;
     full 33 dphi and 40 draws), so that only the channel differs."""
     if quick:
-        return Plan(tuple(float(p) for p in C.paper_phases()), links=(3, 9))
+        nine = tuple(float(p) for p in C.paper_phases())
+        return Plan(nine, links=(3, 9), xi1_dphi_rad=nine[::2])
     impulse_dphi, impulse_phi0 = _impulse_grid(False)
     dphi = tuple(float(p) for p in C.refined(C.phase_grid(17), FULL_PAIR_REFINE))
     return Plan(dphi, xi1_dphi_rad=dphi[::FULL_PAIR_REFINE], xi32_links=(3, 4, 6, 8),

@@ -980,15 +980,15 @@ def stages(quick: bool) -> tuple[Plan, ...]:
     """The plan in looks, in step with the studies whose runs it shares (groups, potential): the pair
     phases, the groups' phases and draws and the impulse grid thinned (:mod:`._stages`).  Full mode's
     pair phases 9, 17, 33 (the xi = 1 cases' 9, 17, 17: :data:`~._sensitivity_design.FULL_PAIR_REFINE`).
-    Quick mode's 5 and 9 (since 2026-11-29; one look of 5 before): a slope on 5 mirrored dphi rests on 2
-    mirror pairs (:func:`undulate.stats.mirrored_line_fit`, 1 degree of freedom), too few to show an
-    explanation's "follows the line"; the second look runs only the factor groups of the explanations
-    still undecided (:func:`frozen_groups`)."""
+    Quick mode's 5 and 9 (the xi = 1 cases' 5 and 5; since 2026-11-29, one look of 5 before): a slope on
+    5 mirrored dphi rests on 2 mirror pairs (:func:`undulate.stats.mirrored_line_fit`, 1 degree of
+    freedom), too few to show an explanation's "follows the line"; the second look runs only the factor
+    groups of the explanations still undecided (:func:`frozen_groups`)."""
     from ._sensitivity_design import thinned_plan
     from ._stages import strides
 
-    if quick:
-        return tuple(thinned_plan(plan(True), k) for k in strides(True))
+    if quick:  # the xi = 1 cases stay on their 5
+        return tuple(thinned_plan(plan(True), k, k, 1) for k in strides(True))
     p = plan(False)
     return tuple(thinned_plan(p, k, k_dphi, k_xi1)
                  for k, k_dphi, k_xi1 in zip(strides(False), (4, 2, 1), (2, 1, 1)))
