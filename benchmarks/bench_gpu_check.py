@@ -52,6 +52,7 @@ import argparse
 import json
 import math
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -278,15 +279,33 @@ def sweep(budget: float) -> None:
         say(f"sweep.{name}", _json_line(cmd, max(20.0, left(budget) - 20.0)))
 
 
+def _run_group(cmd: list[str], timeout: float, env: dict | None = None) -> tuple[int | str, str, str]:
+    """``cmd`` in a session of its own: ``(return code, stdout, stderr)``, or ``("timeout", ...)`` with what
+    it printed, after killing its whole process group: ``subprocess.run``'s timeout kills the command
+    only, and a reproduction's worker processes would go on competing for the cores with the next step
+    (the lease of 2026-11-29 measured ``quick-cpu`` right after a ``quick-warp`` cut at its limit)."""
+    p = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                         start_new_session=True)
+    try:
+        out, err = p.communicate(timeout=timeout)
+        return p.returncode, out, err
+    except subprocess.TimeoutExpired:
+        try:
+            os.killpg(p.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+        out, err = p.communicate()
+        return "timeout", out or "", err or ""
+
+
 def _json_line(cmd: list[str], timeout: float, env: dict | None = None):
     """What a benchmark script run as ``cmd`` printed on its last ``json ...`` line; else its error
     (return code and output's end), or ``"timeout"``."""
-    try:
-        r = subprocess.run(cmd, capture_output=True, text=True, env=env, timeout=timeout)
-    except subprocess.TimeoutExpired:
+    rc, out, err = _run_group(cmd, timeout, env)
+    if rc == "timeout":
         return "timeout"
-    found = [x for x in r.stdout.splitlines() if x.startswith("json ")]
-    return json.loads(found[-1][5:]) if found else f"error: rc {r.returncode}: {(r.stdout + r.stderr)[-800:]}"
+    found = [x for x in out.splitlines() if x.startswith("json ")]
+    return json.loads(found[-1][5:]) if found else f"error: rc {rc}: {(out + err)[-800:]}"
 
 
 def side_by_side(budget: float) -> None:
@@ -328,12 +347,9 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     timeline = OUT / f"repro-{tag}.warp-timeline.jsonl"  # every Warp model's chunks (benchmarks/bench_warp_timeline.py)
     env = {**env, "UNDULATE_WARP_STATS": str(stats), "UNDULATE_WARP_TIMELINE": str(timeline)}
     t = time.perf_counter()
-    try:
-        r = subprocess.run(cmd, capture_output=True, text=True, timeout=max(10.0, timeout), env=env)
-        rc, tail = r.returncode, (r.stdout + r.stderr)[-3000:]
-    except subprocess.TimeoutExpired as e:
-        rc = "timeout"  # what it printed: the studies' states (stdout), the sweeps' progress (stderr)
-        tail = "".join((x or b"").decode() if isinstance(x, bytes) else (x or "") for x in (e.stdout, e.stderr))[-3000:]
+    # on a timeout: what it printed, the studies' states (stdout) and the sweeps' progress (stderr)
+    rc, out, err = _run_group(cmd, max(10.0, timeout), env)
+    tail = (out + err)[-3000:]
     wall = time.perf_counter() - t
     (OUT / f"repro-{tag}.log").write_text(tail)
     rec = {"args": args, "rc": rc, "wall_s": wall}
