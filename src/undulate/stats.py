@@ -523,8 +523,8 @@ def mirrored_line_fit(x, y, *, seed: int | None = None) -> LineFit:
                          "at -|x|")
     key = np.round(np.abs(x), 9)
     xs, d, halves, labels = [], [], [], np.full(x.size, -1)
-    zeros = [i for i in np.flatnonzero(key == 0) if np.isfinite(y[i])]
-    labels[zeros] = np.arange(len(zeros)) + x.size  # each row at x = 0 is its own unit
+    at_zero = np.flatnonzero((key == 0) & np.isfinite(y))
+    labels[at_zero] = np.arange(at_zero.size) + x.size  # each row at x = 0 is its own unit
     for k in np.unique(key[key > 0]):
         up, down = int(np.flatnonzero((key == k) & (x > 0))[0]), int(np.flatnonzero((key == k) & (x < 0))[0])
         if np.isfinite(y[up]) and np.isfinite(y[down]):
@@ -532,14 +532,14 @@ def mirrored_line_fit(x, y, *, seed: int | None = None) -> LineFit:
             d.append((y[up] - y[down]) / 2)
             halves.append((y[up] + y[down]) / 2)
             labels[[up, down]] = len(xs) - 1
-    zeros = [float(y[i]) for i in zeros]
+    units = halves + [float(v) for v in y[at_zero]]  # the intercept's: half-sums and rows at x = 0
     used = labels >= 0
     xu, yu, lab = x[used], y[used], labels[used]
     xs_, d_ = np.asarray(xs), np.asarray(d)
     g, n, conf = len(xs), int(used.sum()), level()
     method = "mirror pairs: fold, t interval"
     if g == 0:
-        return LineFit(Estimate(math.nan, n=n), mean(halves + zeros), Estimate(math.nan, n=n), n)
+        return LineFit(Estimate(math.nan, n=n), mean(units), Estimate(math.nan, n=n), n)
     sxx = float(xs_ @ xs_)
     b = float(xs_ @ d_) / sxx
     if g >= 2:
@@ -549,7 +549,7 @@ def mirrored_line_fit(x, y, *, seed: int | None = None) -> LineFit:
         slope = Estimate(b, se, b - q * se, b + q * se, n, method, conf)
     else:
         slope = Estimate(b, n=n, method=method)
-    return LineFit(slope, mean(halves + zeros), _clustered_r2(xu, yu, lab, seed), n)
+    return LineFit(slope, mean(units), _clustered_r2(xu, yu, lab, seed), n)
 
 
 def _clustered_r2(x: np.ndarray, y: np.ndarray, labels: np.ndarray, seed: int | None) -> Estimate:

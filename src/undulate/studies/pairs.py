@@ -35,7 +35,7 @@ from ..sweep import Grid
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import frozen_parts, strides, thinned
+from ._stages import frozen_parts, kept_plan, strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
@@ -91,7 +91,7 @@ def xi_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[float, tuple
     (:func:`frozen_xi`), the plan's of the look from which it is frozen (its runs are made, and a
     decided claim is never reopened, nor a futile one grown, so more of them would buy nothing)."""
     looks, frozen = stages(quick), frozen_xi(p.xi, decided)
-    return {float(x): looks[frozen[float(x)] - 1].dphi_rad if float(x) in frozen else p.dphi_rad for x in p.xi}
+    return {float(x): kept_plan(looks, frozen, float(x), p).dphi_rad for x in p.xi}
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
