@@ -255,6 +255,68 @@ def test_a_batch_of_different_channels_is_one_warp_model_with_per_world_fields()
         assert _max_dx(r, g, "y") < 1e-3
 
 
+def test_scenes_that_differ_in_their_start_offset_are_one_warp_model():
+    """Pair scenes that differ in dx0 differ in ``dof_length`` by ~1e-17, a field MuJoCo Warp cannot give
+    per world but reads only for island sleeping, which our models leave off: they are one Warp model
+    (until 2026-11-30 ~5, stepped one after another), and each world is its scene's run alone."""
+    from undulate.simulation import _warp, compile_scene
+
+    scenes = [Scene(phases_rad=(0.0, 1.0), dx0_m=x) for x in (-0.27, -0.09, 0.0, 0.18)]
+    opts = SimOptions(duration_s=0.3, **WARP)
+    models = [compile_scene(sc, resolve_options(sc, opts), servo="affine").model for sc in scenes]
+    assert len({m.dof_length.tobytes() for m in models}) > 1  # what used to split them
+    assert [len(idx) for idx, _ in _warp._plan_worlds(models)] == [4]
+    got = simulate_batch(scenes, opts)
+    for sc, g in zip(scenes, got):
+        assert _max_dx(simulate(sc, opts), g) < 1e-9
+
+
+def test_dof_length_is_read_by_island_sleeping_alone_in_the_installed_mujoco_warp():
+    """What lets :data:`undulate.simulation._warp.ONLY_WITH_FLAG` leave ``dof_length`` out of a Warp
+    model's grouping: no code of the installed MuJoCo Warp names it outside its declaration and the
+    sleep module (a release that reads it elsewhere fails here)."""
+    import io
+    import pathlib
+    import tokenize
+
+    import mujoco_warp
+
+    from undulate.simulation import _warp
+
+    root = pathlib.Path(mujoco_warp.__file__).parent
+    readers = set()
+    for path in root.rglob("*.py"):
+        if path.name.endswith("_test.py"):
+            continue
+        toks = tokenize.generate_tokens(io.StringIO(path.read_text()).readline)
+        if any(t.type == tokenize.NAME and t.string == "dof_length" for t in toks):
+            readers.add(path.relative_to(root).as_posix())
+    assert readers - {"_src/types.py"} == {"_src/sleep.py"}
+    assert set(_warp.ONLY_WITH_FLAG) == {"dof_length"}
+
+
+def test_the_warp_models_of_one_batch_are_launched_before_any_is_collected(monkeypatch):
+    """A batch whose worlds need several Warp models (here: dof_length counted, as before 2026-11-30)
+    launches every model's chunk before it waits for any (on a GPU they step side by side on their
+    streams), and each world is the same as in one model."""
+    from undulate.simulation import _warp
+
+    scenes = [Scene(phases_rad=(0.0, 1.0), dx0_m=x) for x in (-0.27, -0.09, 0.0, 0.18)]
+    opts = SimOptions(duration_s=0.3, **WARP)
+    one = simulate_batch(scenes, opts)
+    monkeypatch.setattr(_warp, "ONLY_WITH_FLAG", {})
+    calls: list[str] = []
+    for name in ("launch", "collect"):
+        real = getattr(_warp._Group, name)
+        monkeypatch.setattr(_warp._Group, name, lambda self, *a, _real=real, _name=name: (
+            calls.append(_name), _real(self, *a))[1])
+    got = simulate_batch(scenes, opts)
+    k = calls.index("collect")  # the Warp models: each chunk launches all k, then collects all k
+    assert k >= 2 and calls == (["launch"] * k + ["collect"] * k) * (len(calls) // (2 * k))
+    for a, b in zip(one, got):
+        assert _max_dx(a, b) < 1e-9 and _max_dx(a, b, "y") < 1e-9
+
+
 def _count_batches(monkeypatch) -> list[int]:
     """The calls of each gathered batch stepped in this process from now on (a list it fills)."""
     from undulate import simulation
@@ -484,7 +546,7 @@ def test_a_stopped_scene_steps_on_the_device_under_finite_controls(monkeypatch, 
     stop = [lambda blocks: "enough" if blocks and blocks[-1]["time"][-1] >= 0.3 else None, lambda blocks: None]
     ref = simulate_batch(scenes, opts, stop=stop)
 
-    buffers, run, tables = _Stepper._buffers, _warp._Group.run, []
+    buffers, launch, tables = _Stepper._buffers, _warp._Group.launch, []
 
     def unset(self, k):  # what np.empty may hand back
         st, sd, u = buffers(self, k)
@@ -493,10 +555,10 @@ def test_a_stopped_scene_steps_on_the_device_under_finite_controls(monkeypatch, 
 
     def seen(self, qpos, qvel, warm, table, nstep):
         tables.append(np.isfinite(table).all())
-        return run(self, qpos, qvel, warm, table, nstep)
+        return launch(self, qpos, qvel, warm, table, nstep)
 
     monkeypatch.setattr(_Stepper, "_buffers", unset)
-    monkeypatch.setattr(_warp._Group, "run", seen)
+    monkeypatch.setattr(_warp._Group, "launch", seen)
     with warnings.catch_warnings():
         warnings.simplefilter("error", RuntimeWarning)  # numpy's "overflow encountered in cast"
         got = simulate_batch(scenes, opts, stop=stop)

@@ -169,10 +169,21 @@ _OPT_FIELDS = ("timestep", "tolerance", "ls_tolerance", "noslip_tolerance", "ccd
                "noslip_iterations", "ccd_iterations", "disableflags", "enableflags")
 
 
+#: MjModel fields MuJoCo Warp reads only for a feature that an ``opt.enableflags`` bit turns on: where
+#: every world leaves the bit off, the worlds need not agree on them (the Warp model carries the first
+#: world's).  ``dof_length`` (the velocity norm's weights) is read by island sleeping alone
+#: (mujoco_warp/_src/sleep.py; checked against the installed sources in tests/test_warp.py), and it
+#: differs by ~1e-17 between pair scenes that differ in their start offset dx0: until 2026-11-30 that
+#: split every dx0 sweep into ~5 Warp models stepped one after another (an H200's quick reproduction,
+#: docs/gpu.md).
+ONLY_WITH_FLAG = {"dof_length": int(mujoco.mjtEnableBit.mjENBL_SLEEP)}
+
+
 def _plan_worlds(models: Sequence[mujoco.MjModel]):
     """Split the worlds into groups that share one Warp model: worlds of a group differ only in
     fields that MuJoCo Warp batches per world.  Returns ``[(indices, {field: per-world values})]``
-    (option fields under ``"opt." + name``).  MjModel fields MuJoCo Warp does not carry are ignored."""
+    (option fields under ``"opt." + name``).  MjModel fields MuJoCo Warp does not carry are ignored,
+    and so are those it reads only for a feature every world leaves off (:data:`ONLY_WITH_FLAG`)."""
     require()
     import dataclasses
 
@@ -180,6 +191,8 @@ def _plan_worlds(models: Sequence[mujoco.MjModel]):
 
     fields_w = dataclasses.fields(_types.Model)
     known = {f.name for f in fields_w}  # MjModel fields MuJoCo Warp does not carry (bvh_aabb...) do not matter
+    flags = [int(m.opt.enableflags) for m in models]
+    known -= {n for n, bit in ONLY_WITH_FLAG.items() if not any(f & bit for f in flags)}
     def per_world(f) -> bool:  # an array spec whose first dimension is "*"
         return tuple(getattr(f.type, "shape", None) or ())[:1] == ("*",)
 
@@ -495,27 +508,42 @@ class _Group:
         """Step the group's worlds ``nstep`` steps from (qpos, qvel, warm start) under ``table``
         (nstep, nw, nu); returns what the steps left (per step, or reducing per sample interval:
         qpos, qvel, sensors (nw, rows, ...) float64, then the depths, forces and first bad steps), the
-        warm starts after, and the overflow bitmask per world."""
+        warm starts after, and the overflow bitmask per world.  :meth:`launch` then :meth:`collect`."""
+        self.launch(qpos, qvel, warm, table, nstep)
+        return self.collect()
+
+    def launch(self, qpos, qvel, warm, table: np.ndarray, nstep: int) -> None:
+        """Start the chunk of :meth:`run`: on a GPU its steps and the copies of what they leave are
+        queued on the group's stream and this returns at once, so that the groups of one batch step
+        side by side (:meth:`WarpRollout.rollout`); :meth:`collect` waits for them."""
         wp, _ = require()
-        start, t0 = time.time(), time.perf_counter()  # the timeline's: this chunk captures if
-        capture = not self.graphs or self.bufs[0].shape[0] < nstep  # first, or its buffers grow
+        self._t = (time.time(), time.perf_counter())  # the timeline's: this chunk captures if
+        self._capturing = not self.graphs or self.bufs[0].shape[0] < nstep  # first, or its buffers grow
         host = [np.ascontiguousarray(x, dtype=np.float32) for x in (qpos, qvel, warm, table)]
         with wp.ScopedDevice(self.device):
             if self.stream is None:  # Warp's CPU device (no streams): one thread steps at a time
                 with _DEVICE_LOCK:
                     self._ready(nstep, host)
                     self._launch(nstep, host)
-                    out = self._download()
+                    self._copy_out()
             else:
-                if capture:
+                if self._capturing:
                     with _DEVICE_LOCK, wp.ScopedStream(self.stream):  # allocation, compilation, capture
                         self._ready(nstep, host)
                 # Then on this group's own stream, every call naming it: threads stepping other groups
                 # (studies side by side, gathered sweeps) overlap with it on the device.  (Warp's current
                 # stream is per device, not per thread: it is only changed under the lock above.)
                 self._launch(nstep, host)
-                out = self._download()
-        self.timeline.chunk(start, time.perf_counter() - t0, nstep, capture)
+                self._copy_out()
+
+    def collect(self):
+        """Wait for the chunk :meth:`launch` started; what it left, as :meth:`run` returns it."""
+        wp, _ = require()
+        with wp.ScopedDevice(self.device):
+            self._sync()
+            out = self._host_rows()
+        start, t0 = self._t
+        self.timeline.chunk(start, time.perf_counter() - t0, self._nstep, self._capturing)
         return out
 
     def _upload(self, host) -> None:
@@ -602,18 +630,28 @@ class _Group:
             raise RuntimeError(f"MuJoCo Warp: synchronizing a stream on {self.device} failed: "
                                f"{runtime.get_error_string()}")
 
-    def _download(self):
-        """What the chunk left, float64, rows first per world (:meth:`run`), then the warm starts and
-        overflow bits; only the chunk's rows cross to the host."""
+    def _copy_out(self) -> None:
+        """Queue the copies of what the chunk left to the host mirrors (on the group's stream; only
+        the chunk's rows), then the warm starts and overflow bits."""
         wp, _ = require()
         srcs = (*self.bufs[1:], self.d.qacc_warmstart, self.d.overflow)
-        rows = self._nstep if self.reduce is None else self._nstep // self.reduce.sps
-        per_row = len(self.bufs) - 1 - (self.reduce is not None)  # buffers whose first axis is the row
+        rows = self._rows()
         for i, (o, a) in enumerate(zip(self.host, srcs)):
-            n = rows * int(np.prod(a.shape[1:])) if i < per_row else 0
+            n = rows * int(np.prod(a.shape[1:])) if i < self._per_row() else 0
             if a.size:
                 wp.copy(o, a, stream=self.stream, count=n)  # the chunk's rows (0: all)
-        self._sync()
+
+    def _rows(self) -> int:
+        return self._nstep if self.reduce is None else self._nstep // self.reduce.sps
+
+    def _per_row(self) -> int:
+        """How many of the host mirrors have the row as first axis."""
+        return len(self.bufs) - 1 - (self.reduce is not None)
+
+    def _host_rows(self):
+        """The copied chunk, float64, rows first per world (:meth:`run`), then the warm starts and
+        overflow bits (after :meth:`_sync`)."""
+        rows, per_row = self._rows(), self._per_row()
         out = []
         for i, o in enumerate(self.host):
             x = o.numpy()
@@ -852,6 +890,19 @@ class WarpRollout:
         act0 = np.where(act_idx >= 0, cur[:, a0 + np.maximum(act_idx, 0)] if self.na else 0.0, np.nan)
         return self.servos.table(_idle_controls(u, active, nstep), act0)
 
+    def _step_groups(self, cur: np.ndarray, table: np.ndarray, nstep: int):
+        """Step every group ``nstep`` steps from ``cur`` under ``table``: all of them launched first,
+        so that on a GPU a batch's Warp models step side by side on their streams, then each one's
+        chunk collected (``[(group, what :meth:`_Group.run` returns)]``, in order).  (Until
+        2026-11-30 each group was stepped and collected before the next was launched.)"""
+        nq, nv = self.nq, self.nv
+        for g in self.groups:
+            idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers; the
+            # table itself, uncopied, where one group holds every world in order)
+            g.launch(cur[idx, 1:1 + nq], cur[idx, 1 + nq:1 + nq + nv], self.warm[idx],
+                     np.ascontiguousarray(table[:, idx]), nstep)
+        return [(g, g.collect()) for g in self.groups]
+
     def rollout(self, cur: np.ndarray, u: np.ndarray, st: np.ndarray, sd: np.ndarray, nstep: int,
                 active: np.ndarray | None = None):
         """Step every scene ``nstep`` steps from ``cur`` (nb, nstate FULLPHYSICS) under controls ``u``
@@ -862,11 +913,8 @@ class WarpRollout:
         act_idx = self.servos.act
         table, slewed = self._control_table(cur, u, active, nstep)
         t0 = cur[:, :1]  # the clock stays float64 on the host
-        for g in self.groups:
-            idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers; the
-            # table itself, uncopied, where one group holds every world in order)
-            q, v, s, warm, overflow = g.run(cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx],
-                                            np.ascontiguousarray(table[:, idx]), nstep)
+        for g, (q, v, s, warm, overflow) in self._step_groups(cur, table, nstep):
+            idx = _cols(g.idx)
             if overflow.any():
                 self._overflow(g.idx, overflow)
             st[idx, :nstep, q0:q0 + nq] = q
@@ -902,11 +950,8 @@ class WarpRollout:
         pn = np.empty((nb, ns))
         fp, fw = np.empty((nb, ns, len(r.pair_adr))), np.empty((nb, ns, len(r.wall_adr)))
         code = np.zeros(nb, dtype=np.int64)
-        for g in self.groups:
-            idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers)
-            q, v, s, p, f_pair, f_wall, bad, warm, overflow = g.run(
-                cur[idx, q0:q0 + nq], cur[idx, v0:v0 + nv], self.warm[idx], np.ascontiguousarray(table[:, idx]),
-                nstep)
+        for g, (q, v, s, p, f_pair, f_wall, bad, warm, overflow) in self._step_groups(cur, table, nstep):
+            idx = _cols(g.idx)
             if overflow.any():
                 self._overflow(g.idx, overflow)
             st[idx, :, q0:q0 + nq], st[idx, :, v0:v0 + nv], sd[idx] = q, v, s
