@@ -100,3 +100,23 @@ def test_a_study_on_threads_gives_the_same_dataset(tmp_path, monkeypatch):
     par = swimming.dataset(ctx, plan)
     xr.testing.assert_equal(seq, par)
     assert [s["part"] for s in ctx.sweeps][-1] == "pairs"
+
+
+def test_a_sweep_of_a_few_runs_steps_them_in_the_warm_pool_once_its_processes_are_up(tmp_path, monkeypatch):
+    """Sweeps of fewer than SERIAL_BELOW runs run here, where starting worker processes would cost
+    more than the runs, but once the warm pool is up (a reproduction's later sweeps) 2 or 3 runs go
+    there, side by side; one run stays here."""
+    from undulate.sweep import warm_workers
+
+    monkeypatch.delenv("UNDULATE_BACKEND", raising=False)
+    ctx = _ctx(tmp_path, workers=2)
+
+    def grid(*vs):
+        return Grid(points=[{"v": float(v)} for v in vs], seed=0)
+
+    with warm_workers(2):
+        ctx.sweep("cold", toy, grid(1, 2))  # no pool yet
+        ctx.sweep("big", toy, grid(*range(10, 10 + _registry.SERIAL_BELOW)))  # starts it
+        ctx.sweep("small", toy, grid(3, 4, 5))
+        ctx.sweep("one", toy, grid(6))
+    assert [s["timing"]["executor"] for s in ctx.sweeps] == ["serial", "local", "local", "serial"]

@@ -92,3 +92,53 @@ def test_a_sweeps_identity_records_the_rule_and_a_change_of_rule_recomputes(tmp_
     on_mujoco = run_sweep(fn, grid, tmp_path / "m", workers=1, progress=False)
     for var in ("amplitude_m", "speed_m_s", "mean_joint_error_rad"):
         np.testing.assert_array_equal(routed.dataset[var].values, on_mujoco.dataset[var].values)
+
+
+def test_the_small_batch_rule_is_one_scene_per_core_on_a_gpu_and_none_on_warps_cpu_device_unless_set(monkeypatch):
+    from undulate.simulation._backend import CORES_UP_TO_ENV, cores_up_to
+
+    monkeypatch.delenv(CORES_UP_TO_ENV, raising=False)
+    assert cores_up_to("cuda") == usable_cpus() and cores_up_to("cuda:1") == usable_cpus()
+    assert cores_up_to("cpu") == 0
+    monkeypatch.setenv(CORES_UP_TO_ENV, "0")
+    assert cores_up_to("cuda") == 0
+    monkeypatch.setenv(CORES_UP_TO_ENV, "3")
+    assert cores_up_to("cpu") == 3
+    for bad in ("-1", "many", "2.5"):
+        monkeypatch.setenv(CORES_UP_TO_ENV, bad)
+        with pytest.raises(ParameterError, match=CORES_UP_TO_ENV):
+            cores_up_to("cpu")
+
+
+def test_a_batch_of_at_most_the_rules_scenes_is_the_mujoco_run_on_every_core_and_a_larger_one_steps_on_warp(
+        monkeypatch):
+    """A batch of two pairs with the rule at 2 steps on the cores (each run the MuJoCo backend's,
+    bitwise, one thread per scene), a batch of three on Warp; a sweep's identity names the rule."""
+    from undulate import simulation
+    from undulate.simulation._backend import CORES_UP_TO_ENV
+    from undulate.sweep._store import backend_identity
+
+    monkeypatch.setenv(CORES_UP_TO_ENV, "2")
+    threads = []
+    real = simulation._WarmRollout.__init__
+
+    def spy(self, models, nthread):
+        threads.append(nthread)
+        real(self, models, nthread)
+
+    monkeypatch.setattr(simulation._WarmRollout, "__init__", spy)
+    scenes = [Scene(phases_rad=(0.0, p)) for p in (0.5, 1.5, 2.5)]
+    opts = SimOptions(duration_s=0.3, sample_rate_hz=50.0)
+    two = simulate_batch(scenes[:2], dataclasses.replace(opts, **WARP))
+    assert threads == [min(2, usable_cpus())]
+    for sc, ds in zip(scenes, two):
+        assert ds.attrs["backend"] == "mujoco"
+        np.testing.assert_array_equal(ds["x"].values, simulate(sc, opts)["x"].values)
+    three = simulate_batch(scenes, dataclasses.replace(opts, **WARP))
+    assert {ds.attrs["backend"] for ds in three} == {"warp"}
+    assert max(float(np.abs(a["x"].values - b["x"].values).max()) for a, b in zip(two, three)) < 1e-3
+    monkeypatch.setenv("UNDULATE_BACKEND", "warp")
+    monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
+    assert ", batches of up to 2 on mujoco (" in backend_identity()
+    monkeypatch.setenv(CORES_UP_TO_ENV, "0")
+    assert "batches of up to" not in backend_identity()

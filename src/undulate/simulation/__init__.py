@@ -28,6 +28,7 @@ time-integral over the run (every step contributes).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import os
 import time
@@ -46,7 +47,7 @@ from ..schema import scene_attrs, variable  # noqa: F401  (importable from here 
 from ..scene import CompiledScene, auto_timestep, build, servo_damping_rate_per_s, snap_timestep
 from .._xrcompat import install as _lazy_dask
 from ._backend import (BACKEND_ENV, DEVICE_ENV, backend_attrs, check_backend,  # noqa: F401
-                       default_backend, use_backend, warp_processes)
+                       cores_up_to, default_backend, use_backend, warp_processes)
 from ._checkpoint import Checkpoint, _starts
 from ._compile import RK4_DAMPING_STEP, compile_scene, controls, resolve_options  # noqa: F401
 from ._env import usable_cpus
@@ -147,6 +148,8 @@ def _plan_batch(scenes: Sequence[Scene], options: SimOptions | None, out, contro
         raise ParameterError("scenes", "of one time step in a batch (same links and servo, or an "
                              "explicit SimOptions.timestep_s)", sorted({o.timestep_s for o in resolved}))
     options = resolved[0]
+    if options.backend == "warp" and len(scenes) <= cores_up_to(options.device):  # a small batch: the cores
+        options = dataclasses.replace(options, backend="mujoco", device=None)
     outs = _outs(out, len(scenes))
     push = any(s.forces_N is not None for s in scenes)  # one structure: all or none carry them
     closed = controller is not None or scenes[0].controller.closed_loop
@@ -433,7 +436,7 @@ def _simulate_batch_now(scenes, options, *, nthread=0, out=None, controller=None
     """:func:`simulate_batch` in this call, never gathered (``compiled``: see :func:`_plan_batch`)."""
     bt = _plan_batch(scenes, options, out, controller, compiled)
     if nthread == 0 and bt.nb > 1 and bt.options.backend == "mujoco" and check_backend(bt.requested).backend == "warp":
-        nthread = min(bt.nb, usable_cpus())  # lone swimmers handed to the cores by the Warp backend: all of them
+        nthread = min(bt.nb, usable_cpus())  # lone swimmers or a small batch handed to the cores: all of them
     starts = _starts(bt, start)
     clock = _Clock()
     recorders = _Recorders(bt, stop)

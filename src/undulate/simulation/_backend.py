@@ -8,12 +8,13 @@ import os
 
 from ..errors import ParameterError
 from ..params import SimOptions
-from ._env import env_count, env_switch, is_cpu_device
+from ._env import env_count, env_switch, is_cpu_device, usable_cpus
 
 BACKEND_ENV, DEVICE_ENV = "UNDULATE_BACKEND", "UNDULATE_DEVICE"
 WARP_PROCESSES_ENV = "UNDULATE_WARP_PROCESSES"
 LONE_ENV = "UNDULATE_WARP_LONE_SWIMMERS"
 PREFETCH_ENV = "UNDULATE_WARP_PREFETCH"
+CORES_UP_TO_ENV = "UNDULATE_WARP_CORES_UP_TO"
 WARP_PROCESSES_MAX = 256
 
 
@@ -72,6 +73,25 @@ def lone_swimmers_backend(device: str | None) -> str:
             raise ParameterError(LONE_ENV, "'mujoco' or 'warp' (environment variable)", raw)
         return raw
     return "warp" if is_cpu_device(device) else "mujoco"
+
+
+def cores_up_to(device: str | None) -> int:
+    """The most scenes a batch asked of the Warp backend on ``device`` may have and still step on the
+    cores (MuJoCo, one scene per core): ``UNDULATE_WARP_CORES_UP_TO`` (0 to 10^6; 0: every batch on
+    Warp), else on a GPU the cores this process may use and on Warp's CPU device 0.
+
+    Why on a GPU: a step of a small Warp model costs about the same whatever its worlds, ~0.35 ms for
+    pairs and ~1.5 ms for 3-12 jammed packs in a quick reproduction on an H200 (2026-11-29), where one
+    core steps a pair in ~23 us and a pack in ~0.7 ms (that machine's cores, ../shared/GPU.md).  Up to
+    one scene per core, the cores step every scene 2x (packs) to 15x (pairs) faster than the device
+    steps the batch, and a quick reproduction's longest chains are such batches stepped one after
+    another (the links study's one-world looks: 7 x 19 500 steps, ~67 s of a 466 s run; the packing
+    study's five looks of 3-12 packs).  Wide batches (sweeps of hundreds or thousands of runs) stay
+    on the device, where it wins.  Such runs are the MuJoCo backend's (float64, bitwise) and their
+    Datasets say so (attrs ``backend``); a sweep's identity records the rule
+    (:func:`undulate.sweep._store.backend_identity`), so runs of one rule are never served for another.
+    On Warp's CPU device nothing is gained, and the tests step every batch on Warp there."""
+    return env_count(CORES_UP_TO_ENV, 0 if is_cpu_device(device) else usable_cpus(), least=0)
 
 
 def warp_prefetch(device: str | None) -> bool:

@@ -15,17 +15,17 @@ set while it steps; the Warp backend's timeline names its models by it
 (:class:`undulate.simulation._warp._Timeline`)."""
 
 
-def env_count(name: str, default: int, most: int = 10**6) -> int:
-    """The integer environment setting ``name`` (1 to ``most``), or ``default`` where it is unset."""
+def env_count(name: str, default: int, most: int = 10**6, least: int = 1) -> int:
+    """The integer environment setting ``name`` (``least`` to ``most``), or ``default`` where it is unset."""
     raw = os.environ.get(name)
     if not raw:
         return default
     try:
         n = int(raw)
     except ValueError:
-        n = 0
-    if not 1 <= n <= most:
-        raise ParameterError(name, f"an integer from 1 to {most}", raw)
+        n = least - 1
+    if not least <= n <= most:
+        raise ParameterError(name, f"an integer from {least} to {most}", raw)
     return n
 
 

@@ -158,6 +158,14 @@ def warm_workers(workers: int | None = None) -> Iterator[None]:
             _STOP.clear()
 
 
+def warm_pool_running() -> bool:
+    """Whether the warm pool of :func:`warm_workers` is up now (its processes started by an earlier
+    sweep): a small sweep sent there pays no start (:data:`undulate.studies._registry.SERIAL_BELOW`)."""
+    with _WARM_LOCK:
+        pool = _WARM["pool"]
+        return _WARM["depth"] > 0 and pool is not None and not getattr(pool, "_broken", False)
+
+
 def _drop_warm(wait: bool = False) -> None:
     with _WARM_LOCK:  # "users" stays: the sweeps holding the old pool still release it
         pool, _WARM["pool"], _WARM["workers"] = _WARM["pool"], None, 0

@@ -154,8 +154,10 @@ def backend_identity() -> str:
     ``"warp DEVICE float32 (mujoco-warp X, warp-lang Y)"``, with `` nondeterministic`` after the
     precision where MuJoCo Warp's determinism is off (:func:`undulate.simulation.use_backend`,
     :func:`undulate.simulation._warp.determinism`), then ``, lone swimmers on mujoco`` where scenes of
-    one swimmer step on the cores (:func:`undulate.simulation._backend.lone_swimmers_backend`).  Runs
-    of one backend, or of one rule for lone swimmers, are never served for another."""
+    one swimmer step on the cores (:func:`undulate.simulation._backend.lone_swimmers_backend`) and
+    ``, batches of up to N on mujoco`` where batches of at most N scenes do
+    (:func:`undulate.simulation._backend.cores_up_to`).  Runs of one backend, or of one rule for lone
+    swimmers or small batches, are never served for another."""
     from ..simulation import backend_attrs, default_backend
     from ..params import SimOptions
 
@@ -163,11 +165,13 @@ def backend_identity() -> str:
     if backend == "mujoco":
         return "mujoco"
     from ..simulation import _warp
-    from ..simulation._backend import lone_swimmers_backend
+    from ..simulation._backend import cores_up_to, lone_swimmers_backend
 
     a = backend_attrs(SimOptions(backend=backend, device=_warp.resolve_device(device)))
     nondet = " nondeterministic" if a["warp_determinism"] == "none" else ""
     lone = ", lone swimmers on mujoco" if lone_swimmers_backend(a["device"]) == "mujoco" else ""
+    small = cores_up_to(a["device"])
+    lone += f", batches of up to {small} on mujoco" if small else ""
     return f"warp {a['device']} {a['precision']}{nondet}{lone} ({a['backend_versions']})"
 
 
