@@ -347,7 +347,8 @@ SERIAL_BELOW = 4
 the warm pool's processes are up already (:func:`undulate.sweep._executors.warm_pool_running`, a
 reproduction's or a study's later sweeps): then a sweep of 2 or 3 runs steps them side by side there.
 (Until 2026-11-30 such sweeps ran in this process one run after another: the packing study's third
-bisection look, 3 jammed packs, took 14.3 s on the chain of the study that ended a 16-core quick reproduction, 2026-11-29.)"""
+bisection look, 3 jammed packs, took 14.3 s on the chain of the study that ended a 16-core quick
+reproduction, 2026-11-29.)"""
 
 
 _STORE_LOCKS: dict[str, threading.Lock] = {}
