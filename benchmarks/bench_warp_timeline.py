@@ -29,7 +29,11 @@ reproduction on the Warp backend, the GPU check's ``quick-warp`` -- and says whe
 * ``studies`` -- per study (the first part of a model's ``label``, the sweep its gathered batch
   stepped for; ``-`` for models without one): its models, sweeps and world-steps, and when its first
   chunk began and its last ended (s from the timeline's first chunk): on a GPU, where every study
-  runs at once, the study that ends last is the reproduction's chain.
+  runs at once, the study that ends last is the reproduction's chain.  And its chain of steps: its
+  models in ``waves`` (a model whose first chunk began after every earlier model of the study had
+  ended starts the next wave: a look that waited for the one before), ``chain_steps`` the sum over
+  the waves of the most steps a model of the wave took -- steps that had to follow one another, so
+  the study cannot take less than ``chain_steps`` times a step's time on that device.
 
 :func:`summarise` returns those as a dict (the GPU check stores it with each reproduction).
 """
@@ -105,23 +109,30 @@ def joinable(models: list[dict], window_s: float) -> dict:
 
 def by_study(models: list[dict]) -> dict:
     """Per study (a model's ``label`` up to its first ``/``; ``-`` without one): ``{"models", "sweeps",
-    "world_steps", "first_s", "last_s"}``, times from the timeline's first chunk, in order of ending."""
-    live = [m for m in models if len(m["chunks"])]
+    "world_steps", "first_s", "last_s", "waves", "chain_steps"}``, times from the timeline's first chunk,
+    in order of ending (the module's docstring says what the waves are)."""
+    live = sorted((m for m in models if len(m["chunks"])), key=lambda m: float(m["chunks"][0, 0]))
     if not live:
         return {}
-    t0 = min(float(m["chunks"][0, 0]) for m in live)
+    t0 = float(live[0]["chunks"][0, 0])
     out: dict = {}
     for m in live:
         label = m.get("label") or "-"
         s = out.setdefault(label.split("/")[0], {"models": 0, "sweeps": set(), "world_steps": 0,
-                                                 "first_s": np.inf, "last_s": -np.inf})
+                                                 "first_s": np.inf, "last_s": -np.inf, "waves": []})
         c = m["chunks"]
+        begin, end, steps = float(c[0, 0]) - t0, float((c[:, 0] + c[:, 1]).max()) - t0, int(c[:, 2].sum())
+        if s["waves"] and begin < s["last_s"]:  # began while an earlier model of the study stepped
+            s["waves"][-1] = max(s["waves"][-1], steps)
+        else:
+            s["waves"].append(steps)
         s["models"] += 1
         s["sweeps"].add(label)
         s["world_steps"] += int((c[:, 2] * m["nworld"]).sum())
-        s["first_s"] = min(s["first_s"], float(c[0, 0]) - t0)
-        s["last_s"] = max(s["last_s"], float((c[:, 0] + c[:, 1]).max()) - t0)
-    return {k: {**v, "sweeps": len(v["sweeps"])} for k, v in sorted(out.items(), key=lambda kv: kv[1]["last_s"])}
+        s["first_s"] = min(s["first_s"], begin)
+        s["last_s"] = max(s["last_s"], end)
+    return {k: {**v, "sweeps": len(v["sweeps"]), "waves": len(v["waves"]), "chain_steps": int(sum(v["waves"]))}
+            for k, v in sorted(out.items(), key=lambda kv: kv[1]["last_s"])}
 
 
 def summarise(models: list[dict]) -> dict:

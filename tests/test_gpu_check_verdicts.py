@@ -159,9 +159,10 @@ def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(ben
         assert s["joinable"][w] == {"models": 1, "world_step_share": pytest.approx(1800 / 4510)}
     # per study, in order of ending: pairs (A and B, two sweeps) [0, 2.5] s, packing (C) [2, 3] s
     assert list(s["studies"]) == ["pairs", "packing"]
-    assert s["studies"]["pairs"] == {"models": 2, "sweeps": 2, "world_steps": 4500,
+    # pairs' B began while A stepped: one wave, its chain A's 150 steps
+    assert s["studies"]["pairs"] == {"models": 2, "sweeps": 2, "world_steps": 4500, "waves": 1, "chain_steps": 150,
                                      "first_s": pytest.approx(0.0), "last_s": pytest.approx(2.5, abs=1e-6)}
-    assert s["studies"]["packing"] == {"models": 1, "sweeps": 1, "world_steps": 10,
+    assert s["studies"]["packing"] == {"models": 1, "sweeps": 1, "world_steps": 10, "waves": 1, "chain_steps": 10,
                                        "first_s": pytest.approx(2.0, abs=1e-6), "last_s": pytest.approx(3.0, abs=1e-6)}
     # a model D of C's structure beginning 3 s after C: joinable within 5 s, not within 1 s; without a
     # label (a timeline written before labels, or a call not gathered) its study is "-"
@@ -170,5 +171,10 @@ def test_the_warp_timeline_summary_counts_models_at_once_and_steps_per_model(ben
     models = tl.load(path) + [d]
     assert tl.joinable(models, 1.0)["models"] == 1 and tl.joinable(models, 5.0) == {
         "models": 2, "world_step_share": pytest.approx((1800 + 30) / (4510 + 30))}
-    assert tl.by_study(models)["-"] == {"models": 1, "sweeps": 1, "world_steps": 30,
+    assert tl.by_study(models)["-"] == {"models": 1, "sweeps": 1, "world_steps": 30, "waves": 1, "chain_steps": 30,
                                         "first_s": pytest.approx(5.0, abs=1e-6), "last_s": pytest.approx(6.0, abs=1e-6)}
+    # a packing model E after C had ended: a second wave, the chain C's steps then E's
+    e = {"model": (1, 4), "structure": tuple(s2), "nworld": 3, "device": "cuda:0", "label": pk,
+         "chunks": np.array([[t0 + 3.5, 0.5, 20, 0], [t0 + 4.0, 0.5, 20, 0]])}
+    assert tl.by_study(tl.load(path) + [e])["packing"]["waves"] == 2
+    assert tl.by_study(tl.load(path) + [e])["packing"]["chain_steps"] == 10 + 40
