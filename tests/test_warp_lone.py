@@ -51,11 +51,11 @@ def test_a_routed_lone_swimmer_is_the_mujoco_run_and_a_pair_still_steps_on_warp(
     assert simulate(lone, SimOptions(**opts, **WARP)).attrs["backend"] == "warp"
 
 
-def test_a_routed_batch_steps_on_every_core_and_each_run_is_its_run_alone(monkeypatch):
+def _rollout_threads(monkeypatch) -> list[int]:
+    """The threads of every MuJoCo rollout made from now on (a list it fills)."""
     from undulate import simulation
 
-    monkeypatch.setenv(LONE_ENV, "mujoco")
-    threads = []
+    threads: list[int] = []
     real = simulation._WarmRollout.__init__
 
     def spy(self, models, nthread):
@@ -63,6 +63,12 @@ def test_a_routed_batch_steps_on_every_core_and_each_run_is_its_run_alone(monkey
         real(self, models, nthread)
 
     monkeypatch.setattr(simulation._WarmRollout, "__init__", spy)
+    return threads
+
+
+def test_a_routed_batch_steps_on_every_core_and_each_run_is_its_run_alone(monkeypatch):
+    monkeypatch.setenv(LONE_ENV, "mujoco")
+    threads = _rollout_threads(monkeypatch)
     scenes = [Scene(phases_rad=(0.0,), gait=dataclasses.replace(Gait(), amplitude_rad=a)) for a in (0.5, 0.8, 1.1)]
     opts = SimOptions(duration_s=0.5, sample_rate_hz=50.0)
     batch = simulate_batch(scenes, dataclasses.replace(opts, **WARP))
@@ -114,19 +120,11 @@ def test_a_batch_of_at_most_the_rules_scenes_is_the_mujoco_run_on_every_core_and
         monkeypatch):
     """A batch of two pairs with the rule at 2 steps on the cores (each run the MuJoCo backend's,
     bitwise, one thread per scene), a batch of three on Warp; a sweep's identity names the rule."""
-    from undulate import simulation
     from undulate.simulation._backend import CORES_UP_TO_ENV
     from undulate.sweep._store import backend_identity
 
     monkeypatch.setenv(CORES_UP_TO_ENV, "2")
-    threads = []
-    real = simulation._WarmRollout.__init__
-
-    def spy(self, models, nthread):
-        threads.append(nthread)
-        real(self, models, nthread)
-
-    monkeypatch.setattr(simulation._WarmRollout, "__init__", spy)
+    threads = _rollout_threads(monkeypatch)
     scenes = [Scene(phases_rad=(0.0, p)) for p in (0.5, 1.5, 2.5)]
     opts = SimOptions(duration_s=0.3, sample_rate_hz=50.0)
     two = simulate_batch(scenes[:2], dataclasses.replace(opts, **WARP))
