@@ -38,7 +38,10 @@ app = typer.Typer(
 
 # Typer renders help as Rich markup: "\\[" keeps a literal "[" (tests/test_cli.py checks every help text)
 _BACKEND_HELP = ("Physics engine: mujoco (MuJoCo's C engine on the CPU, float64) or warp (MuJoCo Warp: a "
-                 "study's runs become the worlds of one GPU model, float32; needs pip install 'undulate\\[gpu]').")
+                 "study's runs become the worlds of one GPU model, float32; needs pip install 'undulate\\[gpu]'). "
+                 "On a GPU, scenes of one swimmer and batches of at most one scene per core step on the cores, "
+                 "where they are faster (each run's attrs say which engine; UNDULATE_WARP_LONE_SWIMMERS=warp and "
+                 "UNDULATE_WARP_CORES_UP_TO=0 keep them on Warp).")
 _DEVICE_HELP = "The warp backend's device: cuda or cpu (default: cuda if present). Only with --backend warp."
 
 
