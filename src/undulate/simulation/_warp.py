@@ -504,18 +504,11 @@ class _Group:
                                                       r.pair_dev, r.wall_dev, r.md, r.maxpen_dev, *out])
         wp.launch(kernels.incr, dim=1, inputs=[self.k])
 
-    def run(self, qpos, qvel, warm, table: np.ndarray, nstep: int):
-        """Step the group's worlds ``nstep`` steps from (qpos, qvel, warm start) under ``table``
-        (nstep, nw, nu); returns what the steps left (per step, or reducing per sample interval:
-        qpos, qvel, sensors (nw, rows, ...) float64, then the depths, forces and first bad steps), the
-        warm starts after, and the overflow bitmask per world.  :meth:`launch` then :meth:`collect`."""
-        self.launch(qpos, qvel, warm, table, nstep)
-        return self.collect()
-
     def launch(self, qpos, qvel, warm, table: np.ndarray, nstep: int) -> None:
-        """Start the chunk of :meth:`run`: on a GPU its steps and the copies of what they leave are
-        queued on the group's stream and this returns at once, so that the groups of one batch step
-        side by side (:meth:`WarpRollout.rollout`); :meth:`collect` waits for them."""
+        """Start stepping the group's worlds ``nstep`` steps from (qpos, qvel, warm start) under ``table``
+        (nstep, nw, nu): on a GPU the steps and the copies of what they leave are queued on the group's
+        stream and this returns at once, so that the groups of one batch step side by side
+        (:meth:`WarpRollout._step_groups`); :meth:`collect` waits for them."""
         wp, _ = require()
         self._t = (time.time(), time.perf_counter())  # the timeline's: this chunk captures if
         self._capturing = not self.graphs or self.bufs[0].shape[0] < nstep  # first, or its buffers grow
@@ -537,7 +530,9 @@ class _Group:
                 self._copy_out()
 
     def collect(self):
-        """Wait for the chunk :meth:`launch` started; what it left, as :meth:`run` returns it."""
+        """Wait for the chunk :meth:`launch` started; returns what its steps left (per step, or reducing
+        per sample interval: qpos, qvel, sensors (nw, rows, ...) float64, then the depths, forces and
+        first bad steps), the warm starts after, and the overflow bitmask per world."""
         wp, _ = require()
         with wp.ScopedDevice(self.device):
             self._sync()
@@ -649,7 +644,7 @@ class _Group:
         return len(self.bufs) - 1 - (self.reduce is not None)
 
     def _host_rows(self):
-        """The copied chunk, float64, rows first per world (:meth:`run`), then the warm starts and
+        """The copied chunk, float64, rows first per world (:meth:`collect`), then the warm starts and
         overflow bits (after :meth:`_sync`)."""
         rows, per_row = self._rows(), self._per_row()
         out = []
@@ -893,7 +888,7 @@ class WarpRollout:
     def _step_groups(self, cur: np.ndarray, table: np.ndarray, nstep: int):
         """Step every group ``nstep`` steps from ``cur`` under ``table``: all of them launched first,
         so that on a GPU a batch's Warp models step side by side on their streams, then each one's
-        chunk collected (``[(group, what :meth:`_Group.run` returns)]``, in order).  (Until
+        chunk collected (``[(group, what :meth:`_Group.collect` returns)]``, in order).  (Until
         2026-11-30 each group was stepped and collected before the next was launched.)"""
         nq, nv = self.nq, self.nv
         for g in self.groups:
