@@ -61,8 +61,9 @@ def test_one_sided_checks_and_no_interval():
     assert Check.apart(E(0, 2), E(1, 3), "a > b").state is None
 
 
-def test_runs_needed_scales_as_one_over_root_n():
-    # value 0.955, half-width below 0.173, boundary 0.8 at distance 0.155: (0.173/0.155)^2 * 9 runs
+def test_runs_needed_scales_as_one_over_root_n_without_a_t_quantile():
+    # value 0.955, half-width below 0.173, boundary 0.8 at distance 0.155: (0.173/0.155)^2 * 9 runs (an
+    # estimate that records no dof; the t quantile's fall with the runs: tests/test_runs_needed.py)
     c = Estimate(0.955, 0.08, 0.782, 1.129, 9).within(0.8, 1.2)
     assert c.runs_needed == math.ceil(9 * (0.173 / 0.155) ** 2)
     assert Estimate(0.8, 0.1, 0.6, 1.0, 9).within(0.8, 1.2).runs_needed is None  # on the boundary

@@ -56,7 +56,7 @@ def test_rms_and_estimate_judgement():
     assert stats.Estimate(2.0, 0.1, 1.8, 2.2).inside(0.8, 1.2) is False
     d = stats.Estimate(1.0, 0.05, 0.9, 1.1, 7, "t").to_dict()
     assert d == {"value": 1.0, "stderr": 0.05, "ci95": [0.9, 1.1], "n": 7, "method": "t",
-                 "level": 0.95}
+                 "level": 0.95, "units": 0, "dof": None}
     assert stats.Estimate.from_dict(d) == stats.Estimate(1.0, 0.05, 0.9, 1.1, 7, "t")
     # without an interval the spread is shown, unsigned whatever the value's format
     assert f"{stats.Estimate(-0.5, 0.82):+.2f}" == "-0.50 ± 0.82"

@@ -680,7 +680,8 @@ def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
 def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], growth_left: float,
           futile: Collection[str] = ()) -> list[str]:
     """What another stage may still decide after a look: undecided claims, except those whose interval
-    would need more than ``growth_left`` times the runs it rests on (quick mode's cap cannot decide them:
+    would need more than ``growth_left`` times the runs it rests on to be decided at the last look's level
+    (:func:`undulate.stats.runs_needed`; quick mode's cap cannot decide them:
     a futility stop, which never turns a claim into ``holds`` or ``fails``) and those an earlier look
     found futile (``futile``: their runs stay where they were, :attr:`StudyContext.frozen_claims`);
     claims with ``no result`` (too few design points or runs with a result for an interval: more runs
@@ -698,8 +699,8 @@ def _growth_left(n_plans: int, look: int, quick: bool) -> float:
     """How many times more runs the quick cap holds than look ``look`` (1-based) of ``n_plans``: the
     stride of that look when the study's stages follow :mod:`._stages` (``n_plans`` strides), else
     unbounded.  Full mode is unbounded: it decides, so it runs to its cap while a claim is undecided
-    (the 1/sqrt(n) estimate assumes the value stays put, and a full-mode claim whose estimate sat on its
-    boundary after 13 of 49 runs was decided by all 49)."""
+    (the estimate, :func:`undulate.stats.runs_needed`, assumes the value stays put, and a full-mode claim
+    whose estimate sat on its boundary after 13 of 49 runs was decided by all 49)."""
     from ._stages import strides
 
     s = strides(quick)
@@ -833,7 +834,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
         prefetched = _prefetch(info, ctx, plans)
         for k, (plan, level) in enumerate(zip(plans, levels), start=1):
             first = len(ctx.sweeps)
-            with stats.at_level(level):
+            with stats.at_level(level, plan_at=levels[-1]):  # runs needed: to decide at the cap's look
                 ds = info.dataset(ctx, plan)
                 summary = info.summary(ds)
                 claims = [{**c, "reference": info.reference} for c in judge(name, info.claims, summary)]

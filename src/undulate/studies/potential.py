@@ -136,7 +136,7 @@ def stiffness_fit(dF, dx, valid=None, min_points: int = 3) -> dict[str, stats.Es
 
     se, lo, hi = stats.bootstrap(dx0_of, x, f)
     return {"k": fit.slope, "dx0": stats.Estimate(float(-c / k), se, lo, hi, int(f.size), "bootstrap BCa",
-                                stats.level()),
+                                stats.level(), int(f.size), int(f.size) - 1),
             "r2": fit.r2}
 
 
@@ -376,7 +376,8 @@ def _collapse_rms(x, logk) -> stats.Estimate:
     ok = np.isfinite(x) & np.isfinite(logk)
     v = _collapse_rms_value(x, logk)
     se, lo, hi = stats.bootstrap(_collapse_rms_value, x[ok], logk[ok])
-    return stats.Estimate(v, se, lo, hi, int(ok.sum()), "bootstrap BCa", stats.level())
+    return stats.Estimate(v, se, lo, hi, int(ok.sum()), "bootstrap BCa", stats.level(), int(ok.sum()),
+                          int(ok.sum()) - 1)
 
 
 def _r2_without_scatter_value(x, y, noise_var) -> float:
@@ -432,7 +433,8 @@ def impulse_r2_without_phase_scatter(dphi, impulse_all) -> stats.Estimate:
     x, y, nv = _split_half_means(dphi, impulse_all)
     value = _r2_without_scatter_value(x, y, nv) if x.size >= 3 else math.nan
     se, lo, hi = stats.bootstrap(_r2_without_scatter_value, x, y, nv)
-    return stats.Estimate(value, se, lo, hi, int(x.size), "bootstrap BCa over |dphi|", stats.level())
+    return stats.Estimate(value, se, lo, hi, int(x.size), "bootstrap BCa over |dphi|", stats.level(), int(x.size),
+                          int(x.size) - 1)
 
 
 def summary(ds) -> dict[str, Any]:

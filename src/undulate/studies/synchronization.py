@@ -305,7 +305,8 @@ def pair_summary(ds) -> dict[str, Any]:
         se, lo, hi = stats.bootstrap(_median, ratio, method="percentile")
         out["per_controller"][str(c)] = {
             "force_ratio": stats.Estimate(_median(ratio), se, lo, hi, int(ratio.size),
-                                          "median, bootstrap percentile", stats.level()).to_dict(),
+                                          "median, bootstrap percentile", stats.level(), int(ratio.size),
+                                          int(ratio.size) - 1).to_dict(),
             "n_held": int((done & hsel).sum()),
             "n_free": int((done & ~hsel).sum()),
             "held_colliding": int((collide & done & hsel).sum()),
