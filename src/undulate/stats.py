@@ -77,7 +77,7 @@ def at_level(confidence: float, plan_at: float | None = None) -> Iterator[float]
 
     ``plan_at``: the level of the look that more runs would be judged at (a staged study's last look,
     whose share of alpha is the largest); :func:`runs_needed` estimates the runs that would decide an
-    interval there.  Default: ``confidence`` itself."""
+    interval there.  Default: each estimate's own level (``confidence`` for those formed in the block)."""
     for name, v in (("confidence", confidence), ("plan_at", plan_at)):
         if v is not None and not 0.0 < float(v) < 1.0:
             raise ValueError(f"{name} must lie in (0, 1), not {v!r}")
@@ -279,7 +279,7 @@ class Check:
         up, down = (a, b) if a.value >= b.value else (b, a)  # the facing half-widths: up's lower, down's upper
         g = _growth(((up, up.value - up.low), (down, down.high - down.value)), gap)
         n = min(a.n, b.n)
-        needed = int(math.ceil(n * g)) if n > 0 and g is not None else None
+        needed = int(math.ceil(n * g - 1e-9)) if n > 0 and g is not None else None
         return cls(None, f"{what}: [{_g(a.low)}, {_g(a.high)}] overlaps [{_g(b.low)}, {_g(b.high)}]", needed,
                    g if needed is not None else None)
 
@@ -308,10 +308,10 @@ def half_width_at(e: Estimate, half: float, growth: float, conf: float | None = 
 def _growth(sides: Sequence[tuple[Estimate, float]], gap: float) -> float | None:
     """The least growth ``g >= 1`` of the runs at which the half-widths ``sides`` (each an estimate and
     its half-width facing the boundary), narrowing as :func:`half_width_at` says, add up to no more than
-    ``gap``; None when ``gap`` is not positive or a half-width is not (no estimate to extrapolate)."""
+    ``gap``; None when ``gap`` is not positive or no half-width is (nothing to extrapolate)."""
     from scipy.optimize import brentq
 
-    if not (gap > 0 and all(math.isfinite(h) and h > 0 for _, h in sides)):
+    if not (gap > 0 and all(math.isfinite(h) and h >= 0 for _, h in sides) and sum(h for _, h in sides) > 0):
         return None
 
     def excess(log_g: float) -> float:
