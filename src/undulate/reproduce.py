@@ -206,9 +206,12 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     its parameters and seed, and each study judges its own runs.
 
     Returns the report path and the per-study statuses (``name``, ``ok``,
-    ``wall_s``, ``error``, ``reused``).
+    ``wall_s``, ``error``, ``reused``).  Another process writing to ``out_dir`` (a reproduction or a
+    study) is a :class:`~undulate.errors.ParameterError` before anything is written
+    (:func:`undulate._outdir.writing_to`).
     """
     from . import studies as registry
+    from ._outdir import writing_to
     from .studies import StudyConfig
     from .sweep import warm_workers
 
@@ -222,7 +225,7 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
         from .studies._registry import _wide
 
         side_by_side = len(studies) + 1 if _wide(workers, scheduler) else SIDE_BY_SIDE  # + animations
-    with warm_workers(None if scheduler is not None else workers):
+    with writing_to(out_dir, "out_dir"), warm_workers(None if scheduler is not None else workers):
         return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers,
                           side_by_side)
 

@@ -631,15 +631,17 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
     unknown ``name`` raises :class:`~undulate.errors.ParameterError`.
     ``workers``: local worker processes (default: every core this process may
     use), kept warm across the study's sweeps (:func:`undulate.sweep.warm_workers`).
+    Another process writing to ``out_dir`` (a reproduction or a study) is a ParameterError before
+    anything is written (:func:`undulate._outdir.writing_to`).
     """
     info = describe(name)
     config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=int(seed),
                          workers=workers)
     out = config.out_dir
-    out.mkdir(parents=True, exist_ok=True)
+    from .._outdir import writing_to
     from ..sweep import warm_workers
 
-    with warm_workers(workers):
+    with writing_to(out, "out_dir"), warm_workers(workers):
         return _run_study(info, name, config, out, progress)
 
 

@@ -1,0 +1,80 @@
+"""One process at a time writes a reproduction's or a study's output folder.
+
+Two ``undulate reproduce --out X`` (or a reproduction and an ``undulate study NAME --out X``) at
+once would step on each other: their sweeps refuse to share a store only once both reach it,
+minutes in, and each overwrites the other's study files and page.  :func:`writing_to` takes an
+advisory lock (``flock``) on ``X/.writer.lock`` for as long as the command runs, so the second
+command stops at once with one line naming the folder and the process holding it.
+
+The lock is the process's, not a thread's: studies side by side in one reproduction, and a study
+run inside a reproduction, share it (a count per folder).  The sweep stores' own locks
+(:mod:`undulate.sweep._store`) still guard each store against any other writer.  Where ``fcntl`` is
+missing (Windows) there is no lock, as for the stores.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import threading
+from collections.abc import Iterator
+from pathlib import Path
+
+from .errors import ParameterError
+
+__all__ = ["writing_to", "LOCK_NAME"]
+
+LOCK_NAME = ".writer.lock"
+"""The lock file in an output folder (it holds the pid of the process writing the folder)."""
+
+_HELD: dict[Path, list[int]] = {}  # folder -> [fd, count] held by this process
+_GUARD = threading.Lock()
+
+
+def _holder(path: Path) -> str:
+    try:
+        pid = path.read_text().strip()
+    except OSError:
+        return ""
+    return f"; process {pid} is" if pid.isdigit() else ""
+
+
+@contextlib.contextmanager
+def writing_to(folder: str | os.PathLike, name: str = "out_dir") -> Iterator[Path]:
+    """Hold ``folder`` (created if missing) for this process while the block runs.
+
+    Raises :class:`~undulate.errors.ParameterError` naming ``name`` (the parameter as the user knows
+    it: ``--out``, ``out_dir``) when another process holds it; nothing in the folder but the lock file
+    is touched before that.  Re-entrant within the process."""
+    root = Path(folder).resolve()
+    try:
+        import fcntl
+    except ImportError:  # pragma: no cover - Windows: no advisory lock
+        yield root
+        return
+    with _GUARD:
+        held = _HELD.get(root)
+        if held is not None:
+            held[1] += 1
+        else:
+            root.mkdir(parents=True, exist_ok=True)
+            lock = root / LOCK_NAME
+            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except OSError:
+                os.close(fd)
+                raise ParameterError(name, "a folder no other running reproduction or study is writing to"
+                                     + _holder(lock), str(folder)) from None
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+            _HELD[root] = [fd, 1]
+    try:
+        yield root
+    finally:
+        with _GUARD:
+            held = _HELD[root]
+            held[1] -= 1
+            if held[1] == 0:
+                del _HELD[root]
+                os.close(held[0])  # releases the flock

@@ -1,0 +1,108 @@
+"""One process at a time writes an output folder (``undulate._outdir.writing_to``).
+
+A second ``reproduce`` or ``study`` into a folder another process is writing stops at once: one line
+naming ``--out`` and the process holding it, exit code 2, no traceback, nothing written.  Real
+processes: the holder is a separate Python process, and a holder killed with SIGKILL frees the folder.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import threading
+
+import pytest
+
+from undulate._outdir import LOCK_NAME, writing_to
+from undulate.errors import ParameterError
+
+HOLDER = textwrap.dedent("""
+    import sys, time
+    from undulate._outdir import writing_to
+    with writing_to(sys.argv[1]):
+        print("held", flush=True)
+        sys.stdin.read()  # until the test closes it
+""")
+
+
+@pytest.fixture
+def held(tmp_path):
+    """A folder another process is writing to; yields (folder, that process)."""
+    folder = tmp_path / "repro"
+    p = subprocess.Popen([sys.executable, "-c", HOLDER, str(folder)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                         text=True)
+    assert p.stdout.readline().strip() == "held"
+    yield folder, p
+    if p.poll() is None:
+        p.stdin.close()
+        p.wait(timeout=30)
+
+
+def _cli(*args):
+    return subprocess.run([sys.executable, "-m", "undulate", *args], capture_output=True, text=True, timeout=120,
+                          env={**os.environ, "MPLBACKEND": "Agg"})
+
+
+@pytest.mark.parametrize("command", [["reproduce", "--quick", "--only", "compatibility"], ["study", "compatibility"]])
+def test_a_second_writer_stops_at_once_naming_the_folder_and_its_holder(held, command):
+    folder, holder = held
+    r = _cli(*command, "--out", str(folder))
+    assert r.returncode == 2, r.stderr
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "Traceback" not in r.stderr
+    assert lines[0].startswith("error: invalid --out: must be a folder no other running reproduction or study is "
+                               "writing to")
+    assert f"process {holder.pid} is" in lines[0] and str(folder) in lines[0]
+    assert sorted(p.name for p in folder.iterdir()) == [LOCK_NAME]  # nothing else written
+
+
+def test_the_library_calls_refuse_too(held):
+    from undulate.reproduce import reproduce
+    from undulate.studies import run_study
+
+    folder, _ = held
+    with pytest.raises(ParameterError, match="invalid out_dir: must be a folder no other running"):
+        reproduce(folder, studies=["compatibility"], log=lambda m: None)
+    with pytest.raises(ParameterError, match="invalid out_dir"):
+        run_study("compatibility", folder, quick=True, progress=False)
+    assert sorted(p.name for p in folder.iterdir()) == [LOCK_NAME]
+
+
+def test_a_killed_writer_frees_the_folder(held):
+    folder, holder = held
+    with pytest.raises(ParameterError):
+        with writing_to(folder):
+            pass
+    holder.send_signal(signal.SIGKILL)
+    holder.wait(timeout=30)
+    with writing_to(folder) as root:  # the kernel dropped the dead process's lock
+        assert (root / LOCK_NAME).read_text().strip() == str(os.getpid())
+
+
+def test_one_process_may_hold_a_folder_from_several_threads_and_depths(tmp_path):
+    folder = tmp_path / "out"
+    errors = []
+
+    def inner():
+        try:
+            with writing_to(folder), writing_to(folder):
+                pass
+        except Exception as e:  # noqa: BLE001
+            errors.append(e)
+
+    with writing_to(folder):
+        threads = [threading.Thread(target=inner) for _ in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        # still held here after the threads' releases: another process is refused
+        r = subprocess.run([sys.executable, "-c", HOLDER, str(folder)], input="", capture_output=True, text=True,
+                           timeout=60)
+        assert r.returncode != 0 and "no other running reproduction" in r.stderr
+    assert not errors
+    r = subprocess.run([sys.executable, "-c", HOLDER, str(folder)], input="", capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0 and r.stdout.strip() == "held"  # released once the last holder left
