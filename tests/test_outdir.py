@@ -78,8 +78,10 @@ def test_a_killed_writer_frees_the_folder(held):
             pass
     holder.send_signal(signal.SIGKILL)
     holder.wait(timeout=30)
+    assert (folder / LOCK_NAME).exists()  # a killed writer leaves its file, not its lock
     with writing_to(folder) as root:  # the kernel dropped the dead process's lock
         assert (root / LOCK_NAME).read_text().strip() == str(os.getpid())
+    assert list(folder.iterdir()) == []  # released: the folder as it was
 
 
 def test_one_process_may_hold_a_folder_from_several_threads_and_depths(tmp_path):
@@ -106,3 +108,42 @@ def test_one_process_may_hold_a_folder_from_several_threads_and_depths(tmp_path)
     assert not errors
     r = subprocess.run([sys.executable, "-c", HOLDER, str(folder)], input="", capture_output=True, text=True, timeout=60)
     assert r.returncode == 0 and r.stdout.strip() == "held"  # released once the last holder left
+    assert list(folder.iterdir()) == []
+
+
+def test_a_reproduction_leaves_no_lock_behind(tmp_path):
+    r = _cli("reproduce", "--quick", "--only", "compatibility", "--out", str(tmp_path / "r"))
+    assert r.returncode == 0, r.stderr
+    assert not (tmp_path / "r" / LOCK_NAME).exists() and (tmp_path / "r" / "index.html").exists()
+
+
+def test_racing_writers_never_both_hold_a_folder(tmp_path):
+    """Eight processes taking and releasing one folder 40 times each: while one holds it no other does
+    (each holder checks that it alone is in the folder's marker set), and every refusal is the one line."""
+    script = textwrap.dedent("""
+        import os, sys, time
+        from pathlib import Path
+        from undulate._outdir import writing_to
+        from undulate.errors import ParameterError
+        folder, won = Path(sys.argv[1]), 0
+        for _ in range(40):
+            try:
+                with writing_to(folder):
+                    mark = folder / f"holder-{os.getpid()}"
+                    mark.touch()
+                    others = [p.name for p in folder.glob("holder-*") if p != mark]
+                    time.sleep(0.002)
+                    mark.unlink()
+                    assert not others, others
+                    won += 1
+            except ParameterError as e:
+                assert "no other running reproduction or study" in str(e)
+        print(won)
+    """)
+    folder = tmp_path / "contested"
+    folder.mkdir()
+    procs = [subprocess.Popen([sys.executable, "-c", script, str(folder)], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                              text=True) for _ in range(8)]
+    outs = [p.communicate(timeout=120) for p in procs]
+    assert all(p.returncode == 0 for p in procs), [e for _, e in outs]
+    assert sum(int(o) for o, _ in outs) > 0

@@ -3,8 +3,10 @@
 Two ``undulate reproduce --out X`` (or a reproduction and an ``undulate study NAME --out X``) at
 once would step on each other: their sweeps refuse to share a store only once both reach it,
 minutes in, and each overwrites the other's study files and page.  :func:`writing_to` takes an
-advisory lock (``flock``) on ``X/.writer.lock`` for as long as the command runs, so the second
-command stops at once with one line naming the folder and the process holding it.
+advisory lock (``flock``) on ``X/.writer.lock`` for as long as the command runs (and removes the
+file when it ends), so the second command stops at once with one line naming the folder and the
+process holding it.  A process killed while it writes leaves the file, but not the lock: the kernel
+drops it.
 
 The lock is the process's, not a thread's: studies side by side in one reproduction, and a study
 run inside a reproduction, share it (a count per folder).  The sweep stores' own locks
@@ -58,17 +60,7 @@ def writing_to(folder: str | os.PathLike, name: str = "out_dir") -> Iterator[Pat
             held[1] += 1
         else:
             root.mkdir(parents=True, exist_ok=True)
-            lock = root / LOCK_NAME
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                os.close(fd)
-                raise ParameterError(name, "a folder no other running reproduction or study is writing to"
-                                     + _holder(lock), str(folder)) from None
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()}\n".encode())
-            _HELD[root] = [fd, 1]
+            _HELD[root] = [_acquire(fcntl, root / LOCK_NAME, name, folder), 1]
     try:
         yield root
     finally:
@@ -77,4 +69,29 @@ def writing_to(folder: str | os.PathLike, name: str = "out_dir") -> Iterator[Pat
             held[1] -= 1
             if held[1] == 0:
                 del _HELD[root]
+                with contextlib.suppress(OSError):
+                    os.unlink(root / LOCK_NAME)  # while still held: the folder is left as it was
                 os.close(held[0])  # releases the flock
+
+
+def _acquire(fcntl, lock: Path, name: str, folder) -> int:
+    """An fd holding ``lock``'s flock, the file naming this process.  A holder removes the file before
+    it lets go, so a lock won on a file no longer at ``lock`` (opened just before that removal) is
+    dropped and tried again on the file there now: only one process ever holds the path's lock."""
+    while True:
+        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError:
+            os.close(fd)
+            raise ParameterError(name, "a folder no other running reproduction or study is writing to"
+                                 + _holder(lock), str(folder)) from None
+        try:
+            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+        except FileNotFoundError:
+            same = False
+        if same:
+            os.ftruncate(fd, 0)
+            os.write(fd, f"{os.getpid()}\n".encode())
+            return fd
+        os.close(fd)
