@@ -168,13 +168,22 @@ def test_potential(kw, index, verdict):
 
 def test_harmonic_runs_needed_count_the_fits_points_not_the_fits():
     """Each dF = k (dx - dx0) fit's R^2 interval rests on its own forces, so more fits do not narrow the
-    median bounds; the runs that would decide it scale the fits' points (13 forces x 27 fits here)."""
+    median bounds; the runs that would decide it scale the fits' points (13 forces x 27 fits here), and
+    each fit's quantile is t on its 13 points less one."""
+    from scipy import stats as st
+
     s = potential_summary(fit_r2=(0.958, 0.897, 0.998))
     s.update(n_fits=27, n_fit_points=351, fit_r2_level=0.97)
     r = rows("potential", s)[1]
     assert r["verdict"] == UNDECIDED
     gap, half = 0.958 - 0.9, 0.958 - 0.897
-    assert r["runs_needed"] == math.ceil(351 * (half / gap) ** 2)
+    g = r["runs_needed"] / 351  # the least growth of the points per fit whose half-width clears the gap
+
+    def half_at(growth):
+        return half * st.t.ppf(0.985, 13 * growth - 1) / st.t.ppf(0.985, 12) / math.sqrt(growth)
+
+    assert half_at(g) <= gap < half_at((r["runs_needed"] - 1) / 351)
+    assert r["runs_needed"] < math.ceil(351 * (half / gap) ** 2)  # the plain 1/sqrt(n) rule's
     assert "97 % intervals, 95 % over the looks" in r["measured"]
 
 
