@@ -13,6 +13,7 @@ import subprocess
 import sys
 import textwrap
 import threading
+from pathlib import Path
 
 import pytest
 
@@ -147,3 +148,34 @@ def test_racing_writers_never_both_hold_a_folder(tmp_path):
     outs = [p.communicate(timeout=120) for p in procs]
     assert all(p.returncode == 0 for p in procs), [e for _, e in outs]
     assert sum(int(o) for o, _ in outs) > 0
+
+
+def test_a_sweep_store_another_process_holds_is_refused(tmp_path):
+    """The sweep stores take the same pid lock (``flock_pid``) on their ``.lock``: a sweep into a store
+    another process holds is a ParameterError naming out_dir, and the holder's file is left as it was."""
+    sys.path.insert(0, str(Path(__file__).parent))
+    import sweep_funcs
+
+    from undulate.sweep import Grid, run_sweep
+
+    store = tmp_path / "s"
+    store.mkdir()
+    hold = textwrap.dedent("""
+        import sys
+        from pathlib import Path
+        from undulate._outdir import flock_pid
+        fd = flock_pid(Path(sys.argv[1]) / ".lock")
+        print("held" if fd is not None else "refused", flush=True)
+        sys.stdin.read()
+    """)
+    p = subprocess.Popen([sys.executable, "-c", hold, str(store)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                         text=True)
+    try:
+        assert p.stdout.readline().strip() == "held"
+        grid = Grid(axes={"damping_Nms": [0.1], "length_m": [0.5]}, seed=0)
+        with pytest.raises(ParameterError, match="invalid out_dir: must be a directory that no other running sweep"):
+            run_sweep(sweep_funcs.pendulum, grid, store, workers=1, progress=False)
+        assert (store / ".lock").read_text().strip() == str(p.pid)
+    finally:
+        p.stdin.close()
+        p.wait(timeout=30)

@@ -24,7 +24,7 @@ from pathlib import Path
 
 from .errors import ParameterError
 
-__all__ = ["writing_to", "LOCK_NAME"]
+__all__ = ["writing_to", "flock_pid", "LOCK_NAME"]
 
 LOCK_NAME = ".writer.lock"
 """The lock file in an output folder (it holds the pid of the process writing the folder)."""
@@ -50,7 +50,7 @@ def writing_to(folder: str | os.PathLike, name: str = "out_dir") -> Iterator[Pat
     is touched before that.  Re-entrant within the process."""
     root = Path(folder).resolve()
     try:
-        import fcntl
+        import fcntl  # noqa: F401
     except ImportError:  # pragma: no cover - Windows: no advisory lock
         yield root
         return
@@ -60,7 +60,7 @@ def writing_to(folder: str | os.PathLike, name: str = "out_dir") -> Iterator[Pat
             held[1] += 1
         else:
             root.mkdir(parents=True, exist_ok=True)
-            _HELD[root] = [_acquire(fcntl, root / LOCK_NAME, name, folder), 1]
+            _HELD[root] = [_acquire(root / LOCK_NAME, name, folder), 1]
     try:
         yield root
     finally:
@@ -74,24 +74,36 @@ def writing_to(folder: str | os.PathLike, name: str = "out_dir") -> Iterator[Pat
                 os.close(held[0])  # releases the flock
 
 
-def _acquire(fcntl, lock: Path, name: str, folder) -> int:
-    """An fd holding ``lock``'s flock, the file naming this process.  A holder removes the file before
-    it lets go, so a lock won on a file no longer at ``lock`` (opened just before that removal) is
-    dropped and tried again on the file there now: only one process ever holds the path's lock."""
+def flock_pid(path: Path) -> int | None:
+    """An fd holding an exclusive ``flock`` on ``path`` (created if missing), which then names this
+    process; None when another process holds it.  Closing the fd releases it (the kernel does, too,
+    when the process dies).  The sweep stores' lock (:mod:`undulate.sweep._store`) and
+    :func:`writing_to`'s."""
+    import fcntl
+
+    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError:
+        os.close(fd)
+        return None
+    os.ftruncate(fd, 0)
+    os.write(fd, f"{os.getpid()}\n".encode())
+    return fd
+
+
+def _acquire(lock: Path, name: str, folder) -> int:
+    """An fd holding ``lock``'s flock (:func:`flock_pid`).  A holder removes the file before it lets go,
+    so a lock won on a file no longer at ``lock`` (opened just before that removal) is dropped and tried
+    again on the file there now: only one process ever holds the path's lock."""
     while True:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)
+        fd = flock_pid(lock)
+        if fd is None:
             raise ParameterError(name, "a folder no other running reproduction or study is writing to"
-                                 + _holder(lock), str(folder)) from None
+                                 + _holder(lock), str(folder))
         try:
-            same = os.path.samestat(os.fstat(fd), os.stat(lock))
+            if os.path.samestat(os.fstat(fd), os.stat(lock)):
+                return fd
         except FileNotFoundError:
-            same = False
-        if same:
-            os.ftruncate(fd, 0)
-            os.write(fd, f"{os.getpid()}\n".encode())
-            return fd
+            pass
         os.close(fd)

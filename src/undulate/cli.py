@@ -315,7 +315,6 @@ def study(
 ) -> None:
     """Run one study: writes OUT/NAME.nc, OUT/NAME.png (+ .pdf) and OUT/NAME.json."""
     from . import studies
-    from ._outdir import writing_to
 
     try:
         _check_workers(workers, scheduler)
@@ -323,11 +322,9 @@ def study(
         out_path = Path(out)
         if out_path.exists() and not out_path.is_dir():
             raise ParameterError("--out", "a directory", str(out))
-        studies.describe(name)  # an unknown study leaves no folder behind
-        with writing_to(out_path, "--out"):
-            path = studies.run_study(name, out_path, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
+        path = studies.run_study(name, out_path, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
     except ParameterError as e:
-        _fail(str(e), 2)
+        _fail(str(_cli_name(e, {"out_dir": "--out"})), 2)  # another process writing to it
     except UndulateError as e:
         _fail(str(e), 1)
     typer.echo(f"wrote {path}")
@@ -352,13 +349,9 @@ def reproduce(
                                     "16-24 s). The studies and their claims do not depend on it."),
 ) -> None:
     """Reproduce the paper: every study, animations, and OUT/index.html."""
-    import contextlib
-
     from . import studies as registry
-    from ._outdir import writing_to
     from .reproduce import check_animation_s, reproduce as run_all
 
-    held = contextlib.ExitStack()
     try:
         _check_workers(workers, scheduler)
         check_animation_s(animation_s, "--animation-s")
@@ -371,14 +364,14 @@ def reproduce(
             for n in names:
                 if n not in registry.names():
                     raise ParameterError("--only", "study names from: " + ", ".join(registry.names()), n)
-        held.enter_context(writing_to(out, "--out"))  # last: a bad option leaves no folder behind
     except ParameterError as e:
         _fail(str(e), 2)
     try:
-        with held:
-            path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
-                                     log=lambda m: typer.echo(m), workers=workers, beyond_paper=beyond_paper,
-                                     animation_s=animation_s)
+        path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
+                                 log=lambda m: typer.echo(m), workers=workers, beyond_paper=beyond_paper,
+                                 animation_s=animation_s)
+    except ParameterError as e:  # another process writing to --out: refused before anything is written
+        _fail(str(_cli_name(e, {"out_dir": "--out"})), 2)
     except SourceChangedError as e:
         _fail(str(e), 1)
     failed = [s["name"] for s in statuses if not s["ok"]]

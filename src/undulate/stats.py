@@ -295,10 +295,11 @@ def _quantile(conf: float, dof: float) -> float:
 
 def half_width_at(e: Estimate, half: float, growth: float, conf: float | None = None) -> float:
     """The half-width ``half`` of ``e``'s interval with ``growth`` times its runs, formed at ``conf``
-    (default :func:`plan_level`, else the estimate's own level), the estimate's value and spread staying put: ``half * q(conf, dof') /
-    q(e.level, dof) / sqrt(growth)`` with ``dof' = growth * units - (units - dof)`` (the same number of
-    fitted parameters on more units) and ``q`` the quantile of :func:`_quantile`.  An estimate with no
-    ``dof`` keeps its quantile's shape (the normal's): only the level and the 1/sqrt(n) change."""
+    (default :func:`plan_level`, else the estimate's own level), the estimate's value and spread
+    staying put: ``half * q(conf, dof') / q(e.level, dof) / sqrt(growth)`` with
+    ``dof' = growth * units - (units - dof)`` (the same number of fitted parameters on more units) and
+    ``q`` the quantile of :func:`_quantile`.  An estimate with no ``dof`` keeps its quantile's shape
+    (the normal's): only the level and the 1/sqrt(n) change."""
     conf = (plan_level() or e.level) if conf is None else float(conf)
     dof = e.dof if (e.units > 0 and math.isfinite(e.dof) and e.dof > 0) else math.nan
     dof_g = growth * e.units - (e.units - dof) if math.isfinite(dof) else math.nan

@@ -538,7 +538,7 @@ def _harmonic(s: dict) -> Verdict:
     # own points (forces), so more fits do not narrow it: the runs that would decide it are counted on
     # every point of the fits (more forces per fit), not on the number of fits; a fit's R^2 interval is a
     # bootstrap over its points at the expanded levels, so its quantile is t on the points per fit less one.
-    per_fit = max(round(s["n_fit_points"] / s["n_fits"]), 0)
+    per_fit = round(s["n_fit_points"] / s["n_fits"])
     typical = stats.Estimate(med, float("nan"), low, high, int(s["n_fit_points"]), "medians over the fits", lv,
                              per_fit, per_fit - 1 if per_fit >= 2 else float("nan"))
     return Verdict.of([typical.above(R2_MIN, "median R^2")], measured, value)

@@ -297,17 +297,14 @@ class Store:
 
     def _lock(self) -> None:
         try:
-            import fcntl
+            import fcntl  # noqa: F401
         except ImportError:  # pragma: no cover - Windows: no advisory lock
             return
-        fd = os.open(self.root / ".lock", os.O_RDWR | os.O_CREAT, 0o644)
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            os.close(fd)
-            raise ParameterError("out_dir", "a directory that no other running sweep is using", str(self.root)) from None
-        os.ftruncate(fd, 0)
-        os.write(fd, f"{os.getpid()}\n".encode())
+        from .._outdir import flock_pid
+
+        fd = flock_pid(self.root / ".lock")
+        if fd is None:
+            raise ParameterError("out_dir", "a directory that no other running sweep is using", str(self.root))
         self._lock_fd = fd
 
     def _unlock(self) -> None:
