@@ -65,3 +65,36 @@ def test_every_quick_mode_option_is_the_same_quick_full_pair_defaulting_to_quick
             assert p.opts == ["--quick"] and p.secondary_opts == ["--full"], (path, p.opts, p.secondary_opts)
             assert p.default is True, (path, p.default)
     assert sorted(found) == [("reproduce",), ("study",)]
+
+
+@pytest.mark.parametrize("args, option", [
+    (["--sample-rate", "1e9"], "--sample-rate"),  # against the scene's automatic step, found once the scene is known
+    (["--sample-rate", "1e9", "--estimate"], "--sample-rate"),
+    (["--links", "12", "--sample-rate", "5000"], "--sample-rate"),
+    (["--sample-rate", "600", "--timestep", "0.002"], "--sample-rate"),
+    (["--timestep", "0.01"], "--timestep"),
+    (["--duration", "1e-5", "--timestep", "0.002"], "--duration"),
+    (["--channel-width", "0.02"], "--channel-width"),
+    (["--dx0", "nan"], "--dx0"),
+    (["--amplitude", "95"], "--amplitude"),
+    (["--width", "-0.01"], "--width"),
+    (["--body-length", "0"], "--body-length"),
+    (["--phases", "0,90", "--separating-force", "inf"], "--separating-force"),
+    (["--coupling", "-1", "--controller", "phase-oscillator"], "--coupling"),
+    (["--control-rate", "0", "--controller", "relay"], "--control-rate"),
+    (["--backend", "gpu"], "--backend"),
+])
+def test_simulate_errors_name_the_option_typed(tmp_path, args, option):
+    """Whatever raises it (the options, the scene, or the run once the scene's time step is known), a bad
+    ``simulate`` input is one line naming the option as typed, exit code 2, and no file."""
+    from typer.testing import CliRunner
+
+    from undulate.cli import app
+
+    out = tmp_path / "run.nc"
+    r = CliRunner().invoke(app, ["simulate", "--duration", "0.2", *args, "--out", str(out)])
+    err = r.stderr if hasattr(r, "stderr") and r.stderr else r.output
+    lines = err.strip().splitlines()
+    assert r.exit_code == 2, (args, r.output)
+    assert len(lines) == 1 and lines[0].startswith(f"error: invalid {option}"), (args, lines)
+    assert list(tmp_path.iterdir()) == []

@@ -163,9 +163,13 @@ def _sim_options(*, duration: float, timestep: float | None, sample_rate: float,
         check_backend(options)  # the warp extra and the device, checked before anything is written
         return options
     except ParameterError as e:
-        raise _cli_name(e, {"duration_s": "--duration (s)", "timestep_s": "--timestep (s)",
-                            "sample_rate_hz": "--sample-rate (Hz)", "backend": "--backend",
-                            "device": "--device"}) from None
+        raise _cli_name(e, _RUN_OPTIONS) from None
+
+
+# ``simulate``'s run options by the SimOptions field they set: a ParameterError raised once the scene is
+# known (the sample rate against the scene's automatic time step) names the option the user typed too
+_RUN_OPTIONS = {"duration_s": "--duration (s)", "timestep_s": "--timestep (s)", "sample_rate_hz": "--sample-rate (Hz)",
+                "backend": "--backend", "device": "--device"}
 
 
 def _check_backend(backend: str, device: str | None) -> None:
@@ -199,7 +203,7 @@ def _print_estimate(scene, options, out: Path) -> None:
     except DivergenceError as e:
         _fail(str(e), 1)
     except ParameterError as e:
-        _fail(str(e), 2)
+        _fail(str(_cli_name(e, _RUN_OPTIONS)), 2)
 
 
 def _run_streamed(scene, options, out: Path, *, bar: bool):
@@ -214,7 +218,7 @@ def _run_streamed(scene, options, out: Path, *, bar: bool):
         except DivergenceError as e:
             _fail(str(e), 1)
         except ParameterError as e:  # a recording that cannot fit on disk: refused before any step
-            _fail(str(e), 2)
+            _fail(str(_cli_name(e, _RUN_OPTIONS)), 2)
 
 
 def _summary(ds, out: Path) -> str:
