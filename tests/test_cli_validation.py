@@ -15,13 +15,15 @@ CLI = [sys.executable, "-m", "undulate.cli"]
 
 @pytest.mark.parametrize("command", [["study", "pairs", "--quick"], ["reproduce", "--quick"]])
 @pytest.mark.parametrize("args", [["--workers", "0"], ["--workers", "-2"], ["--workers", "two"],
-                                  ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"]])
-def test_workers_option_is_validated(tmp_path, command, args):
+                                  ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], ["--seed", "-1"]])
+def test_workers_and_seed_options_are_validated(tmp_path, command, args):
+    """Before anything is written: a negative seed once made every study of a reproduction fail after a
+    page of work (exit 1), and a study leave an empty folder."""
     out = tmp_path / "out"
     r = subprocess.run([*CLI, *command, "--out", str(out), *args], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, (r.stdout, r.stderr)
     lines = r.stderr.strip().splitlines()
-    assert len(lines) == 1 and lines[0].startswith("error:") and "--workers" in lines[0]
+    assert len(lines) == 1 and lines[0].lower().startswith("error: invalid") and args[0] in lines[0], lines
     assert not out.exists()
 
 
@@ -35,6 +37,25 @@ def test_study_config_rejects_bad_workers(tmp_path):
     with pytest.raises(ParameterError, match="workers"):
         StudyConfig(out_dir=tmp_path, workers=2, scheduler="tcp://x:1")
     assert StudyConfig(out_dir=tmp_path, workers=3).workers == 3
+    for bad in (-1, 1.5, True, "0", None):
+        with pytest.raises(ParameterError, match="seed"):
+            StudyConfig(out_dir=tmp_path, seed=bad)
+    import numpy as np
+
+    seed = StudyConfig(out_dir=tmp_path, seed=np.int64(7)).seed
+    assert seed == 7 and type(seed) is int
+
+
+def test_a_bad_seed_is_refused_before_a_study_or_reproduction_writes(tmp_path):
+    from undulate.errors import ParameterError
+    from undulate.reproduce import reproduce
+    from undulate.studies import run_study
+
+    with pytest.raises(ParameterError, match="seed"):
+        run_study("compatibility", tmp_path / "s", seed=-3)
+    with pytest.raises(ParameterError, match="seed"):
+        reproduce(tmp_path / "r", seed=2.5, studies=["compatibility"])
+    assert list(tmp_path.iterdir()) == []
 
 
 def _commands(cmd, path=()):

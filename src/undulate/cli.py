@@ -296,14 +296,15 @@ _WORKERS_HELP = ("Local worker processes (default: the cores this process may us
                  "on it. Not with --scheduler.")
 
 
-def _check_workers(workers: int | None, scheduler: str | None) -> None:
-    """``--workers`` by :class:`~undulate.studies.StudyConfig`'s own rule, named as the CLI option."""
+def _check_config(workers: int | None, scheduler: str | None, seed: int) -> None:
+    """``--workers`` and ``--seed`` by :class:`~undulate.studies.StudyConfig`'s own rules, named as the CLI
+    options, before anything is written."""
     from .studies import StudyConfig
 
     try:
-        StudyConfig(out_dir=Path("."), scheduler=scheduler, workers=workers)
+        StudyConfig(out_dir=Path("."), scheduler=scheduler, workers=workers, seed=seed)
     except ParameterError as e:
-        raise _cli_name(e, {"workers": "--workers"}) from None
+        raise _cli_name(e, {"workers": "--workers", "seed": "--seed"}) from None
 
 
 @app.command()
@@ -312,7 +313,7 @@ def study(
     out: Path = typer.Option(Path("results"), "--out", "-o", help="Output folder (created if missing)."),
     quick: bool = typer.Option(True, "--quick/--full", help="Quick mode (reduced resolution, minutes) or the paper's full resolution."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
-    seed: int = typer.Option(0, help="Base random seed."),
+    seed: int = typer.Option(0, help="Base random seed (an integer >= 0)."),
     workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
     backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
     device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
@@ -321,7 +322,7 @@ def study(
     from . import studies
 
     try:
-        _check_workers(workers, scheduler)
+        _check_config(workers, scheduler, seed)
         _use_backend(backend, device)
         out_path = Path(out)
         if out_path.exists() and not out_path.is_dir():
@@ -339,7 +340,7 @@ def reproduce(
     out: Path = typer.Option(Path("reproduction"), "--out", "-o", help="Output folder (created if missing); re-running continues."),
     quick: bool = typer.Option(True, "--quick/--full", help="Quick mode (minutes) or the paper's full resolution."),
     scheduler: Optional[str] = typer.Option(None, "--scheduler", help="Dask scheduler address tcp://HOST:PORT or scheduler-file path (default: local processes)."),
-    seed: int = typer.Option(0, help="Base random seed."),
+    seed: int = typer.Option(0, help="Base random seed (an integer >= 0)."),
     only: Optional[str] = typer.Option(None, "--only", help="Comma-separated study names (default: all)."),
     workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
     beyond_paper: bool = typer.Option(
@@ -357,7 +358,7 @@ def reproduce(
     from .reproduce import check_animation_s, reproduce as run_all
 
     try:
-        _check_workers(workers, scheduler)
+        _check_config(workers, scheduler, seed)
         check_animation_s(animation_s, "--animation-s")
         _use_backend(backend, device)
         if out.exists() and not out.is_dir():

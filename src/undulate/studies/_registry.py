@@ -110,6 +110,10 @@ class StudyConfig:
     workers: int | None = None
 
     def __post_init__(self):
+        s = self.seed
+        if isinstance(s, bool) or not isinstance(s, int | np.integer) or s < 0:
+            raise ParameterError("seed", "an integer >= 0", s)
+        object.__setattr__(self, "seed", int(s))
         w = self.workers
         if w is not None and (isinstance(w, bool) or not isinstance(w, int) or w < 1):
             raise ParameterError("workers", "an integer >= 1 (or None: every core this process may use)", w)
@@ -635,7 +639,7 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
     anything is written (:func:`undulate._outdir.writing_to`).
     """
     info = describe(name)
-    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=int(seed),
+    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=seed,
                          workers=workers)
     out = config.out_dir
     from .._outdir import writing_to
@@ -659,7 +663,7 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     parameters and seed) and computes what is missing; runs it skips are left unread.  Returns what
     was computed (``n_runs``, ``n_computed``, ``wall_s``)."""
     info = describe(name)
-    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=int(seed),
+    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=seed,
                          workers=workers)
     config.out_dir.mkdir(parents=True, exist_ok=True)
     ctx = StudyContext(config, name, progress=False)
