@@ -952,3 +952,21 @@ def test_backend_warp_without_the_extra_is_one_line_and_exit_2(tmp_path):
         assert len(lines) == 1 and "--backend" in lines[0] and "undulate[gpu]" in lines[0], r.stderr
         assert "Traceback" not in r.stderr
     assert not out.exists() and not (tmp_path / "r").exists()
+
+
+def test_warp_on_a_machine_without_cuda_says_one_line(tmp_path):
+    """Warp's C library writes a line on stderr when it finds no CUDA driver; a run on the CPU device does
+    not show it, and ``--device cuda`` there is one line naming ``--device`` (exit 2, no file)."""
+    r = subprocess.run([sys.executable, "-c", "from undulate.simulation import _warp\n"
+                        "import sys; print(_warp.resolve_device('cpu')); print('other', file=sys.stderr)"],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0 and r.stdout.strip() == "cpu", r.stderr
+    assert r.stderr.strip() == "other"  # Warp's own line gone, the process's own stderr intact
+    if warp.is_cuda_available():
+        return
+    out = tmp_path / "run.nc"
+    r = subprocess.run([sys.executable, "-m", "undulate.cli", "simulate", "--duration", "0.1", "--backend", "warp",
+                        "--device", "cuda", "--out", str(out)], capture_output=True, text=True, timeout=120)
+    lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
+    assert r.returncode == 2 and len(lines) == 1 and "--device" in lines[0] and "no CUDA device" in lines[0], r.stderr
+    assert not out.exists()

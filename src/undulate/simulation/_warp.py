@@ -37,6 +37,7 @@ import functools
 import itertools
 import json
 import os
+import sys
 import threading
 import time
 from collections.abc import Sequence
@@ -105,11 +106,40 @@ def versions() -> str:
     return f"mujoco-warp {package_version('mujoco-warp', '?')}, warp-lang {package_version('warp-lang', '?')}"
 
 
+_NO_DRIVER = b"Warp CUDA warning: Could not find or load the NVIDIA CUDA driver."
+
+
+def _init(wp) -> None:
+    """``wp.init()`` without the line Warp's C library writes on stderr on a machine with no CUDA driver
+    (every Warp run on the CPU device would print it; a ``cuda`` request there is refused by
+    :func:`resolve_device` naming the device instead).  Everything else it writes is passed on."""
+    if getattr(_init, "done", False):  # once a process (wp.init() does nothing after its first call)
+        return
+    import tempfile
+
+    sys.stderr.flush()
+    with tempfile.TemporaryFile() as caught:
+        saved = os.dup(2)
+        try:
+            os.dup2(caught.fileno(), 2)
+            try:
+                wp.init()
+            finally:
+                os.dup2(saved, 2)
+        finally:
+            os.close(saved)
+        caught.seek(0)
+        kept = b"".join(line for line in caught.read().splitlines(keepends=True) if not line.startswith(_NO_DRIVER))
+    if kept:
+        os.write(2, kept)
+    _init.done = True
+
+
 def resolve_device(device: str | None) -> str:
     """``device`` checked against what this machine has (None: ``cuda`` if present, else ``cpu``)."""
     wp, _ = require()
     with _LOCK:
-        wp.init()
+        _init(wp)
     if device is None:
         return "cuda" if wp.is_cuda_available() else "cpu"
     if device not in DEVICES:
