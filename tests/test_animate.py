@@ -47,6 +47,13 @@ def test_cli_animate_from_a_simulate_file(tmp_path):
     assert count_frames(gif) == 11
     r = subprocess.run([*cli, "animate", str(tmp_path / "missing.nc"), "-o", str(gif)], capture_output=True, text=True)
     assert r.returncode == 2 and r.stderr.count("\n") == 1
+    import xarray as xr
+
+    other = tmp_path / "other.nc"
+    xr.Dataset({"dx": ("time", [0.0, 1.0])}).to_netcdf(other, engine="h5netcdf")
+    r = subprocess.run([*cli, "animate", str(other), "-o", str(tmp_path / "b.gif")], capture_output=True, text=True)
+    assert r.returncode == 2 and r.stderr.startswith("error: invalid RUN: must be an `undulate simulate` output")
+    assert r.stderr.count("\n") == 1 and not (tmp_path / "b.gif").exists()
 
 
 def test_blitted_frames_are_pixel_identical_to_full_draws():

@@ -277,7 +277,7 @@ def animate(
 
         n = draw(ds, out, stride=stride, fps=fps)
     except ParameterError as e:
-        _fail(str(e), 2)
+        _fail(str(_cli_name(e, {"run file": "RUN", "output file": "--out"})), 2)
     typer.echo(f"wrote {out} ({n} frames)")
 
 
