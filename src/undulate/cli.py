@@ -307,6 +307,35 @@ def _check_config(workers: int | None, scheduler: str | None, seed: int) -> None
         raise _cli_name(e, {"workers": "--workers", "seed": "--seed"}) from None
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM or SIGHUP (a scheduler's cancel, ``kill``, a closed terminal) during ``study`` or
+    ``reproduce``: unwound as Ctrl-C is, so the sweeps in flight stop, the worker processes are stopped,
+    finished runs stay saved for a rerun to resume, and the command exits ``128 + signal``."""
+
+    def __init__(self, signum: int):
+        import signal
+
+        self.signum = int(signum)
+        super().__init__(signal.Signals(signum).name)
+
+
+_TERMINATED: list[int] = []  # the signals that ended the command (typer turns the exception into Exit(130))
+
+
+def _stop_on_termination() -> None:
+    """SIGTERM and SIGHUP raise :class:`_Terminated` in the main thread from here on (where they would
+    end the process: a signal ignored, as ``nohup`` ignores SIGHUP, stays ignored)."""
+    import signal
+
+    def handler(signum, _frame):
+        _TERMINATED.append(int(signum))
+        raise _Terminated(signum)
+
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) is signal.SIG_DFL:  # one ignored (nohup) stays ignored
+            signal.signal(sig, handler)
+
+
 @app.command()
 def study(
     name: str = typer.Argument(..., help="Study name (see `undulate studies`)."),
@@ -327,6 +356,7 @@ def study(
         out_path = Path(out)
         if out_path.exists() and not out_path.is_dir():
             raise ParameterError("--out", "a directory", str(out))
+        _stop_on_termination()
         path = studies.run_study(name, out_path, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
     except ParameterError as e:
         _fail(str(_cli_name(e, {"out_dir": "--out"})), 2)  # another process writing to it
@@ -371,6 +401,7 @@ def reproduce(
                     raise ParameterError("--only", "study names from: " + ", ".join(registry.names()), n)
     except ParameterError as e:
         _fail(str(e), 2)
+    _stop_on_termination()
     try:
         path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
                                  log=lambda m: typer.echo(m), workers=workers, beyond_paper=beyond_paper,
@@ -398,7 +429,11 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, turning click's usage errors into one line + exit 2."""
     try:
         rv = app(args=argv, standalone_mode=False)
+    except _Terminated as e:
+        return _terminated(e.signum)
     except typer.Exit as e:
+        if _TERMINATED:
+            return _terminated(_TERMINATED[0])
         return e.exit_code
     except (typer.Abort, KeyboardInterrupt):
         typer.echo("aborted", err=True)
@@ -410,7 +445,17 @@ def main(argv: list[str] | None = None) -> int:
         else:
             typer.echo(f"error: {msg.splitlines()[0] if msg else e}", err=True)
         return getattr(e, "exit_code", 2)
+    if _TERMINATED:  # standalone_mode=False: click returns the Exit(130) it was given
+        return _terminated(_TERMINATED[0])
     return rv if isinstance(rv, int) else 0
+
+
+def _terminated(signum: int) -> int:
+    import signal
+
+    typer.echo(f"terminated ({signal.Signals(signum).name}); finished runs are saved: the same command resumes",
+               err=True)
+    return 128 + signum
 
 
 def _console() -> None:  # pragma: no cover - console script

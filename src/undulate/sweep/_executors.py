@@ -96,7 +96,8 @@ class _Health:
 
 
 def _new_pool(ctx, workers: int) -> ProcessPoolExecutor:
-    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_local_worker)
+    return ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_local_worker,
+                               initargs=(os.getpid(),))
 
 
 # ---- one warm pool for a series of sweeps --------------------------------

@@ -7,7 +7,9 @@ its imports light and holds no state.
 from __future__ import annotations
 
 import contextvars
+import os
 import signal
+import threading
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
@@ -67,9 +69,34 @@ STEP_PROGRESS: contextvars.ContextVar[Callable[[float, float, int], None] | None
 :meth:`undulate.sweep._progress.Progress.stepping`); set by the sweep for the chunks it runs itself."""
 
 
-def init_local_worker() -> None:
-    """Initializer of local pool processes: Ctrl-C is the parent's to handle."""
+PARENT_POLL_S = 0.5
+"""How often a local pool process checks that the process that started it is still there."""
+
+
+def init_local_worker(parent_pid: int | None = None) -> None:
+    """Initializer of local pool processes: Ctrl-C is the parent's to handle, and the process ends
+    once ``parent_pid`` (the process whose pool it is) is gone.
+
+    Without the second, a parent that died without stopping its pool (SIGTERM to it alone, SIGKILL,
+    the out-of-memory killer) left its workers behind for good: they went on with the chunks they had,
+    writing runs into a store no one then held, and then waited forever on a queue whose other end
+    they themselves keep open (measured: two processes of a terminated reproduction still there
+    minutes later).  A daemon thread compares ``os.getppid()`` with ``parent_pid`` every
+    :data:`PARENT_POLL_S` and ends the process with ``os._exit`` (a run half-written by then is a
+    temporary file the store clears when next opened; a finished run is already in place)."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if parent_pid is None:
+        return
+    if os.getppid() != parent_pid:  # gone before this process even started
+        os._exit(1)
+
+    def watch() -> None:
+        while True:
+            time.sleep(PARENT_POLL_S)
+            if os.getppid() != parent_pid:
+                os._exit(1)
+
+    threading.Thread(target=watch, name="undulate-parent-watch", daemon=True).start()
 
 
 def _timing(wall: float, physics: _physics.Tally, share: int = 1) -> dict:

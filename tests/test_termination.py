@@ -1,0 +1,131 @@
+"""A study or reproduction ended by a signal leaves no process behind (``undulate.sweep._worker.
+init_local_worker``, ``undulate.cli._stop_on_termination``): real processes, real signals.
+
+Found by terminating a reproduction with ``kill PID`` (SIGTERM to it alone, as a script or a scheduler
+may): its two pool processes went on for minutes, writing runs into the folder, then waited forever."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+
+pytestmark = pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads process states from /proc")
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, exited but not yet reaped by whoever adopted it, does not)."""
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (FileNotFoundError, ProcessLookupError, IndexError):
+        return False
+    return state not in ("Z", "X")
+
+
+def _session(pid: int) -> list[int]:
+    """Every running process of the session led by ``pid`` (the command and its workers)."""
+    out = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except (FileNotFoundError, ProcessLookupError):
+            continue
+        if int(fields[3]) == pid and fields[0] not in ("Z", "X"):  # fields[3]: the session id
+            out.append(int(stat.parent.name))
+    return out
+
+
+def _gone_within(pids, seconds: float) -> list[int]:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        left = [p for p in pids if _alive(p)]
+        if not left:
+            return []
+        time.sleep(0.1)
+    return [p for p in pids if _alive(p)]
+
+
+_PARENT = """
+import multiprocessing, sys, time
+from undulate.sweep import _executors
+if __name__ == "__main__":
+    pool = _executors._new_pool(multiprocessing.get_context("spawn"), 2)
+    futures = [pool.submit(time.sleep, 120) for _ in range(2)]
+    while len(pool._processes) < 2 or not all(p.is_alive() for p in pool._processes.values()):
+        time.sleep(0.05)
+    time.sleep(1.0)  # both busy in their task
+    print(" ".join(str(p) for p in pool._processes), flush=True)
+    time.sleep(300)
+"""
+
+
+def test_pool_processes_end_when_their_parent_is_killed():
+    """SIGKILL to the parent alone (no handler can run): its busy workers end within a few polls."""
+    proc = subprocess.Popen([sys.executable, "-c", textwrap.dedent(_PARENT)], stdout=subprocess.PIPE, text=True,
+                            start_new_session=True)
+    try:
+        workers = [int(p) for p in proc.stdout.readline().split()]
+        assert len(workers) == 2 and all(_alive(p) for p in workers)
+        os.kill(proc.pid, signal.SIGKILL)
+        proc.wait(10)
+        assert _gone_within(workers, 10) == []
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def test_sigterm_stops_a_study_and_its_workers_and_sighup_ignored_stays_ignored(tmp_path):
+    """``kill PID`` mid-sweep: the command exits 143 within seconds saying what happened, the sweep says
+    how to resume, finished runs are saved whole, and no process of it is left.  A SIGHUP it was started
+    ignoring (``nohup``) does not end it."""
+    out = tmp_path / "s"
+    cmd = [sys.executable, "-m", "undulate.cli", "study", "pairs", "--quick", "--workers", "2", "--out", str(out)]
+
+    def start():  # SIGHUP ignored, as under nohup; SIGTERM as a plain process has it
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                            preexec_fn=start)
+    try:
+        lines, deadline = [], time.monotonic() + 180
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            lines.append(line)
+            if "sim-quick-seed0" in line and "to compute on 2 local processes" in line:
+                break
+        assert proc.poll() is None, "".join(lines)
+        store = out / ".sweeps" / "pairs" / "sim-quick-seed0" / "runs"
+        while time.monotonic() < deadline and not list(store.glob("*.nc")):  # the workers busy in the sweep
+            time.sleep(0.05)
+        workers = [p for p in _session(proc.pid) if p != proc.pid]
+        assert workers, "".join(lines)
+        os.kill(proc.pid, signal.SIGHUP)
+        time.sleep(0.5)
+        assert proc.poll() is None  # ignored
+        t0 = time.monotonic()
+        os.kill(proc.pid, signal.SIGTERM)  # to the command alone, not its process group
+        rest, _ = proc.communicate(timeout=60)
+        assert proc.returncode == 143, "".join(lines) + rest
+        assert time.monotonic() - t0 < 30
+        assert "sweep interrupted" in rest and "run the same sweep again to resume" in rest
+        assert rest.rstrip().splitlines()[-1] == ("terminated (SIGTERM); finished runs are saved: "
+                                                  "the same command resumes")
+        assert _gone_within(workers, 10) == []
+        assert _session(proc.pid) == []
+        assert list(store.glob("*.nc")), "finished runs are kept"
+        assert not list(out.rglob(".*.tmp*"))
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
