@@ -129,3 +129,27 @@ def test_sigterm_stops_a_study_and_its_workers_and_sighup_ignored_stays_ignored(
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
+def test_a_terminated_simulate_leaves_no_file(tmp_path, sig):
+    """``undulate simulate`` ended by SIGTERM or SIGHUP mid-run: exit 128 + signal, and neither the output
+    nor its temporary file is left."""
+    out = tmp_path / "run.nc"
+    proc = subprocess.Popen([sys.executable, "-m", "undulate.cli", "simulate", "--duration", "3000", "-q",
+                             "--out", str(out)], stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None and not list(tmp_path.glob(".*.tmp*")):
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.stderr.read()
+        os.kill(proc.pid, sig)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 128 + sig, err
+        assert "Traceback" not in err
+        assert list(tmp_path.iterdir()) == []
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass

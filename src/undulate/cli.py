@@ -90,8 +90,11 @@ def simulate(
         _fail(str(e), 2)
     import signal
 
-    # a terminated run unwinds like Ctrl-C, so its half-written temporary file is removed
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
+    # a terminated run (or one whose terminal closed) unwinds like Ctrl-C, so its half-written temporary
+    # file is removed; a signal ignored (nohup's SIGHUP) stays ignored
+    for sig in (signal.SIGTERM, signal.SIGHUP):
+        if signal.getsignal(sig) is signal.SIG_DFL:
+            signal.signal(sig, lambda signum, _frame: sys.exit(128 + signum))
     if estimate:
         _print_estimate(scene, options, out)
         return
