@@ -194,6 +194,26 @@ def test_a_rank_correlation_has_an_interval_only_where_a_ranking_could_decide(n,
         assert (e.low, e.high) == pytest.approx((-1.0, -1.0)) and check.state is True
     else:
         assert check.state is None and "no interval" in check.text and "too few orderings" in e.method
+    assert (n >= stats.rank_correlation_points(level)) is has_interval
+
+
+def test_the_potential_claim_says_why_a_rank_correlation_has_no_interval():
+    """Quick mode's 3 channel widths: the text gives each rho without the bootstrap's spread (-1.00 +- 0.00
+    read as a certain result) and says from how many widths an interval exists."""
+    from undulate import stats
+    from undulate.studies import potential
+
+    d = np.array([0.6, 0.9, 1.2])
+    with stats.at_level(0.96):
+        rho = {"30": stats.rank_correlation(d, [3.0, 1.0, 2.0]), "45": stats.rank_correlation(d, -d)}
+    v = potential._k_falls({"per_beta": {b: {"spearman_k_vs_d": r.to_dict()} for b, r in rho.items()}})
+    assert v.verdict == "undecided"
+    assert "30 deg: -0.50 (no interval on 3 widths), 45 deg: -1.00 (no interval on 3 widths)" in v.measured
+    assert "±" not in v.measured and "an interval from 5 widths at this level" in v.measured
+    with stats.at_level(0.96):
+        five = stats.rank_correlation(np.arange(5.0), -np.arange(5.0))
+    v = potential._k_falls({"per_beta": {"45": {"spearman_k_vs_d": five.to_dict()}}})
+    assert v.verdict == "holds" and "no interval" not in v.measured and "[-1.00, -1.00]" in v.measured
 
 
 def test_ties_in_x_count_as_fewer_orderings():

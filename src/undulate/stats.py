@@ -652,6 +652,16 @@ def _clustered_r2(x: np.ndarray, y: np.ndarray, labels: np.ndarray, seed: int | 
     return Estimate(r2v, se, lo, hi, n, "bootstrap BCa over mirror pairs", level(), k, k - 1)
 
 
+def rank_correlation_points(level_: float | None = None) -> int:
+    """The fewest points (without ties) for which :func:`rank_correlation` gives an interval at ``level_``
+    (None: the current :func:`level`): the smallest ``n`` with ``n! (1 - level) >= 2``; 5 up to 98.3 %."""
+    lv = level() if level_ is None else float(level_)
+    n = 3
+    while math.factorial(n) * (1.0 - lv) < 2.0:
+        n += 1
+    return n
+
+
 def rank_correlation(x, y, *, seed: int | None = None) -> Estimate:
     """Spearman's rho of ``y`` against ``x`` (ties get average ranks), with a paired percentile
     bootstrap 95 % interval; NaNs dropped; NaN with fewer than 3 points.

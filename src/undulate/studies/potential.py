@@ -547,8 +547,15 @@ def _harmonic(s: dict) -> Verdict:
 def _k_falls(s: dict) -> Verdict:
     rho = {b: E(v["spearman_k_vs_d"]) for b, v in s["per_beta"].items()}
     note = stats.interval_note(next(iter(rho.values())).level if rho else None)
+    def shown(r: stats.Estimate) -> str:  # a bootstrap spread without an interval reads as a precision it lacks
+        return f"{r:+.2f}" if r.has_interval or not r.finite else f"{r.value:+.2f} (no interval on {r.n} widths)"
+
     measured = f"Spearman rank correlation of k with d per beta ({note}): " + ", ".join(
-        f"{b} deg: {r:+.2f}" for b, r in rho.items())
+        f"{b} deg: {shown(r)}" for b, r in rho.items())
+    bare = [r for r in rho.values() if r.finite and not r.has_interval]
+    if bare:
+        measured += (f"; a rank correlation has an interval from {stats.rank_correlation_points(bare[0].level)} "
+                     f"widths at this level (with fewer, too few orderings exist for any data to exclude rho = 0)")
     value = {b: r.to_dict() for b, r in rho.items()}
     if not rho or any(not r.finite for r in rho.values()):
         return Verdict.none("fewer than 3 stiffnesses for some beta", measured, value)
