@@ -88,3 +88,20 @@ def test_write_netcdf_round_trip(tmp_path):
     ds = xr.Dataset({"v": ("t", np.arange(4.0), {"units": "m"})})
     p = write_netcdf(ds, tmp_path / "d.nc")
     assert xr.load_dataset(p, engine="h5netcdf")["v"].attrs["units"] == "m"
+
+
+def test_estimates_without_an_interval_are_equal_on_every_python():
+    """NaN marks what a method does not give; two such estimates are equal and hash alike (Python 3.13's
+    dataclass equality compares fields with ==, and nan != nan: an estimate differed from its own copy)."""
+    import copy
+    import math
+    import pickle
+
+    a = stats.Estimate(0.5, float("nan"), float("nan"), float("nan"), 3, "spearmanr")
+    b = stats.Estimate(0.5, math.nan, math.nan, math.nan, 3, "spearmanr")
+    assert a == b and hash(a) == hash(b) and a == copy.deepcopy(a) and a == pickle.loads(pickle.dumps(a))
+    assert a == stats.Estimate.from_dict(a.to_dict())
+    assert a != stats.Estimate(0.5, 0.1, math.nan, math.nan, 3, "spearmanr") and a != (0.5,)
+    assert stats.Estimate(math.nan) == stats.NAN and len({a, b, stats.NAN}) == 2
+    fit = stats.line_fit([0.0, 1.0, 2.0], [0.0, 1.0, 2.5])
+    assert fit == copy.deepcopy(fit)  # a LineFit compares its estimates

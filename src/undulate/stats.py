@@ -154,6 +154,22 @@ class Estimate:
     units: int = 0
     dof: float = math.nan
 
+    def _key(self) -> tuple:
+        """The fields, a NaN as None: NaN marks what a method does not give (no interval, no spread)."""
+        return tuple(None if isinstance(v, float) and math.isnan(v) else v
+                     for v in (self.value, self.stderr, self.low, self.high, self.n, self.method, self.level,
+                               self.units, self.dof))
+
+    def __eq__(self, other: object) -> bool:
+        """Equal fields, two NaNs equal: Python 3.13's dataclass equality compares field by field with
+        ``==``, where ``nan != nan`` made every estimate without an interval unequal to itself."""
+        if other.__class__ is not self.__class__:
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self) -> int:
+        return hash(self._key())
+
     @property
     def finite(self) -> bool:
         return math.isfinite(self.value)
