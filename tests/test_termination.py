@@ -153,3 +153,38 @@ def test_a_terminated_simulate_leaves_no_file(tmp_path, sig):
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+_IN_A_FINALIZER = """
+import os, signal, sys, time
+from undulate._cliutil import unwind_on_signals
+
+class Stop(SystemExit):
+    def __init__(self, signum):
+        self.signum = signum
+        super().__init__(100 + signum)
+
+unwind_on_signals((signal.SIGTERM,), Stop)
+
+class Finalized:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGTERM)
+        for _ in range(200000):
+            pass  # the handler runs here, inside the finalizer, where Python drops what it raises
+
+x = Finalized()
+del x
+for _ in range(200):
+    time.sleep(0.01)
+print("went on")
+"""
+
+
+def test_a_signal_that_lands_in_a_finalizer_still_ends_the_command():
+    """Python drops an exception raised in a finalizer ("Exception ignored"): a SIGTERM handled there
+    was lost, and a terminated ``simulate`` ran on to exit 0 (seen on Python 3.13).  The signal is
+    delivered again once the finalizer has returned."""
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(_IN_A_FINALIZER)], capture_output=True, text=True,
+                       timeout=60)
+    assert r.returncode == 100 + signal.SIGTERM and "went on" not in r.stdout, (r.stdout, r.stderr)
+    assert "Exception ignored" not in r.stderr

@@ -8,7 +8,8 @@ from pathlib import Path
 
 from .errors import ParameterError
 
-__all__ = ["check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name"]
+__all__ = ["check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name",
+           "unwind_on_signals"]
 
 
 def _fail(msg: str, code: int) -> None:
@@ -73,3 +74,42 @@ def check_writable(name: str, path: Path) -> Path:
     if not os.access(parent, os.W_OK):
         raise ParameterError(name, "a path in a writable directory", str(path))
     return path
+
+
+def unwind_on_signals(signals, exception) -> None:
+    """From here on each of ``signals`` raises ``exception(signum)`` in the main thread, so the command
+    unwinds as on Ctrl-C (temporary files removed, sweeps and worker processes stopped).  A signal this
+    process was started ignoring (``nohup``'s SIGHUP) stays ignored.
+
+    Python runs a signal handler at the next bytecode of the main thread, which may be inside a
+    finalizer or a weakref callback: an exception raised there is printed as "Exception ignored" and
+    dropped, and the command went on as if never signalled (seen on Python 3.13: a terminated
+    ``simulate`` ran to its end and exited 0).  So an exception of ``exception`` that reaches
+    :data:`sys.unraisablehook` delivers the signal again (``_thread.interrupt_main``, from a thread 10 ms
+    later: called in the hook, the handler would raise inside the finalizer again)."""
+    import _thread
+    import signal
+    import sys
+    import threading
+
+    def handler(signum, _frame):
+        raise exception(signum)
+
+    for sig in signals:
+        if signal.getsignal(sig) is signal.SIG_DFL:
+            signal.signal(sig, handler)
+    previous = sys.unraisablehook
+    if getattr(previous, "undulate_redelivers", None) is exception:
+        return
+
+    def hook(unraisable):
+        e = unraisable.exc_value
+        if isinstance(e, exception):  # again from another thread, once this finalizer has returned
+            again = threading.Timer(0.01, _thread.interrupt_main, args=(e.signum,))
+            again.daemon = True
+            again.start()
+            return
+        previous(unraisable)
+
+    hook.undulate_redelivers = exception
+    sys.unraisablehook = hook

@@ -15,7 +15,7 @@ from typing import Optional
 
 import typer
 
-from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, load_netcdf, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
+from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, load_netcdf, unwind_on_signals, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
 from ._source import SourceChangedError
 from .errors import DivergenceError, ParameterError, UndulateError
 from .params import Channel as _Channel
@@ -92,9 +92,7 @@ def simulate(
 
     # a terminated run (or one whose terminal closed) unwinds like Ctrl-C, so its half-written temporary
     # file is removed; a signal ignored (nohup's SIGHUP) stays ignored
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        if signal.getsignal(sig) is signal.SIG_DFL:
-            signal.signal(sig, lambda signum, _frame: sys.exit(128 + signum))
+    unwind_on_signals((signal.SIGTERM, signal.SIGHUP), _SignalExit)
     if estimate:
         _print_estimate(scene, options, out)
         return
@@ -310,6 +308,14 @@ def _check_config(workers: int | None, scheduler: str | None, seed: int) -> None
         raise _cli_name(e, {"workers": "--workers", "seed": "--seed"}) from None
 
 
+class _SignalExit(SystemExit):
+    """SIGTERM or SIGHUP during ``simulate``: exit ``128 + signal`` through the ``finally`` blocks."""
+
+    def __init__(self, signum: int):
+        self.signum = int(signum)
+        super().__init__(128 + self.signum)
+
+
 class _Terminated(KeyboardInterrupt):
     """SIGTERM or SIGHUP (a scheduler's cancel, ``kill``, a closed terminal) during ``study`` or
     ``reproduce``: unwound as Ctrl-C is, so the sweeps in flight stop, the worker processes are stopped,
@@ -319,6 +325,7 @@ class _Terminated(KeyboardInterrupt):
         import signal
 
         self.signum = int(signum)
+        _TERMINATED.append(self.signum)
         super().__init__(signal.Signals(signum).name)
 
 
@@ -330,13 +337,7 @@ def _stop_on_termination() -> None:
     end the process: a signal ignored, as ``nohup`` ignores SIGHUP, stays ignored)."""
     import signal
 
-    def handler(signum, _frame):
-        _TERMINATED.append(int(signum))
-        raise _Terminated(signum)
-
-    for sig in (signal.SIGTERM, signal.SIGHUP):
-        if signal.getsignal(sig) is signal.SIG_DFL:  # one ignored (nohup) stays ignored
-            signal.signal(sig, handler)
+    unwind_on_signals((signal.SIGTERM, signal.SIGHUP), _Terminated)
 
 
 @app.command()
