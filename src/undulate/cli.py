@@ -433,15 +433,12 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, turning click's usage errors into one line + exit 2."""
     try:
         rv = app(args=argv, standalone_mode=False)
-    except _Terminated as e:
-        return _terminated(e.signum)
     except typer.Exit as e:
-        if _TERMINATED:
-            return _terminated(_TERMINATED[0])
-        return e.exit_code
+        rv = e.exit_code
     except (typer.Abort, KeyboardInterrupt):
-        typer.echo("aborted", err=True)
-        return 130
+        rv = 130
+        if not _TERMINATED:
+            typer.echo("aborted", err=True)
     except typer.TyperException as e:  # click usage errors: unparsable values, unknown options
         msg = e.format_message() if hasattr(e, "format_message") else str(e)
         if type(e).__name__ == "NoArgsIsHelpError":
@@ -449,17 +446,14 @@ def main(argv: list[str] | None = None) -> int:
         else:
             typer.echo(f"error: {msg.splitlines()[0] if msg else e}", err=True)
         return getattr(e, "exit_code", 2)
-    if _TERMINATED:  # standalone_mode=False: click returns the Exit(130) it was given
-        return _terminated(_TERMINATED[0])
+    if _TERMINATED:  # a _Terminated however typer passed it on: raised, as Exit(130), or returned as 130
+        import signal
+
+        signum = _TERMINATED[0]
+        typer.echo(f"terminated ({signal.Signals(signum).name}); finished runs are saved: the same command resumes",
+                   err=True)
+        return 128 + signum
     return rv if isinstance(rv, int) else 0
-
-
-def _terminated(signum: int) -> int:
-    import signal
-
-    typer.echo(f"terminated ({signal.Signals(signum).name}); finished runs are saved: the same command resumes",
-               err=True)
-    return 128 + signum
 
 
 def _console() -> None:  # pragma: no cover - console script

@@ -668,12 +668,18 @@ def _clustered_r2(x: np.ndarray, y: np.ndarray, labels: np.ndarray, seed: int | 
     return Estimate(r2v, se, lo, hi, n, "bootstrap BCa over mirror pairs", level(), k, k - 1)
 
 
+def _orderings_suffice(orderings: float, level_: float) -> bool:
+    """Whether a rank statistic with ``orderings`` distinct orderings of its data can exclude no trend at
+    ``level_``: the most extreme ordering comes by chance once in that many, so at least ``2 / (1 - level)``."""
+    return orderings * (1.0 - level_) >= 2.0
+
+
 def rank_correlation_points(level_: float | None = None) -> int:
     """The fewest points (without ties) for which :func:`rank_correlation` gives an interval at ``level_``
     (None: the current :func:`level`): the smallest ``n`` with ``n! (1 - level) >= 2``; 5 up to 98.3 %."""
     lv = level() if level_ is None else float(level_)
     n = 3
-    while math.factorial(n) * (1.0 - lv) < 2.0:
+    while not _orderings_suffice(math.factorial(n), lv):
         n += 1
     return n
 
@@ -704,7 +710,7 @@ def rank_correlation(x, y, *, seed: int | None = None) -> Estimate:
     se, lo, hi = bootstrap(rho_rows, x, y, seed=seed, vectorized=True, method="percentile")
     rho = float(st.spearmanr(x, y).statistic)
     ties = [math.factorial(int(c)) for v in (x, y) for c in np.unique(v, return_counts=True)[1]]
-    if math.factorial(n) / math.prod(ties) * (1.0 - level()) < 2.0:
+    if not _orderings_suffice(math.factorial(n) / math.prod(ties), level()):
         return Estimate(rho, se, n=n, method="spearmanr; too few orderings for an interval at this level",
                         level=level())
     return Estimate(rho, se, lo, hi, n, "spearmanr, bootstrap percentile", level(), n, n - 1)

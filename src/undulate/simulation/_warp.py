@@ -109,12 +109,11 @@ def versions() -> str:
 _NO_DRIVER = b"Warp CUDA warning: Could not find or load the NVIDIA CUDA driver."
 
 
+@functools.lru_cache(maxsize=1)  # once a process (wp.init() does nothing after its first call)
 def _init(wp) -> None:
     """``wp.init()`` without the line Warp's C library writes on stderr on a machine with no CUDA driver
     (every Warp run on the CPU device would print it; a ``cuda`` request there is refused by
     :func:`resolve_device` naming the device instead).  Everything else it writes is passed on."""
-    if getattr(_init, "done", False):  # once a process (wp.init() does nothing after its first call)
-        return
     import tempfile
 
     sys.stderr.flush()
@@ -132,7 +131,6 @@ def _init(wp) -> None:
         kept = b"".join(line for line in caught.read().splitlines(keepends=True) if not line.startswith(_NO_DRIVER))
     if kept:
         os.write(2, kept)
-    _init.done = True
 
 
 def resolve_device(device: str | None) -> str:
