@@ -202,3 +202,36 @@ def test_a_signal_that_lands_in_a_finalizer_still_ends_the_command():
                        timeout=60)
     assert r.returncode == 100 + signal.SIGTERM and "went on" not in r.stdout, (r.stdout, r.stderr)
     assert "Exception ignored" not in r.stderr
+
+
+def test_a_terminated_animation_stops_ffmpeg_and_leaves_no_file(tmp_path):
+    """``undulate animate`` ended by SIGTERM while ffmpeg writes the mp4: exit 143, the half-written
+    temporary removed, and ffmpeg ended (before: killed outright, the temporary left for good)."""
+    from undulate import Scene, SimOptions, simulate
+
+    run = tmp_path / "run.nc"
+    simulate(Scene(phases_rad=(0.0, 1.0)), SimOptions(duration_s=60.0), out=run)
+    film = tmp_path / "film"
+    film.mkdir()
+
+    def start():
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+    proc = subprocess.Popen([sys.executable, "-m", "undulate.cli", "animate", str(run), "-o", str(film / "run.mp4")],
+                            stderr=subprocess.PIPE, text=True, start_new_session=True, preexec_fn=start)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None and not list(film.glob(".*.tmp*")):
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.stderr.read()
+        helpers = [p for p in _session(proc.pid) if p != proc.pid]  # ffmpeg
+        os.kill(proc.pid, signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 143 and "Traceback" not in err, err
+        assert list(film.iterdir()) == []
+        assert helpers and _gone_within(helpers, 10) == []
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 import time
@@ -305,3 +306,55 @@ def test_1080p_tracking_accuracy(tmp_path, n, case):
     assert err["rms_m"] <= 0.002 and err["heading_rms_rad"] <= math.radians(2.0)
     assert err["swaps"] == 0 and err["tracked"] >= 0.98
     assert dsteady.max() <= 0.01
+
+
+def _terminated(args: list[str], ready) -> tuple[int, str]:
+    """Run ``undulate ARGS`` in a fresh process, SIGTERM it once ``ready(proc)`` says it is at work, and
+    return its exit code and stderr."""
+    import signal
+
+    def start():  # SIGTERM as a plain process has it, whatever this test process inherited
+        signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+    proc = subprocess.Popen([sys.executable, "-m", "undulate.cli", *args], stderr=subprocess.PIPE, text=True,
+                            start_new_session=True, preexec_fn=start)
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None and not ready(proc):
+            time.sleep(0.02)
+        assert proc.poll() is None, "ended before it was signalled: " + proc.stderr.read()
+        os.kill(proc.pid, signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        return proc.returncode, err
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def _has_open(proc, path: Path) -> bool:
+    try:
+        return any(os.readlink(fd) == str(path) for fd in Path(f"/proc/{proc.pid}/fd").iterdir())
+    except (FileNotFoundError, ProcessLookupError, PermissionError):
+        return False
+
+
+
+@pytest.mark.skipif(not Path("/proc").is_dir(), reason="reads a process's open files from /proc")
+def test_a_terminated_track_or_compare_exits_143_and_leaves_no_temporary(pair, tmp_path):
+    """``kill PID`` while tracking (the video open) or while comparing (simulating): the command unwinds as
+    on Ctrl-C, exits 128 + SIGTERM, and leaves neither its output nor a temporary file (before: killed
+    outright, exit -15, a half-written temporary possible)."""
+    d = pair["dir"]
+    video, out = d / "pair.mp4", tmp_path / "exp.nc"
+    rc, err = _terminated(["track", str(video), "--robots", "2", "--out", str(out), "--calibration",
+                           str(d / "cal.toml"), "--quiet"], lambda p: _has_open(p, video))
+    assert rc == 143 and "Traceback" not in err, err
+    assert list(tmp_path.iterdir()) == []
+    cmp = tmp_path / "cmp"
+    lines: list[str] = []
+    rc, err = _terminated(["compare", str(d / "exp.nc"), "--out", str(cmp)],
+                          lambda p: lines.append(p.stderr.readline()) or "simulating" in lines[-1])
+    assert rc == 143 and "Traceback" not in err, "".join(lines) + err
+    assert not list(tmp_path.rglob(".*")) and not list(tmp_path.rglob("*.nc"))

@@ -9,7 +9,7 @@ from pathlib import Path
 from .errors import ParameterError
 
 __all__ = ["check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name",
-           "unwind_on_signals"]
+           "unwind_on_signals", "SignalExit", "exit_on_termination"]
 
 
 def _fail(msg: str, code: int) -> None:
@@ -113,3 +113,22 @@ def unwind_on_signals(signals, exception) -> None:
 
     hook.undulate_redelivers = exception
     sys.unraisablehook = hook
+
+
+class SignalExit(SystemExit):
+    """SIGTERM or SIGHUP during a command that writes files (``simulate``, ``animate``, ``track``,
+    ``compare``): exit ``128 + signal`` through the ``finally`` blocks, so no temporary file is left."""
+
+    def __init__(self, signum: int):
+        self.signum = int(signum)
+        super().__init__(128 + self.signum)
+
+
+def exit_on_termination() -> None:
+    """From here on SIGTERM and SIGHUP (``kill``, a scheduler's cancel, a closed terminal) raise
+    :class:`SignalExit`, as Ctrl-C raises KeyboardInterrupt: the command unwinds, removing its
+    half-written temporary files and stopping its helper processes (ffmpeg).  A signal the command
+    was started ignoring (``nohup``'s SIGHUP) stays ignored."""
+    import signal
+
+    unwind_on_signals((signal.SIGTERM, signal.SIGHUP), SignalExit)

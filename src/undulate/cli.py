@@ -15,7 +15,7 @@ from typing import Optional
 
 import typer
 
-from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, load_netcdf, unwind_on_signals, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
+from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, exit_on_termination, load_netcdf, unwind_on_signals, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
 from ._source import SourceChangedError
 from .errors import DivergenceError, ParameterError, UndulateError
 from .params import Channel as _Channel
@@ -88,11 +88,7 @@ def simulate(
             raise ParameterError("--out", "a path ending in .nc (netCDF)", str(out))
     except ParameterError as e:
         _fail(str(e), 2)
-    import signal
-
-    # a terminated run (or one whose terminal closed) unwinds like Ctrl-C, so its half-written temporary
-    # file is removed; a signal ignored (nohup's SIGHUP) stays ignored
-    unwind_on_signals((signal.SIGTERM, signal.SIGHUP), _SignalExit)
+    exit_on_termination()  # a terminated run unwinds like Ctrl-C: its half-written temporary file is removed
     if estimate:
         _print_estimate(scene, options, out)
         return
@@ -276,6 +272,7 @@ def animate(
         ds = load_netcdf(run, "RUN")
         from .animate import animate as draw
 
+        exit_on_termination()  # a terminated animation unwinds: ffmpeg stopped, no temporary file left
         n = draw(ds, out, stride=stride, fps=fps)
     except ParameterError as e:
         _fail(str(_cli_name(e, {"run file": "RUN", "output file": "--out"})), 2)
@@ -306,14 +303,6 @@ def _check_config(workers: int | None, scheduler: str | None, seed: int) -> None
         StudyConfig(out_dir=Path("."), scheduler=scheduler, workers=workers, seed=seed)
     except ParameterError as e:
         raise _cli_name(e, {"workers": "--workers", "seed": "--seed"}) from None
-
-
-class _SignalExit(SystemExit):
-    """SIGTERM or SIGHUP during ``simulate``: exit ``128 + signal`` through the ``finally`` blocks."""
-
-    def __init__(self, signum: int):
-        self.signum = int(signum)
-        super().__init__(128 + self.signum)
 
 
 class _Terminated(KeyboardInterrupt):

@@ -104,10 +104,11 @@ def track(
 
     `undulate track markers --out markers.pdf` writes the printable marker sheet instead.
     """
-    from .._cliutil import _fail, check_writable
+    from .._cliutil import _fail, check_writable, exit_on_termination
 
     try:
         _need_cv2()
+        exit_on_termination()  # a terminated command unwinds: no temporary file left
         from .calibration import TrackCalibration
 
         cal = TrackCalibration.from_toml(calibration) if calibration is not None else TrackCalibration()
@@ -165,11 +166,12 @@ def compare(
     periods: int = typer.Option(5, help="Whole gait periods at the end that make the steady value."),
 ) -> None:
     """Simulate each experiment's gait, phases and channel and compare: steady dx/lambda vs dphi, dx(t), residuals."""
-    from .._cliutil import _fail
+    from .._cliutil import _fail, exit_on_termination
     from ..compare import compare as run
 
     from ..errors import UndulateError
 
+    exit_on_termination()  # a terminated comparison unwinds: no temporary file left
     try:
         summary = run(experiments, out, periods=periods, log=lambda m: typer.echo(m, err=True))
     except ParameterError as e:
