@@ -142,3 +142,17 @@ def mixed(point: dict, seed: int) -> xr.Dataset:
     if k == 3 and int(point["i"]) == 2:
         ds["v"].attrs["long_name"] = "another value"
     return ds
+
+
+def pendulum_disk_full(point: dict, seed: int) -> xr.Dataset:
+    """:func:`pendulum`, except that while the file named by ``point["full_flag"]`` exists, a point with
+    ``damping_Nms`` >= 1 meets a full disk (a :class:`~undulate.errors.WriteError`, as
+    ``simulate(out=...)`` raises there)."""
+    import errno
+
+    from undulate.errors import WriteError
+
+    if point["damping_Nms"] >= 1 and os.path.exists(point["full_flag"]):
+        raise WriteError(os.path.join(os.path.dirname(point["full_flag"]), "run.nc"),
+                         OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)))
+    return pendulum({k: v for k, v in point.items() if k != "full_flag"}, seed)

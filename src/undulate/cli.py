@@ -17,7 +17,7 @@ import typer
 
 from ._cliutil import _cli_name, _fail, _parse_floats, check_writable, exit_on_termination, load_netcdf, unwind_on_signals, write_netcdf_atomic  # noqa: F401 - shared with robot.cli, track.cli
 from ._source import SourceChangedError
-from .errors import DivergenceError, ParameterError, UndulateError
+from .errors import DivergenceError, ParameterError, UndulateError, WriteError
 from .params import Channel as _Channel
 from .params import ControllerParams as _ControllerParams
 from .params import Gait as _Gait
@@ -428,6 +428,11 @@ def main(argv: list[str] | None = None) -> int:
         rv = 130
         if not _TERMINATED:
             typer.echo("aborted", err=True)
+    except WriteError as e:  # a full disk or quota under any command: one line, nothing half-written left
+        words = sys.argv[1:] if argv is None else list(argv)
+        resumes = "; finished runs are saved: the same command resumes" if words[:1] in (["study"], ["reproduce"]) else ""
+        typer.echo(f"error: {e}{resumes}", err=True)
+        return 1
     except typer.TyperException as e:  # click usage errors: unparsable values, unknown options
         msg = e.format_message() if hasattr(e, "format_message") else str(e)
         if type(e).__name__ == "NoArgsIsHelpError":

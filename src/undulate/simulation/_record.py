@@ -28,14 +28,38 @@ RECORDABLE = SimOptions.RECORDABLE
 """Variables a run can record (``SimOptions.record``)."""
 
 
-def _per_sample_bytes(cs: CompiledScene, record: Sequence[str]) -> int:
-    """Bytes one recorded sample of one scene takes (float64), time included."""
+def _sample_widths(cs: CompiledScene, record: Sequence[str]) -> dict[str, int]:
+    """Values one recorded sample of one scene holds, per variable (time included)."""
     sc = cs.scene
     n, nj, nn = sc.n_swimmers, sc.geometry.n_links - 1, sc.geometry.n_links + 1
     size = {"x": n, "y": n, "heading": n, "node_x": n * nn, "node_y": n * nn, "joint_angle": n * nj,
             "joint_command": n * nj, "joint_error": n * nj, "contact_force_pair": max(0, n - 1),
             "contact_force_wall": len(cs.index.wall_names), "penetration": 1, "gait_phase": n}
-    return 8 * (1 + sum(size[v] for v in record))
+    return {"time": 1, **{v: size[v] for v in record}}
+
+
+def _per_sample_bytes(cs: CompiledScene, record: Sequence[str]) -> int:
+    """Bytes one recorded sample of one scene takes (float64), time included."""
+    return 8 * sum(_sample_widths(cs, record).values())
+
+
+def _file_bytes(cs: CompiledScene, record: Sequence[str], n_samples: int) -> int:
+    """An upper bound on the netCDF file :class:`_NetCDFRecorder` writes for ``n_samples`` samples: each
+    variable in whole HDF5 chunks, plus the header, coordinates and attributes."""
+    total = _NetCDFRecorder.HEADER_BYTES
+    for width in _sample_widths(cs, record).values():
+        if width == 0:
+            continue
+        chunk = _chunk_samples((width,), n_samples)
+        total += -(-n_samples // chunk) * chunk * 8 * width
+    return total
+
+
+def _chunk_samples(sample_shape, max_samples: int) -> int:
+    """Samples per HDF5 chunk of a streamed variable whose samples have ``sample_shape`` (float64):
+    about :attr:`_NetCDFRecorder.CHUNK_BYTES`, and no more than the run's ``max_samples``."""
+    per_sample = 8 * max(1, int(np.prod(sample_shape)))
+    return max(1, min(_NetCDFRecorder.CHUNK_BYTES // per_sample, int(max_samples)))
 
 
 def _memory_available_bytes() -> int:
@@ -63,6 +87,7 @@ def _check_fits(compiled: Sequence[CompiledScene], record: Sequence[str], n_samp
                 f"{have / gib:.3g} GiB is available (stream it to a file with out=, or record fewer "
                 f"variables with SimOptions.record)", None)
     else:
+        need = sum(_file_bytes(c, record, n_samples + 1) for c in compiled) + _NetCDFRecorder.SPACE_MARGIN_BYTES
         for path in outs:
             free = shutil.disk_usage(Path(path).resolve().parent).free
             if need > free:
@@ -99,29 +124,47 @@ class _NetCDFRecorder:
     """
 
     FLUSH_BYTES = 1 << 20
+    CHUNK_BYTES = 1 << 20
+    """HDF5 chunks along time hold about this much of a variable, or the whole run where it is shorter."""
+    HEADER_BYTES = 1 << 18
+    """What a file holds besides its samples, at most (measured: ~70 kB for a pair and for six swimmers:
+    attributes, the per-swimmer coordinates and HDF5's own structures)."""
 
-    def __init__(self, path: Path):
+    def __init__(self, path: Path, max_samples: int):
         from .. import _io
 
         self.path = Path(path)
+        self.max_samples = int(max_samples)
         self.tmp = _io.temporary_path(self.path)
         self.file = None
         self.pending: list[dict] = []
         self.pending_bytes = 0
 
     def add(self, block: dict, build) -> None:
+        from .._io import hdf5_writes, netcdf_bytes, write_bytes
+
         if self.file is None:  # the first block defines the file: variables, attrs, coordinates
             import h5netcdf
 
             ds = build(block)
             # HDF5 chunks of ~1 MiB along time: chunking by the first block's shape would make one
-            # chunk per few samples, and HDF5's chunk index (held in memory) would grow with the run
-            enc = {name: {"chunksizes": (max(1, 2**17 // max(1, int(np.prod(v.shape[1:])))),
+            # chunk per few samples, and HDF5's chunk index (held in memory) would grow with the run.
+            # No longer than the run: a chunk is stored whole, so a 30 s pair run's 1 MiB chunks made
+            # a 13.7 MB file of 0.2 MB of samples
+            enc = {name: {"chunksizes": (_chunk_samples(v.shape[1:], self.max_samples),
                                          *(max(1, n) for n in v.shape[1:]))}  # HDF5: no empty chunk sides
                    for name, v in ds.variables.items() if v.dims[:1] == ("time",)}
-            ds.to_netcdf(self.tmp, engine="h5netcdf", unlimited_dims=["time"], encoding=enc)
-            self.file = h5netcdf.File(self.tmp, "a")  # kept open: reopening per chunk leaks memory
+            # the file's skeleton (no samples) built in memory and written as bytes: a full disk fails the
+            # plain write cleanly (HDF5's own failure paths corrupt its memory: _io.netcdf_bytes); the
+            # samples are appended as every later block's are
+            skeleton = netcdf_bytes(ds.isel(time=slice(0, 0)), compress=False, unlimited_dims=["time"], encoding=enc)
+            write_bytes(self.tmp, skeleton, self.path)
+            with hdf5_writes(self.tmp, self.path):
+                self.file = h5netcdf.File(self.tmp, "a")  # kept open: reopening per chunk leaks memory
             self.appended = [n for n, v in self.file.variables.items() if v.dimensions[:1] == ("time",)]
+            self.pending.append(block)
+            self.pending_bytes = sum(np.asarray(block[n]).nbytes for n in self.appended)
+            self._flush()
             return
         self.pending.append(block)
         self.pending_bytes += sum(np.asarray(block[n]).nbytes for n in self.appended)
@@ -131,18 +174,52 @@ class _NetCDFRecorder:
     def _flush(self) -> None:
         if not self.pending:
             return
+        from .._io import hdf5_writes
+
         f = self.file
         n0 = f.dimensions["time"].size
         k = sum(len(b["time"]) for b in self.pending)
-        f.resize_dimension("time", n0 + k)
-        for name in self.appended:
-            f.variables[name][n0:n0 + k, ...] = np.concatenate([np.asarray(b[name]) for b in self.pending])
+        self._check_space(self.pending_bytes)
+        with hdf5_writes(self.tmp, self.path):  # a failed write: WriteError, the file given up and removed
+            f.resize_dimension("time", n0 + k)
+            # each variable through its own h5py handle, flushed before the handle goes: h5netcdf looks
+            # one up per write and releases it after, and HDF5 writes a dataset's chunks when its last
+            # handle goes, where a failure (a full disk) is only printed, and the run went on into
+            # HDF5's corrupt memory (a crash at exit).  The flush writes them, and raises.  (All held
+            # at once, or for the whole run, their chunk caches took 15-85 MB more.)
+            for name in self.appended:
+                h = f.variables[name]._h5ds
+                h[n0:n0 + k, ...] = np.concatenate([np.asarray(b[name]) for b in self.pending])
+                h.flush()
+                del h
         self.pending, self.pending_bytes = [], 0
 
+    SPACE_MARGIN_BYTES = 4 << 20
+    """Free space kept on the disk: a run stops (:class:`~undulate.errors.WriteError`) before an append
+    would leave less, so HDF5 itself never meets a full disk (its failure paths corrupt its memory) and
+    the file still closes."""
+
+    def _check_space(self, nbytes: int) -> None:
+        import errno
+
+        from ..errors import WriteError
+
+        try:
+            free = shutil.disk_usage(self.tmp.parent).free
+        except OSError:
+            return
+        if free < nbytes + self.SPACE_MARGIN_BYTES:
+            raise WriteError(self.path, OSError(errno.ENOSPC, f"{os.strerror(errno.ENOSPC)}: the disk filled "
+                                                               "during the run"))
+
     def _close(self) -> None:
+        from .._io import hdf5_writes
+
         if self.file is not None:
-            self.file.close()
-            self.file = None
+            f, self.file = self.file, None
+            with hdf5_writes(self.tmp, self.path):
+                f._h5file.flush()  # a failure raises here, not in the close's finalizers
+                f.close()
 
     def finish(self) -> xr.Dataset:
         if self.file is not None:
@@ -154,10 +231,14 @@ class _NetCDFRecorder:
         return xr.open_dataset(self.path, engine="h5netcdf")
 
     def abort(self) -> None:
-        self.pending = []
-        self._close()
+        """Remove the file; never raises (a run's own error is what the caller reports)."""
         from .. import _io
 
+        self.pending = []
+        try:
+            self._close()
+        except Exception:  # noqa: BLE001 - a file that cannot be closed is given up; the run's own error is reported
+            _io._give_up_hdf5(self.tmp)
         _io.discard(self.tmp)
 
 
@@ -188,7 +269,7 @@ class _Recorders:
                 raise ParameterError("stop", f"a stopping rule, or one per scene ({bt.nb} callables)", stop)
         self.reasons: list[str | None] = [None] * bt.nb
         self.recorders = [_MemoryRecorder() for _ in range(bt.nb)] if bt.outs is None else \
-            [_NetCDFRecorder(p_) for p_ in bt.outs]
+            [_NetCDFRecorder(p_, bt.n_samples + 1) for p_ in bt.outs]
         self.builders = [functools.partial(_to_dataset, cs, bt.options, record=bt.options.recorded,
                                            timestep_auto=bt.requested.timestep_s is None,
                                            control_rate_hz=None if bt.ctl is None else 1.0 / (bt.tick * bt.dt),

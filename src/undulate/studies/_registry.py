@@ -591,23 +591,21 @@ def _write_all(name: str, ds: xr.Dataset, figure: Figure, doc: dict[str, Any], o
     place only when all of them were written, the JSON last (its presence marks completion)."""
     import contextlib
 
-    from .._io import atomic_output
+    from .._io import atomic_output, netcdf_bytes, write_bytes
 
     ds = ds.copy()
     ds.attrs.update({"study": name, "study_config": json.dumps(doc["config"], sort_keys=True),
                      "study_identity": json.dumps(doc["identity"], sort_keys=True),
                      "study_sweeps": json.dumps(_jsonable(doc["sweeps"])), **doc["provenance"]})
     text = json.dumps(_jsonable(doc), indent=2, allow_nan=False) + "\n"
-    encoding = {k: {"zlib": True, "complevel": 4} for k, v in ds.data_vars.items()
-                if v.dtype.kind in "biufc" and v.ndim > 0}
     with contextlib.ExitStack() as stack:  # exits (renames) in reverse order: the json last
         tmp_json = stack.enter_context(atomic_output(out_dir / f"{name}.json"))
         tmp_nc = stack.enter_context(atomic_output(out_dir / f"{name}.nc"))
-        ds.to_netcdf(tmp_nc, engine="h5netcdf", encoding=encoding)
+        write_bytes(tmp_nc, netcdf_bytes(ds), out_dir / f"{name}.nc")  # compressed; a full disk: WriteError
         for ext in ("png", "pdf"):
             tmp = stack.enter_context(atomic_output(out_dir / f"{name}.{ext}"))
-            figure.savefig(tmp, format=ext, dpi=150 if ext == "png" else None)
-        tmp_json.write_text(text)
+            figure.savefig(tmp, format=ext, dpi=150 if ext == "png" else None)  # a full disk: WriteError
+        write_bytes(tmp_json, text.encode("utf-8"), out_dir / f"{name}.json")
     return out_dir / f"{name}.nc"
 
 

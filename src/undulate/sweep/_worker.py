@@ -142,10 +142,20 @@ def _run_one(chunk: Chunk, runs_dir: Path, run: Run, compute: Callable[[Run], ob
             tm = _timing(time.perf_counter() - t0, physics)
             write_result(runs_dir, run, ds, dict(chunk.provenance), timing=tm)
         except Exception as exc:  # noqa: BLE001 - every failure is recorded, the sweep goes on
+            _stop_if_disk_full(exc)
             rec = write_failure(runs_dir, run, exc)
             tm = _timing(time.perf_counter() - t0, physics)
             return Outcome(run.key, FAILED, rec["error"], tm["wall_s"], tm["physics_s"], tm["steps"])
     return Outcome(run.key, OK, "", time.perf_counter() - t0, tm["physics_s"], tm["steps"])
+
+
+def _stop_if_disk_full(exc: BaseException) -> None:
+    """A full disk or quota ends the sweep (re-raised: no later run's file would fit, and recording each
+    run as failed would only say so thousands of times); the runs saved so far stay for a rerun."""
+    from ..errors import WriteError
+
+    if isinstance(exc, WriteError) and exc.disk_full:
+        raise exc
 
 
 def _run_gathered(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outcome]:
@@ -158,10 +168,13 @@ def _run_gathered(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Out
     sweep = Path(runs_dir).parent  # the store's folder: OUT/.sweeps/STUDY/SWEEP
     gather = Gather(len(runs), progress=STEP_PROGRESS.get(), label=f"{sweep.parent.name}/{sweep.name}")
     outcomes: list[Outcome | None] = [None] * len(runs)
+    stopped: list[BaseException] = []
 
     def work(i: int, run: Run) -> None:
         try:
             outcomes[i] = _run_one(chunk, runs_dir, run, lambda r: chunk.fn(dict(r.point), r.seed))
+        except BaseException as e:  # noqa: BLE001 - a full disk: raised below, in the chunk's process
+            stopped.append(e)
         finally:
             gather.thread_done()
 
@@ -175,6 +188,8 @@ def _run_gathered(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Out
         t.start()
     for t in threads:
         t.join()
+    if stopped:
+        raise stopped[0]
     return [o if o is not None else Outcome(r.key, FAILED, "the run's thread ended without a result")
             for o, r in zip(outcomes, runs)]
 
@@ -199,6 +214,7 @@ def _run_batched(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outc
             write_result(runs_dir, run, ds, dict(chunk.provenance), timing=tm)
             out.append(Outcome(run.key, OK, "", tm["wall_s"], tm["physics_s"], tm["steps"]))
         except Exception as exc:  # noqa: BLE001
+            _stop_if_disk_full(exc)
             rec = write_failure(runs_dir, run, exc)
             out.append(Outcome(run.key, FAILED, rec["error"], tm["wall_s"], tm["physics_s"], tm["steps"]))
     return out
