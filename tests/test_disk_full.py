@@ -10,6 +10,7 @@ during the run (ENOSPC)."""
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import os
 import shutil
@@ -118,22 +119,31 @@ def test_a_streamed_file_is_about_its_samples_and_within_the_disk_check(tmp_path
     assert size < data + (data if n < 2000 else 0.3 * data) + 200_000, (data, size)
 
 
-def test_a_full_disk_stops_a_sweep_and_the_same_sweep_resumes(tmp_path):
-    """A run that meets a full disk ends the sweep with its WriteError (across the worker processes),
-    recorded as no run's failure; with space again, the same sweep computes only what is missing."""
+@pytest.mark.parametrize("where", ["local", "dask"])
+def test_a_full_disk_stops_a_sweep_and_the_same_sweep_resumes(tmp_path, where):
+    """A run that meets a full disk ends the sweep with its WriteError (across the worker processes, or
+    from a Dask task), recorded as no run's failure; with space again, the same sweep computes only
+    what is missing."""
     flag = tmp_path / "disk-is-full"
     flag.touch()
     grid = Grid(axes={"damping_Nms": [0.1, 0.2, 0.5, 1.0, 2.0, 3.0], "length_m": [0.5], "full_flag": [str(flag)]},
                 seed=0)
     out = tmp_path / "sweep"
-    with pytest.raises(WriteError) as e:
-        run_sweep(sweep_funcs.pendulum_disk_full, grid, out, workers=2, progress=False)
-    assert e.value.disk_full and "No space left on device" in str(e.value)
-    assert not list((out / "runs").glob("*failed*"))
-    saved = len(list((out / "runs").glob("*.nc")))
-    assert saved <= 3
-    flag.unlink()
-    result = run_sweep(sweep_funcs.pendulum_disk_full, grid, out, workers=2, progress=False)
+    with contextlib.ExitStack() as stack:
+        if where == "dask":
+            distributed = pytest.importorskip("distributed")
+            cluster = stack.enter_context(distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1,
+                                                                   dashboard_address=None))
+            kw = {"scheduler": cluster.scheduler_address}
+        else:
+            kw = {"workers": 2}
+        with pytest.raises(WriteError) as e:
+            run_sweep(sweep_funcs.pendulum_disk_full, grid, out, progress=False, **kw)
+        assert e.value.disk_full and "No space left on device" in str(e.value)
+        assert not list((out / "runs").glob("*failed*"))
+        assert len(list((out / "runs").glob("*.nc"))) <= 3
+        flag.unlink()
+        result = run_sweep(sweep_funcs.pendulum_disk_full, grid, out, progress=False, **kw)
     result.raise_if_failed()
     assert result.dataset.sizes["damping_Nms"] == 6
     assert np.isfinite(result.dataset["final_angle"].values).all()

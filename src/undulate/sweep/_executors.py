@@ -21,7 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ParameterError, UndulateError
-from ._worker import Chunk, Outcome, init_local_worker, run_chunk
+from ._worker import Chunk, Outcome, _stop_if_disk_full, init_local_worker, run_chunk
 
 OnDone = Callable[[Chunk, list[Outcome]], None]
 OnLost = Callable[[Chunk, str], None]
@@ -379,6 +379,7 @@ def run_dask(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost, *, clien
             try:
                 outcomes = fut.result()
             except Exception as exc:  # noqa: BLE001 - KilledWorker, unpickling errors...
+                _stop_if_disk_full(exc)  # a full disk ends the sweep, as on local processes
                 on_lost(chunk, f"{type(exc).__name__}: {exc}")
                 continue
             on_done(chunk, outcomes)
