@@ -78,10 +78,10 @@ def atomic_output(path: str | os.PathLike, *, keep_suffix: bool = False) -> Iter
             tmp.touch()
         commit(tmp, path)
     except OSError as e:
-        discard(tmp)
-        if e.errno in _FULL_ERRNOS and not _is_write_error(e):  # a full disk, quota or file-size limit
-            from .errors import WriteError
+        from .errors import WriteError
 
+        discard(tmp)
+        if e.errno in _FULL_ERRNOS and not isinstance(e, WriteError):  # a full disk, quota or file-size limit
             raise WriteError(path, _as_oserror(e)) from e
         raise
     except BaseException:
@@ -91,12 +91,6 @@ def atomic_output(path: str | os.PathLike, *, keep_suffix: bool = False) -> Iter
 
 _FULL_ERRNOS = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 """The errors of a write that no longer fits (only writes raise them)."""
-
-
-def _is_write_error(e: BaseException) -> bool:
-    from .errors import WriteError
-
-    return isinstance(e, WriteError)
 
 
 def temporary_path(path: str | os.PathLike, *, keep_suffix: bool = False) -> Path:
@@ -193,15 +187,8 @@ def _install_hdf5_hook() -> None:
 
     def hook(unraisable):
         e = unraisable.exc_value
-        text = str(e) if e is not None else ""
-        for f in _WATCHED_HDF5:
-            if f in text:
-                if _WATCHED_HDF5[f] is None:
-                    _WATCHED_HDF5[f] = e  # raised by hdf5_writes at the end of its block
-                return
-        if _FAILED_HDF5 and (any(f in text for f in _FAILED_HDF5) or text.startswith("Can't decrement id ref count")):
-            return  # h5py could not release a handle of a file already given up (HDF5 may not name it)
-        previous(unraisable)
+        if not _about_hdf5_failure(e):
+            previous(unraisable)
 
     hook.undulate_hdf5 = True
     sys.unraisablehook = hook
@@ -210,13 +197,23 @@ def _install_hdf5_hook() -> None:
     previous_except = sys.excepthook
 
     def excepthook(kind, value, tb):
-        text = str(value)
-        if any(f in text for f in (*_WATCHED_HDF5, *_FAILED_HDF5)) or \
-                (_FAILED_HDF5 and text.startswith("Can't decrement id ref count")):
-            return
-        previous_except(kind, value, tb)
+        if not _about_hdf5_failure(value):
+            previous_except(kind, value, tb)
 
     sys.excepthook = excepthook
+
+
+def _about_hdf5_failure(e: BaseException | None) -> bool:
+    """Whether h5py's error ``e`` in a finalizer is about a file being written under :func:`hdf5_writes`
+    (then kept, once, for the block to raise) or one already given up (HDF5 may not name it then)."""
+    text = str(e) if e is not None else ""
+    for f in _WATCHED_HDF5:
+        if f in text:
+            if _WATCHED_HDF5[f] is None:
+                _WATCHED_HDF5[f] = e
+            return True
+    return bool(_FAILED_HDF5) and (any(f in text for f in _FAILED_HDF5)
+                                   or text.startswith("Can't decrement id ref count"))
 
 
 def _give_up_hdf5(tmp: str | os.PathLike) -> None:
