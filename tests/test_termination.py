@@ -235,3 +235,50 @@ def test_a_terminated_animation_stops_ffmpeg_and_leaves_no_file(tmp_path):
             os.killpg(proc.pid, signal.SIGKILL)
         except ProcessLookupError:
             pass
+
+
+_IN_C_CODE = """
+import importlib, os, signal, sys
+signal.signal(signal.SIGTERM, signal.SIG_DFL)
+from undulate import cli
+from undulate._cliutil import SignalExit
+anim = importlib.import_module("undulate.animate")  # the module: the package's `animate` is its function
+
+frames = [0]
+real = anim._Blitter.frame
+
+def frame(self):  # as C code that calls back into Python and handles the error its own way
+    frames[0] += 1
+    if frames[0] == 3:
+        try:
+            os.kill(os.getpid(), signal.SIGTERM)
+            for _ in range(200000):
+                pass  # the handler raises SignalExit here
+        except SignalExit:
+            if sys.argv[3] == "converted":
+                raise ValueError("Invalid affine transformation matrix")  # matplotlib's Agg renderer
+            # "dropped": the error cleared, drawing goes on
+    return real(self)
+
+anim._Blitter.frame = frame
+sys.exit(cli.main(["animate", sys.argv[1], "-o", sys.argv[2]]))
+"""
+
+
+@pytest.mark.parametrize("fate", ["converted", "dropped"])
+def test_a_signal_whose_exception_c_code_converts_or_drops_still_ends_the_animation(tmp_path, fate):
+    """A SIGTERM handled inside C code that calls back into Python: the exception the handler raises
+    came out as that code's error (CI: ``ValueError: Invalid affine transformation matrix`` from
+    matplotlib, a traceback and exit 1 for a terminated ``animate``), or could be dropped there and the
+    animation run on to its end.  Either way: exit 143, one line, no traceback, no file."""
+    from undulate import Scene, SimOptions, simulate
+
+    run = tmp_path / "run.nc"
+    simulate(Scene(phases_rad=(0.0, 1.0)), SimOptions(duration_s=2.0), out=run)
+    film = tmp_path / "film"
+    film.mkdir()
+    r = subprocess.run([sys.executable, "-c", _IN_C_CODE, str(run), str(film / "run.gif"), fate],
+                       capture_output=True, text=True, timeout=120)
+    assert r.returncode == 128 + signal.SIGTERM, (r.stdout, r.stderr)
+    assert r.stderr.strip() == "terminated (SIGTERM)" and "wrote" not in r.stdout, (r.stdout, r.stderr)
+    assert list(film.iterdir()) == []

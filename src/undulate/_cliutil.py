@@ -8,7 +8,7 @@ from pathlib import Path
 
 from .errors import ParameterError
 
-__all__ = ["check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name",
+__all__ = ["signalled", "stop_if_signalled", "check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name",
            "unwind_on_signals", "SignalExit", "exit_on_termination"]
 
 
@@ -76,6 +76,29 @@ def check_writable(name: str, path: Path) -> Path:
     return path
 
 
+_SIGNALLED: list[int] = []  # the termination signals this process has received, in order
+_RAISES: list[type] = []  # the exception each raised
+
+
+def signalled() -> int | None:
+    """The first termination signal handled by :func:`unwind_on_signals` in this process, or None.
+
+    The exception the handler raises can reach the command's top as another one: raised inside C code
+    that calls back into Python (matplotlib's Agg renderer asking a transform for its matrix), it comes
+    out as that code's own error ("ValueError: Invalid affine transformation matrix", seen when
+    ``animate`` was terminated).  The cleanup ran all the same (it is ``finally`` blocks), so
+    :func:`undulate.cli.main` judges the command by this record, not by the exception it sees."""
+    return _SIGNALLED[0] if _SIGNALLED else None
+
+
+def stop_if_signalled() -> None:
+    """Raise again the exception of a termination signal already handled.  For loops that call into C
+    code which calls back into Python (matplotlib drawing a frame): an exception raised there may be
+    dropped by that code, and the loop would run on to write a file the command then calls terminated."""
+    if _SIGNALLED:
+        raise _RAISES[0](_SIGNALLED[0])
+
+
 def unwind_on_signals(signals, exception) -> None:
     """From here on each of ``signals`` raises ``exception(signum)`` in the main thread, so the command
     unwinds as on Ctrl-C (temporary files removed, sweeps and worker processes stopped).  A signal this
@@ -93,6 +116,9 @@ def unwind_on_signals(signals, exception) -> None:
     import threading
 
     def handler(signum, _frame):
+        if signum not in _SIGNALLED:
+            _SIGNALLED.append(signum)
+            _RAISES.append(exception)
         raise exception(signum)
 
     for sig in signals:

@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ._cliutil import stop_if_signalled
 from ._io import atomic_output
 from .errors import ParameterError
 
@@ -65,6 +66,7 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
             for i in range(len(run.times)):
                 frame.draw(i)
                 put(blit.frame())
+                stop_if_signalled()  # a SIGTERM matplotlib's C code dropped still ends the animation
     return len(run.times)
 
 

@@ -314,11 +314,7 @@ class _Terminated(KeyboardInterrupt):
         import signal
 
         self.signum = int(signum)
-        _TERMINATED.append(self.signum)
         super().__init__(signal.Signals(signum).name)
-
-
-_TERMINATED: list[int] = []  # the signals that ended the command (typer turns the exception into Exit(130))
 
 
 def _stop_on_termination() -> None:
@@ -419,19 +415,48 @@ app.command("compare")(_track_cli.compare)
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: run the app, turning click's usage errors into one line + exit 2."""
+    """Entry point: run the app, turning click's usage errors into one line + exit 2.
+
+    A command ended by SIGTERM or SIGHUP exits ``128 + signal`` with one line, whatever exception its
+    unwinding reached here as (typer's Exit(130), SystemExit, or the error of C code the signal
+    interrupted: see :func:`undulate._cliutil.signalled`)."""
+    from ._cliutil import signalled
+
+    try:
+        rv = _run(argv)
+    except BaseException:
+        if signalled() is None:
+            raise
+        rv = None
+    signum = signalled()
+    if signum is not None:
+        import signal
+
+        typer.echo(f"terminated ({signal.Signals(signum).name}){_resumes(argv)}", err=True)
+        return 128 + signum
+    return rv
+
+
+def _resumes(argv: list[str] | None) -> str:
+    """What a stopped ``study`` or ``reproduce`` keeps, for the line that says it stopped."""
+    words = sys.argv[1:] if argv is None else list(argv)
+    return "; finished runs are saved: the same command resumes" if words[:1] in (["study"], ["reproduce"]) else ""
+
+
+def _run(argv: list[str] | None) -> int:
+    """The app under ``argv``, its outcome as an exit code."""
+    from ._cliutil import signalled
+
     try:
         rv = app(args=argv, standalone_mode=False)
     except typer.Exit as e:
         rv = e.exit_code
     except (typer.Abort, KeyboardInterrupt):
         rv = 130
-        if not _TERMINATED:
+        if signalled() is None:
             typer.echo("aborted", err=True)
     except WriteError as e:  # a full disk or quota under any command: one line, nothing half-written left
-        words = sys.argv[1:] if argv is None else list(argv)
-        resumes = "; finished runs are saved: the same command resumes" if words[:1] in (["study"], ["reproduce"]) else ""
-        typer.echo(f"error: {e}{resumes}", err=True)
+        typer.echo(f"error: {e}{_resumes(argv)}", err=True)
         return 1
     except typer.TyperException as e:  # click usage errors: unparsable values, unknown options
         msg = e.format_message() if hasattr(e, "format_message") else str(e)
@@ -440,13 +465,6 @@ def main(argv: list[str] | None = None) -> int:
         else:
             typer.echo(f"error: {msg.splitlines()[0] if msg else e}", err=True)
         return getattr(e, "exit_code", 2)
-    if _TERMINATED:  # a _Terminated however typer passed it on: raised, as Exit(130), or returned as 130
-        import signal
-
-        signum = _TERMINATED[0]
-        typer.echo(f"terminated ({signal.Signals(signum).name}); finished runs are saved: the same command resumes",
-                   err=True)
-        return 128 + signum
     return rv if isinstance(rv, int) else 0
 
 
