@@ -282,3 +282,25 @@ def test_a_signal_whose_exception_c_code_converts_or_drops_still_ends_the_animat
     assert r.returncode == 128 + signal.SIGTERM, (r.stdout, r.stderr)
     assert r.stderr.strip() == "terminated (SIGTERM)" and "wrote" not in r.stdout, (r.stdout, r.stderr)
     assert list(film.iterdir()) == []
+
+
+def test_a_reproduction_whose_signal_came_out_as_a_study_error_stops(tmp_path, monkeypatch):
+    """A SIGTERM reported by C code as its own error inside a study (see the animation test above) is
+    not a failed study: the reproduction stops there, as on the signal, and starts no other study."""
+    from undulate import _cliutil, studies
+    from undulate.cli import _Terminated
+    from undulate.reproduce import reproduce
+
+    started = []
+
+    def run_study(name, *args, **kwargs):
+        started.append(name)
+        monkeypatch.setattr(_cliutil, "_SIGNALLED", [signal.SIGTERM])  # as the handler records it
+        monkeypatch.setattr(_cliutil, "_RAISES", [_Terminated])
+        raise ValueError("Invalid affine transformation matrix")
+
+    monkeypatch.setattr(studies, "run_study", run_study)
+    with pytest.raises(_Terminated):
+        reproduce(tmp_path / "out", studies=["compatibility", "pairs"], workers=1, log=lambda m: None,
+                  animation_s=2.0)
+    assert started == ["compatibility"]

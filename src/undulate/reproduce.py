@@ -21,6 +21,7 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable
 
+from ._cliutil import stop_if_signalled
 from ._io import atomic_output
 from ._source import SourceChangedError
 from .errors import ParameterError
@@ -174,6 +175,7 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
             try:
                 done[stem] = _make_animation(out, stem, caption, kw, dur)
             except Exception as e:  # pragma: no cover - reported in the log and on the page
+                stop_if_signalled()
                 log(f"animation {stem}: FAILED: {type(e).__name__}: {e}")
                 continue
         anims.append(done[stem])
@@ -345,6 +347,7 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
     number = {n: i for i, n in enumerate(names, 1)}
 
     def one(name: str) -> dict:
+        stop_if_signalled()  # terminated while the last study wrote its figures: none more starts
         log(f"[{number[name]}/{len(names)}] {name}: running ({mode})")
         t0 = time.perf_counter()
         try:
@@ -354,6 +357,7 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
         except (KeyboardInterrupt, SourceChangedError):  # the code changed under us: nothing after is attributable
             raise
         except Exception as e:  # a failed study is reported, the others go on
+            stop_if_signalled()  # not when the error is a SIGTERM that C code reported as its own
             st = {"name": name, "ok": False, "wall_s": time.perf_counter() - t0,
                   "error": f"{type(e).__name__}: {e}", "reused": False,
                   "traceback": traceback.format_exc()}
