@@ -8,8 +8,8 @@ from pathlib import Path
 
 from .errors import ParameterError
 
-__all__ = ["signalled", "stop_if_signalled", "check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name",
-           "unwind_on_signals", "SignalExit", "exit_on_termination"]
+__all__ = ["check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name",
+           "unwind_on_signals", "SignalExit", "exit_on_termination", "signalled", "stop_if_signalled"]
 
 
 def _fail(msg: str, code: int) -> None:
