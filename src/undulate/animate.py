@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ._cliutil import stop_if_signalled
+from ._signals import stop_if_signalled
 from ._io import atomic_output
 from .errors import ParameterError
 

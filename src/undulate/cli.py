@@ -420,7 +420,7 @@ def main(argv: list[str] | None = None) -> int:
     A command ended by SIGTERM or SIGHUP exits ``128 + signal`` with one line, whatever exception its
     unwinding reached here as (typer's Exit(130), SystemExit, or the error of C code the signal
     interrupted: see :func:`undulate._cliutil.signalled`)."""
-    from ._cliutil import signalled
+    from ._signals import signalled
 
     try:
         rv = _run(argv)
@@ -445,7 +445,7 @@ def _resumes(argv: list[str] | None) -> str:
 
 def _run(argv: list[str] | None) -> int:
     """The app under ``argv``, its outcome as an exit code."""
-    from ._cliutil import signalled
+    from ._signals import signalled
 
     try:
         rv = app(args=argv, standalone_mode=False)

@@ -21,7 +21,7 @@ import traceback
 from pathlib import Path
 from typing import Any, Callable
 
-from ._cliutil import stop_if_signalled
+from ._signals import stop_if_signalled
 from ._io import atomic_output
 from ._source import SourceChangedError
 from .errors import ParameterError

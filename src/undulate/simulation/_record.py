@@ -142,6 +142,7 @@ class _NetCDFRecorder:
 
     def add(self, block: dict, build) -> None:
         from .._io import hdf5_writes, netcdf_bytes, write_bytes
+        from .._signals import deferred
 
         if self.file is None:  # the first block defines the file: variables, attrs, coordinates
             import h5netcdf
@@ -159,7 +160,7 @@ class _NetCDFRecorder:
             # samples are appended as every later block's are
             skeleton = netcdf_bytes(ds.isel(time=slice(0, 0)), compress=False, unlimited_dims=["time"], encoding=enc)
             write_bytes(self.tmp, skeleton, self.path)
-            with hdf5_writes(self.tmp, self.path):
+            with hdf5_writes(self.tmp, self.path), deferred():  # a SIGTERM waits: a half-built File fails at exit
                 self.file = h5netcdf.File(self.tmp, "a")  # kept open: reopening per chunk leaks memory
             self.appended = [n for n, v in self.file.variables.items() if v.dimensions[:1] == ("time",)]
             self.pending.append(block)
@@ -214,10 +215,11 @@ class _NetCDFRecorder:
 
     def _close(self) -> None:
         from .._io import hdf5_writes
+        from .._signals import deferred
 
         if self.file is not None:
             f, self.file = self.file, None
-            with hdf5_writes(self.tmp, self.path):
+            with hdf5_writes(self.tmp, self.path), deferred():  # not left half closed by a SIGTERM
                 f._h5file.flush()  # a failure raises here, not in the close's finalizers
                 f.close()
 
@@ -226,9 +228,11 @@ class _NetCDFRecorder:
             self._flush()
         self._close()
         from .. import _io
+        from .._signals import deferred
 
         _io.commit(self.tmp, self.path)
-        return xr.open_dataset(self.path, engine="h5netcdf")
+        with deferred():
+            return xr.open_dataset(self.path, engine="h5netcdf")
 
     def abort(self) -> None:
         """Remove the file; never raises (a run's own error is what the caller reports)."""

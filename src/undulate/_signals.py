@@ -1,0 +1,114 @@
+"""Termination signals (SIGTERM, SIGHUP) turned into exceptions that unwind a command, and the record
+of them its entry point judges it by (:func:`undulate.cli.main`).
+
+Python runs a signal handler between two bytecodes of the main thread, wherever they are: inside a
+finalizer, inside C code that calls back into Python (matplotlib, h5py), halfway through building an
+object.  What it raises there may be dropped, reported as another error, or leave a half-built HDF5
+file whose finalizer fails later ("Exception ignored in: <function File.close>").  Each case is met
+here: dropped exceptions are delivered again, the record says the command was terminated whatever
+exception came out, and :func:`deferred` holds the exception back while a file is opened or closed.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from collections.abc import Iterator
+
+__all__ = ["unwind_on_signals", "signalled", "stop_if_signalled", "deferred"]
+
+_DEFERRING = [0]  # how deep the main thread is in deferred() blocks
+_PENDING: list[tuple[type, int]] = []  # the signals handled meanwhile, raised as the last block ends
+
+
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """A block a termination signal does not interrupt: its exception is raised as the block ends.
+
+    For opening and closing HDF5 files: interrupted there, h5netcdf leaves a ``File`` without its
+    ``_closed`` attribute, or one half closed, and its finalizer's error is printed at exit after the
+    command's own line (seen once in ~30 terminated ``simulate`` runs on a loaded machine).  Such blocks
+    take milliseconds.  Outside the main thread (where Python never runs a signal handler) it does
+    nothing."""
+    import threading
+
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    _DEFERRING[0] += 1
+    try:
+        yield
+    finally:
+        _DEFERRING[0] -= 1
+        if not _DEFERRING[0] and _PENDING:
+            exception, signum = _PENDING[0]
+            _PENDING.clear()
+            raise exception(signum)
+
+
+_SIGNALLED: list[int] = []  # the termination signals this process has received, in order
+_RAISES: list[type] = []  # the exception each raised
+
+
+def signalled() -> int | None:
+    """The first termination signal handled by :func:`unwind_on_signals` in this process, or None.
+
+    The exception the handler raises can reach the command's top as another one: raised inside C code
+    that calls back into Python (matplotlib's Agg renderer asking a transform for its matrix), it comes
+    out as that code's own error ("ValueError: Invalid affine transformation matrix", seen when
+    ``animate`` was terminated).  The cleanup ran all the same (it is ``finally`` blocks), so
+    :func:`undulate.cli.main` judges the command by this record, not by the exception it sees."""
+    return _SIGNALLED[0] if _SIGNALLED else None
+
+
+def stop_if_signalled() -> None:
+    """Raise again the exception of a termination signal already handled.  For loops that call into C
+    code which calls back into Python (matplotlib drawing a frame): an exception raised there may be
+    dropped by that code, and the loop would run on to write a file the command then calls terminated."""
+    if _SIGNALLED:
+        raise _RAISES[0](_SIGNALLED[0])
+
+
+def unwind_on_signals(signals, exception) -> None:
+    """From here on each of ``signals`` raises ``exception(signum)`` in the main thread, so the command
+    unwinds as on Ctrl-C (temporary files removed, sweeps and worker processes stopped).  A signal this
+    process was started ignoring (``nohup``'s SIGHUP) stays ignored.  Inside :func:`deferred` the
+    exception is raised as the block ends.
+
+    Python runs a signal handler at the next bytecode of the main thread, which may be inside a
+    finalizer or a weakref callback: an exception raised there is printed as "Exception ignored" and
+    dropped, and the command went on as if never signalled (seen on Python 3.13: a terminated
+    ``simulate`` ran to its end and exited 0).  So an exception of ``exception`` that reaches
+    :data:`sys.unraisablehook` delivers the signal again (``_thread.interrupt_main``, from a thread 10 ms
+    later: called in the hook, the handler would raise inside the finalizer again)."""
+    import _thread
+    import signal
+    import sys
+    import threading
+
+    def handler(signum, _frame):
+        if signum not in _SIGNALLED:
+            _SIGNALLED.append(signum)
+            _RAISES.append(exception)
+        if _DEFERRING[0]:  # the main thread is building or closing a file: raised when it is done
+            _PENDING.append((exception, signum))
+            return
+        raise exception(signum)
+
+    for sig in signals:
+        if signal.getsignal(sig) is signal.SIG_DFL:
+            signal.signal(sig, handler)
+    previous = sys.unraisablehook
+    if getattr(previous, "undulate_redelivers", None) is exception:
+        return
+
+    def hook(unraisable):
+        e = unraisable.exc_value
+        if isinstance(e, exception):  # again from another thread, once this finalizer has returned
+            again = threading.Timer(0.01, _thread.interrupt_main, args=(e.signum,))
+            again.daemon = True
+            again.start()
+            return
+        previous(unraisable)
+
+    hook.undulate_redelivers = exception
+    sys.unraisablehook = hook
