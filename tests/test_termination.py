@@ -382,3 +382,27 @@ def test_a_deferred_signal_is_raised_as_the_outermost_block_ends():
     r = subprocess.run([sys.executable, "-c", _DEFERRED], capture_output=True, text=True, timeout=60)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == f"['inner', 'outer'] {int(signal.SIGTERM)} {int(signal.SIGTERM)}", r.stdout
+
+
+_CTRL_C_DEFERRED = """
+import os, signal
+from undulate._signals import deferred
+
+ran = []
+try:
+    with deferred():
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(200000):
+            pass
+        ran.append("block")
+except KeyboardInterrupt:
+    print(ran, signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+"""
+
+
+def test_ctrl_c_inside_a_deferred_block_is_raised_as_it_ends():
+    """Ctrl-C is held as termination signals are (a KeyboardInterrupt halfway through building an
+    h5netcdf File leaves the same failing finalizer), and Python's own handler is back afterwards."""
+    r = subprocess.run([sys.executable, "-c", _CTRL_C_DEFERRED], capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == "['block'] True", r.stdout

@@ -17,32 +17,45 @@ from collections.abc import Iterator
 __all__ = ["unwind_on_signals", "signalled", "stop_if_signalled", "deferred"]
 
 _DEFERRING = [0]  # how deep the main thread is in deferred() blocks
-_PENDING: list[tuple[type, int]] = []  # the signals handled meanwhile, raised as the last block ends
+_PENDING: list[BaseException] = []  # what the signals handled meanwhile raise, as the last block ends
+
+
+def _hold_interrupt(_signum, _frame) -> None:
+    """Ctrl-C inside :func:`deferred`: its KeyboardInterrupt held to the block's end."""
+    _PENDING.append(KeyboardInterrupt())
 
 
 @contextlib.contextmanager
 def deferred() -> Iterator[None]:
-    """A block a termination signal does not interrupt: its exception is raised as the block ends.
+    """A block a signal does not interrupt: what it raises (the termination's exception of
+    :func:`unwind_on_signals`, Ctrl-C's KeyboardInterrupt) is raised as the block ends.
 
     For opening and closing HDF5 files: interrupted there, h5netcdf leaves a ``File`` without its
     ``_closed`` attribute, or one half closed, and its finalizer's error is printed at exit after the
     command's own line (seen once in ~30 terminated ``simulate`` runs on a loaded machine).  Such blocks
     take milliseconds.  Outside the main thread (where Python never runs a signal handler) it does
-    nothing."""
+    nothing; Ctrl-C is held only where Python's own handler would raise it."""
+    import signal
     import threading
 
     if threading.current_thread() is not threading.main_thread():
         yield
         return
+    outermost = not _DEFERRING[0]
+    hold = outermost and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    if hold:
+        signal.signal(signal.SIGINT, _hold_interrupt)
     _DEFERRING[0] += 1
     try:
         yield
     finally:
         _DEFERRING[0] -= 1
-        if not _DEFERRING[0] and _PENDING:
-            exception, signum = _PENDING[0]
+        if hold:
+            signal.signal(signal.SIGINT, signal.default_int_handler)
+        if outermost and _PENDING:
+            e = _PENDING[0]
             _PENDING.clear()
-            raise exception(signum)
+            raise e
 
 
 _SIGNALLED: list[int] = []  # the termination signals this process has received, in order
@@ -90,7 +103,7 @@ def unwind_on_signals(signals, exception) -> None:
             _SIGNALLED.append(signum)
             _RAISES.append(exception)
         if _DEFERRING[0]:  # the main thread is building or closing a file: raised when it is done
-            _PENDING.append((exception, signum))
+            _PENDING.append(exception(signum))
             return
         raise exception(signum)
 

@@ -419,7 +419,7 @@ def main(argv: list[str] | None = None) -> int:
 
     A command ended by SIGTERM or SIGHUP exits ``128 + signal`` with one line, whatever exception its
     unwinding reached here as (typer's Exit(130), SystemExit, or the error of C code the signal
-    interrupted: see :func:`undulate._cliutil.signalled`)."""
+    interrupted: see :func:`undulate._signals.signalled`)."""
     from ._signals import signalled
 
     try:
