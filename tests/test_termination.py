@@ -388,6 +388,8 @@ _CTRL_C_DEFERRED = """
 import os, signal
 from undulate._signals import deferred
 
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a background job's shell starts it ignored
+
 ran = []
 try:
     with deferred():
