@@ -310,6 +310,7 @@ _IN_AN_HDF5_FILE = """
 import os, signal, sys
 for s in (signal.SIGTERM, signal.SIGHUP):
     signal.signal(s, signal.SIG_DFL)
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a background job's shell starts it ignored
 import h5netcdf
 from undulate import cli
 
@@ -318,14 +319,14 @@ where, sent = sys.argv[2], []
 def hit():  # the signal lands here, before h5netcdf's own code of the call has run
     if not sent:
         sent.append(1)
-        os.kill(os.getpid(), signal.SIGTERM)
+        os.kill(os.getpid(), signal.SIGINT if where == "read" else signal.SIGTERM)
         for _ in range(200000):
             pass
 
 real_init, real_flush = h5netcdf.File.__init__, h5netcdf.File.flush
 
 def init(self, path, mode="r", *args, **kwargs):
-    if where == "open" and mode == "a":  # the recorder opening its temporary file for the samples
+    if (where, mode) in (("open", "a"), ("read", "r")):  # the recorder's temporary file; animate's input
         hit()
     real_init(self, path, mode, *args, **kwargs)
 
@@ -334,23 +335,32 @@ def flush(self):  # called by close(), once it has found the file open
         hit()
     real_flush(self)
 
+if where == "read":
+    from undulate import Scene, SimOptions, simulate
+    simulate(Scene(phases_rad=(0.0, 1.0)), SimOptions(duration_s=1.0), out=sys.argv[1])
 h5netcdf.File.__init__, h5netcdf.File.flush = init, flush
+if where == "read":  # Ctrl-C as animate opens its input (before it handles SIGTERM); the input removed after
+    rc = cli.main(["animate", sys.argv[1], "-o", sys.argv[1] + ".gif"])
+    os.remove(sys.argv[1])
+    sys.exit(rc)
 sys.exit(cli.main(["simulate", "--duration", "1", "-q", "--out", sys.argv[1]]))
 """
 
 
-@pytest.mark.parametrize("where", ["open", "close"])
+@pytest.mark.parametrize("where", ["open", "close", "read"])
 def test_a_signal_while_a_file_opens_or_closes_waits_for_it(tmp_path, where):
     """A SIGTERM that lands while h5netcdf builds or closes the run's file.  Seen on a loaded machine
     (about once in 30 terminated ``simulate`` runs): the half-built File (no ``_closed`` yet; "open"
     here makes it every time) or a half-closed one (a failing flush; "close" here lands inside close's
-    flush, which then went through unharmed) failed in its finalizer at exit, "Exception ignored in:
-    <function File.close>" and a traceback after the command's own line.  Now the signal waits for the
-    file, then ends the command: exit 143, one line, no file."""
+    flush, which then went through unharmed; "read": Ctrl-C as ``animate`` opens its input) failed in
+    its finalizer at exit, "Exception ignored in: <function File.close>" and a traceback after the
+    command's own line.  Now the signal waits for the file, then ends the command: exit 143 with one
+    line (130 and nothing for Ctrl-C, as typer ends it), no file."""
     r = subprocess.run([sys.executable, "-c", _IN_AN_HDF5_FILE, str(tmp_path / "run.nc"), where],
                        capture_output=True, text=True, timeout=120)
-    assert r.returncode == 128 + signal.SIGTERM, (r.stdout, r.stderr)
-    assert r.stderr.strip() == "terminated (SIGTERM)", r.stderr
+    sig, line = (signal.SIGINT, "") if where == "read" else (signal.SIGTERM, "terminated (SIGTERM)")  # Ctrl-C: quiet
+    assert r.returncode == 128 + sig, (r.stdout, r.stderr)
+    assert r.stderr.strip() == line, r.stderr
     assert list(tmp_path.iterdir()) == []
 
 

@@ -36,8 +36,13 @@ def load_netcdf(path: Path, name: str, what: str = "an existing netCDF file"):
     if not path.is_file():
         raise ParameterError(name, what, str(path))
     try:
-        with deferred():  # not interrupted halfway: a half-opened h5netcdf File fails at exit
-            return xr.load_dataset(path, engine="h5netcdf")
+        with deferred():  # opened whole or not at all: a half-opened h5netcdf File fails at exit
+            ds = xr.open_dataset(path, engine="h5netcdf")
+        try:
+            return ds.load()  # the long part (a long run's samples): Ctrl-C or kill ends it at once
+        finally:
+            with deferred():
+                ds.close()
     except Exception as e:  # unreadable file: say so in one line
         raise ParameterError(name, "a readable netCDF file", f"{path} ({type(e).__name__})") from None
 

@@ -32,9 +32,12 @@ def deferred() -> Iterator[None]:
 
     For opening and closing HDF5 files: interrupted there, h5netcdf leaves a ``File`` without its
     ``_closed`` attribute, or one half closed, and its finalizer's error is printed at exit after the
-    command's own line (seen once in ~30 terminated ``simulate`` runs on a loaded machine).  Such blocks
-    take milliseconds.  Outside the main thread (where Python never runs a signal handler) it does
-    nothing; Ctrl-C is held only where Python's own handler would raise it."""
+    command's own line (seen once in ~30 terminated ``simulate`` runs on a loaded machine).  The signal
+    waits as long as the block takes: milliseconds to open or close a file, as long as building a file
+    in memory takes for :func:`undulate._io.netcdf_bytes` (~30 MB/s compressed, measured);
+    a long read or a run's appends are not in such a block.  Outside the main thread (where Python
+    never runs a signal handler) it does nothing; Ctrl-C is held only where Python's own handler would
+    raise it."""
     import signal
     import threading
 
