@@ -6,11 +6,11 @@ import math
 import os
 from pathlib import Path
 
-from ._signals import deferred, signalled, stop_if_signalled, unwind_on_signals
+from ._signals import deferred, unwind_on_signals  # noqa: F401 - unwind_on_signals: shared with cli
 from .errors import ParameterError
 
 __all__ = ["check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name",
-           "unwind_on_signals", "SignalExit", "exit_on_termination", "signalled", "stop_if_signalled"]
+           "unwind_on_signals", "SignalExit", "exit_on_termination"]
 
 
 def _fail(msg: str, code: int) -> None:

@@ -29,6 +29,8 @@ from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from ._signals import deferred
+
 if TYPE_CHECKING:
     import xarray as xr
 
@@ -316,8 +318,6 @@ def netcdf_bytes(ds: xr.Dataset, *, compress: bool = True, **kwargs) -> bytes:
                 if v.dtype.kind in "biufc" and v.ndim > 0} if compress else {}
     for name, enc in (kwargs.pop("encoding", None) or {}).items():
         encoding[name] = {**encoding.get(name, {}), **enc}
-    from ._signals import deferred
-
     with deferred():  # a SIGTERM halfway through would leave a half-built h5netcdf File to fail at exit
         return bytes(ds.to_netcdf(engine="h5netcdf", encoding=encoding or None, **kwargs))
 

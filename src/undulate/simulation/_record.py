@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import xarray as xr
 
+from .._signals import deferred
 from ..errors import ParameterError
 from ..params import SimOptions
 from ..schema import scene_attrs, variable
@@ -142,7 +143,6 @@ class _NetCDFRecorder:
 
     def add(self, block: dict, build) -> None:
         from .._io import hdf5_writes, netcdf_bytes, write_bytes
-        from .._signals import deferred
 
         if self.file is None:  # the first block defines the file: variables, attrs, coordinates
             import h5netcdf
@@ -215,7 +215,6 @@ class _NetCDFRecorder:
 
     def _close(self) -> None:
         from .._io import hdf5_writes
-        from .._signals import deferred
 
         if self.file is not None:
             f, self.file = self.file, None
@@ -228,7 +227,6 @@ class _NetCDFRecorder:
             self._flush()
         self._close()
         from .. import _io
-        from .._signals import deferred
 
         _io.commit(self.tmp, self.path)
         with deferred():
