@@ -138,7 +138,8 @@ def _group_ds(cases):
     return xr.Dataset(
         {"group_dphi": (g, np.array(rows["dphi"])), "group_dx_over_lambda": (g, np.array(rows["dx"])),
          "group_residual_over_lambda": (g, np.array(rows["res"])), "group_dy": (g, np.array(rows["dy"])),
-         "group_band_excess": (g, np.array(rows["be"]))},
+         "group_band_excess": (g, np.array(rows["be"])),
+         "group_run": (g, np.tile(np.arange(dphi.size, dtype=float), (len(cases), 1)))},  # a row a run
         coords={"group_size": ("group_case", [c[0] for c in cases]),
                 "group_channel_width": ("group_case", [c[1] for c in cases]),
                 "group_default": ("group_case", [c[2] for c in cases])})

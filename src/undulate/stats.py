@@ -10,6 +10,9 @@ given), so the same data give the same interval.
   (``scipy.stats.linregress``: standard errors of slope and intercept; the
   interval is Student's t with ``n - 2`` degrees of freedom; R^2 with a
   paired BCa bootstrap interval).
+* :func:`mirrored_line_fit`, :func:`clustered_line_fit` -- the same fit where rows are not
+  independent: a mirror-symmetric design's pairs, or clusters of rows that may share their errors
+  (a cluster jackknife, CR3).
 * :func:`rank_correlation` -- Spearman's rho (``scipy.stats.spearmanr``:
   tied values get their average rank) with a paired percentile bootstrap interval, none where
   too few orderings exist for any to exclude rho = 0 at the level.
@@ -44,7 +47,8 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["Estimate", "LineFit", "line_fit", "mirrored_line_fit", "is_mirror_design", "rank_correlation", "rms",
+__all__ = ["Estimate", "LineFit", "line_fit", "mirrored_line_fit", "clustered_line_fit", "joined_clusters",
+           "is_mirror_design", "rank_correlation", "rms",
            "std", "mean", "bootstrap", "expanded_z", "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level",
            "look_levels", "plan_level", "interval_note", "Check", "decide", "all_of", "runs_needed",
            "half_width_at"]
@@ -646,7 +650,95 @@ def mirrored_line_fit(x, y, *, seed: int | None = None) -> LineFit:
     return LineFit(slope, mean(units), _clustered_r2(xu, yu, lab, seed), n)
 
 
-def _clustered_r2(x: np.ndarray, y: np.ndarray, labels: np.ndarray, seed: int | None) -> Estimate:
+def joined_clusters(*labelings) -> np.ndarray:
+    """One cluster label per row (0, 1, ...) joining every labeling given: two rows share a cluster
+    when any labeling gives them the same label, directly or through other rows (the connected
+    components of the rows linked by each labeling; ``scipy.sparse.csgraph``).  E.g. a run's
+    neighbour pairs (one run) and the runs at +dphi and -dphi (one design point mirrored)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    labs = [np.asarray(lab).ravel() for lab in labelings]
+    if not labs:
+        raise ValueError("joined_clusters needs at least one labeling")
+    n = labs[0].size
+    if any(lab.size != n for lab in labs):
+        raise ValueError(f"every labeling must give one label per row ({n})")
+    rows, cols = [], []
+    for lab in labs:
+        _, which = np.unique(lab, return_inverse=True)
+        first = np.full(int(which.max()) + 1 if n else 0, -1)
+        for i, w in enumerate(which):  # link each row to the first row of its label
+            if first[w] < 0:
+                first[w] = i
+            rows.append(i)
+            cols.append(int(first[w]))
+    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    return connected_components(graph, directed=False)[1]
+
+
+CLUSTERED_SLOPE_METHOD = "least squares, cluster jackknife CR3, t on G - 1"
+
+
+def clustered_line_fit(x, y, clusters, *, seed: int | None = None) -> LineFit:
+    """Least squares of ``y`` on ``x`` where the rows of a cluster may share their errors (the neighbour
+    pairs of one run of a group, the runs at +dphi and -dphi of a mirrored grid): rows with a NaN ``x``
+    or ``y`` dropped, ``clusters`` one label per row.
+
+    Slope and intercept: the least-squares values, with the cluster-robust CR3 standard error (the
+    delete-one-cluster jackknife ``(G - 1) / G * sum_g (b_(g) - b)^2`` about the full fit ``b``, for
+    ``G`` clusters) and Student's t on ``G - 1`` degrees of freedom (MacKinnon, Nielsen & Webb 2023,
+    J. Econometrics 232, 272: on few clusters CR3 with t(G - 1) keeps its level where the usual CR1
+    sandwich does not).  Measured here (docs/verdicts.md): at 95 % it covered 94-95 % on 4-12
+    clusters of rows sharing a run effect (the rows' t: 58-81 %, CR1: 80-91 %), of rows whose errors
+    cancel (the rows' t: 99 %), and of independent rows.  ``units`` the clusters and ``dof`` ``G - 1``,
+    so :func:`runs_needed` extrapolates in clusters.  R^2: the rows' value, BCa bootstrap resampling
+    each cluster together.  No interval with fewer than 3 clusters or where leaving a cluster out
+    leaves no spread in ``x``.
+    """
+    from scipy import stats as st
+
+    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+    labels = np.asarray(clusters).ravel()
+    if labels.size != x.size or y.size != x.size:
+        raise ValueError(f"clusters must give one label per row ({x.size}), not {labels.size}")
+    ok = np.isfinite(x) & np.isfinite(y)
+    x, y, labels = x[ok], y[ok], labels[ok]
+    n = int(x.size)
+    if n < 2 or np.ptp(x) == 0:
+        return LineFit(Estimate(math.nan, n=n), Estimate(math.nan, n=n), Estimate(math.nan, n=n), n)
+    _, which = np.unique(labels, return_inverse=True)
+    g = int(which.max()) + 1
+
+    def fit(keep: np.ndarray) -> np.ndarray:  # (intercept, slope) of the rows kept; NaN without spread
+        xk, yk = x[keep], y[keep]
+        if xk.size < 2 or np.ptp(xk) == 0:
+            return np.full(2, np.nan)
+        xm, ym = xk.mean(), yk.mean()
+        b = float((xk - xm) @ (yk - ym) / ((xk - xm) @ (xk - xm)))
+        return np.array([ym - b * xm, b])
+
+    full = fit(np.ones(n, bool))
+    conf = level()
+    method = f"{CLUSTERED_SLOPE_METHOD}, {g} clusters"
+    se = np.full(2, np.nan)
+    if g >= 3:
+        jack = np.array([fit(which != k) for k in range(g)])
+        if np.isfinite(jack).all():
+            se = np.sqrt((g - 1) / g * np.sum((jack - full) ** 2, axis=0))
+    q = float(st.t.ppf((1 + conf) / 2, g - 1)) if g >= 3 else math.nan
+
+    def est(k: int) -> Estimate:
+        v = float(full[k])
+        if not math.isfinite(se[k]):
+            return Estimate(v, n=n, method=method)
+        return Estimate(v, float(se[k]), v - q * se[k], v + q * se[k], n, method, conf, g, g - 1)
+
+    return LineFit(est(1), est(0), _clustered_r2(x, y, which, seed, "clusters"), n)
+
+
+def _clustered_r2(x: np.ndarray, y: np.ndarray, labels: np.ndarray, seed: int | None,
+                  what: str = "mirror pairs") -> Estimate:
     """R^2 of ``y`` on ``x`` with a BCa bootstrap interval resampling the rows of a label together
     (per label: the count and the sums of x, y, x^2, y^2 and xy)."""
     n = int(x.size)
@@ -665,7 +757,7 @@ def _clustered_r2(x: np.ndarray, y: np.ndarray, labels: np.ndarray, seed: int | 
         return np.where((vx > 0) & (vy > 0), cov * cov / (vx * vy), np.nan)
 
     se, lo, hi = bootstrap(r2_of, *sums, seed=seed, vectorized=True)
-    return Estimate(r2v, se, lo, hi, n, "bootstrap BCa over mirror pairs", level(), k, k - 1)
+    return Estimate(r2v, se, lo, hi, n, f"bootstrap BCa over {what}", level(), k, k - 1)
 
 
 def _orderings_suffice(orderings: float, level_: float) -> bool:

@@ -430,26 +430,37 @@ SLOPE_METHOD = (
     "seen mirrored: the slope's Student-t "
     "interval counts the pairs (the half-differences regressed through the origin, G - 1 degrees of "
     "freedom; stats.mirrored_line_fit) and R^2's BCa bootstrap resamples each pair together; a run "
-    "whose mirror has no result is left out. Over another grid, and the neighbour pairs of groups (no "
-    "mirror grid): scipy.stats.linregress, t interval on n - 2 degrees of freedom, R^2 by a row bootstrap. "
+    "whose mirror has no result is left out. The neighbour pairs of groups (several rows a run): the "
+    "least-squares slope with the cluster jackknife (CR3) standard error and a t interval on G - 1 "
+    "degrees of freedom for G clusters, a run's neighbour pairs and the runs at +dphi and -dphi one "
+    "cluster (stats.clustered_line_fit), R^2 by a cluster bootstrap. Over another grid: scipy.stats.linregress, t "
+    "interval on n - 2 degrees of freedom, R^2 by a row bootstrap. "
     "'slope_open_interval' is the same fit without unwrapping over |dphi| < pi only"
 )
 
 
 def compatibility_fit(dx_over_lambda, dphi_rad, unwrap: bool = True, *,
-                      mirrored: bool | None = None) -> stats.LineFit:
+                      mirrored: bool | None = None, runs=None) -> stats.LineFit:
     """Fit ``dx/lambda`` against ``dphi/2pi`` (see :data:`SLOPE_METHOD`); rows without a result (NaN) are
-    skipped.  ``mirrored``: True, the dphi are a mirror-symmetric grid, one run each
-    (:func:`~undulate.stats.mirrored_line_fit`: the slope's interval counts the mirror pairs; ``ValueError``
-    if they are not); False, rows as independent points (:func:`~undulate.stats.line_fit`: the groups'
-    neighbour pairs); None (default), True where the dphi given (with or without a result) are such a grid
-    (:func:`~undulate.stats.is_mirror_design`)."""
+    skipped.  ``runs``: the run of each row, where one run gives several rows (the neighbour pairs of a
+    group): :func:`~undulate.stats.clustered_line_fit`, a run's rows and the rows at +dphi and -dphi
+    (:func:`abs_dphi_keys`) one cluster; ``mirrored`` is then not used.  Otherwise ``mirrored``: True,
+    the dphi are a mirror-symmetric grid, one run each (:func:`~undulate.stats.mirrored_line_fit`: the
+    slope's interval counts the mirror pairs; ``ValueError`` if they are not); False, rows as independent
+    points (:func:`~undulate.stats.line_fit`); None (default), True where the dphi given (with or without
+    a result) are such a grid (:func:`~undulate.stats.is_mirror_design`)."""
     y = np.asarray(dx_over_lambda, float).ravel()
     x = np.asarray(dphi_rad, float).ravel()
     design = np.isfinite(x)
     x, y = x[design], y[design]
     if unwrap:
         y = unwrap_to_line(y, x)  # NaN stays NaN
+    if runs is not None:
+        run = np.asarray(runs).ravel()
+        if run.size != design.size:
+            raise ValueError(f"runs must give one run per row ({design.size}), not {run.size}")
+        clusters = stats.joined_clusters(run[design], abs_dphi_keys(x))
+        return stats.clustered_line_fit(x / (2 * np.pi), y, clusters)
     if mirrored is None:
         mirrored = stats.is_mirror_design(x)
     if mirrored:
@@ -474,13 +485,19 @@ def band_excess(dx_m, dphi_rad, dy_m, amplitude_m, wavelength_m):
     return lam / (2 * np.pi) * np.maximum(0.0, np.abs(psi) - half)
 
 
-def rms(values: Sequence[float] | np.ndarray, dphi=None) -> stats.Estimate:
+def rms(values: Sequence[float] | np.ndarray, dphi=None, runs=None) -> stats.Estimate:
     """Root mean square over the finite values, with a seeded BCa bootstrap 95 % interval
     (:func:`undulate.stats.rms`; NaN when there are none).  ``dphi``: each value's phase difference
     (radians); the values at +dphi and -dphi are then resampled together (:func:`abs_dphi_keys`): the
     pair at -dphi is the pair at +dphi mirrored (:func:`by_abs_dphi`), so their residuals are one
-    design point seen twice, and dphi = +-pi one state."""
-    return stats.rms(values, clusters=None if dphi is None else abs_dphi_keys(dphi))
+    design point seen twice, and dphi = +-pi one state.  ``runs``: each value's run, where a run gives
+    several (a group's neighbour pairs): a run's values are resampled together too
+    (:func:`~undulate.stats.joined_clusters`)."""
+    keys = None if dphi is None else abs_dphi_keys(dphi)
+    if runs is not None:
+        run = np.asarray(runs).ravel()
+        keys = stats.joined_clusters(run) if keys is None else stats.joined_clusters(run, keys)
+    return stats.rms(values, clusters=keys)
 
 
 FALLS_RULE = ("the RMS residual rises at no step in N beyond its uncertainty (no 95 % interval lies wholly above "

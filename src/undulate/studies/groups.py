@@ -204,8 +204,8 @@ def summary(ds: xr.Dataset) -> dict:
         runs = ds["run_group_size"].values == n
         res = ds["residual_over_lambda"].values[sel]
         dphi = ds["dphi"].values[sel]  # +dphi and -dphi: one design point mirrored (resampled together)
-        fit = C.compatibility_fit(ds["dx_steady_over_lambda"].values[sel], dphi, mirrored=False)
-        run_of = ds["run_index"].values[sel]
+        run_of = ds["run_index"].values[sel]  # a run's neighbour pairs share their errors: one cluster
+        fit = C.compatibility_fit(ds["dx_steady_over_lambda"].values[sel], dphi, runs=run_of)
         changed = [bool(ds["order_changed"].values[sel][run_of == r][0]) for r in np.unique(run_of)]
         per[str(n)] = {
             "group_size": n,
@@ -217,11 +217,11 @@ def summary(ds: xr.Dataset) -> dict:
             "n_runs_lateral_order_changed": int(np.sum(changed)),
             "slope": fit.slope.to_dict(),
             "intercept": fit.intercept.to_dict(),
-            "rms_residual_over_lambda": C.rms(res, dphi).to_dict(),
-            "rms_residual_m": C.rms(ds["residual"].values[sel], dphi).to_dict(),
+            "rms_residual_over_lambda": C.rms(res, dphi, run_of).to_dict(),
+            "rms_residual_m": C.rms(ds["residual"].values[sel], dphi, run_of).to_dict(),
             "max_abs_residual_over_lambda": float(np.max(np.abs(res))) if res.size else None,
             "rms_band_excess_over_lambda": C.rms(ds["band_excess"].values[sel] / ds.attrs["wavelength_m"],
-                                                 dphi).to_dict(),
+                                                 dphi, run_of).to_dict(),
             "mean_dy_steady_over_2A": float(np.mean(ds["dy_steady"].values[sel]) / (2 * ds.attrs["amplitude_m"]))
             if sel.any() else None,
         }

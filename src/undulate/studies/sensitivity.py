@@ -462,6 +462,7 @@ _GROUP_FIELDS = {
                              "groups: distance from the nearest compatibility branch / lambda"),
     "dy_steady": ("group_dy", "m", "groups: steady lateral spacing of the neighbours' centre lines"),
     "band_excess": ("group_band_excess", "m", "groups: distance outside the full compatibility band (0 = inside)"),
+    "run": ("group_run", "1", "groups: the case's run of the neighbour pair (0, 1, ...; NaN: padding)"),
 }
 """Group record field -> (data variable, units, long name)."""
 
@@ -482,7 +483,8 @@ def _data_groups(r: _Runs) -> tuple[dict, dict]:
 
     cases = group_cases()  # the groups study's grid: the same per-run seeds, hence the same phase draws
     runs = r.ctx.together(*(functools.partial(group_runs, n, w) for n, w, _ in cases))
-    recs = [[rec for run in rs for rec in C.group_records(C.trajectory(run, BODY_LENGTH_M), r.A3)] for rs in runs]
+    recs = [[{**rec, "run": i} for i, run in enumerate(rs)
+             for rec in C.group_records(C.trajectory(run, BODY_LENGTH_M), r.A3)] for rs in runs]
     n_nb = max(1, max(len(x) for x in recs))
     if not r.runs("groups"):  # not run: as many neighbour pairs as the runs would give (n - 1 per run)
         n_nb = max((n - 1) * group_sweep(n, gdphis, r.p.group_draws, r.seed, channel_width_m=w)[1].n_runs
@@ -904,9 +906,9 @@ def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
         size, w = int(c["group_size"]), float(c["group_channel_width"])
         dphi, dx = c["group_dphi"].values, c["group_dx_over_lambda"].values
         ok = np.isfinite(dphi) & np.isfinite(dx)
-        dphi, dx = dphi[ok], dx[ok]
-        fit = C.compatibility_fit(dx, dphi, mirrored=False)  # neighbour pairs: no mirror grid
-        rms = C.rms(c["group_residual_over_lambda"].values[ok], dphi)
+        dphi, dx, run_of = dphi[ok], dx[ok], c["group_run"].values[ok]
+        fit = C.compatibility_fit(dx, dphi, runs=run_of)  # a run's neighbour pairs: one cluster
+        rms = C.rms(c["group_residual_over_lambda"].values[ok], dphi, run_of)
         if size == 2:
             ref_rms = rms
         entry = {"case_id": str(group_case(size, w)), "group_size": size, "channel_width_m": w,
