@@ -135,6 +135,70 @@ def test_sigterm_stops_a_study_and_its_workers_and_sighup_ignored_stays_ignored(
             pass
 
 
+def test_ctrl_c_stops_a_study_and_its_workers_with_one_line(tmp_path):
+    """Ctrl-C at a terminal (SIGINT to the whole foreground process group: the command and its pool
+    processes): exit 130, the sweep says how many runs are saved, the last line says what happened and
+    that the same command resumes (until 2026-12-02 typer ended it with 130 and no line), and no process
+    of it is left."""
+    out = tmp_path / "s"
+    cmd = [sys.executable, "-m", "undulate.cli", "study", "pairs", "--quick", "--workers", "2", "--out", str(out)]
+
+    def start():  # Python's own Ctrl-C handler, whatever this test process inherited (a background shell
+        signal.signal(signal.SIGINT, signal.SIG_DFL)  # starts SIGINT ignored, and Python then keeps it so)
+
+    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
+                            preexec_fn=start)
+    try:
+        lines, deadline = [], time.monotonic() + 180
+        while time.monotonic() < deadline:
+            line = proc.stdout.readline()
+            if not line:
+                break
+            lines.append(line)
+            if "sim-quick-seed0" in line and "to compute on 2 local processes" in line:
+                break
+        assert proc.poll() is None, "".join(lines)
+        store = out / ".sweeps" / "pairs" / "sim-quick-seed0" / "runs"
+        while time.monotonic() < deadline and not list(store.glob("*.nc")):
+            time.sleep(0.05)
+        workers = [p for p in _session(proc.pid) if p != proc.pid]
+        assert workers, "".join(lines)
+        os.killpg(proc.pid, signal.SIGINT)  # as a terminal sends it
+        rest, _ = proc.communicate(timeout=60)
+        assert proc.returncode == 130, "".join(lines) + rest
+        assert "sweep interrupted" in rest and "Traceback" not in rest, rest
+        assert rest.rstrip().splitlines()[-1] == "interrupted; finished runs are saved: the same command resumes"
+        assert _gone_within(workers, 10) == []
+        assert list(store.glob("*.nc")), "finished runs are kept"
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def test_ctrl_c_ends_simulate_with_one_line_and_no_file(tmp_path):
+    out = tmp_path / "run.nc"
+    proc = subprocess.Popen([sys.executable, "-m", "undulate.cli", "simulate", "--duration", "3000", "-q",
+                             "--out", str(out)], stderr=subprocess.PIPE, text=True, start_new_session=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and proc.poll() is None and not list(tmp_path.glob(".*.tmp*")):
+            time.sleep(0.05)
+        assert proc.poll() is None, proc.stderr.read()
+        os.killpg(proc.pid, signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 130, err
+        assert err.strip() == "interrupted", err
+        assert list(tmp_path.iterdir()) == []
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
 @pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGHUP])
 def test_a_terminated_simulate_leaves_no_file(tmp_path, sig):
     """``undulate simulate`` ended by SIGTERM or SIGHUP mid-run: exit 128 + signal, and neither the output
@@ -355,10 +419,10 @@ def test_a_signal_while_a_file_opens_or_closes_waits_for_it(tmp_path, where):
     flush, which then went through unharmed; "read": Ctrl-C as ``animate`` opens its input) failed in
     its finalizer at exit, "Exception ignored in: <function File.close>" and a traceback after the
     command's own line.  Now the signal waits for the file, then ends the command: exit 143 with one
-    line (130 and nothing for Ctrl-C, as typer ends it), no file."""
+    line (130 and ``interrupted`` for Ctrl-C), no file."""
     r = subprocess.run([sys.executable, "-c", _IN_AN_HDF5_FILE, str(tmp_path / "run.nc"), where],
                        capture_output=True, text=True, timeout=120)
-    sig, line = (signal.SIGINT, "") if where == "read" else (signal.SIGTERM, "terminated (SIGTERM)")  # Ctrl-C: quiet
+    sig, line = (signal.SIGINT, "interrupted") if where == "read" else (signal.SIGTERM, "terminated (SIGTERM)")
     assert r.returncode == 128 + sig, (r.stdout, r.stderr)
     assert r.stderr.strip() == line, r.stderr
     assert list(tmp_path.iterdir()) == []

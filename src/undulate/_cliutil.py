@@ -10,7 +10,19 @@ from ._signals import deferred, unwind_on_signals  # noqa: F401 - unwind_on_sign
 from .errors import ParameterError
 
 __all__ = ["check_writable", "load_netcdf", "write_netcdf_atomic", "_parse_floats", "_fail", "_cli_name",
-           "unwind_on_signals", "SignalExit", "exit_on_termination"]
+           "unwind_on_signals", "SignalExit", "exit_on_termination", "said"]
+
+
+_SAID: list[int] = []
+"""Exit codes whose one line the command has printed itself (:func:`said`), since ``cli._run`` began."""
+
+
+def said(code: int) -> int:
+    """``code``, noted as an exit whose line the command has printed: the entry point adds none (a robot
+    run stopped by Ctrl-C says what happened to torque and exits 130; ``cli._run`` says ``interrupted``
+    only where no command has)."""
+    _SAID.append(int(code))
+    return int(code)
 
 
 def _fail(msg: str, code: int) -> None:
@@ -18,7 +30,7 @@ def _fail(msg: str, code: int) -> None:
     import typer
 
     typer.echo(f"error: {msg}", err=True)
-    raise typer.Exit(code)
+    raise typer.Exit(said(code))
 
 
 def _cli_name(e: ParameterError, names: dict[str, str]) -> ParameterError:

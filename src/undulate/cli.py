@@ -417,6 +417,9 @@ app.command("compare")(_track_cli.compare)
 def main(argv: list[str] | None = None) -> int:
     """Entry point: run the app, turning click's usage errors into one line + exit 2.
 
+    Ctrl-C exits 130 with one line, ``interrupted`` (``study`` and ``reproduce`` add that finished runs
+    are saved and the same command resumes).
+
     A command ended by SIGTERM or SIGHUP exits ``128 + signal`` with one line, whatever exception its
     unwinding reached here as (typer's Exit(130), SystemExit, or the error of C code the signal
     interrupted: see :func:`undulate._signals.signalled`)."""
@@ -445,16 +448,20 @@ def _resumes(argv: list[str] | None) -> str:
 
 def _run(argv: list[str] | None) -> int:
     """The app under ``argv``, its outcome as an exit code."""
+    from . import _cliutil
     from ._signals import signalled
 
+    _cliutil._SAID.clear()
     try:
-        rv = app(args=argv, standalone_mode=False)
+        rv = app(args=argv, standalone_mode=False)  # typer returns 130 for a KeyboardInterrupt in a command
     except typer.Exit as e:
         rv = e.exit_code
-    except (typer.Abort, KeyboardInterrupt):
-        rv = 130
+    except typer.Abort:  # end of input at a prompt
         if signalled() is None:
             typer.echo("aborted", err=True)
+        return 130
+    except KeyboardInterrupt:
+        rv = 130
     except WriteError as e:  # a full disk or quota under any command: one line, nothing half-written left
         typer.echo(f"error: {e}{_resumes(argv)}", err=True)
         return 1
@@ -465,6 +472,8 @@ def _run(argv: list[str] | None) -> int:
         else:
             typer.echo(f"error: {msg.splitlines()[0] if msg else e}", err=True)
         return getattr(e, "exit_code", 2)
+    if rv == 130 and signalled() is None and not _cliutil._SAID:  # Ctrl-C; a termination says so in main
+        typer.echo(f"interrupted{_resumes(argv)}", err=True)
     return rv if isinstance(rv, int) else 0
 
 

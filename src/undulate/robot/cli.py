@@ -17,6 +17,7 @@ from typing import Optional
 
 import typer
 
+from .._cliutil import said
 from ..errors import ParameterError
 
 robot_app = typer.Typer(
@@ -29,7 +30,7 @@ robot_app = typer.Typer(
 
 def _fail(msg: str, code: int) -> None:
     typer.echo(f"error: {msg}", err=True)
-    raise typer.Exit(code)
+    raise typer.Exit(said(code))  # this line says why (a Ctrl-C: what happened to torque); no other follows
 
 
 def _parse_ids(text: str) -> tuple[int, ...]:
