@@ -359,8 +359,7 @@ def test_a_reproduction_whose_signal_came_out_as_a_study_error_stops(tmp_path, m
 
     def run_study(name, *args, **kwargs):
         started.append(name)
-        monkeypatch.setattr(_signals, "_SIGNALLED", [signal.SIGTERM])  # as the handler records it
-        monkeypatch.setattr(_signals, "_RAISES", [_Terminated])
+        monkeypatch.setattr(_signals, "_SIGNALLED", [(signal.SIGTERM, _Terminated)])  # as the handler records it
         raise ValueError("Invalid affine transformation matrix")
 
     monkeypatch.setattr(studies, "run_study", run_study)

@@ -61,8 +61,8 @@ def deferred() -> Iterator[None]:
             raise e
 
 
-_SIGNALLED: list[int] = []  # the termination signals this process has received, in order
-_RAISES: list[type] = []  # the exception each raised
+_SIGNALLED: list[tuple[int, type]] = []  # the termination signals this process has received, in order,
+# each with the exception it raised
 
 
 def signalled() -> int | None:
@@ -73,7 +73,7 @@ def signalled() -> int | None:
     out as that code's own error ("ValueError: Invalid affine transformation matrix", seen when
     ``animate`` was terminated).  The cleanup ran all the same (it is ``finally`` blocks), so
     :func:`undulate.cli.main` judges the command by this record, not by the exception it sees."""
-    return _SIGNALLED[0] if _SIGNALLED else None
+    return _SIGNALLED[0][0] if _SIGNALLED else None
 
 
 def stop_if_signalled() -> None:
@@ -81,7 +81,8 @@ def stop_if_signalled() -> None:
     code which calls back into Python (matplotlib drawing a frame): an exception raised there may be
     dropped by that code, and the loop would run on to write a file the command then calls terminated."""
     if _SIGNALLED:
-        raise _RAISES[0](_SIGNALLED[0])
+        signum, exception = _SIGNALLED[0]
+        raise exception(signum)
 
 
 def unwind_on_signals(signals, exception) -> None:
@@ -102,9 +103,8 @@ def unwind_on_signals(signals, exception) -> None:
     import threading
 
     def handler(signum, _frame):
-        if signum not in _SIGNALLED:
-            _SIGNALLED.append(signum)
-            _RAISES.append(exception)
+        if all(signum != seen for seen, _ in _SIGNALLED):
+            _SIGNALLED.append((signum, exception))
         if _DEFERRING[0]:  # the main thread is building or closing a file: raised when it is done
             _PENDING.append(exception(signum))
             return
