@@ -6,6 +6,7 @@ may): its two pool processes went on for minutes, writing runs into the folder, 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -83,17 +84,12 @@ def test_pool_processes_end_when_their_parent_is_killed():
             pass
 
 
-def test_sigterm_stops_a_study_and_its_workers_and_sighup_ignored_stays_ignored(tmp_path):
-    """``kill PID`` mid-sweep: the command exits 143 within seconds saying what happened, the sweep says
-    how to resume, finished runs are saved whole (a run cut short is at most a temporary file, which the
-    store clears when next opened), and no process of it is left.  A SIGHUP it was started
-    ignoring (``nohup``) does not end it."""
-    out = tmp_path / "s"
+@contextlib.contextmanager
+def _study_mid_sweep(out: Path, start):
+    """``undulate study pairs --quick`` on 2 pool processes, started with ``start`` as its preexec, once
+    its workers are busy in the sweep and a run is saved: (the process, its lines so far, the sweep's
+    run store, the pool processes); its process group killed at the end."""
     cmd = [sys.executable, "-m", "undulate.cli", "study", "pairs", "--quick", "--workers", "2", "--out", str(out)]
-
-    def start():  # SIGHUP ignored, as under nohup; SIGTERM as a plain process has it
-        signal.signal(signal.SIGHUP, signal.SIG_IGN)
-
     proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
                             preexec_fn=start)
     try:
@@ -111,6 +107,23 @@ def test_sigterm_stops_a_study_and_its_workers_and_sighup_ignored_stays_ignored(
             time.sleep(0.05)
         workers = [p for p in _session(proc.pid) if p != proc.pid]
         assert workers, "".join(lines)
+        yield proc, lines, store, workers
+    finally:
+        try:
+            os.killpg(proc.pid, signal.SIGKILL)
+        except ProcessLookupError:
+            pass
+
+
+def test_sigterm_stops_a_study_and_its_workers_and_sighup_ignored_stays_ignored(tmp_path):
+    """``kill PID`` mid-sweep: the command exits 143 within seconds saying what happened, the sweep says
+    how to resume, finished runs are saved whole (a run cut short is at most a temporary file, which the
+    store clears when next opened), and no process of it is left.  A SIGHUP it was started
+    ignoring (``nohup``) does not end it."""
+    def start():  # SIGHUP ignored, as under nohup; SIGTERM as a plain process has it
+        signal.signal(signal.SIGHUP, signal.SIG_IGN)
+
+    with _study_mid_sweep(tmp_path / "s", start) as (proc, lines, store, workers):
         os.kill(proc.pid, signal.SIGHUP)
         time.sleep(0.5)
         assert proc.poll() is None  # ignored
@@ -128,11 +141,6 @@ def test_sigterm_stops_a_study_and_its_workers_and_sighup_ignored_stays_ignored(
         assert finished, "finished runs are kept"
         for run in finished:  # each whole (a run cut by its worker's stop is a temporary the store clears)
             xr.load_dataset(run)
-    finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
 
 
 def test_ctrl_c_stops_a_study_and_its_workers_with_one_line(tmp_path):
@@ -140,29 +148,10 @@ def test_ctrl_c_stops_a_study_and_its_workers_with_one_line(tmp_path):
     processes): exit 130, the sweep says how many runs are saved, the last line says what happened and
     that the same command resumes (until 2026-12-02 typer ended it with 130 and no line), and no process
     of it is left."""
-    out = tmp_path / "s"
-    cmd = [sys.executable, "-m", "undulate.cli", "study", "pairs", "--quick", "--workers", "2", "--out", str(out)]
-
     def start():  # Python's own Ctrl-C handler, whatever this test process inherited (a background shell
         signal.signal(signal.SIGINT, signal.SIG_DFL)  # starts SIGINT ignored, and Python then keeps it so)
 
-    proc = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, start_new_session=True,
-                            preexec_fn=start)
-    try:
-        lines, deadline = [], time.monotonic() + 180
-        while time.monotonic() < deadline:
-            line = proc.stdout.readline()
-            if not line:
-                break
-            lines.append(line)
-            if "sim-quick-seed0" in line and "to compute on 2 local processes" in line:
-                break
-        assert proc.poll() is None, "".join(lines)
-        store = out / ".sweeps" / "pairs" / "sim-quick-seed0" / "runs"
-        while time.monotonic() < deadline and not list(store.glob("*.nc")):
-            time.sleep(0.05)
-        workers = [p for p in _session(proc.pid) if p != proc.pid]
-        assert workers, "".join(lines)
+    with _study_mid_sweep(tmp_path / "s", start) as (proc, lines, store, workers):
         os.killpg(proc.pid, signal.SIGINT)  # as a terminal sends it
         rest, _ = proc.communicate(timeout=60)
         assert proc.returncode == 130, "".join(lines) + rest
@@ -170,11 +159,6 @@ def test_ctrl_c_stops_a_study_and_its_workers_with_one_line(tmp_path):
         assert rest.rstrip().splitlines()[-1] == "interrupted; finished runs are saved: the same command resumes"
         assert _gone_within(workers, 10) == []
         assert list(store.glob("*.nc")), "finished runs are kept"
-    finally:
-        try:
-            os.killpg(proc.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
 
 
 def test_ctrl_c_ends_simulate_with_one_line_and_no_file(tmp_path):
