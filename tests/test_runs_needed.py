@@ -158,3 +158,25 @@ def test_a_staged_study_counts_the_runs_needed_at_its_last_looks_level(tmp_path,
     with stats.at_level(first, plan_at=last):
         assert claim["runs_needed"] == stats.runs_needed(est, 0.0)
     assert claim["runs_needed"] < stats.runs_needed(est, 0.0)  # at the first look's own level: more
+
+
+def test_a_groups_claim_counts_the_runs_it_needs_not_its_neighbour_pairs():
+    """A group's estimates rest on neighbour pairs, two or three a run: "about N runs would decide it"
+    counts runs (the growth needed times the runs), where it counted neighbour pairs until 2026-12-02."""
+    from undulate.studies import groups
+
+    rng = np.random.default_rng(4)
+    runs = np.repeat(np.arange(9), 2)  # nine runs of three swimmers, two neighbour pairs each
+    dphi = np.repeat(np.linspace(-2.5, 2.5, 9), 2)
+    dx = dphi / (2 * np.pi) * 0.8 + rng.normal(0, 0.05, 9)[runs]  # a slope near 0.8: undecided
+    with stats.at_level(0.95):
+        slope = stats.clustered_line_fit(dphi / (2 * np.pi), dx, runs).slope
+        rms = stats.rms(rng.normal(0, 0.1, 18))
+        pair = stats.rms(rng.normal(0, 0.03, 9))
+    summary = {"per_group_size": {"3": {"slope": slope.to_dict(), "rms_residual_over_lambda": rms.to_dict(),
+                                        "n_neighbour_pairs": 18, "n_runs": 10, "n_failed": 1},
+                                  "2": {"rms_residual_over_lambda": pair.to_dict()}}}
+    v = groups._group_follows("3")(summary)
+    assert v.verdict == "undecided", v.reason
+    assert v.runs_needed == math.ceil(9 * v.growth_needed - 1e-9)  # 9 runs with a result, not 18 pairs
+    assert f"about {v.runs_needed} runs would decide it" in v.reason

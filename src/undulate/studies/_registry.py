@@ -159,10 +159,13 @@ class Verdict:
         return cls(HOLDS if ok is True else FAILS if ok is False else UNDECIDED, measured, value, reason)
 
     @classmethod
-    def of(cls, checks: Sequence[stats.Check], measured: str, value: Any = None) -> Verdict:
+    def of(cls, checks: Sequence[stats.Check], measured: str, value: Any = None, *,
+           runs: int | None = None) -> Verdict:
         """The verdict of a claim with several criteria (:func:`undulate.stats.decide`): fails if one
         fails, undecided if none fails and one straddles, else holds.  An undecided verdict's reason
-        names every straddled boundary; its ``runs_needed`` is the largest of theirs."""
+        names every straddled boundary; its ``runs_needed`` is the largest of theirs.  ``runs``: the runs
+        the checks' estimates rest on, where their points are not runs (a group's neighbour pairs, two or
+        three a run): ``runs_needed`` is then that many runs times the largest growth needed."""
         ok = stats.decide(checks)
         if ok is not None:
             return cls.judged(ok, measured, value)
@@ -171,6 +174,8 @@ class Verdict:
         n = None if None in needed else max(needed)  # type: ignore[type-var]
         growth = [c.growth_needed for c in open_]
         g = None if None in growth else max(growth)  # type: ignore[type-var]
+        if runs is not None:
+            n = None if g is None else int(math.ceil(runs * g - 1e-9))
         reason = "; ".join(c.text for c in open_)
         if n is not None:
             reason += f" (about {n} runs would decide it)"

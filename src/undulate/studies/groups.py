@@ -249,7 +249,8 @@ def _group_follows(size: str) -> Callable[[dict], Verdict]:
                  "pairs_rms_residual_over_lambda": pair["rms_residual_over_lambda"]}
         if not (slope.has_interval and rms.has_interval and rms2.has_interval):
             return Verdict.none("a slope or RMS without an interval (too few neighbour pairs)", measured, value)
-        return Verdict.of(C.group_follows_line_checks(slope, rms, rms2), measured, value)
+        return Verdict.of(C.group_follows_line_checks(slope, rms, rms2), measured, value,
+                          runs=g["n_runs"] - g["n_failed"])  # "runs" in runs, not neighbour pairs
     return judge
 
 
