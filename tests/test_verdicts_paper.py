@@ -32,7 +32,7 @@ def verdicts(name, summary):
 # ------------------------------------------------------------------ groups
 def groups_summary(slope=(1.0, 0.9, 1.1), rms=(0.1, 0.08, 0.12), pair_rms=(0.03, 0.02, 0.04)):
     def group(size, slope_, rms_):
-        return {"group_size": size, "n_neighbour_pairs": 18, "slope": est(*slope_),
+        return {"group_size": size, "n_neighbour_pairs": 18, "n_runs": 9, "n_failed": 0, "slope": est(*slope_),
                 "rms_residual_over_lambda": est(*rms_)}
 
     return {"per_group_size": {"2": group(2, (1.0, 0.95, 1.05), pair_rms), "3": group(3, slope, rms),
