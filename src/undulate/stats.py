@@ -664,16 +664,12 @@ def joined_clusters(*labelings) -> np.ndarray:
     n = labs[0].size
     if any(lab.size != n for lab in labs):
         raise ValueError(f"every labeling must give one label per row ({n})")
-    rows, cols = [], []
-    for lab in labs:
-        _, which = np.unique(lab, return_inverse=True)
-        first = np.full(int(which.max()) + 1 if n else 0, -1)
-        for i, w in enumerate(which):  # link each row to the first row of its label
-            if first[w] < 0:
-                first[w] = i
-            rows.append(i)
-            cols.append(int(first[w]))
-    graph = coo_matrix((np.ones(len(rows)), (rows, cols)), shape=(n, n))
+    cols = []
+    for lab in labs:  # each row linked to the first row of its label
+        _, first, which = np.unique(lab, return_index=True, return_inverse=True)
+        cols.append(first[which.ravel()])
+    rows = np.tile(np.arange(n), len(labs))
+    graph = coo_matrix((np.ones(rows.size), (rows, np.concatenate(cols))), shape=(n, n))
     return connected_components(graph, directed=False)[1]
 
 

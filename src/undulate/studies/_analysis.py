@@ -459,8 +459,7 @@ def compatibility_fit(dx_over_lambda, dphi_rad, unwrap: bool = True, *,
         run = np.asarray(runs).ravel()
         if run.size != design.size:
             raise ValueError(f"runs must give one run per row ({design.size}), not {run.size}")
-        clusters = stats.joined_clusters(run[design], abs_dphi_keys(x))
-        return stats.clustered_line_fit(x / (2 * np.pi), y, clusters)
+        return stats.clustered_line_fit(x / (2 * np.pi), y, run_clusters(run[design], x))
     if mirrored is None:
         mirrored = stats.is_mirror_design(x)
     if mirrored:
@@ -493,11 +492,19 @@ def rms(values: Sequence[float] | np.ndarray, dphi=None, runs=None) -> stats.Est
     design point seen twice, and dphi = +-pi one state.  ``runs``: each value's run, where a run gives
     several (a group's neighbour pairs): a run's values are resampled together too
     (:func:`~undulate.stats.joined_clusters`)."""
-    keys = None if dphi is None else abs_dphi_keys(dphi)
     if runs is not None:
-        run = np.asarray(runs).ravel()
-        keys = stats.joined_clusters(run) if keys is None else stats.joined_clusters(run, keys)
+        keys = run_clusters(runs, dphi)
+    else:
+        keys = None if dphi is None else abs_dphi_keys(dphi)
     return stats.rms(values, clusters=keys)
+
+
+def run_clusters(runs, dphi=None) -> np.ndarray:
+    """One cluster label per row: the rows of a run (a group's neighbour pairs) together, and with
+    ``dphi`` (radians) the runs at +dphi and -dphi too (:func:`abs_dphi_keys`: one design point
+    mirrored); :func:`~undulate.stats.joined_clusters`."""
+    run = np.asarray(runs).ravel()
+    return stats.joined_clusters(run) if dphi is None else stats.joined_clusters(run, abs_dphi_keys(dphi))
 
 
 FALLS_RULE = ("the RMS residual rises at no step in N beyond its uncertainty (no 95 % interval lies wholly above "
