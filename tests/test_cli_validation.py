@@ -119,3 +119,58 @@ def test_simulate_errors_name_the_option_typed(tmp_path, args, option):
     assert r.exit_code == 2, (args, r.output)
     assert len(lines) == 1 and lines[0].startswith(f"error: invalid {option}"), (args, lines)
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("args, names", [
+    (["--width", "1e-12"], "--width"),  # MuJoCo's compiler refused the link's inertia: a traceback
+    (["--timestep", "1e-300"], "--sample-rate / --timestep"),  # a sample interval of 5e298 steps: numpy's traceback
+    (["--body-length", "1e20"], "--sample-rate / --timestep"),  # its automatic step, 5e-24 s, likewise
+])
+def test_simulate_refuses_what_once_raised_a_traceback(tmp_path, args, names):
+    """Inputs that passed every check and then failed inside MuJoCo or numpy (found by a sweep of
+    extreme values over every ``simulate`` option) are one line naming the option, exit 2, no file."""
+    out = tmp_path / "run.nc"
+    r = subprocess.run([*CLI, "simulate", "--phases", "0,90", "--duration", "0.5", *args, "--out", str(out)],
+                       capture_output=True, text=True, timeout=120)
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2, (r.stdout, r.stderr)
+    assert len(lines) == 1 and lines[0].startswith("error: invalid") and names in lines[0], lines
+    assert "Traceback" not in r.stderr and not out.exists()
+
+
+def test_a_geometry_is_accepted_exactly_when_mujoco_compiles_it():
+    """:class:`SwimmerGeometry` applies MuJoCo's rules for a moving body's inertia (mass and moments at
+    least mjMINVAL, any two moments at least the third in floating point): over geometries spanning
+    twelve decades of width, height and mass, it refuses exactly those whose swimmer does not compile."""
+    import numpy as np
+
+    from undulate import Channel, Scene
+    from undulate.errors import ParameterError
+    from undulate.params import SwimmerGeometry
+    from undulate.scene import swimmer_spec
+
+    rng = np.random.default_rng(3)
+    seen = {"accepted": 0, "refused": 0}
+    for _ in range(400):
+        n = int(rng.integers(2, 65))
+        L = 10 ** rng.uniform(-4, 3)
+        kw = dict(n_links=n, length_m=L, width_m=L / n * 10 ** rng.uniform(-12, -0.01),
+                  height_m=L / n * 10 ** rng.uniform(-12, 1), mass_kg=10 ** rng.uniform(-14, 3))
+        try:
+            g = SwimmerGeometry(**kw)
+            accepted = True
+        except ParameterError as e:
+            assert e.name in ("width_m", "height_m", "mass_kg / length_m / width_m / height_m"), e
+            accepted = False
+            with pytest.MonkeyPatch.context() as mp:  # the same geometry, unchecked, to ask MuJoCo
+                mp.setattr(SwimmerGeometry, "_check_inertia", lambda self: None)
+                g = SwimmerGeometry(**kw)
+        channel = Channel(width_m=2 * L + 3 * g.width_m, length_m=max(1.0, 2 * L))
+        try:
+            swimmer_spec(Scene(phases_rad=(0.0,), geometry=g, channel=channel), 1e-3).compile()
+            compiles = True
+        except ValueError:
+            compiles = False
+        assert accepted == compiles, kw
+        seen["accepted" if accepted else "refused"] += 1
+    assert min(seen.values()) > 50, seen  # both sides of the rule were visited

@@ -30,6 +30,9 @@ import numpy as np
 from . import schema as _schema
 from .errors import ParameterError
 
+MUJOCO_MINVAL = 1e-15
+"""MuJoCo's ``mjMINVAL``: the least mass and moment of inertia its compiler accepts for a moving body."""
+
 __all__ = [
     "Gait",
     "SwimmerGeometry",
@@ -219,6 +222,32 @@ class SwimmerGeometry(_Params):
             raise ParameterError("collision_segments", "an integer in [1, 8]", self.collision_segments)
         if w >= L / n:
             raise ParameterError("width_m", f"smaller than the link length L/N = {L / n:g} m", self.width_m)
+        self._check_inertia()
+
+    def _check_inertia(self) -> None:
+        """Refuse a link whose box inertia MuJoCo's compiler rejects, with the rules it applies: every
+        principal moment (and the mass) of a moving body at least ``mjMINVAL`` = 1e-15, and any two
+        moments at least the third, compared in floating point (a box thinner than ~1e-8 of its
+        length rounds the margin ``m w^2 / 6`` away)."""
+        moments = self.link_inertia_kg_m2
+        if self.link_mass_kg < MUJOCO_MINVAL or min(moments) < MUJOCO_MINVAL:
+            raise ParameterError(
+                "mass_kg / length_m / width_m / height_m",
+                f"a link whose mass and principal moments of inertia are at least {MUJOCO_MINVAL:g} (MuJoCo's "
+                f"mjMINVAL; here {self.link_mass_kg:.3g} kg and {min(moments):.3g} kg m^2)", None)
+        a, b, c = moments
+        if a + b < c or a + c < b or b + c < a:
+            thin = "width_m" if self.width_m <= self.height_m else "height_m"
+            raise ParameterError(thin, f"at least ~1e-8 of the link length ({self.link_length_m:g} m): thinner "
+                                 "links' moments of inertia fail MuJoCo's A + B >= C in floating point",
+                                 getattr(self, thin))
+
+    @property
+    def link_inertia_kg_m2(self) -> tuple[float, float, float]:
+        """Principal moments of one link, a solid box ``l x w x h`` of mass ``M/N``, about its
+        length, width and height axes, kg m^2."""
+        m, a, b, c = self.link_mass_kg, self.link_length_m, self.width_m, self.height_m
+        return (m * (b * b + c * c) / 12, m * (a * a + c * c) / 12, m * (a * a + b * b) / 12)
 
     @property
     def link_length_m(self) -> float:

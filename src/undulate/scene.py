@@ -103,11 +103,6 @@ def chord_heading(alpha: np.ndarray, alpha_dot: np.ndarray, n_links: int) -> tup
 _WALL_RGBA = (0.5, 0.5, 0.55, 0.4)
 
 
-def _box_inertia(m: float, a: float, b: float, c: float) -> list[float]:
-    """Principal moments of a solid box of sides a, b, c (m) and mass m (kg)."""
-    return [m * (b * b + c * c) / 12, m * (a * a + c * c) / 12, m * (a * a + b * b) / 12]
-
-
 def _timeconst(scene: Scene, timestep_s: float) -> float:
     """Contact time constant, s: the scene's, or two time steps by default."""
     tc = scene.contact.timeconst_s
@@ -223,7 +218,7 @@ def _add_link(parent, scene: Scene, timestep_s: float, a_mid: float, k: int, pos
         lo = -a_mid
     body.ipos = [lo + l / 2, 0, 0]
     body.add_site(name=f"c{k}", pos=[lo + l / 2, 0, 0])  # where the perturbation force acts
-    body.inertia = _box_inertia(g.link_mass_kg, l, g.width_m, g.height_m)
+    body.inertia = list(g.link_inertia_kg_m2)
     if joint is None:
         if not scene.hold_x:  # Scene.hold_x: no longitudinal degree of freedom
             body.add_joint(name="x", type=mujoco.mjtJoint.mjJNT_SLIDE, axis=[1, 0, 0])

@@ -53,7 +53,7 @@ from ._compile import RK4_DAMPING_STEP, compile_scene, controls, resolve_options
 from ._env import usable_cpus
 from ._gather import Gather, _gathering
 from ._mujoco import _WarmRollout, _initial_state, _log_mujoco_warning, _state_layout  # noqa: F401
-from ._record import (RECORDABLE, _check_fits, _link_angles, _MemoryRecorder, _NetCDFRecorder,  # noqa: F401
+from ._record import (RECORDABLE, _check_chunk_fits, _check_fits, _link_angles, _MemoryRecorder, _NetCDFRecorder,  # noqa: F401
                       _outs, _Recorders, _sample_vars, _to_dataset)
 
 _lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
@@ -173,7 +173,15 @@ def _plan_batch(scenes: Sequence[Scene], options: SimOptions | None, out, contro
         chunk = unit * max(1, options.chunk_steps // unit)
     else:
         chunk = sps * max(1, options.chunk_steps // sps)
+    if chunk > options.chunk_steps:  # a chunk as long as a sample interval (or control period) longer
+        _check_chunk_fits(compiled, chunk, dt, _reduced_on_device(options, ctl), requested.timestep_s is None)
     return _Batch(compiled, options, requested, outs, ctl, tick, chunk, n_samples)
+
+
+def _reduced_on_device(options: SimOptions, ctl) -> bool:
+    """Whether a batch's samples are reduced on the device (the Warp backend in open loop): the host
+    then holds a chunk's controls only, not its every-step states and sensors."""
+    return options.backend == "warp" and ctl is None and os.environ.get("UNDULATE_WARP_REDUCE", "1") != "0"
 
 
 def _force_mag(sd: np.ndarray, adr: np.ndarray) -> np.ndarray:
@@ -224,7 +232,7 @@ class _Stepper:
 
             affine = [compile_scene(c.scene, bt.options, push=c.index.ctrl_push.size > 0,
                                     loads=c.index.sens_load.size > 0, servo="affine") for c in bt.compiled]
-            self.reduce = bt.ctl is None and os.environ.get("UNDULATE_WARP_REDUCE", "1") != "0"
+            self.reduce = _reduced_on_device(bt.options, bt.ctl)
             red = _warp._Reduction(bt.sps, self.pair_adr, self.wall_adr, self.md,
                                    [c.scene.contact.max_penetration_m for c in bt.compiled]) if self.reduce else None
             self.runner = _warp.WarpRollout(bt.compiled, affine, bt.options, bt.options.device, reduce=red)

@@ -12,6 +12,7 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
+import mujoco
 import numpy as np
 import xarray as xr
 
@@ -96,6 +97,28 @@ def _check_fits(compiled: Sequence[CompiledScene], record: Sequence[str], n_samp
                     "duration_s / sample_rate_hz (--duration / --sample-rate)",
                     f"small enough for the recording to fit on disk: it needs {need / gib:.3g} GiB, "
                     f"{free / gib:.3g} GiB is free at {Path(path).resolve().parent}", None)
+
+
+def _check_chunk_fits(compiled: Sequence[CompiledScene], chunk_steps: int, timestep_s: float,
+                      reduced: bool, automatic: bool = False) -> None:
+    """Refuse, before stepping, a chunk whose every-step buffers cannot fit in memory.  A chunk spans
+    at least one sample interval (each sample's forces are means over its interval's steps, and a
+    closed-loop chunk whole control periods), so a long interval of short steps -- a low sample rate
+    against a tiny time step -- would hold all its steps at once.  ``reduced``: the device keeps the
+    states and sensors (:func:`undulate.simulation._reduced_on_device`), the host only the controls;
+    ``automatic``: the time step is the scene's own (:func:`undulate.scene.auto_timestep`)."""
+    m = compiled[0].model
+    per_step = m.nu + (0 if reduced else mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)
+                       + m.nsensordata)
+    need = 2 * 8 * len(compiled) * chunk_steps * per_step  # the float64 buffers and the arrays made from them
+    have = _memory_available_bytes()
+    if need > have:
+        gib = 2.0**30
+        raise ParameterError(
+            "sample_rate_hz / timestep_s (--sample-rate / --timestep)",
+            f"few enough steps in a sample interval for one interval's steps to fit in memory: "
+            f"{chunk_steps:.3g} steps of {timestep_s:.3g} s{' (the automatic time step for this scene)' if automatic else ''} need {need / gib:.3g} GiB, {have / gib:.3g} GiB "
+            f"is available (record more often, or take a longer time step)", None)
 
 
 class _MemoryRecorder:
