@@ -36,6 +36,29 @@ def test_bad_animation_requests(tmp_path, run_ds):
     assert list(tmp_path.iterdir()) == []
 
 
+def test_frame_rates_a_format_cannot_keep_are_refused(tmp_path, run_ds):
+    """A GIF's frame delay is 16 bits of centiseconds (Pillow raised OverflowError past 655.35 s, and
+    stored 0 below 10 ms); ffmpeg's MP4 lost its timing below 1e-4 fps.  Refused, naming the option that
+    set the rate (``--stride`` where the rate is real time); the bounds themselves are written exactly."""
+    from PIL import Image
+
+    from undulate.animate import FPS_RANGE
+
+    for out, kw, name in [("a.gif", dict(fps=101.0), "--fps"), ("a.gif", dict(fps=1e-300), "--fps"),
+                          ("a.gif", dict(stride=10**21), "--stride"), ("a.mp4", dict(fps=1e-5), "--fps"),
+                          ("a.mp4", dict(fps=1e4), "--fps")]:
+        with pytest.raises(ParameterError, match=f"invalid {name}.*frame rate in"):
+            animate(run_ds, tmp_path / out, **kw)
+    assert list(tmp_path.iterdir()) == []
+    lo, hi = FPS_RANGE[".gif"]
+    for fps, delay_ms in [(lo, 655350), (hi, 10)]:
+        animate(run_ds, tmp_path / "b.gif", fps=fps, dpi=40)
+        with Image.open(tmp_path / "b.gif") as im:
+            assert im.info["duration"] == delay_ms
+    for fps in FPS_RANGE[".mp4"]:
+        assert animate(run_ds, tmp_path / "b.mp4", fps=fps, dpi=40) == count_frames(tmp_path / "b.mp4")
+
+
 def test_cli_animate_from_a_simulate_file(tmp_path):
     nc, gif = tmp_path / "run.nc", tmp_path / "run.gif"
     cli = [sys.executable, "-m", "undulate.cli"]

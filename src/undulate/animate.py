@@ -22,6 +22,10 @@ from .errors import ParameterError
 __all__ = ["animate", "count_frames", "FORMATS"]
 
 FORMATS = (".gif", ".mp4")
+FPS_RANGE = {".gif": (1 / 655.35, 100.0), ".mp4": (1e-4, 1000.0)}
+"""Frame rates each format keeps, frames per second: a GIF's frame delay is 0.01-655.35 s (16 bits of
+centiseconds); the H.264 MP4s ffmpeg writes lose their frames' timing below 1e-4 fps (a muxing error)
+and above ~1000 fps (every frame at time 0), measured with imageio-ffmpeg's ffmpeg 9.0.2."""
 _REQUIRED = ("node_x", "node_y", "contact_force_pair", "contact_force_wall")
 _BODY = "#d9732f"
 _CONTACT = "#c0182a"
@@ -55,9 +59,15 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
     out = Path(out)
     _check_request(ds, out, stride)
     run = _Recording(ds, stride)
-    fps = float(fps) if fps is not None else 1.0 / (run.sample * stride)
+    given = fps is not None
+    fps = float(fps) if given else 1.0 / (run.sample * stride)
     if not np.isfinite(fps) or fps <= 0:
         raise ParameterError("--fps", "> 0 frames per second", fps)
+    lo, hi = FPS_RANGE[out.suffix.lower()]
+    if not lo <= fps <= hi:
+        raise ParameterError("--fps" if given else "--stride (real time: --fps = the sample rate / stride)",
+                             f"a frame rate in [{lo:.3g}, {hi:g}] frames per second for a {out.suffix.lower()} "
+                             f"file", fps if given else int(stride))
     fig, ax, wall_lines = _stage(ds, run, dpi, title)
     frame = _Frame(ax, run, wall_lines)
     blit = _Blitter(fig, frame.redrawn())
