@@ -157,6 +157,22 @@ def test_compare_pair_reproduces_its_simulation(pair, capsys):
     assert "middle link" in sim["x"].attrs["long_name"] and sim["x"].attrs["units"] == "m"
 
 
+def test_compare_an_experiment_without_a_whole_tracked_period(pair, tmp_path, capsys):
+    """A video shorter than a gait period (or occluded in every one) has no steady value: ``compare`` once
+    died on it (ValueError: NaN to int, the compatibility branch); now that pair's entry has nulls and the
+    summary line says why."""
+    short = tmp_path / "short.nc"
+    exp = pair["exp"]
+    period = float(exp.attrs["period"])
+    exp.isel(time=exp["time"].values - float(exp["time"].values[0]) < 0.75 * period).to_netcdf(short)
+    assert main(["compare", str(short), "--out", str(tmp_path / "cmp")]) == 0
+    assert "experiment: no whole gait period with every frame tracked" in capsys.readouterr().out
+    (e,) = json.loads((tmp_path / "cmp" / "compare.json").read_text())["experiments"][0]["pairs"]
+    assert e["experiment"]["n_periods"] == 0 and e["experiment"]["value"] is None
+    assert e["theory"] == {"value": None, "branch": None}
+    assert e["experiment_minus_simulation"]["value"] is None
+
+
 @pytest.fixture(scope="module")
 def tracked_again(pair):
     """The same video tracked again, without the gait (no ``--phases``): ``again.nc``."""
@@ -243,6 +259,11 @@ def test_bad_input_one_line_exit_2_nothing_written(pair, tracked_again, tmp_path
         (["track", video, "--robots", "2", "--out", str(out), "--calibration", str(toml)], "calibration [markers]"),
         (["track", video, "--robots", "2", "--out", str(out), "--phases", "0"], "--phases"),
         (["track", video, "--robots", "2", "--out", str(tmp_path / "exp.txt")], "--out"),
+        # named as typed: these once said --width, calibration_s and "--phases: must be 0 values"
+        (["track", video, "--robots", "2", "--out", str(out), "--phases", "0,90", "--channel-width", "-1"],
+         "--channel-width"),
+        (["track", video, "--robots", "2", "--out", str(out), "--calibration-window", "0"], "--calibration-window"),
+        (["track", video, "--robots", "0", "--out", str(out), "--phases", "0,90"], "--robots"),
         (["compare", str(tmp_path / "missing.nc"), "--out", str(tmp_path / "cmp")], "EXP"),
     ]
     rc, err = _run_cli(cases[0][0])  # as a user meets it: a fresh process, no traceback

@@ -144,8 +144,12 @@ def steady_offset(series, period_s: float, periods: int = STEADY_PERIODS, confid
 
     from .observables import period_average
 
-    pa = period_average(series, period_s).values
-    cover = period_average(series.notnull().astype(float), period_s).values
+    t = series["time"].values
+    if t.size == 0 or (t[-1] - t[0]) / period_s < 1.0 - 1e-9:  # shorter than a period: none to average
+        pa = cover = np.empty(0)
+    else:
+        pa = period_average(series, period_s).values
+        cover = period_average(series.notnull().astype(float), period_s).values
     complete = pa[np.isfinite(pa) & (cover >= 1.0 - 1e-9)]
     skipped = int(np.sum(np.isfinite(pa[-periods:]) & (cover[-periods:] < 1.0 - 1e-9)))
     pa = complete[-periods:]
@@ -202,7 +206,9 @@ def compare_experiment(exp, sim, *, periods: int = STEADY_PERIODS, confidence: f
                  "experiment": se, "simulation": ss}
         if math.isfinite(lam):
             th = float(se["value"] - theory.compatibility_residual(se["value"] * lam, dphi, lam) / lam)
-            entry["theory"] = {"value": th, "branch": int(round(th - dphi / (2 * math.pi)))}
+            # no whole period tracked (a short or much occluded video): no steady value, no branch
+            branch = int(round(th - dphi / (2 * math.pi))) if math.isfinite(th) else None
+            entry["theory"] = {"value": th, "branch": branch}
             exact = {"value": th, "sem": 0.0, "n_periods": 2}
             entry["experiment_minus_theory"] = _difference(se, exact, confidence)
             entry["simulation_minus_theory"] = _difference(ss, exact, confidence)

@@ -39,7 +39,10 @@ def _scene_from_options(n: int, phases, links, waves_per_body, amplitude, freque
     try:
         gait = Gait(amplitude_rad=math.radians(amplitude), waves_per_body=waves_per_body, frequency_hz=frequency)
         geometry = SwimmerGeometry(n_links=links, length_m=body_length, width_m=width)
-        channel = Channel(width_m=channel_width)
+        try:
+            channel = Channel(width_m=channel_width)
+        except ParameterError as e:  # its width_m is --channel-width, not the robots' --width
+            raise _cli_name(e, {"width_m": "--channel-width (m)"}) from None
         # robots tracked side by side need not start in contact: only the channel must hold them
         return Scene(phases_rad=tuple(math.radians(p) for p in ph), gait=gait, geometry=geometry, channel=channel)
     except ParameterError as e:
@@ -104,7 +107,7 @@ def track(
 
     `undulate track markers --out markers.pdf` writes the printable marker sheet instead.
     """
-    from .._cliutil import _fail, check_writable, exit_on_termination
+    from .._cliutil import _cli_name, _fail, check_writable, exit_on_termination
 
     try:
         _need_cv2()
@@ -123,6 +126,12 @@ def track(
             raise ParameterError("--robots", "given: the number of robots (tag ids 0 .. N-1)", None)
         if out.suffix.lower() != ".nc":
             raise ParameterError("--out", "a path ending in .nc (netCDF)", str(out))
+        from .tracker import _check_arguments, track_video
+
+        try:  # the video and the counts first: --phases is checked against --robots
+            _check_arguments(Path(video), robots, calibration_window, start_time)
+        except ParameterError as e:
+            raise _cli_name(e, {"calibration_s": "--calibration-window (s)"}) from None
         log = None
         if gait_from is not None:
             if phases is not None:
@@ -131,8 +140,6 @@ def track(
         else:
             scene = _scene_from_options(robots, phases, links, waves_per_body, amplitude, frequency, channel_width,
                                         body_length, width)
-        from .tracker import track_video
-
         ds = track_video(Path(video), robots, cal, calibration_s=calibration_window, start_time_s=start_time,
                          scene=scene, progress=None if not quiet else False)
         if log is not None:
@@ -188,5 +195,9 @@ def compare(
                     f"difference {d['value']:+.3f} [{d['ci'][0]:+.3f}, {d['ci'][1]:+.3f}]")
             if "theory" in e:
                 line += f", compatibility {e['theory']['value']:+.3f}"
+            for who in ("experiment", "simulation"):
+                if e[who]["n_periods"] == 0:  # a short or much occluded video: no steady value to compare
+                    line += (f" ({who}: no whole gait period with every frame tracked, {e[who]['n_skipped']} "
+                             f"incomplete)")
             lines.append(line)
     typer.echo("\n".join(lines))
