@@ -174,3 +174,33 @@ def test_a_geometry_is_accepted_exactly_when_mujoco_compiles_it():
         assert accepted == compiles, kw
         seen["accepted" if accepted else "refused"] += 1
     assert min(seen.values()) > 50, seen  # both sides of the rule were visited
+
+
+def test_python_parameters_refuse_wrong_types():
+    """From Python too, a wrong type is a ParameterError naming the field (a sweep of odd values over every
+    field found these raising TypeError, AttributeError or OverflowError, or storing the string "1" or
+    True where a number belongs, to fail later inside MuJoCo)."""
+    import numpy as np
+
+    import undulate.params as P
+    from undulate.errors import ParameterError
+
+    cases = [(P.Channel, "width_m", "1"), (P.Servo, "kp_Nm_per_rad", "10"), (P.Gait, "frequency_hz", True),
+             (P.SimOptions, "duration_s", "30"), (P.ContactModel, "dampratio", np.bool_(True)),
+             (P.Servo, "back_emf", "no"), (P.SwimmerGeometry, "n_links", float("inf")),
+             (P.SwimmerGeometry, "collision_segments", True), (P.SimOptions, "chunk_steps", None),
+             (P.SimOptions, "chunk_steps", "x"), (P.SimOptions, "record", 3)]
+    for kind, name, value in cases:
+        with pytest.raises(ParameterError, match=f"invalid {name}"):
+            kind(**{name: value})
+    for name in ("gait", "geometry", "servo", "ground", "channel", "contact", "controller"):
+        with pytest.raises(ParameterError, match=f"invalid {name}: must be a "):
+            P.Scene(**{name: None})
+    for name, value in [("phases_rad", "0,90"), ("phases_rad", (0.0, "a")), ("phases_rad", ((0.0,), (1.0,))),
+                        ("phases_rad", None), ("dx0_m", None), ("dx0_m", "0.1"), ("dx0_m", True),
+                        ("dx0_m", (0.1, 0.2)), ("forces_N", 1.0), ("forces_N", (1.0, "2"))]:
+        with pytest.raises(ParameterError, match=f"invalid {name}"):
+            P.Scene(**{"phases_rad": (0.0, 1.0), name: value})
+    s = P.Scene(phases_rad=np.array([0, 1]), dx0_m=np.float32(0.25), forces_N=[1, np.float64(-1)])
+    assert s.phases_rad == (0.0, 1.0) and s.dx0_m == (0.25,) and s.forces_N == (1.0, -1.0)
+    assert all(type(v) is float for v in (*s.phases_rad, *s.dx0_m, *s.forces_N))

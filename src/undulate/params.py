@@ -47,6 +47,8 @@ __all__ = [
 
 
 def _finite(name: str, value: float) -> float:
+    if isinstance(value, (str, bytes, bool, np.bool_)):  # float("1") and float(True) would pass, stored as given
+        raise ParameterError(name, "a finite number", value)
     try:
         v = float(value)
     except (TypeError, ValueError):
@@ -54,6 +56,18 @@ def _finite(name: str, value: float) -> float:
     if not math.isfinite(v):
         raise ParameterError(name, "a finite number", value)
     return v
+
+
+def _finite_values(name: str, value, allowed: str) -> tuple[float, ...]:
+    """``value``, a scalar or a flat sequence of finite real numbers, as a tuple of floats; else a
+    ParameterError naming ``name`` and ``allowed``, with the whole value."""
+    try:
+        items = (value,) if np.ndim(value) == 0 else value
+        if isinstance(value, (str, bytes)) or np.ndim(items) != 1:
+            raise TypeError
+        return tuple(_finite(name, v) for v in items)
+    except (TypeError, ValueError):  # a ragged sequence, a non-number (a ParameterError is a ValueError)
+        raise ParameterError(name, allowed, value) from None
 
 
 def _positive(name: str, value: float, unit: str = "") -> float:
@@ -207,7 +221,7 @@ class SwimmerGeometry(_Params):
     def __post_init__(self):
         try:
             n = int(self.n_links)
-        except (TypeError, ValueError):
+        except (TypeError, ValueError, OverflowError):
             raise ParameterError("n_links", "an integer >= 2", self.n_links) from None
         if n != self.n_links or n < 2 or n > 64:
             raise ParameterError("n_links", "an integer in [2, 64]", self.n_links)
@@ -218,7 +232,7 @@ class SwimmerGeometry(_Params):
         _positive("mass_kg", self.mass_kg, "kg")
         if self.collision_shape not in ("capsule", "box"):
             raise ParameterError("collision_shape", "'capsule' or 'box'", self.collision_shape)
-        if self.collision_segments not in range(1, 9):
+        if isinstance(self.collision_segments, bool) or self.collision_segments not in range(1, 9):
             raise ParameterError("collision_segments", "an integer in [1, 8]", self.collision_segments)
         if w >= L / n:
             raise ParameterError("width_m", f"smaller than the link length L/N = {L / n:g} m", self.width_m)
@@ -316,6 +330,8 @@ class Servo(_Params):
         _nonneg("ki_Nm_per_rad_s", self.ki_Nm_per_rad_s, "N m/(rad s)")
         _nonneg("integral_limit_rad_s", self.integral_limit_rad_s, "rad s")
         _nonneg("max_speed_rad_s", self.max_speed_rad_s, "rad/s")
+        if not isinstance(self.back_emf, (bool, np.bool_)):
+            raise ParameterError("back_emf", "True or False", self.back_emf)
 
 
 @dataclass(frozen=True)
@@ -535,29 +551,24 @@ class Scene(_Params):
     sensitivity study uses to test the link-number claim, not the default."""
 
     def __post_init__(self):
-        try:
-            phases = tuple(float(p) for p in np.atleast_1d(self.phases_rad))
-        except (TypeError, ValueError):
-            raise ParameterError("phases_rad", "a sequence of finite numbers (rad)", self.phases_rad) from None
+        for name, kind in (("gait", Gait), ("geometry", SwimmerGeometry), ("servo", Servo), ("ground", Ground),
+                           ("channel", Channel), ("contact", ContactModel), ("controller", ControllerParams)):
+            if not isinstance(getattr(self, name), kind):
+                raise ParameterError(name, f"a {kind.__name__}", getattr(self, name))
+        phases = _finite_values("phases_rad", self.phases_rad, "a sequence of finite numbers (rad)")
         if len(phases) < 1 or len(phases) > 500:
             raise ParameterError("phases_rad", "1 to 500 values, one per swimmer", self.phases_rad)
-        for p in phases:
-            _finite("phases_rad", p)
         object.__setattr__(self, "phases_rad", phases)
         n = len(phases)
-        if isinstance(self.dx0_m, (int, float, np.floating, np.integer)):
-            dx0 = (float(self.dx0_m),) * (n - 1)
-        else:
-            dx0 = tuple(float(v) for v in self.dx0_m)
+        allowed = f"a finite scalar or {n - 1} finite values (one per neighbouring pair), m"
+        dx0 = _finite_values("dx0_m", self.dx0_m, allowed)
+        if np.ndim(self.dx0_m) == 0:
+            dx0 = dx0 * (n - 1)
         if len(dx0) != n - 1:
-            raise ParameterError("dx0_m", f"a scalar or {n - 1} values (one per neighbouring pair)", self.dx0_m)
-        for v in dx0:
-            _finite("dx0_m", v)
+            raise ParameterError("dx0_m", allowed, self.dx0_m)
         object.__setattr__(self, "dx0_m", dx0)
         gap = _nonneg("lateral_gap_m", self.lateral_gap_m, "m")
         _nonneg("force_onset_s", self.force_onset_s, "s")
-        if not isinstance(self.controller, ControllerParams):
-            raise ParameterError("controller", "a ControllerParams", self.controller)
         if not isinstance(self.hold_x, (bool, np.bool_)):
             raise ParameterError("hold_x", "True or False", self.hold_x)
         object.__setattr__(self, "hold_x", bool(self.hold_x))
@@ -568,8 +579,8 @@ class Scene(_Params):
             raise ParameterError("heading_guide", "False with a closed-loop controller (the guide follows the "
                                  "open-loop gait's commanded shape)", self.heading_guide)
         if self.forces_N is not None:
-            forces = tuple(_finite("forces_N", f) for f in self.forces_N)
-            if len(forces) != n:
+            forces = _finite_values("forces_N", self.forces_N, f"{n} finite values, one per swimmer (N)")
+            if np.ndim(self.forces_N) == 0 or len(forces) != n:
                 raise ParameterError("forces_N", f"{n} values, one per swimmer", self.forces_N)
             object.__setattr__(self, "forces_N", forces)
         w = self.geometry.width_m
@@ -705,12 +716,21 @@ class SimOptions(_Params):
         if self.device is not None and self.backend == "mujoco":
             raise ParameterError("device", "left out with backend 'mujoco' (it steps on the CPU)", self.device)
         if self.record is not None:
-            rec = (self.record,) if isinstance(self.record, str) else tuple(self.record)
+            try:
+                rec = (self.record,) if isinstance(self.record, str) else tuple(self.record)
+            except TypeError:  # not a name or a sequence of names
+                raise ParameterError("record", "a non-empty subset of " + ", ".join(self.RECORDABLE),
+                                     self.record) from None
             bad = [v for v in rec if v not in self.RECORDABLE]
             if bad or not rec:
                 raise ParameterError("record", "a non-empty subset of " + ", ".join(self.RECORDABLE), self.record)
             object.__setattr__(self, "record", rec)
-        if int(self.chunk_steps) != self.chunk_steps or self.chunk_steps < 1:
+        try:
+            whole = (not isinstance(self.chunk_steps, bool) and int(self.chunk_steps) == self.chunk_steps
+                     and self.chunk_steps >= 1)
+        except (TypeError, ValueError, OverflowError):
+            whole = False
+        if not whole:
             raise ParameterError("chunk_steps", "a positive integer", self.chunk_steps)
 
     def with_timestep(self, timestep_s: float) -> "SimOptions":
