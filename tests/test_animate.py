@@ -59,6 +59,19 @@ def test_frame_rates_a_format_cannot_keep_are_refused(tmp_path, run_ds):
         assert animate(run_ds, tmp_path / "b.mp4", fps=fps, dpi=40) == count_frames(tmp_path / "b.mp4")
 
 
+def test_a_gif_too_large_for_memory_is_refused_and_an_mp4_streams(tmp_path, run_ds, monkeypatch):
+    """A GIF holds all its frames until it is written: one that cannot fit in the memory available is
+    refused before drawing, naming ``--stride``; an MP4 of the same frames streams and is written."""
+    import undulate.simulation._record as rec
+
+    monkeypatch.setattr(rec, "_memory_available_bytes", lambda: 10**6)  # ~1 MB left: 21 frames of ~100 kB don't fit
+    with pytest.raises(ParameterError, match=r"invalid --stride: must be large enough for the GIF's frames.*\.mp4"):
+        animate(run_ds, tmp_path / "a.gif", dpi=40)
+    assert list(tmp_path.iterdir()) == []
+    assert animate(run_ds, tmp_path / "a.mp4", dpi=40) == count_frames(tmp_path / "a.mp4") == run_ds.sizes["time"]
+    assert animate(run_ds, tmp_path / "b.gif", stride=20, dpi=40) == 2  # fewer frames fit
+
+
 def test_cli_animate_from_a_simulate_file(tmp_path):
     nc, gif = tmp_path / "run.nc", tmp_path / "run.gif"
     cli = [sys.executable, "-m", "undulate.cli"]

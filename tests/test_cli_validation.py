@@ -15,10 +15,13 @@ CLI = [sys.executable, "-m", "undulate.cli"]
 
 @pytest.mark.parametrize("command", [["study", "pairs", "--quick"], ["reproduce", "--quick"]])
 @pytest.mark.parametrize("args", [["--workers", "0"], ["--workers", "-2"], ["--workers", "two"],
-                                  ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], ["--seed", "-1"]])
+                                  ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], ["--seed", "-1"],
+                                  ["--workers", "100000"], ["--scheduler", "notaurl"],
+                                  ["--scheduler", "/no/such/scheduler.json"]])
 def test_workers_and_seed_options_are_validated(tmp_path, command, args):
     """Before anything is written: a negative seed once made every study of a reproduction fail after a
-    page of work (exit 1), and a study leave an empty folder."""
+    page of work (exit 1), and a study leave an empty folder; a malformed scheduler once failed the first
+    study that swept, after the others had written; ``--workers 100000`` would have started a process a run."""
     out = tmp_path / "out"
     r = subprocess.run([*CLI, *command, "--out", str(out), *args], capture_output=True, text=True, timeout=120)
     assert r.returncode == 2, (r.stdout, r.stderr)
@@ -204,3 +207,23 @@ def test_python_parameters_refuse_wrong_types():
     s = P.Scene(phases_rad=np.array([0, 1]), dx0_m=np.float32(0.25), forces_N=[1, np.float64(-1)])
     assert s.phases_rad == (0.0, 1.0) and s.dx0_m == (0.25,) and s.forces_N == (1.0, -1.0)
     assert all(type(v) is float for v in (*s.phases_rad, *s.dx0_m, *s.forces_N))
+
+
+@pytest.mark.parametrize("command", [["study", "compatibility"], ["reproduce", "--only", "compatibility"]])
+def test_an_out_folder_that_cannot_be_made_is_one_line(tmp_path, command):
+    """A folder under a file, or on a pseudo file system, was a FileNotFoundError traceback."""
+    (tmp_path / "a_file").write_text("")
+    for out in (tmp_path / "a_file" / "sub", "/proc/undulate-out"):
+        r = subprocess.run([*CLI, *command, "--out", str(out)], capture_output=True, text=True, timeout=120)
+        lines = r.stderr.strip().splitlines()
+        assert r.returncode == 2 and len(lines) == 1, (out, r.stderr)
+        assert lines[0].startswith("error: invalid --out: must be a folder that can be created"), lines
+
+
+def test_reproduce_only_needs_a_study_name(tmp_path):
+    """``--only ""`` or ``--only ,`` ran a reproduction of nothing and wrote its page."""
+    for only in ("", ",", " , "):
+        r = subprocess.run([*CLI, "reproduce", "--only", only, "--out", str(tmp_path / "r")], capture_output=True,
+                           text=True, timeout=120)
+        assert r.returncode == 2 and "invalid --only: must be one or more study names" in r.stderr, r.stderr
+    assert not (tmp_path / "r").exists()

@@ -374,31 +374,32 @@ def test_animation_duration_is_validated(tmp_path, capfd):
     is one line naming it, exit code 2, nothing written."""
     from undulate.cli import main
     from undulate.errors import ParameterError
-    from undulate.reproduce import MIN_ANIMATION_S, reproduce
+    from undulate.reproduce import MAX_ANIMATION_S, MIN_ANIMATION_S, reproduce
 
     out = tmp_path / "r"
-    for bad in ("0", "-1", "nan", "inf", "0.1", "abc"):
+    for bad in ("0", "-1", "nan", "inf", "0.1", "abc", "601", "1e300"):
         assert main(["reproduce", "--out", str(out), "--animation-s", bad]) == 2, bad
         err = capfd.readouterr().err.strip().splitlines()
         assert len(err) == 1 and err[0].startswith("error:") and "--animation-s" in err[0], (bad, err)
     for bad in (0.1, float("nan"), "2", True):
         with pytest.raises(ParameterError, match="animation_s"):
             reproduce(out, studies=["compatibility"], animation_s=bad, log=pytest.fail)
-    assert not out.exists() and MIN_ANIMATION_S == pytest.approx(0.2)
+    assert not out.exists() and MIN_ANIMATION_S == pytest.approx(0.2) and MAX_ANIMATION_S == 600
 
 
 def test_animation_option_help_states_the_codes_limits():
-    """The ``--animation-s`` help names the least duration and the animations' own durations; the CLI
-    does not import :mod:`undulate.reproduce` to build its help (start-up time), so the numbers are
+    """The ``--animation-s`` help names the least and the longest durations and the animations' own; the
+    CLI does not import :mod:`undulate.reproduce` to build its help (start-up time), so the numbers are
     written there and checked here against the code."""
     from typer.main import get_command
 
     from undulate.cli import app
-    from undulate.reproduce import ANIMATIONS, MIN_ANIMATION_S
+    from undulate.reproduce import ANIMATIONS, MAX_ANIMATION_S, MIN_ANIMATION_S
 
     (opt,) = [p for p in get_command(app).commands["reproduce"].params if p.name == "animation_s"]
     own = [a[-1] for a in ANIMATIONS]
-    assert f"at least {MIN_ANIMATION_S:g}" in opt.help and f"{min(own):g}-{max(own):g} s" in opt.help, opt.help
+    assert f"{MIN_ANIMATION_S:g} to {MAX_ANIMATION_S:g}" in opt.help, opt.help
+    assert f"{min(own):g}-{max(own):g} s" in opt.help, opt.help
 
 
 @pytest.mark.parametrize("last, why", [

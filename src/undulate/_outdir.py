@@ -59,7 +59,10 @@ def writing_to(folder: str | os.PathLike, name: str = "out_dir") -> Iterator[Pat
         if held is not None:
             held[1] += 1
         else:
-            root.mkdir(parents=True, exist_ok=True)
+            try:
+                root.mkdir(parents=True, exist_ok=True)
+            except OSError as e:  # a read-only or pseudo file system, a file in the way, no space
+                raise ParameterError(name, f"a folder that can be created ({e.strerror or e})", str(folder)) from None
             _HELD[root] = [_acquire(root / LOCK_NAME, name, folder), 1]
     try:
         yield root

@@ -71,6 +71,8 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
     fig, ax, wall_lines = _stage(ds, run, dpi, title)
     frame = _Frame(ax, run, wall_lines)
     blit = _Blitter(fig, frame.redrawn())
+    if out.suffix.lower() == ".gif":
+        _check_gif_fits(len(run.times), blit.size, stride)
     with atomic_output(out, keep_suffix=True) as tmp:  # the sink picks its format by extension
         with _sink(Path(tmp), fps, blit.size) as put:
             for i in range(len(run.times)):
@@ -114,6 +116,20 @@ def _check_request(ds, out: Path, stride: int) -> None:
         raise ParameterError("run file", f"an `undulate simulate` output (missing {', '.join(missing)})", None)
     if int(stride) != stride or stride < 1:
         raise ParameterError("--stride", "a positive integer", stride)
+
+
+def _check_gif_fits(n_frames: int, size: tuple[int, int], stride: int) -> None:
+    """Refuse a GIF whose frames cannot be held in memory: Pillow writes a GIF from all its frames at
+    once (an RGB(A) image each, and its palette copy), where an MP4 streams them to ffmpeg."""
+    from .simulation._record import _memory_available_bytes
+
+    need = n_frames * size[0] * size[1] * 5  # 4 bytes a pixel (RGBA at most), 1 of its palette image
+    have = _memory_available_bytes()
+    if need > have:
+        gib = 2.0**30
+        raise ParameterError("--stride", f"large enough for the GIF's frames to fit in memory: {n_frames} frames of "
+                             f"{size[0]}x{size[1]} px need {need / gib:.3g} GiB, {have / gib:.3g} GiB is available "
+                             "(or write an .mp4, which streams its frames)", int(stride))
 
 
 class _Recording:

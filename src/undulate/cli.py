@@ -295,14 +295,15 @@ _WORKERS_HELP = ("Local worker processes (default: the cores this process may us
 
 
 def _check_config(workers: int | None, scheduler: str | None, seed: int) -> None:
-    """``--workers`` and ``--seed`` by :class:`~undulate.studies.StudyConfig`'s own rules, named as the CLI
-    options, before anything is written."""
+    """``--workers``, ``--scheduler`` (its form; the connection is made by the first sweep) and ``--seed``
+    by :class:`~undulate.studies.StudyConfig`'s own rules, named as the CLI options, before anything is
+    written."""
     from .studies import StudyConfig
 
     try:
         StudyConfig(out_dir=Path("."), scheduler=scheduler, workers=workers, seed=seed)
     except ParameterError as e:
-        raise _cli_name(e, {"workers": "--workers", "seed": "--seed"}) from None
+        raise _cli_name(e, {"workers": "--workers", "seed": "--seed", "scheduler": "--scheduler"}) from None
 
 
 class _Terminated(KeyboardInterrupt):
@@ -369,7 +370,7 @@ def reproduce(
     backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
     device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
     animation_s: Optional[float] = typer.Option(
-        None, "--animation-s", help="Simulated seconds of each animation, at least 0.2 (default: each its own, "
+        None, "--animation-s", help="Simulated seconds of each animation, 0.2 to 600 (default: each its own, "
                                     "16-24 s). The studies and their claims do not depend on it."),
 ) -> None:
     """Reproduce the paper: every study, animations, and OUT/index.html."""
@@ -385,6 +386,8 @@ def reproduce(
         names = None
         if only is not None:
             names = [n.strip() for n in only.split(",") if n.strip()]
+            if not names:
+                raise ParameterError("--only", "one or more study names from: " + ", ".join(registry.names()), only)
             for n in names:
                 if n not in registry.names():
                     raise ParameterError("--only", "study names from: " + ", ".join(registry.names()), n)

@@ -234,19 +234,24 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
 
 #: The shortest animation (s): two frames at the drawing's recording rate.
 MIN_ANIMATION_S = 2.0 / ANIMATION_DRAWING["sample_rate_hz"]
+#: The longest animation (s): a GIF's frames are held in memory until it is written, ~0.3 MB each at
+#: the drawing's resolution, so 600 s at its 10 frames a simulated second is ~2 GB an animation.
+MAX_ANIMATION_S = 600.0
 
 
 def check_animation_s(animation_s: float | None, name: str = "animation_s") -> None:
-    """``animation_s`` is None (each animation's own duration) or a finite number of seconds, at least
-    :data:`MIN_ANIMATION_S`; else a :class:`~undulate.errors.ParameterError` naming it (as ``name``)."""
+    """``animation_s`` is None (each animation's own duration) or a number of seconds in
+    [:data:`MIN_ANIMATION_S`, :data:`MAX_ANIMATION_S`]; else a :class:`~undulate.errors.ParameterError`
+    naming it (as ``name``)."""
     if animation_s is None:
         return
     import numbers
 
     ok = (isinstance(animation_s, numbers.Real) and not isinstance(animation_s, bool)
-          and math.isfinite(animation_s) and animation_s >= MIN_ANIMATION_S)
+          and math.isfinite(animation_s) and MIN_ANIMATION_S <= animation_s <= MAX_ANIMATION_S)
     if not ok:
-        raise ParameterError(name, f"seconds, at least {MIN_ANIMATION_S:g} (two frames)", animation_s)
+        raise ParameterError(name, f"seconds in [{MIN_ANIMATION_S:g}, {MAX_ANIMATION_S:g}] (two frames; a GIF's "
+                             "frames are held in memory until it is written)", animation_s)
 
 
 def _one_line_at_a_time(log: Callable[[str], None]) -> Callable[[str], None]:

@@ -115,10 +115,13 @@ class StudyConfig:
             raise ParameterError("seed", "an integer >= 0", s)
         object.__setattr__(self, "seed", int(s))
         w = self.workers
-        if w is not None and (isinstance(w, bool) or not isinstance(w, int) or w < 1):
-            raise ParameterError("workers", "an integer >= 1 (or None: every core this process may use)", w)
+        from ..sweep._executors import check_scheduler, check_workers
+
+        check_workers(w)
         if w is not None and self.scheduler is not None:
             raise ParameterError("workers", "left out when a Dask scheduler is given (the cluster sets the workers)", w)
+        if self.scheduler is not None:  # its form now, before anything is written (a connection at the first sweep)
+            check_scheduler(self.scheduler)
 
     def to_dict(self) -> dict[str, Any]:
         d = dataclasses.asdict(self)

@@ -38,6 +38,23 @@ def default_workers() -> int:
     return usable_cpus()
 
 
+MAX_WORKERS_PER_CORE = 4
+"""Local worker processes allowed a core: each is a process with its own interpreter and MuJoCo (~0.2 GB),
+and past a few a core they only queue for the cores (``--workers 100000`` would start as many processes
+as a sweep has runs)."""
+
+
+def check_workers(workers: Any) -> None:
+    """``workers`` is None (every core) or an integer from 1 to :data:`MAX_WORKERS_PER_CORE` a core this
+    process may use; else a :class:`ParameterError` naming ``workers``."""
+    if workers is None:
+        return
+    cap = MAX_WORKERS_PER_CORE * default_workers()
+    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= cap:
+        raise ParameterError("workers", f"an integer in [1, {cap}] ({MAX_WORKERS_PER_CORE} a core of the "
+                             f"{default_workers()} this process may use), or None: every core", workers)
+
+
 def run_serial(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost) -> None:
     """In this process, one chunk after the other: the reference executor."""
     for chunk in chunks:
@@ -313,13 +330,10 @@ def _stop_now(pool: ProcessPoolExecutor) -> None:
             pass
 
 
-def connect(scheduler: Any):
-    """A ``distributed.Client`` for ``scheduler`` and whether we own it.
-
-    ``scheduler`` is a ``tcp://HOST:PORT`` address (any address Dask accepts),
-    the path of a scheduler file (``dask scheduler --scheduler-file``,
-    dask-jobqueue, ``dask-mpi``), or an existing ``Client``.
-    """
+def check_scheduler(scheduler: Any) -> str:
+    """What ``scheduler`` is, without connecting: ``"client"`` (an existing ``distributed.Client``),
+    ``"file"`` (the path of a scheduler file) or ``"address"`` (a string with a port, any address Dask
+    accepts); anything else is a :class:`ParameterError`, raised before a study or reproduction writes."""
     try:
         import distributed
     except ImportError:
@@ -327,21 +341,37 @@ def connect(scheduler: Any):
             "scheduler", "usable only with Dask installed: pip install 'undulate[dask]'", scheduler
         ) from None
     if isinstance(scheduler, distributed.Client):
-        return scheduler, False
+        return "client"
     if isinstance(scheduler, str | os.PathLike):
-        path = Path(scheduler).expanduser()
-        if path.is_file():
-            return distributed.Client(scheduler_file=str(path)), True
+        if Path(scheduler).expanduser().is_file():
+            return "file"
         if isinstance(scheduler, str) and ":" in scheduler:
-            try:
-                return distributed.Client(scheduler, timeout="30s"), True
-            except OSError as e:
-                raise ParameterError("scheduler", f"the address of a running Dask scheduler ({e})", scheduler) from None
+            return "address"
     raise ParameterError(
         "scheduler",
         "a Dask scheduler address tcp://HOST:PORT, the path of an existing scheduler file, or a distributed.Client",
         scheduler,
     )
+
+
+def connect(scheduler: Any):
+    """A ``distributed.Client`` for ``scheduler`` and whether we own it.
+
+    ``scheduler`` is a ``tcp://HOST:PORT`` address (any address Dask accepts),
+    the path of a scheduler file (``dask scheduler --scheduler-file``,
+    dask-jobqueue, ``dask-mpi``), or an existing ``Client`` (:func:`check_scheduler`).
+    """
+    import distributed
+
+    kind = check_scheduler(scheduler)
+    if kind == "client":
+        return scheduler, False
+    if kind == "file":
+        return distributed.Client(scheduler_file=str(Path(scheduler).expanduser())), True
+    try:
+        return distributed.Client(scheduler, timeout="30s"), True
+    except OSError as e:
+        raise ParameterError("scheduler", f"the address of a running Dask scheduler ({e})", scheduler) from None
 
 
 def dask_threads(client) -> int:
