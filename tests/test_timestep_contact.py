@@ -54,6 +54,22 @@ def test_rule_keeps_the_paper_default_and_shrinks_the_step_with_links():
         assert approach_speed_m_s(sc) * dt <= sc.contact.target_penetration_m * (1 + 1e-12)
 
 
+def test_the_rule_resolves_a_fast_gait():
+    """A gait period spans >= 12 steps (``2 pi f dt <= 0.5``, the servo's bound): the paper's 0.5 Hz
+    leaves every step as it was; a 100 Hz gait was aliased by a lone swimmer's 2 ms step (a period of
+    5 steps), and one at 1e12 Hz diverged at the first step with a diagnosis blaming the contacts."""
+    from undulate.errors import ParameterError
+
+    wide = Channel(width_m=2.0)
+    assert auto_timestep(Scene(phases_rad=(0.0,), channel=wide)) == 0.002
+    for f in (40.0, 100.0, 1e3):
+        dt = auto_timestep(Scene(phases_rad=(0.0,), channel=wide, gait=Gait(frequency_hz=f)))
+        assert 2 * math.pi * f * dt <= 0.5 + 1e-12 and 0.002 / dt == pytest.approx(round(0.002 / dt))
+        assert 2 * math.pi * f * (0.002 / (round(0.002 / dt) - 1)) > 0.5  # the longest such 2 ms / k
+    with pytest.raises(ParameterError, match="automatic time step"):  # 8e-14 s steps: refused, not diverged
+        simulate(_pair(3, frequency_hz=1e12), SimOptions(duration_s=0.5))
+
+
 @pytest.mark.parametrize("n_links", list(LINKS))
 def test_any_link_count_runs_at_the_defaults_with_shallow_contact(n_links):
     ds = simulate(_pair(n_links), SimOptions(duration_s=4.0))

@@ -362,12 +362,15 @@ def snap_timestep(raw_s: float) -> float:
 def auto_timestep(scene: Scene) -> float:
     """The integrator step the scene needs, s: the time-step rule.
 
-    ``dt = 2 ms / k`` with the smallest integer ``k`` that meets both
+    ``dt = 2 ms / k`` with the smallest integer ``k`` that meets the
     criteria:
 
     * **servo**: ``omega_servo dt <= 0.5`` (:func:`servo_frequency_rad_s`).
       The servo stiffness is integrated explicitly (implicitfast treats only
       damping implicitly); the servo's period then spans >= 12 steps.
+    * **gait**: ``2 pi f dt <= 0.5``, the same bound for the commanded wave:
+      a gait period spans >= 12 steps (binding only above ~40 Hz; a faster
+      gait was aliased by the 2 ms step, and at 1e12 Hz diverged).
     * **contact** (only where bodies can touch, :func:`contact_possible`):
       ``v_max dt <= target_penetration_m`` (1 mm), with ``v_max`` from
       :func:`approach_speed_m_s`: no point of a body moves further than the
@@ -385,7 +388,7 @@ def auto_timestep(scene: Scene) -> float:
     0.25 ms for 12).  Convergence and penetration:
     docs/timestep.md and docs/contact.md.
     """
-    raw = SERVO_STEP_FRACTION / servo_frequency_rad_s(scene)
+    raw = SERVO_STEP_FRACTION / max(servo_frequency_rad_s(scene), scene.gait.angular_frequency_rad_s)
     if contact_possible(scene):
         raw = min(raw, scene.contact.target_penetration_m / approach_speed_m_s(scene))
     return snap_timestep(raw)
