@@ -54,6 +54,29 @@ def test_rule_keeps_the_paper_default_and_shrinks_the_step_with_links():
         assert approach_speed_m_s(sc) * dt <= sc.contact.target_penetration_m * (1 + 1e-12)
 
 
+@pytest.mark.parametrize("n_links", [2, 3, 6])
+def test_the_servo_frequency_is_over_every_hinge_with_positions_held(n_links):
+    """With ``hold_x`` a swimmer's root has two dofs, not three: the rule read the mass matrix from the
+    fourth dof on, which left out the first hinge (and for two links every hinge: ``simulate --links 2
+    --hold-x`` raised "zero-size array").  Now each hinge's (M^-1)_ii, found by its joint, counts."""
+    import mujoco
+
+    from undulate.scene import swimmer_spec
+
+    sc = Scene(phases_rad=(0.0, math.pi / 2), geometry=SwimmerGeometry(n_links=n_links), hold_x=True)
+    m = swimmer_spec(sc, 0.002).compile()
+    d = mujoco.MjData(m)
+    mujoco.mj_forward(m, d)
+    M = np.zeros((m.nv, m.nv))
+    mujoco.mj_fullM(m, d, M)
+    hinges = [m.jnt_dofadr[j] for j in range(m.njnt) if mujoco.mj_id2name(m, mujoco.mjtObj.mjOBJ_JOINT, j)[0] == "j"]
+    assert len(hinges) == n_links - 1
+    expected = math.sqrt(sc.servo.kp_Nm_per_rad * np.diag(np.linalg.inv(M))[hinges].max())
+    assert servo_frequency_rad_s(sc) == pytest.approx(expected, rel=1e-12)
+    ds = simulate(sc, SimOptions(duration_s=1.0))
+    assert ds.attrs["timestep"] == auto_timestep(sc) and np.isfinite(ds["x"].values).all()
+
+
 def test_the_rule_resolves_a_fast_gait():
     """A gait period spans >= 12 steps (``2 pi f dt <= 0.5``, the servo's bound): the paper's 0.5 Hz
     leaves every step as it was; a 100 Hz gait was aliased by a lone swimmer's 2 ms step (a period of

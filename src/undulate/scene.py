@@ -316,7 +316,8 @@ def _joint_inverse_inertia_of(scene: Scene) -> float:
     mujoco.mj_forward(m, d)
     M = np.zeros((m.nv, m.nv))
     mujoco.mj_fullM(m, d, M)
-    return float(np.diag(np.linalg.inv(M))[3:].max())  # hinge joints after the (x, y, yaw) root
+    hinges = scene.geometry.n_links - 1  # the last dofs, after the root's (x, y, yaw; y, yaw with hold_x)
+    return float(np.diag(np.linalg.inv(M))[m.nv - hinges:].max())
 
 
 def servo_damping_rate_per_s(scene: Scene) -> float:
