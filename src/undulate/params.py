@@ -579,9 +579,10 @@ class Scene(_Params):
             raise ParameterError("heading_guide", "False with a closed-loop controller (the guide follows the "
                                  "open-loop gait's commanded shape)", self.heading_guide)
         if self.forces_N is not None:
-            forces = _finite_values("forces_N", self.forces_N, f"{n} finite values, one per swimmer (N)")
+            allowed = f"{n} finite values, one per swimmer (N)"
+            forces = _finite_values("forces_N", self.forces_N, allowed)
             if np.ndim(self.forces_N) == 0 or len(forces) != n:
-                raise ParameterError("forces_N", f"{n} values, one per swimmer", self.forces_N)
+                raise ParameterError("forces_N", allowed, self.forces_N)
             object.__setattr__(self, "forces_N", forces)
         w = self.geometry.width_m
         stack = n * w + (n - 1) * gap
