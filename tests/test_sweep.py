@@ -196,6 +196,18 @@ def test_progress_lines_when_not_a_terminal(tmp_path):
 
 
 # ---- the store refuses what it should ---------------------------------------------------------
+def test_a_sweep_folder_that_cannot_be_made_is_a_parameter_error(tmp_path):
+    """Under a file, or on a pseudo file system: ``mkdir``'s NotADirectoryError / FileNotFoundError was
+    raised as it came; now it names ``out_dir``, and nothing is left."""
+    (tmp_path / "a_file").write_text("")
+    grid = Grid(axes={"damping_Nms": [0.1], "length_m": [0.5]})
+    for out in (tmp_path / "a_file" / "s", Path("/proc/undulate-sweep")):
+        with pytest.raises(ParameterError, match="invalid out_dir: must be a folder that can be created") as e:
+            run_sweep(sweep_funcs.pendulum, grid, out, workers=1, progress=False)
+        assert e.value.name == "out_dir"
+    assert [p.name for p in tmp_path.iterdir()] == ["a_file"]
+
+
 def test_resume_into_other_sweep_is_refused(tmp_path):
     grid = Grid(axes={"damping_Nms": [0.1], "length_m": [0.5]})
     out = tmp_path / "s"

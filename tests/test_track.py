@@ -265,6 +265,7 @@ def test_bad_input_one_line_exit_2_nothing_written(pair, tracked_again, tmp_path
         (["track", video, "--robots", "2", "--out", str(out), "--calibration-window", "0"], "--calibration-window"),
         (["track", video, "--robots", "0", "--out", str(out), "--phases", "0,90"], "--robots"),
         (["compare", str(tmp_path / "missing.nc"), "--out", str(tmp_path / "cmp")], "EXP"),
+        (["compare", str(pair["dir"] / "exp.nc"), "--out", "/proc/undulate-cmp"], "--out"),  # was a traceback
     ]
     rc, err = _run_cli(cases[0][0])  # as a user meets it: a fresh process, no traceback
     assert rc == 2 and len(err.strip().splitlines()) == 1 and "VIDEO" in err, err

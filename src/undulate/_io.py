@@ -267,6 +267,20 @@ def _to_devnull(h5file) -> None:
         os.close(null)
 
 
+def make_folder(path: str | os.PathLike, name: str) -> Path:
+    """``path`` as a folder, created with its parents if missing; one that cannot be (a read-only or
+    pseudo file system, a file in the way, no space) is a :class:`~undulate.errors.ParameterError`
+    naming ``name``, the parameter as the user knows it, where ``mkdir``'s OSError was a traceback."""
+    from .errors import ParameterError
+
+    path = Path(path)
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ParameterError(name, f"a folder that can be created ({e.strerror or e})", str(path)) from None
+    return path
+
+
 def atomic_write(path: str | os.PathLike, write: Callable[[Path], object]) -> None:
     """Call ``write(tmp)`` and move ``tmp`` onto ``path`` atomically (:func:`atomic_output`)."""
     with atomic_output(path) as tmp:

@@ -22,6 +22,7 @@ import threading
 from collections.abc import Iterator
 from pathlib import Path
 
+from ._io import make_folder
 from .errors import ParameterError
 
 __all__ = ["writing_to", "flock_pid", "LOCK_NAME"]
@@ -59,10 +60,7 @@ def writing_to(folder: str | os.PathLike, name: str = "out_dir") -> Iterator[Pat
         if held is not None:
             held[1] += 1
         else:
-            try:
-                root.mkdir(parents=True, exist_ok=True)
-            except OSError as e:  # a read-only or pseudo file system, a file in the way, no space
-                raise ParameterError(name, f"a folder that can be created ({e.strerror or e})", str(folder)) from None
+            make_folder(root, name)
             _HELD[root] = [_acquire(root / LOCK_NAME, name, folder), 1]
     try:
         yield root

@@ -21,6 +21,7 @@ experiment, simulation and the compatibility line (the nearest branch,
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -288,7 +289,7 @@ def compare(experiments, out_dir: str | os.PathLike, *, periods: int = STEADY_PE
     Returns the JSON content.
     """
 
-    from ._io import atomic_output
+    from ._io import atomic_output, make_folder
     from .provenance import provenance
 
     if not 0 < confidence < 1:
@@ -316,16 +317,23 @@ def compare(experiments, out_dir: str | os.PathLike, *, periods: int = STEADY_PE
         if ds.sizes["swimmer"] < 2:
             raise ParameterError("EXP", "an experiment with at least 2 robots (offsets need a pair)", str(p))
         exps.append(ds)
+    created = not out_dir.exists()
+    make_folder(out_dir, "--out")  # before the simulations: a folder that cannot be made is refused first
     results, sims = [], []
-    for p, ds in zip(paths, exps):
-        if log:
-            log(f"simulating {p.name} ...")
-        sim = matching_simulation(ds)
-        r = compare_experiment(ds, sim, periods=periods, confidence=confidence)
-        r["experiment"] = p.name
-        results.append(r)
-        sims.append(sim)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        for p, ds in zip(paths, exps):
+            if log:
+                log(f"simulating {p.name} ...")
+            sim = matching_simulation(ds)
+            r = compare_experiment(ds, sim, periods=periods, confidence=confidence)
+            r["experiment"] = p.name
+            results.append(r)
+            sims.append(sim)
+    except BaseException:  # a diverged simulation, a signal: leave no empty folder behind
+        if created:
+            with contextlib.suppress(OSError):
+                out_dir.rmdir()
+        raise
     summary = {
         "what": "steady dx/lambda of lateral neighbours (middle-link centres), experiment vs simulation vs the "
                 "compatibility line dx = lambda (dphi/2pi + n), nearest branch",

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 import xarray as xr
 
-from .._io import atomic_write_bytes, atomic_write_text, remove_temporaries, write_netcdf
+from .._io import atomic_write_bytes, atomic_write_text, make_folder, remove_temporaries, write_netcdf
 from ..errors import ParameterError
 from ._fastread import RUN_ATTR, FastLayout, read_raw, same_attr
 from ._fastwrite import run_file_bytes
@@ -279,7 +279,7 @@ class Store:
             store.grown = old.get("grid") != manifest.get("grid")
         elif root.exists() and any(p.name != ".lock" for p in root.iterdir()):
             raise ParameterError("out_dir", "a new or empty directory, or one made by run_sweep (no manifest.json found)", str(root))
-        store.runs_dir.mkdir(parents=True, exist_ok=True)
+        make_folder(store.runs_dir, "out_dir")
         store._lock()
         try:
             if store.stale:  # computed by other code or arguments: never reused
