@@ -1,7 +1,8 @@
 """Every command of the CLI under extreme and malformed values: does each end in one of its promised ways?
 
 Promised: exit 0 with its output; exit 2 with one line naming the option and nothing written; exit 1
-with a diagnosis for a simulation that diverged (``error: simulation diverged ...``).  Anything else --
+with a diagnosis for a simulation that diverged (``error: simulation diverged ...``), or with one line
+for a file that could not be written (``error: could not write ...``, nothing left).  Anything else --
 a traceback, another exit code, a refusal of several lines, a file left by a refusal -- is flagged.
 Each value runs in a fresh process (``undulate ...``), four at a time, in folders under ``--work``.
 
@@ -48,12 +49,13 @@ def cases(work: Path) -> list[list[str]]:
             for o, v in [("--stride", "0"), ("--stride", "999999999999999999999"), ("--fps", "0"), ("--fps", "nan"),
                          ("--fps", "1e-300"), ("--fps", "1e300"), ("--fps", "101")]]
     out += [["animate", f, "--out", "{d}/a.gif"] for f in (bad_nc, "/nonexistent.nc", str(work))]
-    out += [["animate", run, "--out", o] for o in ("{d}/a.png", "/nonexistent/a.gif", "/proc/a.gif")]
+    out += [["animate", run, "--out", o] for o in ("{d}/a.png", "/nonexistent/a.gif", "/proc/a.gif", "/proc/a.mp4")]
     track = ["track", video, "--robots", "2", "--phases", "0,90", "--out", "{d}/t.nc"]
     out += [[*track, o, v] for o, v in [("--robots", "0"), ("--robots", "1000"), ("--start-time", "nan"),
                                         ("--calibration-window", "0"), ("--links", "1"), ("--amplitude", "100"),
                                         ("--channel-width", "-1"), ("--calibration", "/nonexistent.toml"),
-                                        ("--calibration", bad_nc), ("--gait-from", bad_nc)]]
+                                        ("--calibration", bad_nc), ("--gait-from", bad_nc), ("--body-length", "1e300"),
+                                        ("--out", "/proc/t.nc")]]
     out += [["track", f, "--robots", "2", "--out", "{d}/t.nc"] for f in ("/nonexistent.mp4", bad_nc)]
     out += [["compare", f, "--out", "{d}/cmp"] for f in (bad_nc, "/nonexistent.nc", run, exp)]
     out += [["compare", exp, "--out", "{d}/cmp", "--periods", v] for v in ("0", "1000000", "abc")]
@@ -67,7 +69,7 @@ def cases(work: Path) -> list[list[str]]:
     out += [[*robot, o, v] for o, v in [("--protocol", "3"), ("--baudrate", "123"), ("--phases", "nan"),
                                         ("--links", "100"), ("--frequency", "1e6"), ("--control-rate", "1e9"),
                                         ("--servo", "MX-64"), ("--duration", "1e300"), ("--ids", "1,1,2,3"),
-                                        ("--ids", "300,1,2,3")]]
+                                        ("--ids", "300,1,2,3"), ("--body-length", "1e300")]]
     out += [["robot", "ping", "--port", p] for p in ("/nonexistent/tty", "")]
     return out
 
@@ -96,6 +98,8 @@ def judge(rc, text: str, files: list[str]) -> str:
         return "refused" if lines and lines[-1].startswith("error:") and not files else "refused badly"
     if rc == 1 and "error: simulation diverged" in text:
         return "diagnosed"
+    if rc == 1 and len(lines) == 1 and lines[0].startswith("error: could not write") and not files:
+        return "write refused"
     return f"exit {rc}"
 
 
@@ -123,7 +127,7 @@ def main() -> int:
         except subprocess.TimeoutExpired:
             rc, text = "timeout", ""
         files = [f.name for f in d.iterdir()]
-        return argv, judge(rc, text, files if rc == 2 else []), text
+        return argv, judge(rc, text, files if rc in (1, 2) else []), text
 
     t0 = time.perf_counter()
     with cf.ThreadPoolExecutor(4) as ex:
@@ -132,7 +136,7 @@ def main() -> int:
     flagged = []
     for argv, verdict, text in results:
         counts[verdict] = counts.get(verdict, 0) + 1
-        if verdict not in ("ok", "refused", "diagnosed"):
+        if verdict not in ("ok", "refused", "diagnosed", "write refused"):
             last = [line for line in text.splitlines() if line.strip()][-1:] or [""]
             flagged.append(f"| `{' '.join(a[:40] for a in argv)}` | {verdict} | {last[0][:160]} |")
     lines = [f"# CLI extremes ({len(results)} cases, {time.perf_counter() - t0:.0f} s)", "",

@@ -72,6 +72,17 @@ def test_a_gif_too_large_for_memory_is_refused_and_an_mp4_streams(tmp_path, run_
     assert animate(run_ds, tmp_path / "b.gif", stride=20, dpi=40) == 2  # fewer frames fit
 
 
+def test_an_animation_that_cannot_be_written_is_a_write_error(run_ds):
+    """On a pseudo file system (``/proc``) Pillow's FileNotFoundError came out as a traceback after every
+    frame was drawn, and ffmpeg printed its own three lines: the file is made first, and any failure to
+    write it is a :class:`~undulate.errors.WriteError` naming it, before a frame is drawn."""
+    from undulate.errors import WriteError
+
+    for out in ("/proc/undulate-a.gif", "/proc/undulate-a.mp4"):
+        with pytest.raises(WriteError, match=f"could not write {out}"):
+            animate(run_ds, out, dpi=40)
+
+
 def test_cli_animate_from_a_simulate_file(tmp_path):
     nc, gif = tmp_path / "run.nc", tmp_path / "run.gif"
     cli = [sys.executable, "-m", "undulate.cli"]

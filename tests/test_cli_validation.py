@@ -128,6 +128,7 @@ def test_simulate_errors_name_the_option_typed(tmp_path, args, option):
     (["--width", "1e-12"], "--width"),  # MuJoCo's compiler refused the link's inertia: a traceback
     (["--timestep", "1e-300"], "--sample-rate / --timestep"),  # a sample interval of 5e298 steps: numpy's traceback
     (["--body-length", "1e20"], "--sample-rate / --timestep"),  # its automatic step, 5e-24 s, likewise
+    (["--body-length", "1e300"], "--body-length"),  # a link's moment of inertia overflowed: NaN to int
 ])
 def test_simulate_refuses_what_once_raised_a_traceback(tmp_path, args, names):
     """Inputs that passed every check and then failed inside MuJoCo or numpy (found by a sweep of

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ._signals import stop_if_signalled
-from ._io import atomic_output
-from .errors import ParameterError
+from ._io import _as_oserror, atomic_output
+from .errors import ParameterError, WriteError
 
 __all__ = ["animate", "count_frames", "FORMATS"]
 
@@ -73,12 +73,17 @@ def animate(ds, out: str | os.PathLike, *, fps: float | None = None, stride: int
     blit = _Blitter(fig, frame.redrawn())
     if out.suffix.lower() == ".gif":
         _check_gif_fits(len(run.times), blit.size, stride)
-    with atomic_output(out, keep_suffix=True) as tmp:  # the sink picks its format by extension
-        with _sink(Path(tmp), fps, blit.size) as put:
-            for i in range(len(run.times)):
-                frame.draw(i)
-                put(blit.frame())
-                stop_if_signalled()  # a SIGTERM matplotlib's C code dropped still ends the animation
+    try:
+        with atomic_output(out, keep_suffix=True) as tmp:  # the sink picks its format by extension
+            with _sink(Path(tmp), fps, blit.size) as put:
+                for i in range(len(run.times)):
+                    frame.draw(i)
+                    put(blit.frame())
+                    stop_if_signalled()  # a SIGTERM matplotlib's C code dropped still ends the animation
+    except OSError as e:  # the file could not be written (a pseudo or read-only file system): one line
+        if isinstance(e, WriteError):
+            raise
+        raise WriteError(out, _as_oserror(e)) from e
     return len(run.times)
 
 
@@ -223,7 +228,9 @@ class _Frame:
 @contextlib.contextmanager
 def _sink(path: Path, fps: float, size: tuple[int, int]):
     """``put(rgba)`` for each frame: Pillow for ``.gif`` (as matplotlib's PillowWriter writes it);
-    ffmpeg (the ``imageio-ffmpeg`` binary) with H.264, yuv420p for ``.mp4``."""
+    ffmpeg (the ``imageio-ffmpeg`` binary) with H.264, yuv420p for ``.mp4``.  The file is made first, so
+    a place that cannot be written fails before any frame is drawn (and before ffmpeg prints its own)."""
+    path.touch()
     if path.suffix.lower() == ".gif":
         from PIL import Image
 

@@ -115,7 +115,8 @@ def _scene(*, phases: str, links: int, waves_per_body: float, amplitude: float, 
     try:
         geometry = SwimmerGeometry(n_links=links, length_m=body_length, width_m=width)
     except ParameterError as e:
-        raise _cli_name(e, {"n_links": "--links", "length_m": "--body-length (m)", "width_m": "--width (m)"}) from None
+        raise _cli_name(e, {"n_links": "--links", "length_m": "--body-length (m)", "width_m": "--width (m)",
+                            "mass_kg / length_m / width_m / height_m": "--body-length / --width (m)"}) from None
     try:
         channel = Channel(width_m=channel_width)
     except ParameterError as e:

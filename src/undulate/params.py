@@ -244,6 +244,9 @@ class SwimmerGeometry(_Params):
         moments at least the third, compared in floating point (a box thinner than ~1e-8 of its
         length rounds the margin ``m w^2 / 6`` away)."""
         moments = self.link_inertia_kg_m2
+        if not all(math.isfinite(v) for v in moments):  # m l^2 / 12 past float64's range
+            raise ParameterError("mass_kg / length_m / width_m / height_m", "a link whose moments of inertia are "
+                                 f"finite (here {max(moments):g} kg m^2: overflowed)", None)
         if self.link_mass_kg < MUJOCO_MINVAL or min(moments) < MUJOCO_MINVAL:
             raise ParameterError(
                 "mass_kg / length_m / width_m / height_m",

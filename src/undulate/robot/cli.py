@@ -60,7 +60,8 @@ _NAMES = {"ids": "--ids", "protocol": "--protocol", "baudrate": "--baudrate", "s
           "duration_s": "--duration (s)", "amplitude_rad": "--amplitude (degrees)", "frequency_hz": "--frequency (Hz)",
           "control_rate_hz": "--control-rate (Hz)", "waves_per_body": "--waves-per-body", "n_links": "--links",
           "length_m": "--body-length (m)", "width_m": "--channel-width (m)", "channel width": "--channel-width (m)",
-          "controller": "--controller", "coupling": "--coupling (rad/s per N m)", "phases_rad": "--phases (degrees)"}
+          "controller": "--controller", "coupling": "--coupling (rad/s per N m)", "phases_rad": "--phases (degrees)",
+          "mass_kg / length_m / width_m / height_m": "--body-length (m)"}
 
 
 def _relabel(e: ParameterError) -> ParameterError:

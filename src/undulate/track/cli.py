@@ -48,7 +48,8 @@ def _scene_from_options(n: int, phases, links, waves_per_body, amplitude, freque
     except ParameterError as e:
         raise _cli_name(e, {"amplitude_rad": "--amplitude (degrees, (0, 90])", "waves_per_body": "--waves-per-body",
                             "frequency_hz": "--frequency (Hz)", "n_links": "--links", "length_m": "--body-length (m)",
-                            "width_m": "--width (m)", "channel width": "--channel-width (m)"}) from None
+                            "width_m": "--width (m)", "channel width": "--channel-width (m)",
+                            "mass_kg / length_m / width_m / height_m": "--body-length / --width (m)"}) from None
 
 
 def _load_log(path: Path, n: int):
