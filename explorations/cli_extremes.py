@@ -8,7 +8,7 @@ Each value runs in a fresh process (``undulate ...``), four at a time, in folder
 
     python explorations/cli_extremes.py --work /tmp/cli_extremes --out explorations/results/cli_extremes.md
 
-A sweep of this kind (2026-12-02) found fifteen faults (a traceback, a wrong option named, a run of
+A sweep of this kind (2026-12-02) found seventeen faults (a traceback, a wrong option named, a run of
 nothing, a misleading diagnosis); each is now a test (tests/test_cli_validation.py, test_animate.py,
 test_track.py, test_sweep.py, test_timestep_contact.py).  About 5 minutes on 2 cores.
 """
