@@ -102,7 +102,7 @@ def _scene(*, phases: str, links: int, waves_per_body: float, amplitude: float, 
            channel_width: float, dx0: float, separating_force: float, body_length: float, width: float,
            controller: str, coupling: float, control_rate: float, hold_x: bool, heading_guide: bool):
     """``simulate``'s scene from its options (ParameterError naming the option)."""
-    from .params import Channel, ControllerParams, Gait, Scene, SwimmerGeometry
+    from .params import INERTIA_FIELDS, Channel, ControllerParams, Gait, Scene, SwimmerGeometry
 
     phases_deg = _parse_floats("--phases", phases)
     if links < 2:
@@ -116,7 +116,7 @@ def _scene(*, phases: str, links: int, waves_per_body: float, amplitude: float, 
         geometry = SwimmerGeometry(n_links=links, length_m=body_length, width_m=width)
     except ParameterError as e:
         raise _cli_name(e, {"n_links": "--links", "length_m": "--body-length (m)", "width_m": "--width (m)",
-                            "mass_kg / length_m / width_m / height_m": "--body-length / --width (m)"}) from None
+                            INERTIA_FIELDS: "--body-length / --width (m)"}) from None
     try:
         channel = Channel(width_m=channel_width)
     except ParameterError as e:

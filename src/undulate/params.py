@@ -32,6 +32,8 @@ from .errors import ParameterError
 
 MUJOCO_MINVAL = 1e-15
 """MuJoCo's ``mjMINVAL``: the least mass and moment of inertia its compiler accepts for a moving body."""
+INERTIA_FIELDS = "mass_kg / length_m / width_m / height_m"
+"""The name a :class:`SwimmerGeometry` refusal of its link's inertia gives (the fields that set it)."""
 
 __all__ = [
     "Gait",
@@ -245,11 +247,11 @@ class SwimmerGeometry(_Params):
         length rounds the margin ``m w^2 / 6`` away)."""
         moments = self.link_inertia_kg_m2
         if not all(math.isfinite(v) for v in moments):  # m l^2 / 12 past float64's range
-            raise ParameterError("mass_kg / length_m / width_m / height_m", "a link whose moments of inertia are "
+            raise ParameterError(INERTIA_FIELDS, "a link whose moments of inertia are "
                                  f"finite (here {max(moments):g} kg m^2: overflowed)", None)
         if self.link_mass_kg < MUJOCO_MINVAL or min(moments) < MUJOCO_MINVAL:
             raise ParameterError(
-                "mass_kg / length_m / width_m / height_m",
+                INERTIA_FIELDS,
                 f"a link whose mass and principal moments of inertia are at least {MUJOCO_MINVAL:g} (MuJoCo's "
                 f"mjMINVAL; here {self.link_mass_kg:.3g} kg and {min(moments):.3g} kg m^2)", None)
         a, b, c = moments

@@ -19,6 +19,7 @@ import typer
 
 from .._cliutil import said
 from ..errors import ParameterError
+from ..params import INERTIA_FIELDS
 
 robot_app = typer.Typer(
     add_completion=False,
@@ -61,7 +62,7 @@ _NAMES = {"ids": "--ids", "protocol": "--protocol", "baudrate": "--baudrate", "s
           "control_rate_hz": "--control-rate (Hz)", "waves_per_body": "--waves-per-body", "n_links": "--links",
           "length_m": "--body-length (m)", "width_m": "--channel-width (m)", "channel width": "--channel-width (m)",
           "controller": "--controller", "coupling": "--coupling (rad/s per N m)", "phases_rad": "--phases (degrees)",
-          "mass_kg / length_m / width_m / height_m": "--body-length (m)"}
+          INERTIA_FIELDS: "--body-length (m)"}
 
 
 def _relabel(e: ParameterError) -> ParameterError:

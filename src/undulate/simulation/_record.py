@@ -12,7 +12,6 @@ import shutil
 from collections.abc import Sequence
 from pathlib import Path
 
-import mujoco
 import numpy as np
 import xarray as xr
 
@@ -22,6 +21,7 @@ from ..params import SimOptions
 from ..schema import scene_attrs, variable
 from ..scene import CompiledScene, root_link, root_offset_m
 from ._backend import backend_attrs
+from ._mujoco import _state_layout
 
 if TYPE_CHECKING:
     from . import _Batch
@@ -108,17 +108,17 @@ def _check_chunk_fits(compiled: Sequence[CompiledScene], chunk_steps: int, times
     states and sensors (:func:`undulate.simulation._reduced_on_device`), the host only the controls;
     ``automatic``: the time step is the scene's own (:func:`undulate.scene.auto_timestep`)."""
     m = compiled[0].model
-    per_step = m.nu + (0 if reduced else mujoco.mj_stateSize(m, mujoco.mjtState.mjSTATE_FULLPHYSICS)
-                       + m.nsensordata)
+    per_step = m.nu + (0 if reduced else _state_layout(m)[1] + m.nsensordata)  # what _Stepper._buffers holds
     need = 2 * 8 * len(compiled) * chunk_steps * per_step  # the float64 buffers and the arrays made from them
     have = _memory_available_bytes()
     if need > have:
         gib = 2.0**30
+        step = f"{timestep_s:.3g} s" + (" (the automatic time step for this scene)" if automatic else "")
         raise ParameterError(
             "sample_rate_hz / timestep_s (--sample-rate / --timestep)",
-            f"few enough steps in a sample interval for one interval's steps to fit in memory: "
-            f"{chunk_steps:.3g} steps of {timestep_s:.3g} s{' (the automatic time step for this scene)' if automatic else ''} need {need / gib:.3g} GiB, {have / gib:.3g} GiB "
-            f"is available (record more often, or take a longer time step)", None)
+            f"few enough steps in a sample interval for one interval's steps to fit in memory: {chunk_steps:.3g} "
+            f"steps of {step} need {need / gib:.3g} GiB, {have / gib:.3g} GiB is available (record more often, "
+            "or take a longer time step)", None)
 
 
 class _MemoryRecorder:

@@ -114,12 +114,9 @@ class StudyConfig:
         if isinstance(s, bool) or not isinstance(s, int | np.integer) or s < 0:
             raise ParameterError("seed", "an integer >= 0", s)
         object.__setattr__(self, "seed", int(s))
-        w = self.workers
         from ..sweep._executors import check_scheduler, check_workers
 
-        check_workers(w)
-        if w is not None and self.scheduler is not None:
-            raise ParameterError("workers", "left out when a Dask scheduler is given (the cluster sets the workers)", w)
+        check_workers(self.workers, self.scheduler)
         if self.scheduler is not None:  # its form now, before anything is written (a connection at the first sweep)
             check_scheduler(self.scheduler)
 

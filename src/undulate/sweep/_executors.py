@@ -44,15 +44,19 @@ and past a few a core they only queue for the cores (``--workers 100000`` would 
 as a sweep has runs)."""
 
 
-def check_workers(workers: Any) -> None:
+def check_workers(workers: Any, scheduler: Any = None) -> None:
     """``workers`` is None (every core) or an integer from 1 to :data:`MAX_WORKERS_PER_CORE` a core this
-    process may use; else a :class:`ParameterError` naming ``workers``."""
+    process may use, and left out when a Dask ``scheduler`` is given; else a :class:`ParameterError`
+    naming ``workers``."""
     if workers is None:
         return
     cap = MAX_WORKERS_PER_CORE * default_workers()
     if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= cap:
         raise ParameterError("workers", f"an integer in [1, {cap}] ({MAX_WORKERS_PER_CORE} a core of the "
                              f"{default_workers()} this process may use), or None: every core", workers)
+    if scheduler is not None:
+        raise ParameterError("workers", "left out when a Dask scheduler is given (the cluster sets the workers)",
+                             workers)
 
 
 def run_serial(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost) -> None:

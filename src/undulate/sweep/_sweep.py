@@ -260,9 +260,7 @@ def _check_arguments(fn, grid, workers, scheduler, batch, batched) -> bool:
         raise ParameterError("fn", "a callable fn(point, seed) -> xarray.Dataset", fn)
     if not isinstance(grid, Grid):
         raise ParameterError("grid", "an undulate.sweep.Grid", grid)
-    _executors.check_workers(workers)
-    if workers is not None and scheduler is not None:
-        raise ParameterError("workers", "left out when a Dask scheduler is given (the cluster sets the workers)", workers)
+    _executors.check_workers(workers, scheduler)
     if batch is not None and (isinstance(batch, bool) or not isinstance(batch, int) or batch < 1):
         raise ParameterError("batch", "an integer >= 1 (runs per task), or None (automatic)", batch)
     return _resolve_batched(fn, batched)

@@ -29,7 +29,7 @@ def _scene_from_options(n: int, phases, links, waves_per_body, amplitude, freque
                         width):
     """The experiment's Scene from the command line (None when no --phases)."""
     from .._cliutil import _cli_name, _parse_floats
-    from ..params import Channel, Gait, Scene, SwimmerGeometry
+    from ..params import INERTIA_FIELDS, Channel, Gait, Scene, SwimmerGeometry
 
     if phases is None:
         return None
@@ -49,7 +49,7 @@ def _scene_from_options(n: int, phases, links, waves_per_body, amplitude, freque
         raise _cli_name(e, {"amplitude_rad": "--amplitude (degrees, (0, 90])", "waves_per_body": "--waves-per-body",
                             "frequency_hz": "--frequency (Hz)", "n_links": "--links", "length_m": "--body-length (m)",
                             "width_m": "--width (m)", "channel width": "--channel-width (m)",
-                            "mass_kg / length_m / width_m / height_m": "--body-length / --width (m)"}) from None
+                            INERTIA_FIELDS: "--body-length / --width (m)"}) from None
 
 
 def _load_log(path: Path, n: int):
