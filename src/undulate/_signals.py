@@ -14,15 +14,51 @@ from __future__ import annotations
 import contextlib
 from collections.abc import Iterator
 
-__all__ = ["unwind_on_signals", "signalled", "stop_if_signalled", "deferred"]
+__all__ = ["unwind_on_signals", "signalled", "stop_if_signalled", "deferred", "record_interrupts", "interrupted"]
 
 _DEFERRING = [0]  # how deep the main thread is in deferred() blocks
 _PENDING: list[BaseException] = []  # what the signals handled meanwhile raise, as the last block ends
 
 
+_INTERRUPTED = [False]  # whether Ctrl-C reached this process since record_interrupts()
+
+
+def _interrupt(_signum, _frame) -> None:
+    """Ctrl-C, recorded: then Python's own KeyboardInterrupt."""
+    _INTERRUPTED[0] = True
+    raise KeyboardInterrupt
+
+
 def _hold_interrupt(_signum, _frame) -> None:
-    """Ctrl-C inside :func:`deferred`: its KeyboardInterrupt held to the block's end."""
+    """Ctrl-C inside :func:`deferred`: recorded, its KeyboardInterrupt held to the block's end."""
+    _INTERRUPTED[0] = True
     _PENDING.append(KeyboardInterrupt())
+
+
+def record_interrupts() -> None:
+    """From here on Ctrl-C (SIGINT) raises KeyboardInterrupt as Python's own handler does, and is
+    recorded for :func:`interrupted`; a SIGINT this process was started ignoring (a background job)
+    stays ignored.
+
+    A KeyboardInterrupt raised inside C code that calls back into Python can come out as that code's
+    own error: Ctrl-C as a command imports MuJoCo turned into pybind11's "ImportError: initialization
+    failed", a traceback and exit 1 (once in 30 Ctrl-C sent to ``study`` at random times in its first
+    8 s, measured).  Outside the main thread (where Python runs no signal handler) it does nothing.
+    :func:`undulate.cli.main` judges the command by this record, as it does terminations by
+    :func:`signalled`."""
+    import signal
+    import threading
+
+    _INTERRUPTED[0] = False
+    if threading.current_thread() is threading.main_thread() and \
+            signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+        signal.signal(signal.SIGINT, _interrupt)
+
+
+def interrupted() -> bool:
+    """Whether Ctrl-C reached this process since :func:`record_interrupts` (in the main thread, or
+    held by :func:`deferred`)."""
+    return _INTERRUPTED[0]
 
 
 @contextlib.contextmanager
@@ -45,7 +81,8 @@ def deferred() -> Iterator[None]:
         yield
         return
     outermost = not _DEFERRING[0]
-    hold = outermost and signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    previous = signal.getsignal(signal.SIGINT)
+    hold = outermost and previous in (signal.default_int_handler, _interrupt)
     if hold:
         signal.signal(signal.SIGINT, _hold_interrupt)
     _DEFERRING[0] += 1
@@ -54,7 +91,7 @@ def deferred() -> Iterator[None]:
     finally:
         _DEFERRING[0] -= 1
         if hold:
-            signal.signal(signal.SIGINT, signal.default_int_handler)
+            signal.signal(signal.SIGINT, previous)
         if outermost and _PENDING:
             e = _PENDING[0]
             _PENDING.clear()

@@ -426,22 +426,51 @@ def main(argv: list[str] | None = None) -> int:
 
     A command ended by SIGTERM or SIGHUP exits ``128 + signal`` with one line, whatever exception its
     unwinding reached here as (typer's Exit(130), SystemExit, or the error of C code the signal
-    interrupted: see :func:`undulate._signals.signalled`)."""
-    from ._signals import signalled
+    interrupted: see :func:`undulate._signals.signalled`).  Ctrl-C is judged the same way: whatever
+    exception it comes out as (:func:`undulate._signals.record_interrupts`), the command exits 130 with
+    its one line."""
+    import signal
 
+    from . import _cliutil
+    from ._signals import interrupted, record_interrupts, signalled
+
+    _no_mujoco_gl()
+    before = signal.getsignal(signal.SIGINT)
+    record_interrupts()
     try:
         rv = _run(argv)
     except BaseException:
-        if signalled() is None:
+        if signalled() is None and not interrupted():
             raise
         rv = None
+        if signalled() is None:  # Ctrl-C, come out as another error
+            if not _cliutil._SAID:
+                typer.echo(f"interrupted{_resumes(argv)}", err=True)
+            return 130
+    finally:
+        if signal.getsignal(signal.SIGINT) is not before:  # only the main thread's handler was changed
+            signal.signal(signal.SIGINT, before)
     signum = signalled()
     if signum is not None:
-        import signal
-
         typer.echo(f"terminated ({signal.Signals(signum).name}){_resumes(argv)}", err=True)
         return 128 + signum
     return rv
+
+
+def _no_mujoco_gl() -> None:
+    """``MUJOCO_GL=disable`` for this command and the worker processes it starts (they inherit it),
+    where the user has not chosen an OpenGL backend.
+
+    No command draws with MuJoCo's OpenGL (figures and films are matplotlib's, test videos OpenCV's),
+    but ``import mujoco`` with ``MUJOCO_GL`` unset loads glfw, whose library search starts a
+    ``python -c`` child that reads a path on stdin and prints the library's version on stdout, its
+    stderr the command's own.  Ctrl-C or a worker stopped while one ran left that child's traceback
+    after the command's last line ("File "<string>", line 36: BrokenPipeError", or line 28:
+    EOFError; once in ~40 Ctrl-C sent to a study as its first run is saved, and in CI), and each
+    process paid ~50 ms for it."""
+    import os
+
+    os.environ.setdefault("MUJOCO_GL", "disable")
 
 
 def _resumes(argv: list[str] | None) -> str:
