@@ -325,6 +325,71 @@ def test_a_signal_that_lands_in_a_finalizer_still_ends_the_command():
     assert "Exception ignored" not in r.stderr
 
 
+_CTRL_C_IN_A_FINALIZER = """
+import os, signal, sys, time
+from undulate._signals import record_interrupts
+
+record_interrupts()
+
+class Finalized:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(200000):
+            pass  # the handler runs here, inside the finalizer, where Python drops what it raises
+
+try:
+    x = Finalized()
+    del x
+    for _ in range(200):
+        time.sleep(0.01)
+    print("went on")
+except KeyboardInterrupt:
+    sys.exit(130)
+"""
+
+_CTRL_C_IN_A_FINALIZER_AS_THE_COMMAND_ENDS = """
+import os, signal, sys
+from undulate import cli
+
+class Finalized:
+    def __del__(self):
+        os.kill(os.getpid(), signal.SIGINT)
+        for _ in range(200000):
+            pass
+
+def run(argv):  # a command whose last step runs a finalizer that Ctrl-C lands in
+    x = Finalized()
+    del x
+    return 0
+
+cli._run = run
+rv = cli.main(["simulate"])
+print("handler put back:", signal.getsignal(signal.SIGINT) is signal.default_int_handler)
+sys.exit(rv)
+"""
+
+
+def test_a_ctrl_c_that_lands_in_a_finalizer_still_stops_the_command():
+    """Ctrl-C to ``simulate`` landed in a ``WeakValueDictionary`` callback: Python printed "Exception
+    ignored ... KeyboardInterrupt", dropped it, and the command ran on to exit 0 with its file (seen
+    once in a full test run).  It is delivered again once the finalizer has returned."""
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(_CTRL_C_IN_A_FINALIZER)], capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 130 and "went on" not in r.stdout, (r.stdout, r.stderr)
+    assert "Exception ignored" not in r.stderr, r.stderr
+
+
+def test_a_ctrl_c_dropped_as_the_command_ends_still_ends_it_with_one_line():
+    """The command's last step ran the finalizer Ctrl-C landed in, before it could be delivered again:
+    exit 130 and ``interrupted``, not 0, and no delivery after the entry point put Python's handler
+    back (a KeyboardInterrupt traceback wherever the process then was)."""
+    r = subprocess.run([sys.executable, "-c", textwrap.dedent(_CTRL_C_IN_A_FINALIZER_AS_THE_COMMAND_ENDS)],
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 130, (r.stdout, r.stderr)
+    assert r.stderr.strip().splitlines() == ["interrupted"], r.stderr
+    assert "handler put back: True" in r.stdout
+
+
 def test_a_terminated_animation_stops_ffmpeg_and_leaves_no_file(tmp_path):
     """``undulate animate`` ended by SIGTERM while ffmpeg writes the mp4: exit 143, the half-written
     temporary removed, and ffmpeg ended (before: killed outright, the temporary left for good)."""

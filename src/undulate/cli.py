@@ -432,13 +432,19 @@ def main(argv: list[str] | None = None) -> int:
     import signal
 
     from . import _cliutil
-    from ._signals import interrupted, record_interrupts, signalled
+    from ._signals import cancel_redeliveries, interrupted, record_interrupts, signalled
 
     _no_mujoco_gl()
     before = signal.getsignal(signal.SIGINT)
     record_interrupts()
     try:
         rv = _run(argv)
+        cancel_redeliveries()
+        if rv == 0 and interrupted() and signalled() is None:  # Ctrl-C raised in a finalizer, and the
+            # command ended before it was delivered again (record_interrupts)
+            if not _cliutil._SAID:
+                typer.echo(f"interrupted{_resumes(argv)}", err=True)
+            return 130
     except BaseException:
         if signalled() is None and not interrupted():
             raise
@@ -448,6 +454,7 @@ def main(argv: list[str] | None = None) -> int:
                 typer.echo(f"interrupted{_resumes(argv)}", err=True)
             return 130
     finally:
+        cancel_redeliveries()
         if signal.getsignal(signal.SIGINT) is not before:  # only the main thread's handler was changed
             signal.signal(signal.SIGINT, before)
     signum = signalled()
