@@ -329,6 +329,7 @@ _CTRL_C_IN_A_FINALIZER = """
 import os, signal, sys, time
 from undulate._signals import record_interrupts
 
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a background job's shell starts it ignored
 record_interrupts()
 
 class Finalized:
@@ -350,6 +351,8 @@ except KeyboardInterrupt:
 _CTRL_C_IN_A_FINALIZER_AS_THE_COMMAND_ENDS = """
 import os, signal, sys
 from undulate import cli
+
+signal.signal(signal.SIGINT, signal.default_int_handler)  # a background job's shell starts it ignored
 
 class Finalized:
     def __del__(self):
