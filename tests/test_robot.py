@@ -514,11 +514,21 @@ def test_ping_lists_the_servos(capsys):
     assert capsys.readouterr().out == "id   4: XL430-W250\nid   7: XL430-W250\n"
 
 
+def test_ping_refuses_a_device_that_is_no_serial_port(capsys):
+    """/dev/null is a character device the user may read and write, but no terminal: pyserial failed on
+    it as it configured the port, exit 1 as for a bus that died.  It is a wrong --port: exit 2."""
+    assert main(["robot", "ping", "--port", "/dev/null"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["error: invalid --port: must be a serial device (a terminal device such as /dev/ttyUSB0) "
+                   "(got '/dev/null')"], err
+
+
 @pytest.mark.parametrize("args, needle", [
     (["--ids", "1,2,3"], "invalid --ids: must be 4 servo ids"),
     (["--ids", "1,2,3,3"], "invalid --ids: must be distinct"),
     (["--ids", "1,2,x,4"], "invalid --ids"),
     (["--ids", "1,2,3,4", "--port", "/dev/does-not-exist"], "invalid --port"),
+    (["--ids", "1,2,3,4", "--port", "/dev/null"], "invalid --port: must be a serial device (a terminal device"),
     (["--ids", "1,2,3,4", "--amplitude", "95"], "invalid --amplitude"),
     (["--ids", "1,2,3,4", "--calibration", "OFFSET"], "invalid --amplitude (degrees): must be within the AX-12A's range"),
     (["--ids", "1,2,3,4", "--calibration", "TYPO"], "key 'ofset_ticks'"),

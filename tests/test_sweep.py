@@ -129,6 +129,16 @@ def test_a_marked_batched_sweep_function_runs_batched_without_being_told(serial,
         assert e.value.name == "batched" and not (tmp_path / f"refused-{bad}").exists()
 
 
+@pytest.mark.parametrize("kwargs, name", [({"progress": "no"}, "progress"), ({"progress": 0.0}, "progress"),
+                                          ({"stream": "log.txt"}, "stream")])
+def test_run_sweep_refuses_a_progress_or_stream_of_the_wrong_kind(kwargs, name, tmp_path):
+    """``progress="no"`` was truthy and showed the bar; a path as ``stream`` failed at the first line
+    written, after runs had been made."""
+    with pytest.raises(ParameterError) as e:
+        run_sweep(sweep_funcs.pendulum, GRID, tmp_path / "s", workers=1, **kwargs)
+    assert e.value.name == name and not (tmp_path / "s").exists()
+
+
 def test_dask_local_cluster_equals_serial(serial, tmp_path):
     distributed = pytest.importorskip("distributed")
     with distributed.LocalCluster(n_workers=2, processes=True, threads_per_worker=1, dashboard_address=None) as cl:

@@ -264,6 +264,8 @@ def test_bad_input_one_line_exit_2_nothing_written(pair, tracked_again, tmp_path
          "--channel-width"),
         (["track", video, "--robots", "2", "--out", str(out), "--calibration-window", "0"], "--calibration-window"),
         (["track", video, "--robots", "0", "--out", str(out), "--phases", "0,90"], "--robots"),
+        (["track", video, "--robots", "2", "--out", str(out), "--start-time", "1e300"], "--start-time"),  # was
+        # accepted: every frame's time 1e300
         (["compare", str(tmp_path / "missing.nc"), "--out", str(tmp_path / "cmp")], "EXP"),
         (["compare", str(pair["dir"] / "exp.nc"), "--out", "/proc/undulate-cmp"], "--out"),  # was a traceback
     ]

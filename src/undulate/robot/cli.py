@@ -54,6 +54,15 @@ def _check_port(port: Optional[str]) -> str:
         raise ParameterError("--port", "a serial (character) device", port)
     if not os.access(port, os.R_OK | os.W_OK):
         raise ParameterError("--port", "a serial device this user may read and write (dialout group?)", port)
+    try:  # a character device that is no terminal (/dev/null, /dev/zero) fails only as pyserial configures it
+        fd = os.open(port, os.O_RDWR | os.O_NOCTTY | os.O_NONBLOCK)
+    except OSError as e:
+        raise ParameterError("--port", f"a serial device that opens ({e.strerror})", port) from None
+    try:
+        if not os.isatty(fd):
+            raise ParameterError("--port", "a serial device (a terminal device such as /dev/ttyUSB0)", port)
+    finally:
+        os.close(fd)
     return port
 
 

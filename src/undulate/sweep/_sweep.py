@@ -14,6 +14,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
+import numpy as np
 import xarray as xr
 
 from ..errors import ParameterError, UndulateError
@@ -228,6 +229,10 @@ def run_sweep(
     """
     t_start = time.monotonic()
     batched = _check_arguments(fn, grid, workers, scheduler, batch, batched)
+    if not isinstance(progress, (bool, np.bool_)):  # "no" or 0.0 would have shown the bar, or not, by truth
+        raise ParameterError("progress", "True or False", progress)
+    if stream is not None and not callable(getattr(stream, "write", None)):
+        raise ParameterError("stream", "a text stream with write(), or None (standard error)", stream)
     if scheduler is None and workers != 1:
         _check_importable(fn)
 

@@ -134,6 +134,12 @@ def track_video(video: str | os.PathLike, n_robots: int, calibration: TrackCalib
     return _tracked_dataset(stamps + start_time_s, n, scene, attrs, cx, cy, heading, side, found, frame_idx)
 
 
+MAX_START_TIME_S = 1e9
+"""The largest ``start_time_s`` magnitude, s (~32 years): the frame times are ``start_time_s`` plus the
+video's timestamps in float64, whose spacing there is 1.2e-7 s; at 1e300 every frame had the same
+time."""
+
+
 def _check_arguments(video: Path, n_robots, calibration_s: float, start_time_s: float) -> int:
     """:func:`track_video`'s arguments, validated; the number of robots."""
     try:
@@ -144,8 +150,9 @@ def _check_arguments(video: Path, n_robots, calibration_s: float, start_time_s: 
         raise ParameterError("--robots", f"an integer in [1, {MAX_ROBOTS}]", n_robots)
     if not (math.isfinite(calibration_s) and calibration_s > 0):
         raise ParameterError("calibration_s", "> 0 s", calibration_s)
-    if not math.isfinite(start_time_s):
-        raise ParameterError("--start-time", "a finite time, s", start_time_s)
+    if not (math.isfinite(start_time_s) and abs(start_time_s) <= MAX_START_TIME_S):
+        raise ParameterError("--start-time", f"a time within +-{MAX_START_TIME_S:g} s (frame times must "
+                             "resolve microseconds)", start_time_s)
     if not video.is_file():
         raise ParameterError("VIDEO", "an existing video file", str(video))
     return n
