@@ -100,6 +100,7 @@ def test_every_quick_mode_option_is_the_same_quick_full_pair_defaulting_to_quick
     (["--duration", "1e-5", "--timestep", "0.002"], "--duration"),
     (["--channel-width", "0.02"], "--channel-width"),
     (["--dx0", "nan"], "--dx0"),
+    (["--dx0", "1e20"], "--dx0"),  # was run, and stopped as diverged blaming the time step
     (["--amplitude", "95"], "--amplitude"),
     (["--width", "-0.01"], "--width"),
     (["--body-length", "0"], "--body-length"),

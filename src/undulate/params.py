@@ -509,6 +509,13 @@ class ControllerParams(_Params):
         return self.kind != "open-loop"
 
 
+MAX_GROUP_EXTENT_M = 1e6
+"""The largest initial longitudinal extent of a group (the span of the swimmers' starting x), m.  The
+group is centred on x = 0, so its swimmers start within 5e5 m of it, where float64 positions are
+spaced 1.2e-10 m.  At dx0 = 1e20 m the spacing was 1.6e4 m: a swimmer's own links, a few cm apart,
+overlapped, and the run stopped as diverged, its diagnosis blaming the time step."""
+
+
 @dataclass(frozen=True)
 class Scene(_Params):
     """Swimmers side by side in a channel.
@@ -571,6 +578,10 @@ class Scene(_Params):
             dx0 = dx0 * (n - 1)
         if len(dx0) != n - 1:
             raise ParameterError("dx0_m", allowed, self.dx0_m)
+        xs = np.concatenate([[0.0], np.cumsum(dx0)])
+        if float(np.ptp(xs)) > MAX_GROUP_EXTENT_M:
+            raise ParameterError("dx0_m", f"offsets whose sum spans at most {MAX_GROUP_EXTENT_M:g} m (farther out, "
+                                 "float64 positions no longer resolve a body's links)", self.dx0_m)
         object.__setattr__(self, "dx0_m", dx0)
         gap = _nonneg("lateral_gap_m", self.lateral_gap_m, "m")
         _nonneg("force_onset_s", self.force_onset_s, "s")
