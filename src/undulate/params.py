@@ -512,8 +512,9 @@ class ControllerParams(_Params):
 MAX_GROUP_EXTENT_M = 1e6
 """The largest initial longitudinal extent of a group (the span of the swimmers' starting x), m.  The
 group is centred on x = 0, so its swimmers start within 5e5 m of it, where float64 positions are
-spaced 1.2e-10 m.  At dx0 = 1e20 m the spacing was 1.6e4 m: a swimmer's own links, a few cm apart,
-overlapped, and the run stopped as diverged, its diagnosis blaming the time step."""
+spaced at most 5.8e-11 m.  At dx0 = 1e20 m (swimmers at +-5e19 m) the spacing was 8.2e3 m: a
+swimmer's own links, a few cm apart, overlapped, and the run stopped as diverged, its diagnosis
+blaming the time step."""
 
 
 @dataclass(frozen=True)
