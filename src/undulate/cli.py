@@ -432,7 +432,7 @@ def main(argv: list[str] | None = None) -> int:
     import signal
 
     from . import _cliutil
-    from ._signals import cancel_redeliveries, interrupted, record_interrupts, signalled
+    from ._signals import cancel_redeliveries, forget_unhandled_interrupt, interrupted, record_interrupts, signalled
 
     _no_mujoco_gl()
     before = signal.getsignal(signal.SIGINT)
@@ -457,6 +457,8 @@ def main(argv: list[str] | None = None) -> int:
         cancel_redeliveries()
         if signal.getsignal(signal.SIGINT) is not before:  # only the main thread's handler was changed
             signal.signal(signal.SIGINT, before)
+        if interrupted():  # judged here: not an unhandled KeyboardInterrupt that ends the process by SIGINT
+            forget_unhandled_interrupt()
     signum = signalled()
     if signum is not None:
         typer.echo(f"terminated ({signal.Signals(signum).name}){_resumes(argv)}", err=True)

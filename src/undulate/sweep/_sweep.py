@@ -228,11 +228,7 @@ def run_sweep(
     identical results.
     """
     t_start = time.monotonic()
-    batched = _check_arguments(fn, grid, workers, scheduler, batch, batched)
-    if not isinstance(progress, (bool, np.bool_)):  # "no" or 0.0 would have shown the bar, or not, by truth
-        raise ParameterError("progress", "True or False", progress)
-    if stream is not None and not callable(getattr(stream, "write", None)):
-        raise ParameterError("stream", "a text stream with write(), or None (standard error)", stream)
+    batched = _check_arguments(fn, grid, workers, scheduler, batch, batched, progress, stream)
     if scheduler is None and workers != 1:
         _check_importable(fn)
 
@@ -258,7 +254,7 @@ def run_sweep(
     return result
 
 
-def _check_arguments(fn, grid, workers, scheduler, batch, batched) -> bool:
+def _check_arguments(fn, grid, workers, scheduler, batch, batched, progress=True, stream=None) -> bool:
     """:func:`run_sweep`'s arguments, validated (one ParameterError naming the first bad one);
     returns whether ``fn`` runs batched (:func:`_resolve_batched`)."""
     if not callable(fn):
@@ -268,6 +264,10 @@ def _check_arguments(fn, grid, workers, scheduler, batch, batched) -> bool:
     _executors.check_workers(workers, scheduler)
     if batch is not None and (isinstance(batch, bool) or not isinstance(batch, int) or batch < 1):
         raise ParameterError("batch", "an integer >= 1 (runs per task), or None (automatic)", batch)
+    if not isinstance(progress, (bool, np.bool_)):  # "no" or 0.0 would have shown the bar, or not, by truth
+        raise ParameterError("progress", "True or False", progress)
+    if stream is not None and not callable(getattr(stream, "write", None)):
+        raise ParameterError("stream", "a text stream with write(), or None (standard error)", stream)
     return _resolve_batched(fn, batched)
 
 
