@@ -7,9 +7,13 @@ import numpy as np
 import pytest
 import xarray as xr
 
+from undulate.errors import ParameterError
 from undulate.observables import (
+    centreline_points,
     contact_impulse,
+    gait_amplitude,
     lateral_order,
+    mean_contact_force,
     neighbour_offsets,
     period_average,
     period_average_groupby,
@@ -123,3 +127,58 @@ def test_interleaving_centres_within_a_cycle_keep_their_lateral_order():
     assert set(neighbour_offsets(ds, window_s=0)["lower"].values[:, 0]) == {0, 1}
     # the end-of-run order ranks the same bodies by their mean y over the steady window
     assert final_neighbours(ds) == ([(0, 1)], True)
+
+
+def _pair_like(T=60, dt=0.1):
+    """A two-swimmer record over 6 s (3 gait periods) with centre lines and headings, as simulate() gives."""
+    ds = synthetic(np.tile([0.0, 0.1], (T, 1)), np.tile([-0.02, 0.02], (T, 1)), phases=[0.0, 1.0], dt=dt)
+    nodes = np.zeros((T, 2, 4))
+    nodes[:] = np.linspace(0.0, 0.3, 4)
+    return ds.assign(node_x=(("time", "swimmer", "node"), nodes),
+                     node_y=(("time", "swimmer", "node"), np.zeros((T, 2, 4)) + ds["y"].values[..., None]),
+                     heading=(("time", "swimmer"), np.zeros((T, 2))))
+
+
+@pytest.mark.parametrize("call, name, allowed", [
+    (lambda ds: period_average(ds["x"], 0.0), "period_s", "> 0 s"),
+    (lambda ds: period_average(ds["x"], float("nan")), "period_s", "a finite number"),
+    (lambda ds: period_average(ds["x"].values, 2.0), "da", "an xarray.DataArray"),
+    (lambda ds: period_average(ds["x"].isel(time=0), 2.0), "da", "data over a 'time' coordinate"),
+    (lambda ds: period_average(ds["x"].isel(time=[1, 0, 2, 3]), 2.0), "da", "strictly increasing times"),
+    (lambda ds: steady_state(ds["x"], 2.0, tol=-0.1), "tol", ">= 0"),
+    (lambda ds: steady_state(ds["x"], 2.0, tol=0.1, window=0), "window", "an integer >= 1"),
+    (lambda ds: steady_state(ds["x"], 2.0, tol=0.1, window=2.5), "window", "an integer >= 1"),
+    (lambda ds: lateral_order(ds, -1.0), "window_s", ">= 0 s"),
+    (lambda ds: neighbour_offsets(ds["x"]), "ds", "a recorded trajectory"),
+    (lambda ds: neighbour_offsets(ds.drop_vars("phase")), "ds", "it lacks phase"),
+    (lambda ds: gait_amplitude(ds, swimmer=2), "swimmer", "an integer in [0, 1]"),
+    (lambda ds: gait_amplitude(ds, swimmer=-1), "swimmer", "an integer in [0, 1]"),
+    (lambda ds: gait_amplitude(ds, swimmer=True), "swimmer", "an integer in [0, 1]"),
+    (lambda ds: gait_amplitude(ds, periods=0), "periods", "an integer >= 1"),
+    (lambda ds: centreline_points(ds, per_link=0), "per_link", "an integer >= 1"),
+    (lambda ds: contact_impulse(ds, float("nan")), "t_from", "a finite number"),
+    (lambda ds: contact_impulse(ds, 9.0), "t_from", "<= the record's last time, 5.9 s"),
+    (lambda ds: contact_impulse(ds, 2.0, 1.0), "t_to", ">= t_from = 2 s"),
+    (lambda ds: mean_contact_force(ds, 1.0, 1.0), "t_to", "> t_from = 1 s"),
+    (lambda ds: mean_contact_force(ds, 5.9), "t_from", "< the record's last time, 5.9 s"),
+])
+def test_observables_refuse_bad_input_naming_the_parameter(call, name, allowed):
+    """A bad argument to a public observable is one ParameterError naming it and what is allowed, where
+    numpy's errors (an OverflowError from a zero period, an IndexError from a swimmer out of range) or a
+    silent answer (a mean force over no time divided by zero: inf, a window of -1 s) used to come."""
+    with pytest.raises(ParameterError) as err:
+        call(_pair_like())
+    assert err.value.name == name and allowed in str(err.value)
+    assert "\n" not in str(err.value)
+
+
+def test_observables_accept_what_the_checks_allow():
+    """The edges the checks allow still answer: an interval of no time integrates to 0 N s, a window of
+    one period is steady by itself, a window of 0 s orders by the instantaneous y, whole numbers as floats."""
+    ds = _pair_like()
+    assert float(contact_impulse(ds, 1.0, 1.0)["pair"].sum()) == 0.0
+    assert bool(steady_state(ds["x"], 2.0, tol=0.0, window=1)["steady"].all())
+    assert lateral_order(ds, 0.0).values[0].tolist() == [0, 1]
+    assert gait_amplitude(ds, swimmer=1.0, periods=2.0) == pytest.approx(0.0, abs=1e-12)
+    assert centreline_points(ds, per_link=2)[0].shape == (60, 2, 7)
+    assert neighbour_offsets(ds.isel(time=[0]))["dx"].values.tolist() == [[pytest.approx(0.1)]]

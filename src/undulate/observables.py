@@ -1,6 +1,9 @@
 """Observables: pure functions of a recorded trajectory (an ``xarray.Dataset``
 from :func:`undulate.simulate`).  No hidden state; they serve the tests, the
-studies and a user's notebook alike.
+studies and a user's notebook alike.  Each checks its arguments first: a
+bad one (a period that is not > 0 s, a swimmer the record does not hold, a
+mean force over no time) raises :class:`~undulate.errors.ParameterError`
+naming it and what is allowed.
 
 Conventions: neighbours are identified by **lateral order** at every sample
 (sorted by centre-of-mass ``y``); for the neighbouring ranks ``r`` (lower)
@@ -16,6 +19,8 @@ import warnings
 import numpy as np
 import xarray as xr
 
+from .errors import ParameterError
+from .params import _finite, _nonneg, _positive
 from .theory import wrap_phase
 
 __all__ = [
@@ -38,6 +43,47 @@ wrap_angle = wrap_phase
 """Wrap angles (rad) into (-pi, pi] (a phase difference of pi reads +pi):
 :func:`undulate.theory.wrap_phase`, the package's one convention, under the name
 the observables have always used."""
+
+
+def _trajectory(ds, variables: tuple[str, ...] = (), attrs: tuple[str, ...] = (), timed: bool = True) -> xr.Dataset:
+    """``ds`` if it is a recorded trajectory holding ``variables`` (data or coordinates) and ``attrs``
+    (and, if ``timed``, over a ``time`` of increasing samples); else a ParameterError naming ``ds``."""
+    what = "a recorded trajectory (an xarray.Dataset from undulate.simulate)"
+    if not isinstance(ds, xr.Dataset):
+        raise ParameterError("ds", what, type(ds).__name__)
+    lacks = [v for v in variables if v not in ds.variables] + [f"attrs[{a!r}]" for a in attrs if a not in ds.attrs]
+    if lacks:
+        raise ParameterError("ds", f"{what} with {', '.join(variables + tuple(f'attrs[{a!r}]' for a in attrs))}; "
+                                   f"it lacks {', '.join(lacks)}")
+    if timed:
+        _times(ds, "ds")
+    return ds
+
+
+def _times(obj, name: str) -> np.ndarray:
+    """The ``time`` coordinate of ``obj``: finite samples, strictly increasing, s."""
+    if "time" not in obj.dims or "time" not in obj.coords:
+        raise ParameterError(name, "data over a 'time' coordinate (s)", f"dims {tuple(obj.dims)}")
+    t = np.asarray(obj["time"].values)
+    if t.dtype.kind not in "fiu" or t.size < 1 or not (np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)):
+        raise ParameterError(name, "data over finite, strictly increasing times (s)",
+                             f"{t.size} time(s) of dtype {t.dtype}")
+    return t
+
+
+def _count(name: str, value, low: int, high: int | None = None) -> int:
+    """An integer in ``[low, high]`` (``high`` None: no bound); a bool or a fraction is refused."""
+    allowed = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
+    if isinstance(value, (bool, np.bool_, str, bytes)):
+        raise ParameterError(name, allowed, value)
+    try:
+        n = int(value)
+        whole = n == value
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(name, allowed, value) from None
+    if not whole or n < low or (high is not None and n > high):
+        raise ParameterError(name, allowed, value)
+    return n
 
 
 def _running_mean(a: np.ndarray, n: int) -> np.ndarray:
@@ -76,9 +122,11 @@ def lateral_order(ds: xr.Dataset, window_s: float | None = None) -> xr.DataArray
     lateral places, lasting longer than the window, is followed.
     ``window_s = 0`` orders by the instantaneous ``y``.
     """
-    y = ds["y"].values
+    _trajectory(ds, ("y",))
     if window_s is None:
         window_s = float(ds.attrs.get("period", 0.0))
+    window_s = _nonneg("window_s", window_s, "s")
+    y = ds["y"].values
     t = ds["time"].values
     dt = float(t[1] - t[0]) if len(t) > 1 else 1.0
     n = max(1, int(round(window_s / dt)))
@@ -95,6 +143,7 @@ def neighbour_offsets(ds: xr.Dataset, window_s: float | None = None) -> xr.Datas
     ``r`` and ``r+1``): ``dx`` and ``dy`` in m, ``dphi`` in rad, and the
     swimmer ids ``lower`` and ``upper``.
     """
+    _trajectory(ds, ("x", "y", "phase"), ("wavelength",))
     order = lateral_order(ds, window_s).values
     x, y = ds["x"].values, ds["y"].values
     phase = np.asarray(ds["phase"].values, dtype=float)
@@ -139,7 +188,10 @@ def period_average(da: xr.DataArray, period_s: float) -> xr.DataArray:
     value per complete period, its ``time`` coordinate at the period's
     midpoint; an incomplete last period is dropped.
     """
-    t = da["time"].values
+    if not isinstance(da, xr.DataArray):
+        raise ParameterError("da", "an xarray.DataArray over a 'time' coordinate (s)", type(da).__name__)
+    t = _times(da, "da")
+    period_s = _positive("period_s", period_s, "s")
     u = (t - t[0]) / period_s
     k = np.ceil(u - 1e-9).astype(int) - 1
     n_full = int(np.floor(u[-1] + 1e-9))
@@ -194,6 +246,8 @@ def steady_state(da: xr.DataArray, period_s: float, tol: float, window: int = 3)
     (s, NaN if never), ``spread`` (max deviation in the last window) over
     the non-time dims of ``da``.
     """
+    tol = _nonneg("tol", tol)
+    window = _count("window", window, 1)
     pa = period_average(da, period_s)
     n = pa.sizes["time"]
     if n < window:
@@ -237,6 +291,8 @@ def centreline_points(ds: xr.Dataset, per_link: int = 16) -> tuple[np.ndarray, n
 
     Interpolates ``per_link`` points on each link between recorded nodes.
     """
+    _trajectory(ds, ("node_x", "node_y"), timed=False)  # geometry, sample by sample
+    per_link = _count("per_link", per_link, 1)
     nx, ny = ds["node_x"].values, ds["node_y"].values
     s = np.linspace(0.0, 1.0, per_link, endpoint=False)
     px = nx[..., :-1, None] + (nx[..., 1:, None] - nx[..., :-1, None]) * s
@@ -255,6 +311,9 @@ def gait_amplitude(ds: xr.Dataset, swimmer: int = 0, periods: int = 1) -> float:
     the frame of the swimmer's mean position and mean heading over that
     window, and A = (max y' - min y') / 2 over all body points and times.
     """
+    _trajectory(ds, ("node_x", "node_y", "heading"), ("period",))
+    swimmer = _count("swimmer", swimmer, 0, ds.sizes.get("swimmer", 1) - 1)
+    periods = _count("periods", periods, 1)
     period = float(ds.attrs["period"])
     t = ds["time"].values
     t_end = t[-1]
@@ -270,12 +329,29 @@ def gait_amplitude(ds: xr.Dataset, swimmer: int = 0, periods: int = 1) -> float:
     return float((yp.max() - yp.min()) / 2)
 
 
+def _interval(ds, t_from, t_to, empty: bool = True) -> tuple[float, float | None]:
+    """``t_from`` and ``t_to`` (s) of a contact-force integral over ``ds``, checked: finite, ``t_to`` (None:
+    the last sample) not before ``t_from``, nor at it unless ``empty`` allows an interval of no time."""
+    _trajectory(ds, ("contact_force_pair", "contact_force_wall"), ("sample_interval",))
+    t_from = _finite("t_from", t_from)
+    if t_to is not None:
+        t_to = _finite("t_to", t_to)
+    last = float(ds["time"].values[-1])
+    op, bad = (">=", "<=") if empty else (">", "<")
+    if t_to is None and (t_from > last or (t_from == last and not empty)):
+        raise ParameterError("t_from", f"{bad} the record's last time, {last:g} s", t_from)
+    if t_to is not None and (t_to < t_from or (t_to == t_from and not empty)):
+        raise ParameterError("t_to", f"{op} t_from = {t_from:g} s", t_to)
+    return t_from, t_to
+
+
 def contact_impulse(ds: xr.Dataset, t_from: float = 0.0, t_to: float | None = None) -> xr.Dataset:
     """Time-integrated contact forces over ``[t_from, t_to]``, N s.
 
     Uses the recorded interval means (exact integral of every step's force).
     Returns ``pair`` (per neighbouring pair, initial order) and ``wall``.
     """
+    t_from, t_to = _interval(ds, t_from, t_to)
     dt = float(ds.attrs["sample_interval"])
     t = ds["time"]
     hi = t[-1] if t_to is None else t_to
@@ -294,6 +370,7 @@ def contact_impulse(ds: xr.Dataset, t_from: float = 0.0, t_to: float | None = No
 
 def mean_contact_force(ds: xr.Dataset, t_from: float = 0.0, t_to: float | None = None) -> xr.Dataset:
     """Time-averaged contact forces over ``(t_from, t_to]``, N."""
+    t_from, t_to = _interval(ds, t_from, t_to, empty=False)  # a mean over no time is refused
     t = ds["time"].values
     hi = t[-1] if t_to is None else t_to
     imp = contact_impulse(ds, t_from, t_to)
@@ -313,6 +390,7 @@ def middle_link_pose(ds) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     (:func:`undulate.track.calibration.robot_tag_link`) and the tracker measures
     its centre, so experiment and simulation are compared at the same body point.
     """
+    _trajectory(ds, ("node_x", "node_y"), timed=False)  # geometry, sample by sample
     nx, ny = np.asarray(ds["node_x"].values, float), np.asarray(ds["node_y"].values, float)
     k = (nx.shape[-1] - 1) // 2
     x0, y0, x1, y1 = nx[..., k], ny[..., k], nx[..., k + 1], ny[..., k + 1]
