@@ -15,7 +15,7 @@ Each pair is alternated in one process, best of ``--repeat``:
   replaced; bitwise the same, tested).  A pair run takes several.
 * **animation**: one of the report's animations (24 s at 10 Hz, 241 frames)
   drawn by blitting against a full matplotlib redraw of every frame (what
-  :func:`undulate.animate.animate` did; same bytes out, tested).
+  :func:`undulate.animation.animate` did; same bytes out, tested).
 """
 
 from __future__ import annotations
@@ -88,7 +88,7 @@ def _full_redraw(ds, out: Path) -> None:
     """The animation as it was drawn before blitting: matplotlib's PillowWriter, a full draw a frame."""
     from matplotlib import animation
 
-    from undulate.animate import _Frame, _Recording, _stage
+    from undulate.animation import _Frame, _Recording, _stage
 
     run = _Recording(ds, 1)
     fig, ax, walls = _stage(ds, run, 70, "title")
@@ -102,7 +102,7 @@ def _full_redraw(ds, out: Path) -> None:
 
 def animations(repeat: int) -> tuple[float, float]:
     """s per animation: full redraw, blitted."""
-    from undulate.animate import animate
+    from undulate.animation import animate
     from undulate.reproduce import ANIMATIONS
 
     _, _, kw, dur = ANIMATIONS[1]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from undulate import Scene, SimOptions, simulate
-from undulate.animate import animate, count_frames
+from undulate.animation import animate, count_frames
 from undulate.errors import ParameterError
 
 
@@ -42,7 +42,7 @@ def test_frame_rates_a_format_cannot_keep_are_refused(tmp_path, run_ds):
     set the rate (``--stride`` where the rate is real time); the bounds themselves are written exactly."""
     from PIL import Image
 
-    from undulate.animate import FPS_RANGE
+    from undulate.animation import FPS_RANGE
 
     for out, kw, name in [("a.gif", dict(fps=101.0), "--fps"), ("a.gif", dict(fps=1e-300), "--fps"),
                           ("a.gif", dict(stride=10**21), "--stride"), ("a.mp4", dict(fps=1e-5), "--fps"),
@@ -107,7 +107,7 @@ def test_blitted_frames_are_pixel_identical_to_full_draws():
     # two swimmers in contact half of the time: bodies turn red, walls flash, the clock runs
     from matplotlib.backends.backend_agg import FigureCanvasAgg
 
-    from undulate.animate import _Blitter, _Frame, _Recording, _stage
+    from undulate.animation import _Blitter, _Frame, _Recording, _stage
 
     ds = simulate(Scene(phases_rad=(0.0, 1.5)), SimOptions(duration_s=3.0, sample_rate_hz=10))
     run = _Recording(ds, 1)

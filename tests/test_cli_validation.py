@@ -47,6 +47,44 @@ def test_study_config_rejects_bad_workers(tmp_path):
 
     seed = StudyConfig(out_dir=tmp_path, seed=np.int64(7)).seed
     assert seed == 7 and type(seed) is int
+    for bad in ("yes", 1, 0.5, None):  # bool("no") is True: a mode is asked for, not guessed
+        with pytest.raises(ParameterError, match="invalid quick: must be True or False"):
+            StudyConfig(out_dir=tmp_path, quick=bad)
+    assert StudyConfig(out_dir=str(tmp_path), quick=np.bool_(True)).quick is True
+    for bad in (None, 3, b"/tmp"):
+        with pytest.raises(ParameterError, match="invalid out_dir: must be a folder's path"):
+            StudyConfig(out_dir=bad)
+
+
+def test_the_python_entry_points_refuse_what_is_not_their_type(tmp_path):
+    """simulate, simulate_batch, build, animate, run_study and reproduce name the argument of the wrong
+    type (an AttributeError from deep inside, or a study run as quick for quick="no", came before), and
+    nothing is written."""
+    import importlib
+
+    import undulate
+    from undulate import Scene, SimOptions
+    from undulate.errors import ParameterError
+    from undulate.reproduce import reproduce
+
+    importlib.import_module("undulate.animation")  # its module imported first: the package's animate stays the function
+    calls = [
+        (lambda: undulate.simulate(None), "invalid scene: must be a Scene (got 'NoneType')"),
+        (lambda: undulate.simulate(Scene(), {"duration_s": 1.0}), "invalid options: must be a SimOptions or None"),
+        (lambda: undulate.simulate_batch(Scene()), "invalid scenes: must be a non-empty sequence of Scene (got 'Scene')"),
+        (lambda: undulate.simulate_batch([Scene(), "pair"], SimOptions(duration_s=1.0)), "an item of type str"),
+        (lambda: undulate.build(None), "invalid scene: must be a Scene"),
+        (lambda: undulate.animate({"x": 1}, tmp_path / "a.gif"), "invalid run file: must be a run"),
+        (lambda: undulate.run_study("pairs", None), "invalid out_dir"),
+        (lambda: undulate.run_study("pairs", tmp_path / "s", quick="no"), "invalid quick: must be True or False"),
+        (lambda: undulate.run_study("pairs", tmp_path / "s", progress="no"), "invalid progress: must be True or False"),
+        (lambda: reproduce(tmp_path / "r", quick="yes"), "invalid quick: must be True or False"),
+    ]
+    for call, message in calls:
+        with pytest.raises(ParameterError) as err:
+            call()
+        assert message in str(err.value), str(err.value)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_a_bad_seed_is_refused_before_a_study_or_reproduction_writes(tmp_path):

@@ -129,7 +129,7 @@ def test_api_pages_list_the_main_modules():
     for m in ("undulate", "undulate.params", "undulate.simulation", "undulate.scene", "undulate.observables",
               "undulate.theory", "undulate.stats", "undulate.control", "undulate.schema", "undulate.stopping",
               "undulate.sweep", "undulate.studies", "undulate.claims", "undulate.report", "undulate.reproduce",
-              "undulate.robot", "undulate.track", "undulate.compare", "undulate.animate"):
+              "undulate.robot", "undulate.track", "undulate.compare", "undulate.animation"):
         assert m in mods, m
 
 

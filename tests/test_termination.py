@@ -431,7 +431,7 @@ import importlib, os, signal, sys
 signal.signal(signal.SIGTERM, signal.SIG_DFL)
 from undulate import cli
 from undulate._cliutil import SignalExit
-anim = importlib.import_module("undulate.animate")  # the module: the package's `animate` is its function
+anim = importlib.import_module("undulate.animation")  # the module; the package's `animate` is its function
 
 frames = [0]
 real = anim._Blitter.frame

@@ -56,7 +56,7 @@ _LAZY = {
     "theory": ("theory", None),
     "studies": ("studies", None),
     "run_study": ("studies", "run_study"),
-    "animate": ("animate", "animate"),
+    "animate": ("animation", "animate"),
     "simulate": ("simulation", "simulate"),
     "simulate_batch": ("simulation", "simulate_batch"),
     "Checkpoint": ("simulation", "Checkpoint"),

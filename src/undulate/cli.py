@@ -271,7 +271,7 @@ def animate(
         if out.suffix.lower() not in (".gif", ".mp4"):
             raise ParameterError("--out", "a path ending in .gif or .mp4", str(out))
         ds = load_netcdf(run, "RUN")
-        from .animate import animate as draw
+        from .animation import animate as draw
 
         exit_on_termination()  # a terminated animation unwinds: ffmpeg stopped, no temporary file left
         n = draw(ds, out, stride=stride, fps=fps)

@@ -112,7 +112,7 @@ def _animation_current(gif: Path, nc: Path, stamp: str) -> bool:
 
 
 def _make_animation(out: Path, stem: str, caption: str, kw: dict, duration: float) -> dict:
-    from .animate import animate
+    from .animation import animate
     from .params import Channel, Scene, SimOptions
     from .simulation import simulate
     from ._io import write_netcdf
@@ -217,7 +217,7 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     from .studies import StudyConfig
     from .sweep import warm_workers
 
-    StudyConfig(out_dir=Path(out_dir), quick=quick, scheduler=scheduler, seed=seed, workers=workers)  # validate first
+    StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed, workers=workers)  # validate first
     check_animation_s(animation_s)
     log = _one_line_at_a_time(log)
     if studies is None:

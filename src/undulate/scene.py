@@ -63,6 +63,7 @@ from dataclasses import dataclass
 import mujoco
 import numpy as np
 
+from .errors import ParameterError
 from .params import Scene
 
 __all__ = ["SceneIndex", "CompiledScene", "swimmer_spec", "root_link", "root_offset_m", "scene_spec", "build", "servo_frequency_rad_s",
@@ -553,6 +554,8 @@ def build(scene: Scene, timestep_s: float | None = None, *, pair_sensors: bool =
     and resolve every address by name.  ``pair_sensors``: see :func:`scene_spec`
     (without them ``index.sens_pair`` is empty).  ``servo``: :data:`SERVO_MODELS` (with
     ``"affine"``, ``index.ctrl_vel`` repeats ``ctrl_pos``: the servo has one input)."""
+    if not isinstance(scene, Scene):
+        raise ParameterError("scene", "a Scene", type(scene).__name__)
     if timestep_s is None:
         timestep_s = auto_timestep(scene)
     push = scene.forces_N is not None if push is None else push

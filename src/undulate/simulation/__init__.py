@@ -133,15 +133,27 @@ class _Batch:
         return self.options.steps_per_sample
 
 
+def _check_scenes(scenes, options) -> None:
+    """Refuse a batch that is not a non-empty sequence of Scene, or options that are not SimOptions."""
+    if options is not None and not isinstance(options, SimOptions):
+        raise ParameterError("options", "a SimOptions or None", type(options).__name__)
+    if isinstance(scenes, (Scene, str, bytes)) or not isinstance(scenes, Sequence):
+        raise ParameterError("scenes", "a non-empty sequence of Scene", type(scenes).__name__)
+    if len(scenes) == 0:
+        raise ParameterError("scenes", "a non-empty sequence of Scene", scenes)
+    wrong = [type(s).__name__ for s in scenes if not isinstance(s, Scene)]
+    if wrong:
+        raise ParameterError("scenes", "a non-empty sequence of Scene", f"an item of type {wrong[0]}")
+
+
 def _plan_batch(scenes: Sequence[Scene], options: SimOptions | None, out, controller,
                 compiled: dict[int, tuple] | None = None) -> _Batch:
     """Validate a batch, resolve its time step, compile its scenes and choose its chunk length.
     ``compiled``: ``{index: (push, CompiledScene)}`` of scenes already compiled by the same rule (a
     gathered batch's grouping, :func:`undulate.simulation._gather._gather_groups`), used where their
     ``push`` is the batch's and the batch is open-loop (closed-loop batches compile servo-load sensors)."""
+    _check_scenes(scenes, options)
     options = options or SimOptions()
-    if len(scenes) == 0:
-        raise ParameterError("scenes", "a non-empty sequence of Scene", scenes)
     requested = options
     resolved = [resolve_options(s, options) for s in scenes]
     if len({o.timestep_s for o in resolved}) > 1:
@@ -431,6 +443,7 @@ def simulate_batch(
     record what the call cost; the same is reported to the open physics meters
     (:func:`undulate._physics.meter`).
     """
+    _check_scenes(scenes, options)
     g = _gathering()
     if g is not None and out is None and controller is None and progress is None and (
             stop is None or not callable(stop) or len(scenes) == 1):
@@ -603,5 +616,7 @@ def simulate(scene: Scene, options: SimOptions | None = None, *,
     >>> from undulate import Scene, SimOptions, simulate
     >>> ds = simulate(Scene(phases_rad=(0.0, 1.57)), SimOptions(duration_s=4))
     """
+    if not isinstance(scene, Scene):
+        raise ParameterError("scene", "a Scene", type(scene).__name__)
     return simulate_batch([scene], options, out=out, controller=controller, stop=stop, progress=progress,
                           start=start)[0]

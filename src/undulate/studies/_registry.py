@@ -110,6 +110,12 @@ class StudyConfig:
     workers: int | None = None
 
     def __post_init__(self):
+        if isinstance(self.out_dir, bytes) or not isinstance(self.out_dir, str | os.PathLike):
+            raise ParameterError("out_dir", "a folder's path (a str or os.PathLike)", type(self.out_dir).__name__)
+        object.__setattr__(self, "out_dir", Path(self.out_dir))
+        if not isinstance(self.quick, bool | np.bool_):  # "no" or 0.5 would be taken as true
+            raise ParameterError("quick", "True or False", self.quick)
+        object.__setattr__(self, "quick", bool(self.quick))
         s = self.seed
         if isinstance(s, bool) or not isinstance(s, int | np.integer) or s < 0:
             raise ParameterError("seed", "an integer >= 0", s)
@@ -642,8 +648,10 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
     anything is written (:func:`undulate._outdir.writing_to`).
     """
     info = describe(name)
-    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=seed,
+    config = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed,
                          workers=workers)
+    if not isinstance(progress, bool | np.bool_):
+        raise ParameterError("progress", "True or False", progress)
     out = config.out_dir
     from .._outdir import writing_to
     from ..sweep import warm_workers
@@ -666,7 +674,7 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     parameters and seed) and computes what is missing; runs it skips are left unread.  Returns what
     was computed (``n_runs``, ``n_computed``, ``wall_s``)."""
     info = describe(name)
-    config = StudyConfig(out_dir=Path(out_dir), quick=bool(quick), scheduler=scheduler, seed=seed,
+    config = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed,
                          workers=workers)
     config.out_dir.mkdir(parents=True, exist_ok=True)
     ctx = StudyContext(config, name, progress=False)

@@ -116,6 +116,10 @@ def _check_request(ds, out: Path, stride: int) -> None:
     """Refuse an output format, a run file or a stride that cannot be animated."""
     if out.suffix.lower() not in FORMATS:
         raise ParameterError("output file", "a path ending in .gif or .mp4", str(out))
+    import xarray as xr
+
+    if not isinstance(ds, xr.Dataset):
+        raise ParameterError("run file", "a run (an xarray.Dataset from undulate.simulate)", type(ds).__name__)
     missing = [v for v in _REQUIRED if v not in ds]
     if missing:
         raise ParameterError("run file", f"an `undulate simulate` output (missing {', '.join(missing)})", None)
