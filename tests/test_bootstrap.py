@@ -107,7 +107,7 @@ def test_bca_interval_leaves_undefined_resamples_out():
 def test_bootstrap_refuses_an_unknown_method():
     from undulate import stats
 
-    with pytest.raises(ValueError, match="method must be one of BCa, percentile"):
+    with pytest.raises(ValueError, match="invalid method: must be one of BCa, percentile"):
         stats.bootstrap(np.mean, np.arange(5.0), method="basic")
 
 
@@ -228,3 +228,29 @@ def test_ties_in_x_count_as_fewer_orderings():
         one, two = stats.rank_correlation(phi[::2], thr[::2]), stats.rank_correlation(phi, thr)
     assert not one.has_interval and one.value == pytest.approx(-1.0)
     assert two.has_interval and two.below(0.0).state is True and two.n == 8
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda S: S.line_fit([1.0, 2.0, 3.0], [1.0, 2.0]), "invalid y: must be as many values as x (3) (got 2)"),
+    (lambda S: S.rank_correlation([1.0, 2.0, 3.0], [1.0, 2.0]), "invalid y: must be as many values as x (3)"),
+    (lambda S: S.mirrored_line_fit([-1.0, 1.0], [1.0, 2.0, 3.0]), "invalid y: must be as many values as x (2)"),
+    (lambda S: S.clustered_line_fit([1.0, 2.0], [1.0], [0, 1]), "invalid y: must be as many values as x (2)"),
+    (lambda S: S.line_fit("abc", [1.0, 2.0, 3.0]), "invalid x: must be an array of real numbers (got 'str')"),
+    (lambda S: S.mean(None), "invalid values: must be an array of real numbers (got 'NoneType')"),
+    (lambda S: S.rms([1.0, "a", 2.0]), "invalid values: must be an array of real numbers"),
+    (lambda S: S.rms([1.0, 2.0, 3.0], seed="x"), "invalid seed: must be None or an integer >= 0"),
+    (lambda S: S.bootstrap(np.mean, np.arange(5.0), np.arange(4.0)), "invalid samples: must be equally long"),
+    (lambda S: S.look_levels(0), "invalid n_looks: must be an integer >= 1 (got 0)"),
+    (lambda S: S.look_levels(2, 1.5), "invalid confidence: must be a level in (0, 1) (got 1.5)"),
+    (lambda S: S.at_level(0.9, plan_at=True).__enter__(), "invalid plan_at: must be a level in (0, 1) (got True)"),
+])
+def test_the_fits_refuse_what_they_cannot_fit_naming_the_argument(call, message):
+    """Unpaired x and y, values that are no numbers, a seed that is no integer, a level outside (0, 1):
+    one ParameterError naming the argument (numpy's broadcast error, a bare ValueError or NumPy's
+    SeedSequence TypeError came before, and a confidence of 2 gave levels above 1)."""
+    from undulate import stats
+    from undulate.errors import ParameterError
+
+    with pytest.raises(ParameterError) as err:
+        call(stats)
+    assert message in str(err.value)

@@ -80,3 +80,32 @@ def test_synchronization_studies_in_quick_mode_give_every_claim_a_verdict(tmp_pa
     # criterion (the contact-force ratio) may be undecided when its interval straddles the bound
     allowed = ("holds", "fails", "undecided") + (("no result",) if name == "phase-interaction" else ())
     assert doc["claims"] and all(r["verdict"] in allowed for r in doc["claims"]), doc["claims"]
+
+
+def test_the_phase_tools_refuse_what_they_cannot_read_naming_the_argument():
+    """order_parameter, gait_frequency and time_to_lock read (time, swimmer or rank) phases; a list, a 1-D
+    record, a tolerance of no radians or a window that ends before it starts is one ParameterError naming
+    it (an AttributeError or IndexError came before, and tol_rad = -1 answered NaN as if never locked)."""
+    import xarray as xr
+
+    from undulate.errors import ParameterError
+    from undulate.phases import gait_frequency, order_parameter, time_to_lock
+
+    t = np.arange(0.0, 10.0, 0.1)
+    psi = xr.DataArray(np.stack([np.pi * t, np.pi * t + 0.3], axis=1), dims=("time", "swimmer"), coords={"time": t})
+    dphi = xr.DataArray(0.3 * np.exp(-t)[:, None], dims=("time", "rank"), coords={"time": t})
+    for call, message in [
+        (lambda: order_parameter(psi.values.tolist()), "invalid psi: must be an xarray.DataArray of phases"),
+        (lambda: time_to_lock(dphi[:, 0]), "invalid dphi: must be an xarray.DataArray of phases"),
+        (lambda: time_to_lock(dphi, tol_rad=-1.0), "invalid tol_rad: must be > 0 rad"),
+        (lambda: time_to_lock(dphi, hold_s=-1.0), "invalid hold_s: must be >= 0 s"),
+        (lambda: gait_frequency(psi, t_from=5.0, t_to=4.0), "invalid t_to: must be > t_from = 5 s"),
+        (lambda: gait_frequency(psi, t_from=float("nan")), "invalid t_from: must be a finite number"),
+    ]:
+        with pytest.raises(ParameterError) as err:
+            call()
+        assert message in str(err.value), str(err.value)
+    # what they accept still answers: two phases 0.3 rad apart, a frequency of 0.5 Hz, a lock at ~1.1 s
+    assert float(order_parameter(psi)[0]) == pytest.approx(abs(np.cos(0.15)))
+    assert gait_frequency(psi).values == pytest.approx([0.5, 0.5])
+    assert float(time_to_lock(dphi, tol_rad=0.1)[0]) == pytest.approx(1.1, abs=0.1)

@@ -33,7 +33,9 @@ import math
 import numpy as np
 import xarray as xr
 
-from .observables import lateral_order, wrap_angle
+from .errors import ParameterError
+from .observables import _times, _trajectory, lateral_order, wrap_angle
+from .params import _finite, _nonneg, _positive
 
 __all__ = ["gait_phase", "kinematic_phase", "phase_offsets", "neighbour_phase_differences", "order_parameter",
            "time_to_lock", "gait_frequency"]
@@ -51,6 +53,7 @@ def _omega(ds: xr.Dataset) -> float:
 
 def gait_phase(ds: xr.Dataset) -> xr.DataArray:
     """The commanded gait phase ``psi`` (time, swimmer), rad, unwrapped."""
+    _trajectory(ds)
     if "gait_phase" in ds:
         return ds["gait_phase"]
     # older recordings without it: the open-loop gait's
@@ -70,6 +73,8 @@ def kinematic_phase(ds: xr.Dataset, trim_periods: float = 1.0) -> xr.DataArray:
     """
     from scipy.signal import hilbert
 
+    _trajectory(ds, ("joint_angle",), ("period",))
+    trim_periods = _nonneg("trim_periods", trim_periods)
     cfg = _config(ds)
     n_links = int(cfg["geometry"]["n_links"])
     xi = float(cfg["gait"]["waves_per_body"])
@@ -114,8 +119,17 @@ def neighbour_phase_differences(ds: xr.Dataset, psi: xr.DataArray | None = None)
                         attrs={"units": "rad", "long_name": "neighbour phase difference phi_upper - phi_lower"})
 
 
+def _phases(da, name: str) -> np.ndarray:
+    """``da``'s times (s) if it is a (time, swimmer or rank) DataArray of phases over increasing times."""
+    if not isinstance(da, xr.DataArray) or da.ndim != 2 or da.dims[0] != "time":
+        raise ParameterError(name, "an xarray.DataArray of phases (time, swimmer) or (time, rank), rad",
+                             type(da).__name__ if not isinstance(da, xr.DataArray) else f"dims {da.dims}")
+    return _times(da, name)
+
+
 def order_parameter(psi: xr.DataArray) -> xr.DataArray:
     """Kuramoto order parameter ``R(t) = |<exp(i psi_j)>_j|`` (time), dimensionless in [0, 1]."""
+    _phases(psi, "psi")
     r = np.abs(np.exp(1j * psi.values).mean(axis=1))
     return xr.DataArray(r, dims=("time",), coords={"time": psi["time"].values},
                         attrs={"units": "1", "long_name": "order parameter R"})
@@ -124,7 +138,10 @@ def order_parameter(psi: xr.DataArray) -> xr.DataArray:
 def gait_frequency(psi: xr.DataArray, t_from: float = 0.0, t_to: float | None = None) -> xr.DataArray:
     """Mean gait frequency of each swimmer over ``[t_from, t_to]``: the slope of a
     least-squares line through ``psi(t)`` / 2 pi, Hz (swimmer)."""
-    t = psi["time"].values
+    t = _phases(psi, "psi")
+    t_from = _finite("t_from", t_from)
+    if t_to is not None and _finite("t_to", t_to) <= t_from:
+        raise ParameterError("t_to", f"> t_from = {t_from:g} s", t_to)
     sel = (t >= t_from) & (t <= (t[-1] if t_to is None else t_to))
     if sel.sum() < 2:
         raise ValueError("fewer than two samples in the window")
@@ -137,7 +154,10 @@ def time_to_lock(dphi: xr.DataArray, tol_rad: float = 0.1, hold_s: float | None 
     """Time after which each neighbour phase difference stays within ``tol_rad`` of its
     final value (its circular mean over the last ``hold_s``, default the last 10 % of
     the record), s (rank); NaN if it never settles (still drifting at the end)."""
-    t = dphi["time"].values
+    t = _phases(dphi, "dphi")
+    tol_rad = _positive("tol_rad", tol_rad, "rad")
+    if hold_s is not None:
+        hold_s = _nonneg("hold_s", hold_s, "s")
     hold = 0.1 * (t[-1] - t[0]) if hold_s is None else hold_s
     tail = t >= t[-1] - hold
     out = np.full(dphi.shape[1], np.nan)

@@ -47,6 +47,8 @@ from typing import Any
 
 import numpy as np
 
+from .errors import ParameterError
+
 __all__ = ["Estimate", "LineFit", "line_fit", "mirrored_line_fit", "clustered_line_fit", "joined_clusters",
            "is_mirror_design", "rank_correlation", "rms",
            "std", "mean", "bootstrap", "expanded_z", "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level",
@@ -75,6 +77,14 @@ def plan_level() -> float | None:
     return _PLAN_LEVEL.get()
 
 
+def _confidence(v, name: str = "confidence") -> float:
+    """A confidence level: a real number in (0, 1); else a ParameterError naming ``name``."""
+    ok = isinstance(v, float | int | np.floating | np.integer) and not isinstance(v, bool | np.bool_)
+    if not ok or not 0.0 < float(v) < 1.0:
+        raise ParameterError(name, "a level in (0, 1)", v)
+    return float(v)
+
+
 @contextlib.contextmanager
 def at_level(confidence: float, plan_at: float | None = None) -> Iterator[float]:
     """Form every interval inside the ``with`` block at ``confidence`` (0 < confidence < 1).
@@ -82,9 +92,9 @@ def at_level(confidence: float, plan_at: float | None = None) -> Iterator[float]
     ``plan_at``: the level of the look that more runs would be judged at (a staged study's last look,
     whose share of alpha is the largest); :func:`runs_needed` estimates the runs that would decide an
     interval there.  Default: each estimate's own level (``confidence`` for those formed in the block)."""
-    for name, v in (("confidence", confidence), ("plan_at", plan_at)):
-        if v is not None and not 0.0 < float(v) < 1.0:
-            raise ValueError(f"{name} must lie in (0, 1), not {v!r}")
+    _confidence(confidence)
+    if plan_at is not None:
+        _confidence(plan_at, "plan_at")
     token = _LEVEL.set(float(confidence))
     plan = _PLAN_LEVEL.set(None if plan_at is None else float(plan_at))
     try:
@@ -116,7 +126,8 @@ def look_levels(n_looks: int, confidence: float = CONFIDENCE) -> tuple[float, ..
     table split alpha equally.
     """
     if isinstance(n_looks, bool) or not isinstance(n_looks, int) or n_looks < 1:
-        raise ValueError(f"n_looks must be an integer >= 1, not {n_looks!r}")
+        raise ParameterError("n_looks", "an integer >= 1", n_looks)
+    _confidence(confidence)
     alpha = 1.0 - confidence
     shares = LOOK_SHARES.get(n_looks, (1.0 / n_looks,) * n_looks)
     return tuple(1.0 - alpha * s for s in shares)
@@ -398,8 +409,22 @@ def decide(checks: Sequence[Check]) -> bool | None:
     return all_of(*(c.state for c in checks))
 
 
-def _clean(*arrays) -> tuple[np.ndarray, ...]:
-    arrs = [np.asarray(a, float).ravel() for a in arrays]
+def _values(name: str, a) -> np.ndarray:
+    """``a`` as a flat float array; a ParameterError naming ``name`` where it holds what is not a real number."""
+    if a is None or isinstance(a, (str, bytes)):
+        raise ParameterError(name, "an array of real numbers", type(a).__name__)
+    try:
+        return np.asarray(a, float).ravel()
+    except (TypeError, ValueError):  # strings, a ragged list
+        raise ParameterError(name, "an array of real numbers", type(a).__name__) from None
+
+
+def _clean(*arrays, names: Sequence[str] = ("x", "y")) -> tuple[np.ndarray, ...]:
+    """The rows of ``arrays`` (paired, equally long; named ``names``) where every one is finite."""
+    arrs = [_values(name, a) for name, a in zip(names, arrays, strict=True)]
+    for name, a in zip(names[1:], arrs[1:]):
+        if a.size != arrs[0].size:
+            raise ParameterError(name, f"as many values as {names[0]} ({arrs[0].size})", a.size)
     ok = np.ones(arrs[0].shape, bool)
     for a in arrs:
         ok &= np.isfinite(a)
@@ -457,8 +482,12 @@ def bootstrap(statistic: Callable[..., float], *samples, seed: int | None = None
     from scipy import stats as st
 
     if method not in BOOTSTRAP_METHODS:
-        raise ValueError(f"method must be one of {', '.join(BOOTSTRAP_METHODS)}, not {method!r}")
-    samples = tuple(np.asarray(s, float) for s in samples)
+        raise ParameterError("method", f"one of {', '.join(BOOTSTRAP_METHODS)}", method)
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0):
+        raise ParameterError("seed", "None or an integer >= 0", seed)
+    samples = tuple(_values(f"samples[{i}]", a).reshape(np.shape(a)) for i, a in enumerate(samples))
+    if len({len(a) for a in samples}) > 1:
+        raise ParameterError("samples", "equally long (they are resampled together)", [len(a) for a in samples])
     nan3 = (math.nan, math.nan, math.nan)
     if samples[0].size < 3:
         return nan3
@@ -613,12 +642,13 @@ def mirrored_line_fit(x, y, *, seed: int | None = None) -> LineFit:
     """
     from scipy import stats as st
 
-    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+    x, y = _values("x", x), _values("y", y)
+    if y.size != x.size:
+        raise ParameterError("y", f"as many values as x ({x.size})", y.size)
     y = y[np.isfinite(x)]
     x = x[np.isfinite(x)]
     if not is_mirror_design(x):
-        raise ValueError("mirrored_line_fit needs a mirror-symmetric design: every x != 0 once at +|x| and once "
-                         "at -|x|")
+        raise ParameterError("x", "a mirror-symmetric design: every x != 0 once at +|x| and once at -|x|")
     key = np.round(np.abs(x), 9)
     xs, d, halves, labels = [], [], [], np.full(x.size, -1)
     at_zero = np.flatnonzero((key == 0) & np.isfinite(y))
@@ -660,10 +690,10 @@ def joined_clusters(*labelings) -> np.ndarray:
 
     labs = [np.asarray(lab).ravel() for lab in labelings]
     if not labs:
-        raise ValueError("joined_clusters needs at least one labeling")
+        raise ParameterError("labelings", "at least one labeling")
     n = labs[0].size
     if any(lab.size != n for lab in labs):
-        raise ValueError(f"every labeling must give one label per row ({n})")
+        raise ParameterError("labelings", f"one label per row ({n}) each", [lab.size for lab in labs])
     cols = []
     for lab in labs:  # each row linked to the first row of its label
         _, first, which = np.unique(lab, return_index=True, return_inverse=True)
@@ -694,10 +724,12 @@ def clustered_line_fit(x, y, clusters, *, seed: int | None = None) -> LineFit:
     """
     from scipy import stats as st
 
-    x, y = np.asarray(x, float).ravel(), np.asarray(y, float).ravel()
+    x, y = _values("x", x), _values("y", y)
+    if y.size != x.size:
+        raise ParameterError("y", f"as many values as x ({x.size})", y.size)
     labels = np.asarray(clusters).ravel()
-    if labels.size != x.size or y.size != x.size:
-        raise ValueError(f"clusters must give one label per row ({x.size}), not {labels.size}")
+    if labels.size != x.size:
+        raise ParameterError("clusters", f"one label per row ({x.size})", labels.size)
     ok = np.isfinite(x) & np.isfinite(y)
     x, y, labels = x[ok], y[ok], labels[ok]
     n = int(x.size)
@@ -826,10 +858,10 @@ def _root_mean_square(values, centred: bool, seed: int | None, clusters=None) ->
     interval.  The value is the same with or without clusters (every value counts once).
     """
     method = "bootstrap BCa" if clusters is None else "bootstrap BCa over clusters"
-    v = np.asarray(values, float).ravel()
+    v = _values("values", values)
     labels = np.arange(v.size) if clusters is None else np.asarray(clusters).ravel()
     if labels.shape != v.shape:
-        raise ValueError(f"clusters must give one label per value ({v.size}), not {labels.size}")
+        raise ParameterError("clusters", f"one label per value ({v.size})", labels.size)
     keep = np.isfinite(v)
     v, labels = v[keep], labels[keep]
     if v.size == 0:
@@ -873,7 +905,7 @@ def mean(values) -> Estimate:
     """Mean of the finite ``values`` with its standard error and a t 95 % interval."""
     from scipy import stats as st
 
-    (v,) = _clean(values)
+    (v,) = _clean(values, names=("values",))
     n = int(v.size)
     if n == 0:
         return Estimate(math.nan, method="t interval")
