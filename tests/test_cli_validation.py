@@ -57,13 +57,14 @@ def test_study_config_rejects_bad_workers(tmp_path):
 
 
 def test_the_python_entry_points_refuse_what_is_not_their_type(tmp_path):
-    """simulate, simulate_batch, build, animate, run_study and reproduce name the argument of the wrong
+    """simulate, simulate_batch, build, make_controller, animate, run_study and reproduce name the argument of the wrong
     type (an AttributeError from deep inside, or a study run as quick for quick="no", came before), and
     nothing is written."""
     import importlib
 
     import undulate
     from undulate import Scene, SimOptions
+    from undulate.control import make_controller
     from undulate.errors import ParameterError
     from undulate.reproduce import reproduce
 
@@ -74,6 +75,8 @@ def test_the_python_entry_points_refuse_what_is_not_their_type(tmp_path):
         (lambda: undulate.simulate_batch(Scene()), "invalid scenes: must be a non-empty sequence of Scene (got 'Scene')"),
         (lambda: undulate.simulate_batch([Scene(), "pair"], SimOptions(duration_s=1.0)), "an item of type str"),
         (lambda: undulate.build(None), "invalid scene: must be a Scene"),
+        (lambda: make_controller(None), "invalid scene: must be a Scene"),
+        (lambda: make_controller(Scene(), "relay"), "invalid params: must be a ControllerParams or None"),
         (lambda: undulate.animate({"x": 1}, tmp_path / "a.gif"), "invalid run file: must be a run"),
         (lambda: undulate.run_study("pairs", None), "invalid out_dir"),
         (lambda: undulate.run_study("pairs", tmp_path / "s", quick="no"), "invalid quick: must be True or False"),

@@ -10,7 +10,7 @@ import pytest
 from undulate import Scene, SimOptions, simulate
 from undulate.params import Channel
 from undulate import _physics
-from undulate.stopping import ExcessStop, SteadyStop
+from undulate.stopping import ExcessStop, PhaseStop, SteadyStop
 from undulate.studies import _analysis as C
 from undulate.studies._criteria import STEADY_TOL
 from undulate.studies._runners import PAIR_STOP, group_point, lone_swimmer, pair_point
@@ -345,3 +345,26 @@ def test_a_force_run_pulled_apart_stops_when_it_has_left_and_reads_broken():
     a, b = run(held, 0, stop=FORCE_STOP), run(held, 0, stop=old)
     assert float(a["stopped_at_s"]) == float(b["stopped_at_s"]) < DURATION_S and not broken(a)
     np.testing.assert_array_equal(a["dx_period_over_lambda"].values, b["dx_period_over_lambda"].values)
+
+
+@pytest.mark.parametrize("make, message", [
+    (lambda: SteadyStop(tol=-0.01), "invalid tol: must be >= 0"),
+    (lambda: SteadyStop(window=0), "invalid window: must be an integer >= 1"),
+    (lambda: SteadyStop(extra_periods=1.5), "invalid extra_periods: must be an integer >= 0"),
+    (lambda: SteadyStop(leave=0.0), "invalid leave: must be > 0"),
+    (lambda: PhaseStop(tol_rad=0.0), "invalid tol_rad: must be > 0 rad"),
+    (lambda: PhaseStop(hold_s=float("nan")), "invalid hold_s: must be a finite number"),
+    (lambda: PhaseStop(steady=0.01), "invalid steady: must be a SteadyStop"),
+    (lambda: ExcessStop(confidence=1.0), "invalid confidence: must be a level in (0, 1)"),
+    (lambda: ExcessStop(min_batches=0), "invalid min_batches: must be an integer >= 1"),
+])
+def test_stopping_rules_refuse_settings_that_cannot_stop_a_run_honestly(make, message):
+    """A rule with a window of no periods, a negative tolerance or a confidence of 1 is refused when it
+    is made, naming the setting (before, SteadyStop(window=0) was accepted and failed inside a run, and
+    PhaseStop(tol_rad=-1) could never stop one)."""
+    from undulate.errors import ParameterError
+
+    with pytest.raises(ParameterError) as err:
+        make()
+    assert message in str(err.value)
+    assert SteadyStop(leave=math.inf).leave == math.inf  # inf: never leave

@@ -98,6 +98,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from .errors import ParameterError
 from .params import ControllerParams, Gait, Scene
 
 __all__ = ["Controller", "OpenLoop", "SelfOscillating", "PhaseOscillator", "RelayOscillator", "SensingOpenLoop", "make_controller"]
@@ -386,6 +387,10 @@ class RelayOscillator(Controller):
 def make_controller(scene: Scene, params: ControllerParams | None = None) -> Controller:
     """The runtime controller for ``scene`` (its ``controller`` parameters by default), reset to
     the scene's initial phases at t = 0."""
+    if not isinstance(scene, Scene):
+        raise ParameterError("scene", "a Scene", type(scene).__name__)
+    if params is not None and not isinstance(params, ControllerParams):
+        raise ParameterError("params", "a ControllerParams or None", type(params).__name__)
     p = scene.controller if params is None else params
     g, n = scene.gait, scene.geometry.n_links
     if p.kind == "open-loop":

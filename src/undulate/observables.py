@@ -20,7 +20,7 @@ import numpy as np
 import xarray as xr
 
 from .errors import ParameterError
-from .params import _finite, _nonneg, _positive
+from .params import _count, _finite, _nonneg, _positive
 from .theory import wrap_phase
 
 __all__ = [
@@ -69,21 +69,6 @@ def _times(obj, name: str) -> np.ndarray:
         raise ParameterError(name, "data over finite, strictly increasing times (s)",
                              f"{t.size} time(s) of dtype {t.dtype}")
     return t
-
-
-def _count(name: str, value, low: int, high: int | None = None) -> int:
-    """An integer in ``[low, high]`` (``high`` None: no bound); a bool or a fraction is refused."""
-    allowed = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
-    if isinstance(value, (bool, np.bool_, str, bytes)):
-        raise ParameterError(name, allowed, value)
-    try:
-        n = int(value)
-        whole = n == value
-    except (TypeError, ValueError, OverflowError):
-        raise ParameterError(name, allowed, value) from None
-    if not whole or n < low or (high is not None and n > high):
-        raise ParameterError(name, allowed, value)
-    return n
 
 
 def _running_mean(a: np.ndarray, n: int) -> np.ndarray:

@@ -86,6 +86,21 @@ def _nonneg(name: str, value: float, unit: str = "") -> float:
     return v
 
 
+def _count(name: str, value, low: int, high: int | None = None) -> int:
+    """An integer in ``[low, high]`` (``high`` None: no bound); a bool or a fraction is refused."""
+    allowed = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
+    if isinstance(value, (bool, np.bool_, str, bytes)):
+        raise ParameterError(name, allowed, value)
+    try:
+        n = int(value)
+        whole = n == value
+    except (TypeError, ValueError, OverflowError):
+        raise ParameterError(name, allowed, value) from None
+    if not whole or n < low or (high is not None and n > high):
+        raise ParameterError(name, allowed, value)
+    return n
+
+
 def _unit(desc: str) -> Any:
     return field(metadata={"doc": desc})
 

@@ -37,6 +37,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import stats as _st
 
+from .errors import ParameterError
+from .params import _count, _nonneg, _positive
+
 __all__ = ["SteadyStop", "PhaseStop", "ExcessStop"]
 
 
@@ -95,6 +98,17 @@ class SteadyStop:
     ``leave_after_s`` and their range exceeds ``tol`` (still moving).  Such a run is broken apart
     by any rule that reads a settled offset; it would only move on.  ``inf``: never."""
     leave_after_s: float = 0.0
+
+    def __post_init__(self):
+        _nonneg("tol", self.tol)
+        _count("window", self.window, 1)
+        _count("extra_periods", self.extra_periods, 0)
+        _count("min_periods", self.min_periods, 0)
+        _nonneg("drift_frac", self.drift_frac)
+        _nonneg("spread_frac", self.spread_frac)
+        if self.leave != math.inf:  # inf: never
+            _positive("leave", self.leave)
+        _nonneg("leave_after_s", self.leave_after_s, "s")
 
     @property
     def rule(self) -> str:
@@ -205,6 +219,16 @@ class PhaseStop:
     spread_frac: float = 0.5
     steady: SteadyStop = SteadyStop()
 
+    def __post_init__(self):
+        _positive("tol_rad", self.tol_rad, "rad")
+        _positive("hold_s", self.hold_s, "s")
+        _nonneg("extra_s", self.extra_s, "s")
+        _nonneg("min_s", self.min_s, "s")
+        _nonneg("drift_frac", self.drift_frac)
+        _nonneg("spread_frac", self.spread_frac)
+        if not isinstance(self.steady, SteadyStop):
+            raise ParameterError("steady", "a SteadyStop", type(self.steady).__name__)
+
     @property
     def rule(self) -> str:
         return (f"PhaseStop(tol_rad={self.tol_rad:g}, hold_s={self.hold_s:g}, extra_s={self.extra_s:g}, "
@@ -280,6 +304,13 @@ class ExcessStop:
     confidence: float = 0.99
     batch_s: float = 1.0
     min_batches: int = 3
+
+    def __post_init__(self):
+        from .stats import _confidence
+
+        _confidence(self.confidence)
+        _positive("batch_s", self.batch_s, "s")
+        _count("min_batches", self.min_batches, 1)
 
     @property
     def rule(self) -> str:
