@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import itertools
 
+import math
+
 import numpy as np
 import pytest
 
@@ -254,3 +256,4 @@ def test_the_fits_refuse_what_they_cannot_fit_naming_the_argument(call, message)
     with pytest.raises(ParameterError) as err:
         call(stats)
     assert message in str(err.value)
+    assert all(math.isnan(v) for v in stats.bootstrap(np.mean, 3.0))  # one value: no interval, no error

@@ -486,8 +486,8 @@ def bootstrap(statistic: Callable[..., float], *samples, seed: int | None = None
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int | np.integer) or seed < 0):
         raise ParameterError("seed", "None or an integer >= 0", seed)
     samples = tuple(_values(f"samples[{i}]", a).reshape(np.shape(a)) for i, a in enumerate(samples))
-    if len({len(a) for a in samples}) > 1:
-        raise ParameterError("samples", "equally long (they are resampled together)", [len(a) for a in samples])
+    if len({a.size for a in samples}) > 1:
+        raise ParameterError("samples", "equally long (they are resampled together)", [a.size for a in samples])
     nan3 = (math.nan, math.nan, math.nan)
     if samples[0].size < 3:
         return nan3
