@@ -86,6 +86,14 @@ def _nonneg(name: str, value: float, unit: str = "") -> float:
     return v
 
 
+def _flag(name: str, value) -> bool:
+    """``value`` as a bool if it is one (Python's or NumPy's); else a ParameterError naming ``name``
+    (``"no"`` or ``0.5`` would be taken as true)."""
+    if not isinstance(value, (bool, np.bool_)):
+        raise ParameterError(name, "True or False", value)
+    return bool(value)
+
+
 def _count(name: str, value, low: int, high: int | None = None) -> int:
     """An integer in ``[low, high]`` (``high`` None: no bound); a bool or a fraction is refused."""
     allowed = f"an integer >= {low}" if high is None else f"an integer in [{low}, {high}]"
@@ -350,8 +358,7 @@ class Servo(_Params):
         _nonneg("ki_Nm_per_rad_s", self.ki_Nm_per_rad_s, "N m/(rad s)")
         _nonneg("integral_limit_rad_s", self.integral_limit_rad_s, "rad s")
         _nonneg("max_speed_rad_s", self.max_speed_rad_s, "rad/s")
-        if not isinstance(self.back_emf, (bool, np.bool_)):
-            raise ParameterError("back_emf", "True or False", self.back_emf)
+        _flag("back_emf", self.back_emf)
 
 
 @dataclass(frozen=True)
@@ -601,12 +608,8 @@ class Scene(_Params):
         object.__setattr__(self, "dx0_m", dx0)
         gap = _nonneg("lateral_gap_m", self.lateral_gap_m, "m")
         _nonneg("force_onset_s", self.force_onset_s, "s")
-        if not isinstance(self.hold_x, (bool, np.bool_)):
-            raise ParameterError("hold_x", "True or False", self.hold_x)
-        object.__setattr__(self, "hold_x", bool(self.hold_x))
-        if not isinstance(self.heading_guide, (bool, np.bool_)):
-            raise ParameterError("heading_guide", "True or False", self.heading_guide)
-        object.__setattr__(self, "heading_guide", bool(self.heading_guide))
+        object.__setattr__(self, "hold_x", _flag("hold_x", self.hold_x))
+        object.__setattr__(self, "heading_guide", _flag("heading_guide", self.heading_guide))
         if self.heading_guide and self.controller.closed_loop:
             raise ParameterError("heading_guide", "False with a closed-loop controller (the guide follows the "
                                  "open-loop gait's commanded shape)", self.heading_guide)

@@ -419,12 +419,18 @@ def _values(name: str, a) -> np.ndarray:
         raise ParameterError(name, "an array of real numbers", type(a).__name__) from None
 
 
-def _clean(*arrays, names: Sequence[str] = ("x", "y")) -> tuple[np.ndarray, ...]:
-    """The rows of ``arrays`` (paired, equally long; named ``names``) where every one is finite."""
+def _paired(*arrays, names: Sequence[str] = ("x", "y")) -> list[np.ndarray]:
+    """``arrays`` (named ``names``) as flat float arrays of one length: paired rows."""
     arrs = [_values(name, a) for name, a in zip(names, arrays, strict=True)]
     for name, a in zip(names[1:], arrs[1:]):
         if a.size != arrs[0].size:
             raise ParameterError(name, f"as many values as {names[0]} ({arrs[0].size})", a.size)
+    return arrs
+
+
+def _clean(*arrays, names: Sequence[str] = ("x", "y")) -> tuple[np.ndarray, ...]:
+    """The rows of ``arrays`` (paired, :func:`_paired`) where every one is finite."""
+    arrs = _paired(*arrays, names=names)
     ok = np.ones(arrs[0].shape, bool)
     for a in arrs:
         ok &= np.isfinite(a)
@@ -642,9 +648,7 @@ def mirrored_line_fit(x, y, *, seed: int | None = None) -> LineFit:
     """
     from scipy import stats as st
 
-    x, y = _values("x", x), _values("y", y)
-    if y.size != x.size:
-        raise ParameterError("y", f"as many values as x ({x.size})", y.size)
+    x, y = _paired(x, y)
     y = y[np.isfinite(x)]
     x = x[np.isfinite(x)]
     if not is_mirror_design(x):
@@ -724,9 +728,7 @@ def clustered_line_fit(x, y, clusters, *, seed: int | None = None) -> LineFit:
     """
     from scipy import stats as st
 
-    x, y = _values("x", x), _values("y", y)
-    if y.size != x.size:
-        raise ParameterError("y", f"as many values as x ({x.size})", y.size)
+    x, y = _paired(x, y)
     labels = np.asarray(clusters).ravel()
     if labels.size != x.size:
         raise ParameterError("clusters", f"one label per row ({x.size})", labels.size)

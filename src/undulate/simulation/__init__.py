@@ -151,8 +151,8 @@ def _plan_batch(scenes: Sequence[Scene], options: SimOptions | None, out, contro
     """Validate a batch, resolve its time step, compile its scenes and choose its chunk length.
     ``compiled``: ``{index: (push, CompiledScene)}`` of scenes already compiled by the same rule (a
     gathered batch's grouping, :func:`undulate.simulation._gather._gather_groups`), used where their
-    ``push`` is the batch's and the batch is open-loop (closed-loop batches compile servo-load sensors)."""
-    _check_scenes(scenes, options)
+    ``push`` is the batch's and the batch is open-loop (closed-loop batches compile servo-load sensors).
+    ``scenes`` and ``options`` are :func:`simulate_batch`'s, checked there (:func:`_check_scenes`)."""
     options = options or SimOptions()
     requested = options
     resolved = [resolve_options(s, options) for s in scenes]

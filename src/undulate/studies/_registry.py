@@ -55,6 +55,7 @@ import numpy as np
 
 from .. import stats
 from ..errors import ParameterError, UndulateError
+from ..params import _flag
 from ..provenance import provenance
 
 if TYPE_CHECKING:  # heavy imports stay lazy
@@ -113,9 +114,7 @@ class StudyConfig:
         if isinstance(self.out_dir, bytes) or not isinstance(self.out_dir, str | os.PathLike):
             raise ParameterError("out_dir", "a folder's path (a str or os.PathLike)", type(self.out_dir).__name__)
         object.__setattr__(self, "out_dir", Path(self.out_dir))
-        if not isinstance(self.quick, bool | np.bool_):  # "no" or 0.5 would be taken as true
-            raise ParameterError("quick", "True or False", self.quick)
-        object.__setattr__(self, "quick", bool(self.quick))
+        object.__setattr__(self, "quick", _flag("quick", self.quick))
         s = self.seed
         if isinstance(s, bool) or not isinstance(s, int | np.integer) or s < 0:
             raise ParameterError("seed", "an integer >= 0", s)
@@ -650,8 +649,7 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
     info = describe(name)
     config = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed,
                          workers=workers)
-    if not isinstance(progress, bool | np.bool_):
-        raise ParameterError("progress", "True or False", progress)
+    _flag("progress", progress)
     out = config.out_dir
     from .._outdir import writing_to
     from ..sweep import warm_workers

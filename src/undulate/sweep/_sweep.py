@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, TextIO
 
-import numpy as np
 import xarray as xr
 
 from ..errors import ParameterError, UndulateError
+from ..params import _flag
 from . import _executors, _worker
 from ._grid import Grid
 from ._progress import Progress
@@ -264,8 +264,7 @@ def _check_arguments(fn, grid, workers, scheduler, batch, batched, progress=True
     _executors.check_workers(workers, scheduler)
     if batch is not None and (isinstance(batch, bool) or not isinstance(batch, int) or batch < 1):
         raise ParameterError("batch", "an integer >= 1 (runs per task), or None (automatic)", batch)
-    if not isinstance(progress, (bool, np.bool_)):  # "no" or 0.0 would have shown the bar, or not, by truth
-        raise ParameterError("progress", "True or False", progress)
+    _flag("progress", progress)  # "no" or 0.0 would have shown the bar, or not, by truth
     if stream is not None and not callable(getattr(stream, "write", None)):
         raise ParameterError("stream", "a text stream with write(), or None (standard error)", stream)
     return _resolve_batched(fn, batched)
