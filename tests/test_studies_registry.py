@@ -181,3 +181,21 @@ def test_summary_numbers_become_plain_json():
     assert json.dumps(doc, allow_nan=False) == '{"a": 0.5, "b": [0, 1, 2], "c": null, "d": [2, true]}'
     with pytest.raises(UndulateError):
         _registry._jsonable({"x": object()})
+
+
+def test_the_order_does_not_depend_on_which_study_module_was_imported_first():
+    """Ties of ``Study.order`` go by module name, as documented: a process that imported the
+    synchronization studies before anything listed them once put them before phase-interaction
+    (both order 100), and the order test above failed when it ran after such a test in its process."""
+    import subprocess
+    import sys
+
+    code = ("import undulate.studies.synchronization, undulate.studies._closed_loop_pairs\n"
+            "from undulate import studies\n"
+            "print(' '.join(studies.names()))\n")
+    first = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300, check=True)
+    listed = subprocess.run([sys.executable, "-c", "from undulate import studies; print(' '.join(studies.names()))"],
+                            capture_output=True, text=True, timeout=300, check=True)
+    assert first.stdout == listed.stdout
+    names = first.stdout.split()
+    assert names.index("phase-interaction") < names.index("synchronization-pairs")

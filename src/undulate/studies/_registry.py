@@ -298,6 +298,7 @@ class Study:
 StudyInfo = Study  # the name the CLI and older code use
 
 _REGISTRY: dict[str, Study] = {}
+_REGISTERED: dict[str, int] = {}  # name -> its place among its module's register calls
 _loaded = False
 
 
@@ -312,6 +313,7 @@ def register(study: Study) -> Study:
         study = dataclasses.replace(study, module=mod.__name__ if mod else "")
     if study.order is None:
         study = dataclasses.replace(study, order=_default_order(study))
+    _REGISTERED.setdefault(study.name, sum(s.module == study.module for s in _REGISTRY.values()))
     _REGISTRY[study.name] = study
     return study
 
@@ -343,7 +345,8 @@ def _load() -> None:
 def names() -> list[str]:
     """Registered study names, in the order of :attr:`Study.order` (the paper's)."""
     _load()
-    return sorted(_REGISTRY, key=lambda name: _REGISTRY[name].order)
+    # ties by module name, then register calls: not by which module some caller happened to import first
+    return sorted(_REGISTRY, key=lambda name: (_REGISTRY[name].order, _REGISTRY[name].module, _REGISTERED[name]))
 
 
 def describe(name: str) -> Study:
