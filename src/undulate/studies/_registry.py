@@ -69,6 +69,7 @@ __all__ = [
     "StudyConfig",
     "Study",
     "Claim",
+    "SupersededCriterion",
     "Verdict",
     "StudyContext",
     "register",
@@ -206,6 +207,25 @@ class Claim:
     paper: str
     criterion: str
     judge: Callable[[dict[str, Any]], Verdict] = field(repr=False, compare=False)
+    quote: str = ""
+    """The paper's own sentence that this claim tests, verbatim from ``paper.tex`` (LaTeX math kept as
+    written); ``paper`` is its short paraphrase."""
+    where: str = ""
+    """Where the paper states it: its section and figure, e.g. ``"Sec. III.A, Fig. 3c"``."""
+    superseded: tuple[SupersededCriterion, ...] = ()
+    """Criteria this claim was judged by before (oldest first): each is judged on the same summary and
+    shown beside the current verdict, so a changed criterion never hides the verdict the old one gives."""
+
+
+@dataclass(frozen=True)
+class SupersededCriterion:
+    """A criterion a claim no longer uses: ``criterion`` its text, ``judge`` the same kind of pure
+    function of the study's summary as :attr:`Claim.judge`, ``why`` the reason it was replaced (the
+    paper's words it did not test)."""
+
+    criterion: str
+    judge: Callable[[dict[str, Any]], Verdict] = field(repr=False, compare=False)
+    why: str = ""
 
 
 def judge(study: str, claims: tuple[Claim, ...], summary: dict[str, Any]) -> list[dict[str, Any]]:
@@ -215,9 +235,19 @@ def judge(study: str, claims: tuple[Claim, ...], summary: dict[str, Any]) -> lis
         v = c.judge(summary)
         if not isinstance(v, Verdict):
             raise UndulateError(f"claim {c.claim!r} of study {study!r} returned {type(v).__name__}, not Verdict")
-        rows.append({"study": study, "claim": c.claim, "paper": c.paper, "criterion": c.criterion,
+        old = []
+        for o in c.superseded:
+            ov = o.judge(summary)
+            if not isinstance(ov, Verdict):
+                raise UndulateError(f"superseded criterion of claim {c.claim!r} of study {study!r} returned "
+                                    f"{type(ov).__name__}, not Verdict")
+            old.append({"criterion": o.criterion, "why": o.why, "verdict": ov.verdict, "measured": ov.measured,
+                        "reason": ov.reason})
+        rows.append({"study": study, "claim": c.claim, "paper": c.paper, "quote": c.quote, "where": c.where,
+                     "criterion": c.criterion,
                      "measured": v.measured, "value": v.value, "verdict": v.verdict, "reason": v.reason,
-                     "runs_needed": v.runs_needed, "growth_needed": v.growth_needed})
+                     "runs_needed": v.runs_needed, "growth_needed": v.growth_needed,
+                     "superseded": old})
     return rows
 
 
