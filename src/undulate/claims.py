@@ -40,6 +40,12 @@ null) and, when some explanation of the
 claim was tested but not shown, ``explanations_not_shown`` (the same fields,
 ``shown`` false or null).
 
+``quote`` (the paper's own sentence the claim tests, verbatim from ``paper.tex``; for a PRX 2021 claim
+the statement as SPEC.md §6 gives it), ``where`` (the paper's section and figure), ``superseded`` (the
+criteria the claim was judged by before, each judged again on the same summary: ``criterion``, ``why``,
+``verdict``, ``measured``, ``reason``; empty when the criterion never changed; a study file written
+before these fields existed gives ``""``, ``""`` and ``[]``).
+
 ``claims.json``: ``{"claims": rows, "counts": {verdict: n},
 "counts_by_reference": {"paper": {verdict: n}, "prx2021": {verdict: n}}}``;
 ``counts`` counts every row (as before), ``counts_by_reference`` each
@@ -49,20 +55,21 @@ reference's rows apart; both list every verdict of :data:`VERDICTS`.
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
 from ._io import atomic_write_text
 
 __all__ = ["VERDICTS", "REFERENCES", "collect", "apply_explanations", "counts", "counts_by_reference",
-           "reference_of", "write_claims_json", "FIELDS"]
+           "reference_of", "write_claims_json", "FIELDS", "quote_text", "claims_table_markdown"]
 
 VERDICTS = ("holds", "explained", "undecided", "fails", "no result")
 REFERENCES = ("paper", "prx2021")
 """Whose claims a row judges: the reproduced paper, or beyond it the PRX 2021 synchronization paper
 (:attr:`undulate.studies.Study.reference`)."""
-FIELDS = ("study", "claim", "paper", "measured", "value", "verdict", "reason", "criterion", "reference",
-          "runs_needed", "decided_at")
+FIELDS = ("study", "claim", "paper", "quote", "where", "measured", "value", "verdict", "reason", "criterion",
+          "reference", "runs_needed", "decided_at", "superseded")
 _EXPLANATION_FIELDS = ("cause", "measured", "value", "evidence_study", "evidence_figure", "shown", "decided_at")
 
 
@@ -103,6 +110,8 @@ def collect(out_dir: str | Path, names: list[str]) -> list[dict[str, Any]]:
         for r in doc.get("claims", []):
             row = {k: r.get(k) for k in FIELDS}
             row["reference"] = reference_of(row)
+            row["quote"], row["where"] = row["quote"] or "", row["where"] or ""
+            row["superseded"] = row["superseded"] or []
             rows.append(row)
         explanations += doc.get("explanations", [])
     return apply_explanations(rows, explanations)
@@ -127,3 +136,57 @@ def write_claims_json(out_dir: str | Path, rows: list[dict[str, Any]]) -> Path:
     doc = {"claims": rows, "counts": counts(rows), "counts_by_reference": counts_by_reference(rows)}
     atomic_write_text(path, json.dumps(doc, indent=2, allow_nan=False) + "\n")
     return path
+
+
+# ------------------------------------------------------------------- the paper's sentences
+_CITE = re.compile(r"\s*~?\\cite[tp]?\{[^}]*\}")
+_REF_PAREN = re.compile(r"\s*\((?:Figs?\.|Figure|Eqns?\.|Equations?|Sections?)[^()]*?\\ref\{[^}]*\}[^()]*\)")
+_FIGURES = {"fig:fig1": "1", "fig:methods": "2", "fig:two_robot_experiment": "3", "fig:compatibility": "4",
+            "fig:more_links": "5", "fig:robotgroups": "6", "fig:spatial_packing": "7", "fig:basins": "8",
+            "fig:spacing_basins": "9", "fig:potential": "10"}
+"""The paper's figure labels and their numbers (the order of its figures in ``paper.tex``)."""
+_REF = re.compile(r"\\ref\{([^}]*)\}")
+
+
+def quote_text(text: str) -> str:
+    """A sentence of ``paper.tex`` as a claim quotes it and the page shows it: citations
+    (``\\cite{...}``) and parenthesised references to figures, equations or sections
+    (``(Fig.~\\ref{fig:potential}d)``: the claim's ``where`` says it) taken out, a figure's other
+    ``\\ref`` replaced by its number, ``~`` by a space, whitespace collapsed; math is kept as written.
+    The same on both sides decides whether a quote is verbatim (``tests/test_paper_claims.py``)."""
+    t = _REF_PAREN.sub("", _CITE.sub("", str(text or "")))
+    t = _REF.sub(lambda m: _FIGURES.get(m.group(1), m.group(0)), t)
+    return " ".join(t.replace("~", " ").split())
+
+
+def _cell(text: Any) -> str:
+    return " ".join(str(text or "").split()).replace("|", "\\|")
+
+
+def claims_table_markdown(claims: str | Path | dict[str, Any]) -> str:
+    """The claims table of a ``claims.json`` (its path, or the document) as Markdown: the counts of
+    each reference apart (the paper's first), then one row per claim: study, claim, verdict, the
+    measured value, and the paper's sentence it tests with where the paper states it.  What
+    ``docs/full_reproduction.md`` opens with (``undulate claims-table CLAIMS_JSON``)."""
+    doc = claims if isinstance(claims, dict) else json.loads(Path(claims).read_text())
+    rows = doc.get("claims", [])
+    by = doc.get("counts_by_reference") or counts_by_reference(rows)
+    names = {"paper": "The paper's claims", "prx2021": "Beyond the paper (PRX 2021, against our controllers)"}
+    out = ["| claims | " + " | ".join(VERDICTS) + " | all |", "|---|" + "---:|" * (len(VERDICTS) + 1)]
+    for ref, k in by.items():
+        out.append(f"| {names.get(ref, ref)} | " + " | ".join(str(k.get(v, 0)) for v in VERDICTS)
+                   + f" | {sum(k.get(v, 0) for v in VERDICTS)} |")
+    for ref in by:
+        mine = [r for r in rows if reference_of(r) == ref]
+        if not mine:
+            continue
+        out += ["", f"**{names.get(ref, ref)}**", "",
+                "| study | claim | verdict | measured | the sentence it tests (where) |", "|---|---|---|---|---|"]
+        for r in mine:
+            quote = quote_text(r.get("quote") or "") or f"(paraphrase) {r.get('paper') or ''}"
+            where = f" ({r['where']})" if r.get("where") else ""
+            old = "; ".join(f"before: {o.get('criterion')} -> {o.get('verdict')}" for o in r.get("superseded") or [])
+            verdict = r.get("verdict", "") + (f" ({old})" if old else "")
+            out.append(f"| {_cell(r.get('study'))} | {_cell(r.get('claim'))} | {_cell(verdict)} | "
+                       f"{_cell(r.get('measured'))} | \u201c{_cell(quote)}\u201d{_cell(where)} |")
+    return "\n".join(out) + "\n"

@@ -265,7 +265,14 @@ CLAIMS = (
     Claim("dphi = 0 pairs return to dx = 0 from nearby starts and are pushed away from far ones",
           "starts close enough to zero evolve to dx_f = 0; beyond a threshold (withheld) they are pushed away",
           "both behaviours occur and the return threshold is bracketed on both sides (counts of starts and "
-          "brackets: holds or fails, never undecided)", _return_and_push),
+          "brackets: holds or fails, never undecided)", _return_and_push,
+          quote=(r"Initial separation distances that are far away from the compatible separation (beyond a "
+                 r"threshold, withheld) are pushed away from the $\Delta x = 0$ compatible configuration as the "
+                 r"swimmers repel each other along the longitudinal axis. However, when the initial separation "
+                 r"distances are closer (within that threshold) the swimmers experience an attractive interaction "
+                 r"force in the longitudinal direction and ultimately end in the compatible state for there phase "
+                 r"difference."),
+          where="Sec. III.F, Fig. 8a"),
 )
 
 

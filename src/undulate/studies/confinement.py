@@ -179,7 +179,12 @@ CLAIMS = (
           "increasing the wall distance increased the range of final spacings; the central state broadened",
           f"the width never shrinks by more than {WIDTH_TOL} lambda from one d/2A to the next and exceeds "
           f"{WIDTH_TOL} lambda within d/2A <= 1.2 (the width is a range of final offsets with no interval: "
-          "holds or fails, never undecided)", _broadens),
+          "holds or fails, never undecided)", _broadens,
+          quote=(r"Increasing the confinement wall distance increased the range of final longitudinal spacing "
+                 r"observed between two swimmers (Fig.~\ref{fig:spacing_basins}). The central compatibility state "
+                 r"broadened indicating that swimmers could compatibly move within a range of longitudinal "
+                 r"separations without contact."),
+          where="Sec. III.F, Fig. 9"),
 )
 
 

@@ -261,7 +261,13 @@ CLAIMS = tuple(
           f"{GROUP_RMS_TOL} lambda and wholly above the pairs' (same xi and dphi range, d = {PAIR_CHANNEL_M} m); "
           "fails if an interval lies wholly outside its region or the RMS interval wholly below the pairs', "
           "undecided if one straddles its bound or the two RMS intervals overlap",
-          _group_follows(str(size)))
+          _group_follows(str(size)),
+          quote=(r"Examining the nearest neighbor $\Delta x_{i,i+1}$ versus $\Delta \phi_{i,i+1}$ we observe good "
+                 r"agreement with the compatibility predictions (Fig.~\ref{fig:robotgroups}b). The variation in the "
+                 r"longitudinal position was larger in the group experiments compared with the robot pair experiments "
+                 r"suggesting potential collective effects present in the three and four robot experiments that were "
+                 r"not captured in the pair experiments."),
+          where="Sec. III.D, Fig. 6b")
     for size in SIZES)
 
 

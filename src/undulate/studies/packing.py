@@ -748,11 +748,17 @@ CLAIMS = (
           "mean threshold never rises from one phi_max to the next (a threshold above the grid counts as "
           "larger than any); fails if the rho interval lies wholly above 0 or a step rises beyond the t "
           "intervals (or above the grid); undecided if the rho interval straddles 0 or a step's mean rises "
-          "inside overlapping intervals", _threshold_falls),
+          "inside overlapping intervals", _threshold_falls,
+          quote=(r"Overall we find that as the phase variation within a swimming group increases the required "
+                 r"lateral density within the group must increase or else swimmers will collide with each other."),
+          where="Sec. III.E, Fig. 7b"),
     Claim("the closed form for the compatible density matches the Monte-Carlo estimate",
           "the expected value calculation agrees extremely well with the Monte-Carlo simulation",
           f"largest relative difference below {MC_TOL:.0%} (a seeded numerical comparison: holds or fails, "
-          "never undecided)", _closed_form_matches),
+          "never undecided)", _closed_form_matches,
+          quote=(r"We see in Figure~\ref{fig:spatial_packing}b that the expected value calculation agrees "
+                 r"extremely well with the Monte-Carlo simulation."),
+          where="Sec. III.E, Fig. 7b (the closed form for rho-tilde)"),
 )
 
 

@@ -171,7 +171,10 @@ CLAIMS = tuple(
           "PRX 2021: a phase-oscillator model describes the stability of the in-phase and anti-phase modes",
           f"at least {PREDICTED_FRACTION:.0%} of closed-loop runs end within {math.degrees(MATCH_TOL_RAD):.0f} deg "
           "of a stable zero's 95 % interval (H falling through 0) or in a neutral bin, or, still drifting, "
-          "drift the way H's interval points", _predicts(c, cond))
+          "drift the way H's interval points", _predicts(c, cond),
+          quote=("Its zeros and slopes predict which locked states exist and which are stable; the closed-loop "
+                 "runs must end where it says."),
+          where="PRX 2021 (Zhou, Hao & Gravish, Phys. Rev. X 11, 031051), as SPEC.md §6 states it: phase reduction")
     for c in CONTROLLERS for cond in ("held", "free"))
 
 

@@ -577,19 +577,34 @@ CLAIMS = (
           "cumulative contact forces over the first two periods are linearly dependent on dphi",
           f"the lower 95 % bound of R^2 of impulse = a|dphi| + b is >= {R2_MIN} and that of a is > 0 (fails if "
           f"the upper bound of R^2 is below {R2_MIN} or that of a below 0; undecided if an interval straddles "
-          "its bound)", _impulse_linear),
+          "its bound)", _impulse_linear,
+          quote=(r"The cumulative contact forces over the first two periods of oscillation are linearly dependent "
+                 r"on the detuning phase difference, $\Delta \phi$, between the two swimmers "
+                 r"(Fig.~\ref{fig:potential}a)."),
+          where="Sec. III.G, Fig. 10a"),
     Claim("dF against dx is linear (a harmonic well around compatibility)",
           "a linear relationship between the applied force and the steady separation",
           f"the median over (beta, d/2A) of the lower 95 % bound of R^2 of dF = k (dx - dx0) is >= {R2_MIN} "
-          f"(fails if the median of the upper bounds is below {R2_MIN}; undecided between)", _harmonic),
+          f"(fails if the median of the upper bounds is below {R2_MIN}; undecided between)", _harmonic,
+          quote=(r"We observed a linear relationship between the applied force and the steady state separation "
+                 r"suggesting that compatible configurations act like a simple harmonic potential "
+                 r"(Fig.~\ref{fig:potential}c)."),
+          where="Sec. III.G, Fig. 10c"),
     Claim("the cohesion stiffness k falls as the channel widens",
           "stiffness decreases with increasing wall width",
           "the bootstrap 95 % interval of Spearman's rho of k with d lies below 0 for every beta (fails if one "
-          "lies wholly above 0; undecided if one straddles 0, as it can with 3-9 widths)", _k_falls),
+          "lies wholly above 0; undecided if one straddles 0, as it can with 3-9 widths)", _k_falls,
+          quote=(r"We found that the cohesion stiffness of the compatible state decreases with increasing wall "
+                 r"width and becomes increasingly large as the confining wall spacing decreases "
+                 r"(Fig.~\ref{fig:potential}d)."),
+          where="Sec. III.G, Fig. 10d"),
     Claim("stiffness curves for different amplitudes collapse when d is scaled by 2A",
           "when we normalise the wall width by gait amplitude the stiffness curves follow a similar trend",
           "the bootstrap 95 % interval of the scatter of log10 k about one quadratic against d/2A lies wholly "
-          "below that against d (fails if wholly above; undecided if they overlap)", _collapse),
+          "below that against d (fails if wholly above; undecided if they overlap)", _collapse,
+          quote=(r"However, when we normalize the wall width by gait amplitude the stiffness curves follow a "
+                 r"similar trend (Fig.~\ref{fig:potential}d)."),
+          where="Sec. III.G, Fig. 10d"),
 )
 
 

@@ -157,7 +157,11 @@ CLAIMS = (
           "we found no qualitative difference in spatial dynamics between locomoting and non-locomoting simulations",
           f"swimming pairs also follow the line: the 95 % interval of their slope lies within 1 +- {LINE_SLOPE_TOL} "
           f"and that of their RMS residual below {LINE_RMS_TOL} lambda (fails if either lies wholly outside; "
-          "undecided if one straddles its bound)", _like_viscous),
+          "undecided if one straddles its bound)", _like_viscous,
+          quote=(r"In simulations we implemented viscous drag forces on the swimmers to make them swim forward and "
+                 r"interact with each other through contact and we found no qualitative difference in spatial "
+                 r"dynamics between the locomoting, and non locomoting simulations."),
+          where="Sec. II.A (Methods, robotics experiments)"),
 )
 
 

@@ -230,15 +230,18 @@ def _force_drops(c: str):
 PAIR_CLAIMS = tuple(claim for c in CONTROLLERS for claim in (
     Claim(f"{c}: held pairs that collide lock in phase or anti-phase",
           "PRX 2021: robot joints synchronize to in-phase and anti-phase oscillations through collisions",
-          "every colliding held run ends within 30 deg of 0 or pi", _held_lock(c)),
+          "every colliding held run ends within 30 deg of 0 or pi", _held_lock(c),
+          quote="in-phase and anti-phase locking when positions are held", where="PRX 2021 (Zhou, Hao & Gravish, Phys. Rev. X 11, 031051), as SPEC.md §6 states it"),
     Claim(f"{c}: anti-phase locking disappears when positions are free",
           "PRX 2021: when the robots can adjust their position anti-phase synchronization is no longer observed",
-          "fewer free runs than held runs end anti-phase", _anti_phase_disappears(c)),
+          "fewer free runs than held runs end anti-phase", _anti_phase_disappears(c),
+          quote="no anti-phase locking when robots can move", where="PRX 2021 (Zhou, Hao & Gravish, Phys. Rev. X 11, 031051), as SPEC.md §6 states it"),
     Claim(f"{c}: synchronization sharply reduces the interaction force",
           "PRX 2021: synchronization dramatically reduces interaction forces",
           "the 95 % interval (bootstrap) of the median last/first contact-force ratio over colliding runs "
           f"lies below {FORCE_RATIO_MAX} (fails if it lies wholly above; undecided if it straddles it)",
-          _force_drops(c)),
+          _force_drops(c),
+          quote="much smaller contact forces once synchronized", where="PRX 2021 (Zhou, Hao & Gravish, Phys. Rev. X 11, 031051), as SPEC.md §6 states it"),
 ))
 
 
@@ -274,11 +277,17 @@ def _groups_as_predicted(c: str):
 GROUP_CLAIMS = tuple(claim for c in CONTROLLERS for claim in (
     Claim(f"{c}: groups with phase and position free end phase-locked and position-compatible",
           "open (paper's conclusion): phase dynamics together with position dynamics",
-          "most runs end both phase-locked and position-compatible", _groups_end_both(c)),
+          "most runs end both phase-locked and position-compatible", _groups_end_both(c),
+          quote=("The paper holds phases fixed; its conclusion leaves phase dynamics open. ... `undulate` "
+                 "simulates phase and position dynamics together"),
+          where="SPEC.md §6 (beyond the paper: its conclusion leaves phase dynamics open)"),
     Claim(f"{c}: groups synchronize as the measured phase interaction predicts",
           "PRX 2021: collectives synchronize their movements through contact as predicted by the theory",
           "at least 80 % of neighbour pairs end at a state H (positions free) predicts -- a stable zero or a "
-          "neutral band -- and on a compatible branch (the cohesion potential's minimum)", _groups_as_predicted(c)),
+          "neutral band -- and on a compatible branch (the cohesion potential's minimum)", _groups_as_predicted(c),
+          quote=("Together, the two measured landscapes should explain where groups with free phases and free "
+                 "positions end."),
+          where="PRX 2021 (Zhou, Hao & Gravish, Phys. Rev. X 11, 031051), as SPEC.md §6 states it: phase reduction"),
 ))
 
 
