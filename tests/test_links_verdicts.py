@@ -16,6 +16,7 @@ import xarray as xr
 
 from undulate import stats
 from undulate.studies import _analysis as C
+from undulate.studies import _criteria as C_
 from undulate.studies import _outliers as O
 from undulate.studies import describe, links
 from undulate.studies._registry import judge
@@ -23,45 +24,112 @@ from undulate.studies._registry import judge
 LAM = 0.54
 
 
-def est(value, low, high):
-    return stats.Estimate(value, math.nan, low, high, 9, "test")
+def est(value, low, high, n=9, units=0):
+    return stats.Estimate(value, math.nan, low, high, n, "test", units=units)
 
 
-def summary(rms, per_n_extra=None):
+FALLING_SLOPE = (-4e-4, -6e-4, -2e-4)
+"""A trend's slope (lambda^2 per link) whose interval lies below 0."""
+
+
+def summary(rms, per_n_extra=None, slope=FALLING_SLOPE):
     per_n = {str(n): {"rms_residual_over_lambda": est(*r).to_dict(), **(per_n_extra or {}).get(n, {})}
              for n, r in zip((3, 5, 7, 9), rms)}
-    return {"per_rule": {"fixed": {"per_n": per_n}, "curvature": {"per_n": per_n}}}
+    rule = {"per_n": per_n, "squared_residual_slope_per_link": est(*slope, n=36, units=5).to_dict()}
+    return {"per_rule": {"fixed": rule, "curvature": rule}}
 
 
-def rows(rms, per_n_extra=None):
+def rows(rms, per_n_extra=None, slope=FALLING_SLOPE):
     describe("links")
-    return judge("links", links.CLAIMS, summary(rms, per_n_extra))
+    return judge("links", links.CLAIMS, summary(rms, per_n_extra, slope))
 
 
 FALLS = [(0.08, 0.07, 0.09), (0.06, 0.05, 0.07), (0.04, 0.03, 0.05), (0.02, 0.01, 0.03)]
+ONE_STEP_RISES = [FALLS[0], (0.03, 0.02, 0.04), (0.07, 0.06, 0.08), (0.02, 0.01, 0.03)]  # 5 -> 7 rises
 
 
-def test_holds_when_every_step_stays_and_the_last_interval_lies_below_the_first():
+# ------------------------------------------------------------------ the trend criterion (LINKS_TREND_RULE)
+def test_the_trend_holds_fails_or_is_undecided_on_its_slopes_interval():
     assert [r["verdict"] for r in rows(FALLS)] == ["holds", "holds"]
+    assert [r["verdict"] for r in rows(FALLS, slope=(3e-4, 1e-4, 5e-4))] == ["fails", "fails"]
+    r = rows(FALLS, slope=(-1e-4, -3e-4, 1e-4))[0]
+    assert r["verdict"] == "undecided" and "straddles 0" in r["reason"]
+    assert "slope of the squared residual against N" in r["measured"] and "5 design points" in r["measured"]
+    assert rows(FALLS, slope=(-1e-4, math.nan, math.nan))[0]["verdict"] == "no result"
+
+
+def test_one_noisy_step_no_longer_decides_but_the_old_criterion_is_shown_beside():
+    """The superseded step-by-step criterion fails on a rise at one step; the trend, read over the whole
+    range, holds; the row shows both."""
+    r = rows(ONE_STEP_RISES)[0]
+    assert r["verdict"] == "holds" and r["criterion"] == C_.LINKS_TREND_RULE
+    (old,) = r["superseded"]
+    assert old["criterion"] == C.FALLS_RULE and old["verdict"] == "fails" and "step by step" in old["why"]
+    assert rows(FALLS)[0]["superseded"][0]["verdict"] == "holds"
+
+
+def _residuals(per_n_scale, noise=0.0, seed=0):
+    """(N = 3, 5, 7, 9) x (the paper's nine dphi) residuals / lambda: a design point's own error (its
+    |dphi|, the same at +-dphi) times the N's scale, plus independent noise."""
+    rng = np.random.default_rng(seed)
+    base = 0.02 + 0.04 * np.abs(DPHI) / np.pi
+    return np.asarray(per_n_scale, float)[:, None] * base[None, :] + noise * rng.normal(size=(4, DPHI.size))
+
+
+@pytest.mark.parametrize("scale, expected", [((1.0, 0.8, 0.6, 0.4), "holds"), ((0.4, 0.6, 0.8, 1.0), "fails"),
+                                             ((1.0, 1.0, 1.0, 1.0), "undecided")])
+def test_error_trend_on_constructed_runs(scale, expected):
+    """Per-run residuals whose error falls, rises or stays with N: the claim's verdict on the slope that
+    :func:`links.error_trend` fits (design points as clusters)."""
+    res = _residuals(scale, noise=0.004)
+    slope = links.error_trend(res, [3, 5, 7, 9], DPHI)
+    assert slope.n == 36 and slope.units == 5 and slope.dof == 4  # 5 |dphi|: t on 4
+    got = rows(FALLS, slope=(slope.value, slope.low, slope.high))[0]["verdict"]
+    assert got == expected, slope
+
+
+def test_error_trend_is_the_slope_of_the_per_n_mean_squares():
+    """In the balanced design the pooled slope equals the least-squares slope of the per-N mean squares."""
+    res = _residuals((1.0, 0.7, 0.9, 0.5), noise=0.01, seed=3)
+    n = np.array([3, 5, 7, 9])
+    expected = np.polyfit(n, np.mean(res ** 2, axis=1), 1)[0]
+    assert links.error_trend(res, n, DPHI).value == pytest.approx(expected, rel=1e-12)
+    with pytest.raises(ValueError):
+        links.error_trend(res[:, :5], n, DPHI)
+
+
+def test_the_design_can_decide_the_trend_and_four_rms_values_cannot():
+    """Every look of both modes gives the trend an interval (at least 3 design points), while the four
+    per-N RMS values never could give a rank correlation one at 95 % (4! = 24 orderings < 40)."""
+    for quick in (True, False):
+        for p in links.stages(quick):
+            assert np.unique(C.abs_dphi_keys(p.dphi_rad)).size >= 3
+    assert np.unique(C.abs_dphi_keys(links.plan(True).dphi_rad)).size == 5
+    assert np.unique(C.abs_dphi_keys(links.plan(False).dphi_rad)).size == 17
+    assert not stats.rank_correlation([3, 5, 7, 9], [0.08, 0.06, 0.04, 0.02]).has_interval
+    assert stats.rank_correlation_points() > len(links.N_LINKS)
+
+
+# ------------------------------------------------------------------ the superseded step-by-step criterion
+def test_holds_when_every_step_stays_and_the_last_interval_lies_below_the_first():
+    assert C.falls_with_links([est(*v) for v in FALLS]) is True
     # a point rise inside overlapping intervals is no rise
     flat_tail = FALLS[:3] + [(0.045, 0.035, 0.055)]
-    assert [r["verdict"] for r in rows(flat_tail)] == ["holds", "holds"]
+    assert C.falls_with_links([est(*v) for v in flat_tail]) is True
 
 
 def test_fails_on_a_rise_beyond_the_intervals_or_a_last_interval_above_the_first():
-    rise = [FALLS[0], (0.03, 0.02, 0.04), (0.07, 0.06, 0.08), (0.02, 0.01, 0.03)]  # 5 -> 7 rises
-    assert [r["verdict"] for r in rows(rise)] == ["fails", "fails"]
+    assert C.falls_with_links([est(*v) for v in ONE_STEP_RISES]) is False
     creep = [(0.02, 0.015, 0.025), (0.025, 0.018, 0.03), (0.03, 0.022, 0.035), (0.035, 0.028, 0.04)]
-    assert [r["verdict"] for r in rows(creep)] == ["fails", "fails"]  # no step rises beyond, but 9 above 3
+    assert C.falls_with_links([est(*v) for v in creep]) is False  # no step rises beyond, but 9 above 3
 
 
 def test_undecided_when_the_last_interval_overlaps_the_first():
     wide = FALLS[:2] + [(0.05, 0.01, 0.09), (0.045, 0.01, 0.085)]  # falls at every step, last overlaps first
-    r = rows(wide)[0]
-    assert r["verdict"] == "undecided"
-    assert "N = 3 above N = 9" in r["reason"] and "overlaps" in r["reason"]
+    old = rows(wide)[0]["superseded"][0]
+    assert old["verdict"] == "undecided"
+    assert "N = 3 above N = 9" in old["reason"] and "overlaps" in old["reason"]
     assert C.falls_with_links([est(*v) for v in wide]) is None
-    assert C.falls_with_links([est(*v) for v in FALLS]) is True
     assert C.falls_with_links([est(0.04, math.nan, math.nan), est(0.01, 0.0, 0.02)]) is None  # no interval
 
 
@@ -72,9 +140,9 @@ def test_the_checks_name_each_step_and_the_overall_fall():
     assert stats.decide(checks) is True
 
 
-def test_a_missing_interval_is_no_result():
+def test_a_missing_rms_interval_is_no_result_for_the_old_criterion():
     r = rows(FALLS[:3] + [(0.02, math.nan, math.nan)])[0]
-    assert r["verdict"] == "no result"
+    assert r["verdict"] == "holds" and r["superseded"][0]["verdict"] == "no result"
 
 
 def test_the_measured_text_mentions_outliers_when_an_interval_is_wide():

@@ -21,6 +21,7 @@ __all__ = [
     "WIDTH_TOL",
     "CENTRAL",
     "RETURN_TOL",
+    "LINKS_TREND_RULE",
 ]
 
 PAIR_CHANNEL_M = 0.13
@@ -52,3 +53,20 @@ CENTRAL = 0.5
 """Confinement: a start ends in the central state when its final |dx/lambda| is below this."""
 RETURN_TOL = 0.05
 """Basins: a dphi = 0 start returns to the compatible state when its final |dx/lambda| is below this."""
+
+LINKS_TREND_RULE = (
+    "the least-squares slope of every run's squared residual (lambda^2) against N, over the whole range of N "
+    "(3 to 9), with its 95 % interval from the cluster jackknife over the design points (CR3, Student's t on "
+    "G - 1: a design point is one |dphi|, its runs at every N, +dphi and -dphi together), lies wholly below 0: "
+    "holds; wholly above 0: fails; straddles 0: undecided.  The paper gives no size of the fall (values "
+    "withheld), so no band of no change is fixed from its words: a flat trend stays undecided")
+"""The link-number claim ("the RMS error ... decreased with increasing link number") judged as a trend.
+
+In a design where every |dphi| is run at every N, the pooled least-squares slope of the per-run squared
+residuals on N is the slope of the per-N mean squares (the RMS^2 the paper reports) on N: the whole
+range at once, so no single noisy step decides it.  It rests on every run, not on the four per-N RMS
+values, whose rank correlation can never exclude 0 at 95 % (4! = 24 orderings; at least 40 needed:
+:func:`undulate.stats.rank_correlation_points`).  Design points, not runs, are the units of its
+interval: a |dphi| has its own error at every N (the paired design), and the runs at +dphi and -dphi
+are one pair mirrored.  Quick mode: 4 N x 9 dphi = 36 runs in 5 design points (t on 4), its first
+look 3 (t on 2); full mode 17 (t on 16)."""
