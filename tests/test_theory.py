@@ -386,3 +386,48 @@ def test_wrapping_keeps_the_observables_values_bit_for_bit():
     np.testing.assert_array_equal(theory.wrap_phase(a), before)
     assert np.signbit(theory.wrap_phase(0.0)) == np.signbit(before[a == 0.0][0])
 
+
+
+# ------------------------------------------------ confinement d/2A and the channel width
+def test_d_over_2A_is_the_wall_distance_per_swimmer():
+    """For zero-thickness sinusoids a pair's channel W = 2A is where an in-phase pair just fits (d/2A = 0.5)
+    and W = 4A where two bands sit side by side without touching (d/2A = 1): the paper's two statements."""
+    A = 0.05226
+    assert float(theory.channel_width_m(0.5, A, 2)) == pytest.approx(2 * A)
+    assert float(theory.channel_width_m(1.0, A, 2)) == pytest.approx(4 * A)
+    # at d/2A = 0.5 two sinusoids have no clearance; at 1 a whole 2A: every dphi is compatible
+    assert float(theory.lateral_clearance_m(theory.channel_width_m(0.5, A, 2), A)) == pytest.approx(0.0)
+    assert float(theory.lateral_clearance_m(theory.channel_width_m(1.0, A, 2), A)) == pytest.approx(2 * A)
+    assert float(theory.min_lateral_separation(np.pi, 0.0, A, 0.54)) == pytest.approx(2 * A)  # the worst dphi
+    # d/2A = 1/rho~ (rho~ = 2AN/Y), the paper's packing normalisation, for any number side by side
+    for n in (1, 2, 5):
+        assert float(theory.confinement_d_over_2A(0.3, A, n)) == pytest.approx(1.0 / (2 * A * n / 0.3))
+    # the paper's range and its 13 cm basins channel
+    assert float(theory.channel_width_m(0.6, A, 2)) == pytest.approx(0.1254, abs=1e-4)
+    assert float(theory.channel_width_m(1.2, A, 2)) == pytest.approx(0.2508, abs=1e-4)
+    assert float(theory.confinement_d_over_2A(0.13, A, 2)) == pytest.approx(0.622, abs=1e-3)
+
+
+@given(r=st.floats(0.05, 20.0), a=st.floats(1e-3, 1.0), n=st.integers(1, 60))
+def test_channel_width_round_trip(r, a, n):
+    w = theory.channel_width_m(r, a, n)
+    assert float(theory.confinement_d_over_2A(w, a, n)) == pytest.approx(r, rel=1e-12)
+    assert float(w) == pytest.approx(n * r * 2 * a, rel=1e-12)
+
+
+@pytest.mark.parametrize("n", [0, -2, 1.5, "2", None, True])
+def test_channel_width_rejects_a_bad_number_of_swimmers(n):
+    with pytest.raises(ParameterError, match="n_swimmers"):
+        theory.channel_width_m(1.0, 0.05, n)
+    with pytest.raises(ParameterError, match="n_swimmers"):
+        theory.confinement_d_over_2A(0.2, 0.05, n)
+
+
+@pytest.mark.parametrize("call, name", [
+    (lambda: theory.channel_width_m(0.0, 0.05, 2), "d_over_2A"),
+    (lambda: theory.channel_width_m(1.0, -0.05, 2), "amplitude_m"),
+    (lambda: theory.confinement_d_over_2A(float("nan"), 0.05, 2), "channel_width_m"),
+])
+def test_channel_width_rejects_bad_lengths(call, name):
+    with pytest.raises(ParameterError, match=name):
+        call()

@@ -63,6 +63,8 @@ __all__ = [
     "packing_density",
     "DensityEstimate",
     "packing_density_mc",
+    "channel_width_m",
+    "confinement_d_over_2A",
     "lateral_clearance_m",
     "neutral_offset_m",
     "walled_packing_density",
@@ -432,21 +434,69 @@ def packing_density_mc(phi_max_rad, w_over_2A, n_swimmers: int = 50, n_samples: 
 
 
 # ------------------------------------------------ walls: clearance and neutral offset
+def _n_side_by_side(n_swimmers) -> int:
+    if isinstance(n_swimmers, bool) or not isinstance(n_swimmers, (int, np.integer)) or n_swimmers < 1:
+        raise ParameterError("n_swimmers", "an integer >= 1 (swimmers side by side across the channel)", n_swimmers)
+    return int(n_swimmers)
+
+
+def channel_width_m(d_over_2A, amplitude_m, n_swimmers: int):
+    """Wall-to-wall channel width ``W`` (m) of the paper's confinement ``d/2A`` for ``n_swimmers`` side by side:
+    ``W = n_swimmers * d``, ``d = (d/2A) * 2A`` (``A``, m: the gait amplitude of a free swimmer).
+
+    The paper's ``d`` is the wall distance *per swimmer*, so ``d/2A = W / (2A n) = 1 / rho~``, the
+    inverse of its packing density ``rho~ = 2AN/Y``.  This reading is the one the model supports
+    (``explorations/d_thresholds.py``, docs/confinement_d.md): for a pair of default 3-link swimmers
+    (``2A = 104.5 mm``, 15 mm links) an in-phase pair's gait is obstructed (mean joint error above a lone
+    swimmer's by the paper's 0.01 rad) below ``W = 101 mm``, ``d/2A = 0.48`` (paper: "d/2A < 0.5 are not
+    possible because the undulatory gait is obstructed"), and a pair started side by side in contact
+    pushes itself apart and stops touching for every detuning tested (pi/4 to pi) from ``W = 225 mm``,
+    ``d/2A = 1.08`` (paper: "when d/2A > 1 swimmers through initial contact can push each other away");
+    the paper's 13 cm basins channel, where "swimmers cannot push each other away laterally", is
+    ``d/2A = 0.62``.  Read as the whole width, the same widths would be ``d/2A`` = 0.97, 2.15 and 1.24,
+    each at odds with the sentence it should meet.  For zero-thickness sinusoids the two statements are exact
+    under this reading: an in-phase pair just fits at ``W = 2A`` (``d/2A = 0.5``) and two bands sit side
+    by side without touching at ``W = 4A`` (``d/2A = 1``).
+
+    ``d_over_2A`` (> 0) and ``amplitude_m`` (> 0, m) broadcast; ``n_swimmers``: an integer >= 1.
+    Inverse: :func:`confinement_d_over_2A`.
+    """
+    n = _n_side_by_side(n_swimmers)
+    r = _positive("d_over_2A", d_over_2A, "")
+    a = _positive("amplitude_m", amplitude_m, "m")
+    return n * r * 2.0 * a
+
+
+def confinement_d_over_2A(channel_width_m, amplitude_m, n_swimmers: int):
+    """The paper's confinement ``d/2A = W / (2A n)`` of a channel ``W`` m wide holding ``n_swimmers`` side by
+    side (``A``, m: the gait amplitude of a free swimmer); the inverse of :func:`channel_width_m`, whose
+    docstring gives the measurement that fixes this reading."""
+    n = _n_side_by_side(n_swimmers)
+    w = _positive("channel_width_m", channel_width_m, "m")
+    a = _positive("amplitude_m", amplitude_m, "m")
+    return w / (2.0 * a * n)
+
+
 def lateral_clearance_m(d_m, amplitude_m, width_m=0.0):
-    """Lateral clearance ``max(0, d - 2A - 2w)`` (m) that two swimmers' centre-line
-    curves can keep in a channel of width ``d`` (m).
+    """Lateral clearance ``max(0, W - 2A - 2w)`` (m) that two swimmers' centre-line
+    curves can keep in a channel ``W = d_m`` m wide, wall to wall (the channel's
+    whole width, not the paper's per-swimmer ``d``: :func:`channel_width_m` maps
+    ``d/2A`` to ``W``, ``W = 2 (d/2A) 2A`` for a pair).
 
     Each body edge keeps ``A + w/2`` from its wall and the two bodies need
     ``w`` between centre lines; ``width_m = 0`` gives zero-thickness
-    sinusoids (``d - 2A``, the paper's ``dy/2A = d/2A - 1``).
+    sinusoids (``W - 2A``: ``dy/2A = W/2A - 1 = 2 d/2A - 1`` for a pair, so the
+    curves first clear each other at ``d/2A = 0.5`` and clear by a whole ``2A``
+    at ``d/2A = 1``).
     """
     return np.maximum(0.0, np.asarray(d_m, float) - 2 * np.asarray(amplitude_m, float)
                       - 2 * np.asarray(width_m, float))
 
 
 def neutral_offset_m(d_m, amplitude_m, wavelength_m, width_m=0.0):
-    """Half-width (m) of the band of neutral offsets of a ``dphi = 0`` pair between walls:
-    ``(lambda / pi) arcsin(min(dy / 2A, 1))`` with ``dy = lateral_clearance_m(d, A, w)``.
+    """Half-width (m) of the band of neutral offsets of a ``dphi = 0`` pair between walls ``W = d_m`` m
+    apart (the whole channel width; :func:`channel_width_m` gives it from ``d/2A``):
+    ``(lambda / pi) arcsin(min(dy / 2A, 1))`` with ``dy = lateral_clearance_m(W, A, w)``.
 
     From the full compatibility region at ``dphi = 0``: two sinusoids at
     lateral offset ``dy`` never touch for ``|2 pi dx / lambda| <= 2
