@@ -372,31 +372,65 @@ class Ground(_Params):
     default mass the velocity relaxation time is ``m_link / c = 0.05 s``.
     Isotropic drag cannot propel a swimmer: a lone swimmer stays in place.
 
+    ``mode="resistive"`` (viscous swimming, resistive-force theory): linear
+    drag per link, anisotropic in the link's own frame, at the link's
+    centre: ``F_par = -c_par v_par`` along the link's axis and
+    ``F_perp = -c_perp v_perp`` across it, with ``c_par = drag_N_s_per_m``
+    and ``c_perp = drag_anisotropy * c_par`` (both per link, N s/m; per
+    unit length they are ``c / l``), plus the rotational drag of a rod of
+    length ``l`` whose every element feels ``c_perp / l`` across it:
+    ``tau = -(c_perp / l) l^3 / 12 omega = -c_perp l^2 / 12 omega``.  This is
+    the whole medium (no isotropic part is added: the isotropic limit is
+    ``drag_anisotropy = 1``).  ``c_perp > c_par`` makes a lone swimmer
+    advance head first (toward -x); ``drag_anisotropy = 2`` is the
+    slender-body value.  :meth:`resistive` gives the swimming study's medium.
+
     ``mode="swimming"``: the swimmers move through a fluid of density
     ``fluid_density_kg_m3`` described by MuJoCo's ellipsoid fluid model
     (quadratic drag, far larger across a link than along it, plus added
-    mass and lift), on top of the linear drag ``c``.  The anisotropy makes
-    a lone swimmer advance head first (toward -x); :meth:`swimming` gives
-    the defaults used by the swimming study (water, ``c = 0.1 N s/m``).
+    mass and lift), on top of the isotropic linear drag ``c``.  The
+    anisotropy makes a lone swimmer advance head first (toward -x);
+    :meth:`swimming` gives water with ``c = 0.1 N s/m``.
     """
 
     drag_N_s_per_m: float = 2.0
-    """c: linear drag coefficient per link, N s / m."""
+    """c: linear drag coefficient per link, N s / m (``mode="resistive"``: the tangential one, c_par)."""
     mode: str = "viscous"
-    """``"viscous"`` (isotropic, no locomotion) or ``"swimming"`` (anisotropic fluid drag)."""
+    """``"viscous"`` (isotropic, no locomotion), ``"resistive"`` (resistive-force drag) or
+    ``"swimming"`` (MuJoCo's ellipsoid fluid model)."""
     fluid_density_kg_m3: float = 1000.0
     """Fluid density for ``mode="swimming"``, kg / m^3 (ignored otherwise)."""
+    drag_anisotropy: float = 2.0
+    """c_perp / c_par for ``mode="resistive"`` (>= 1; 1 is isotropic; ignored otherwise)."""
 
     def __post_init__(self):
         _positive("drag_N_s_per_m", self.drag_N_s_per_m, "N s/m")
-        if self.mode not in ("viscous", "swimming"):
-            raise ParameterError("mode", "'viscous' or 'swimming'", self.mode)
+        if self.mode not in GROUND_MODES:
+            raise ParameterError("mode", "'viscous', 'resistive' or 'swimming'", self.mode)
         _positive("fluid_density_kg_m3", self.fluid_density_kg_m3, "kg/m^3")
+        if _finite("drag_anisotropy", self.drag_anisotropy) < 1.0:
+            raise ParameterError("drag_anisotropy", ">= 1 (c_perp / c_par; 1 is isotropic)", self.drag_anisotropy)
+
+    @property
+    def normal_drag_N_s_per_m(self) -> float:
+        """c_perp = ``drag_anisotropy * drag_N_s_per_m``: the resistive medium's drag per link across it, N s/m."""
+        return self.drag_anisotropy * self.drag_N_s_per_m
 
     @classmethod
     def swimming(cls, fluid_density_kg_m3: float = 1000.0, drag_N_s_per_m: float = 0.1) -> "Ground":
-        """The swimming variant: water-like fluid plus a weak linear drag."""
+        """MuJoCo's ellipsoid fluid model in a water-like fluid plus a weak linear drag."""
         return cls(drag_N_s_per_m=drag_N_s_per_m, mode="swimming", fluid_density_kg_m3=fluid_density_kg_m3)
+
+    @classmethod
+    def resistive(cls, drag_N_s_per_m: float = 2.0, drag_anisotropy: float = 2.0) -> "Ground":
+        """The swimming study's viscous medium: resistive-force drag with ``c_par`` = the table's
+        isotropic drag per link (2 N s/m), so the only change from the non-swimming model is the
+        anisotropy, and ``c_perp / c_par = 2``, the slender-body value."""
+        return cls(drag_N_s_per_m=drag_N_s_per_m, mode="resistive", drag_anisotropy=drag_anisotropy)
+
+
+GROUND_MODES = ("viscous", "resistive", "swimming")
+"""The :attr:`Ground.mode` values."""
 
 
 @dataclass(frozen=True)

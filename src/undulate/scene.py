@@ -32,6 +32,10 @@ Model choices (documented here, tested in ``tests/``):
 * **Swimming** (``Ground(mode="swimming")``): the link geoms switch to
   MuJoCo's ellipsoid fluid model at the given density (anisotropic
   quadratic drag, added mass, lift), computed in C like everything else.
+* **Resistive medium** (``Ground(mode="resistive")``): linear drag per link
+  along and across its own axis at its centre, and the rotational drag of a
+  rod, expressed as drag actuators (:func:`_add_resistive_drag`,
+  :func:`resistive_coefficients`); ``opt.viscosity`` is 0 there.
 * **Ground drag** uses MuJoCo's inertia-box fluid model with zero density:
   each link feels ``F = -3 pi mu D v`` (``D`` = mean side of its inertia
   box, ``mu`` = ``opt.viscosity``) and a rotational drag
@@ -66,7 +70,7 @@ import numpy as np
 from .errors import ParameterError
 from .params import Scene
 
-__all__ = ["SceneIndex", "CompiledScene", "swimmer_spec", "root_link", "root_offset_m", "scene_spec", "build", "servo_frequency_rad_s",
+__all__ = ["SceneIndex", "resistive_coefficients", "CompiledScene", "swimmer_spec", "root_link", "root_offset_m", "scene_spec", "build", "servo_frequency_rad_s",
            "auto_timestep", "contact_possible", "approach_speed_m_s"]
 
 _Q_ALONG_Y_UP = (math.sqrt(0.5), -math.sqrt(0.5), 0.0, 0.0)  # plane normal +y
@@ -180,6 +184,8 @@ def swimmer_spec(scene: Scene, timestep_s: float, *, push: bool | None = None,
     spec = mujoco.MjSpec()
     _build_links(spec.worldbody, scene, timestep_s)
     _add_servos(spec, scene, servo)
+    if scene.ground.mode == "resistive":
+        _add_resistive_drag(spec, scene)
     # the perturbation force, spread equally over the links: F/N along world x at each link's centre
     if not (scene.forces_N is not None if push is None else push):
         return spec
@@ -260,6 +266,43 @@ def _add_link_geoms(body, scene: Scene, timestep_s: float, k: int, lo: float) ->
         body.add_geom(name=f"g{k}_fluid", type=mujoco.mjtGeom.mjGEOM_CAPSULE,
                       fromto=[lo + r, 0, 0, lo + l - r, 0, 0], size=[r, 0, 0], contype=0, conaffinity=0,
                       group=3, mass=0, fluid_ellipsoid=1)
+
+
+RESISTIVE_AXES = (("par", (1, 0, 0, 0, 0, 0)), ("perp", (0, 1, 0, 0, 0, 0)), ("rot", (0, 0, 0, 0, 0, 1)))
+"""The resistive medium's drag actuators per link (name suffix, gear in the link's centre-site frame):
+along the link's axis, across it (in the plane) and about the plane normal."""
+
+
+def resistive_coefficients(scene: Scene) -> tuple[float, float, float]:
+    """``(c_par, c_perp, c_rot)`` of each link in the resistive medium: N s/m, N s/m, N m s/rad.
+
+    ``c_par``, ``c_perp`` per link (:class:`~undulate.params.Ground`); the rotational drag of a rod of
+    length ``l`` about its centre whose elements feel ``c_perp / l`` per unit length across it:
+    ``c_rot = integral (c_perp / l) s^2 ds over [-l/2, l/2] = c_perp l^2 / 12``.
+    """
+    gr, l = scene.ground, scene.geometry.link_length_m
+    c_perp = gr.normal_drag_N_s_per_m
+    return gr.drag_N_s_per_m, c_perp, c_perp * l * l / 12.0
+
+
+def _add_resistive_drag(spec: mujoco.MjSpec, scene: Scene) -> None:
+    """Resistive-force drag on every link, computed by MuJoCo each step: three ``general`` actuators per
+    link, ``drag{k}_par``, ``drag{k}_perp``, ``drag{k}_rot``, each a site transmission at the link's
+    centre site ``c{k}`` (no refsite) with gear :data:`RESISTIVE_AXES`.  Such an actuator's velocity is
+    the site's velocity along its gear axis in the site's (the link's) frame, and its force is applied
+    along that axis at the site; with gain 0 and affine bias ``(0, 0, -c)`` the force is ``-c`` times
+    that velocity, whatever the control input (the inputs stay 0).  A velocity-affine bias enters
+    ``qDeriv``, so the implicitfast integrator treats the drag implicitly as it does joint damping
+    (tests/test_resistive.py measures the forces against the closed form)."""
+    coef = dict(zip(("par", "perp", "rot"), resistive_coefficients(scene)))
+    for k in range(scene.geometry.n_links):
+        for axis, gear in RESISTIVE_AXES:
+            a = spec.add_actuator(name=f"drag{k}_{axis}", target=f"c{k}", trntype=mujoco.mjtTrn.mjTRN_SITE,
+                                  gear=list(gear))
+            a.gaintype = mujoco.mjtGain.mjGAIN_FIXED
+            a.biastype = mujoco.mjtBias.mjBIAS_AFFINE
+            a.gainprm[0] = 0.0
+            a.biasprm[:3] = [0.0, 0.0, -coef[axis]]
 
 
 SERVO_MODELS = ("pid", "affine")
@@ -486,7 +529,8 @@ def scene_spec(scene: Scene, timestep_s: float, *, pair_sensors: bool = True, pu
     opt.integrator = mujoco.mjtIntegrator.mjINT_IMPLICITFAST
     opt.cone = mujoco.mjtCone.mjCONE_PYRAMIDAL
     opt.solver = mujoco.mjtSolver.mjSOL_NEWTON
-    opt.viscosity = drag_viscosity(scene)
+    opt.viscosity = 0.0 if scene.ground.mode == "resistive" else drag_viscosity(scene)  # resistive: the
+    # drag actuators are the whole medium
     opt.density = scene.ground.fluid_density_kg_m3 if scene.ground.mode == "swimming" else 0.0
     opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_FRICTIONLOSS)
     opt.enableflags |= int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)  # exact constraint regularisation

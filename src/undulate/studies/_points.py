@@ -18,7 +18,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..errors import ParameterError
-from ..params import ContactModel, Gait, Ground, Servo, SwimmerGeometry
+from ..params import GROUND_MODES, ContactModel, Gait, Ground, Servo, SwimmerGeometry
 
 __all__ = ["GroupPoint", "PairPoint", "LonePoint", "PackingPoint", "SyncPoint", "MODEL_KEYS"]
 
@@ -129,8 +129,8 @@ class PairPoint(_Point):
     _kinds: ClassVar[dict[str, type]] = {"ground": str}
 
     def __post_init__(self):
-        if self.ground not in ("viscous", "swimming"):
-            raise ParameterError("ground", "'viscous' or 'swimming'", self.ground)
+        if self.ground not in GROUND_MODES:
+            raise ParameterError("ground", "'viscous', 'resistive' or 'swimming'", self.ground)
         if self.ground == "swimming" and self.drag_N_s_per_m is not None:
             raise ParameterError("drag_N_s_per_m", "the viscous ground's drag (use swim_drag_N_s_per_m for the "
                                  "swimming ground)", self.drag_N_s_per_m)
@@ -146,6 +146,8 @@ class PairPoint(_Point):
         if self.ground == "swimming":
             kw = {"fluid_density_kg_m3": self.fluid_density_kg_m3, "drag_N_s_per_m": self.swim_drag_N_s_per_m}
             return Ground.swimming(**{k: v for k, v in kw.items() if v is not None})
+        if self.ground == "resistive":  # drag_N_s_per_m, if given: the tangential coefficient c_par
+            return Ground.resistive(**({} if self.drag_N_s_per_m is None else {"drag_N_s_per_m": self.drag_N_s_per_m}))
         return self._model_parts().get("ground", Ground())
 
 
@@ -162,8 +164,12 @@ class LonePoint(_Point):
     _kinds: ClassVar[dict[str, type]] = {"n_links": int, "ground": str, "heading_guide": bool}
 
     def __post_init__(self):
-        if self.ground not in ("viscous", "swimming"):
-            raise ParameterError("ground", "'viscous' or 'swimming'", self.ground)
+        if self.ground not in GROUND_MODES:
+            raise ParameterError("ground", "'viscous', 'resistive' or 'swimming'", self.ground)
+
+    def ground_model(self) -> Ground:
+        """The ground of ``ground``: :class:`Ground`, :meth:`Ground.resistive` or :meth:`Ground.swimming`."""
+        return {"viscous": Ground, "resistive": Ground.resistive, "swimming": Ground.swimming}[self.ground]()
 
     def gait(self) -> Gait:
         beta = Gait().amplitude_rad if self.amplitude_rad is None else self.amplitude_rad

@@ -315,8 +315,8 @@ def lone_swimmer(point: dict, seed: int, *, duration_s: float = LONE_DURATION_S)
     """One free swimmer (sweep function): the gait amplitude A, joint error and speed.
 
     ``point``: ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body``
-    (xi; 1), ``n_links`` (3), ``ground`` (``"viscous"`` or ``"swimming"``,
-    :meth:`Ground.swimming`), ``heading_guide`` (False; :attr:`Scene.heading_guide`).  One swimmer in a :data:`LONE_CHANNEL_WIDTH_M`
+    (xi; 1), ``n_links`` (3), ``ground`` (``"viscous"``, ``"resistive"``,
+    :meth:`Ground.resistive`, or ``"swimming"``, :meth:`Ground.swimming`), ``heading_guide`` (False; :attr:`Scene.heading_guide`).  One swimmer in a :data:`LONE_CHANNEL_WIDTH_M`
     wide channel for ``duration_s`` at the simulator's time step.  Returns
     ``amplitude_m`` (A: :func:`~undulate.observables.gait_amplitude` over the
     last :data:`LONE_PERIODS` periods, rounded to :data:`AMPLITUDE_ROUND_M`),
@@ -330,7 +330,7 @@ def lone_swimmer(point: dict, seed: int, *, duration_s: float = LONE_DURATION_S)
 
     pt = LonePoint.of(point)
     gait = pt.gait()
-    g = Ground.swimming() if pt.ground == "swimming" else Ground()
+    g = pt.ground_model()
     scene = Scene(phases_rad=(0.0,), gait=gait, ground=g,
                   geometry=SwimmerGeometry(n_links=pt.n_links, length_m=BODY_LENGTH_M),
                   channel=Channel(width_m=LONE_CHANNEL_WIDTH_M), heading_guide=pt.heading_guide)
