@@ -98,9 +98,14 @@ TESTED_CAUSE = ("in the groups' channels neighbour centre lines settle farther a
                 "spacing the contact-free band is wider. Shown only if the narrower channel meets the criterion.")
 
 
+SLOPE = {"value": 1.01, "stderr": 0.03, "ci95": [0.95, 1.07], "n": 9, "method": "t", "level": 0.95}
+
+
 def _claim(study, claim, verdict, measured="slope 1.01 [0.95, 1.07]", reason=""):
     return {"study": study, "claim": claim, "paper": f"the paper says: {claim}", "measured": measured,
-            "value": None, "verdict": verdict, "reason": reason, "criterion": "the 95 % interval lies within 1 +- 0.2"}
+            "value": {"slope": SLOPE, "d_over_2A": [0.6, 0.9, 1.2], "width": [0.0, 0.01, 0.2], "n_runs": 9},
+            "verdict": verdict, "reason": reason, "criterion": "the 95 % interval lies within 1 +- 0.2",
+            "quote": f"We observed that {claim} (Fig.~\\ref{{fig:potential}}c).", "where": "Sec. III.G, Fig. 10c"}
 
 
 def _explanation(study, claim, cause, shown):
@@ -120,7 +125,9 @@ def claims_report(tmp_path_factory):
     alpha = [_claim("alpha", a[0], "holds"), _claim("alpha", a[1], "fails"), _claim("alpha", a[2], "fails"),
              _claim("alpha", a[3], "fails"),
              _claim("alpha", a[4], "no result", "no result: H is zero", "H is zero within its interval at every dphi")]
-    beta = [_claim("beta", "groups follow the line with more scatter", "fails")]
+    beta = [{**_claim("beta", "groups follow the line with more scatter", "fails"),
+             "superseded": [{"criterion": "no step rises beyond its interval", "why": "one noisy step decided it",
+                             "verdict": "holds", "measured": "steps 0.1, 0.2", "reason": ""}]}]
     expl = [_explanation("alpha", a[1], LONG_CAUSE, True), _explanation("alpha", a[2], LONG_CAUSE, True),
             _explanation("beta", beta[0]["claim"], TESTED_CAUSE, False)]
     (out / "alpha.json").write_text(json.dumps({"claims": alpha, "files": ["alpha.png"]}))
@@ -422,3 +429,37 @@ def test_the_stages_line_says_why_a_study_stopped(last, why):
     (line,) = _stages({"stages": (looks + [last]) if last["stage"] == 2 else [last]})
     k = last["stage"]
     assert f"Stages: {k} of 2 ran ({why}); stage 1: " in line
+
+
+_MEASURE_SECTIONS = """() => Array.from(document.querySelectorAll('section.claim'), s => ({
+  id: s.id, text: s.innerText,
+  quotes: Array.from(s.querySelectorAll('blockquote.quote'), q => q.innerText),
+  figs: Array.from(s.querySelectorAll('img.evidence'), i => ({src: i.getAttribute('src'), ok: i.complete && i.naturalWidth > 0,
+                                                             w: i.getBoundingClientRect().width, natural: i.naturalWidth}))}))"""
+
+
+def test_each_claim_section_has_its_own_evidence_figure_and_quotes_the_paper(claims_report):
+    """Every claim's section (held ones too) shows one figure of its own, loaded, no other section's, drawn
+    no wider than it is (readable at 1366 px: its labels at their drawn size); it quotes the paper's sentence
+    without its LaTeX reference, says where, and shows a replaced criterion's verdict beside the current one."""
+    out, rows = claims_report
+    secs = _measure(out, _MEASURE_SECTIONS)
+    assert len(secs) == len(rows) == 6
+    srcs = [f["src"] for s in secs for f in s["figs"]]
+    assert all(len(s["figs"]) == 1 for s in secs), [len(s["figs"]) for s in secs]
+    assert len(set(srcs)) == len(secs) and all(src.startswith("evidence/") for src in srcs)
+    for s in secs:
+        (f,) = s["figs"]
+        assert f["ok"], f"evidence figure not loaded in {s['id']}"
+        assert f["w"] >= 0.95 * min(f["natural"], 560) and f["w"] <= f["natural"] + 3, f  # its own size (+ border)
+        (q,) = s["quotes"]
+        assert q.startswith("We observed that ") and "\\ref" not in q and "~" not in q and q.endswith(".")
+        assert "Sec. III.G, Fig. 10c" in s["text"]
+    (beta,) = [s for s in secs if "groups follow the line" in s["text"]]
+    assert "criterion before" in beta["text"] and "no step rises beyond its interval" in beta["text"]
+    assert "one noisy step decided it" in beta["text"]
+    from PIL import Image
+
+    for src in srcs:
+        with Image.open(out / src) as im:
+            assert im.size[0] <= 600 and im.size[1] <= 900, im.size  # few elements, small

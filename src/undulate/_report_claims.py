@@ -7,9 +7,12 @@ A table holds one short line per claim: study, claim, the measured value with it
 interval, the verdict as a badge and the cause in one sentence (the first sentence of the
 claim's own explanation, cut at ``CAUSE_WORDS`` words; for an undecided claim the boundary its
 interval straddles and the runs that would decide it) with a link to the claim's section.
-The section below the tables (id :func:`claim_anchor`) carries everything else: the paper's
-statement, the full measured text, the criterion, the whole explanation with its evidence, and
-the evidence figure.  Nothing here changes the claim rows (``claims.json`` is written from the
+The section below the tables (id :func:`claim_anchor`) carries everything else: the paper's own
+sentence the claim tests (quoted, with where the paper states it) and its paraphrase, the full
+measured text, the criterion, the verdicts of the criteria it was judged by before, the whole
+explanation with its evidence, and the claim's own evidence figure (:mod:`undulate._evidence`:
+the numbers that decide it with the criterion's region; for an explained claim the explaining
+runs beside them), written to ``evidence/`` in the report's folder.  Nothing here changes the claim rows (``claims.json`` is written from the
 same rows by :mod:`undulate.claims`).
 """
 
@@ -21,7 +24,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from .claims import REFERENCES, VERDICTS, counts, reference_of
+from .claims import REFERENCES, VERDICTS, counts, quote_text, reference_of
 
 #: The longest cause sentence the table shows, and the longest measured text, in words.
 CAUSE_WORDS = 25
@@ -216,15 +219,58 @@ def _evidence(e: dict[str, Any], title: str) -> list[str]:
             f"<dt>evidence</dt><dd>{esc(e.get('measured'))}" + (f" ({', '.join(where)})" if where else "") + "</dd>"]
 
 
+def _claim_hooks(study: str, claim: str) -> tuple[dict[str, Any], Any]:
+    """(bands, evidence hook) of a registered claim (:class:`~undulate.studies.Claim`); ({}, None) for a
+    claim the registry does not know (a study file from other code)."""
+    from .errors import ParameterError
+    from .studies import describe
+
+    try:
+        mine = [c for c in describe(study).claims if c.claim == claim]
+    except ParameterError:
+        return {}, None
+    return (dict(mine[0].bands), mine[0].evidence) if mine else ({}, None)
+
+
+def evidence_file(c: dict[str, Any], anchor: str, out_dir: Path) -> str:
+    """The claim's own evidence figure, written under ``out_dir/evidence/`` (kept while what it is drawn
+    from is unchanged); its path relative to ``out_dir``."""
+    from ._evidence import write_evidence
+
+    bands, hook = _claim_hooks(str(c.get("study")), str(c.get("claim")))
+    return write_evidence(c, out_dir, anchor, bands, hook)
+
+
+def _superseded(c: dict[str, Any]) -> list[str]:
+    """The criteria the claim was judged by before, each with the verdict it gives on the same numbers."""
+    out = []
+    for o in c.get("superseded") or []:
+        why = f" (replaced: {esc(o.get('why'))})" if o.get("why") else ""
+        out.append(f"<dt>criterion before</dt><dd>{esc(o.get('criterion'))}{why}<br>verdict: "
+                   f"{badge(o.get('verdict'))} {esc(o.get('measured') or '')}"
+                   + (f" ({esc(o.get('reason'))})" if o.get("reason") else "") + "</dd>")
+    return out
+
+
 def claim_section(c: dict[str, Any], anchor: str, out_dir: Path, back: str = "claims") -> list[str]:
-    """One claim's section: every number and word the table leaves out, and its evidence figure;
+    """One claim's section: every number and word the table leaves out, and its own evidence figure;
     ``back``: the id of the table it comes from."""
     verdict = c.get("verdict")
+    prx = reference_of(c) == "prx2021"
+    quote = quote_text(c.get("quote") or "")
+    where = f" <span class='where'>({esc(c['where'])})</span>" if c.get("where") else ""
     out = [(f"<section class='claim' id='{esc(anchor)}'><h3>{esc(c['study'])}: {esc(c.get('claim', ''))} "
-           f"{badge(verdict)}</h3><div class='claim-body'><dl>"),
-           f"<dt>{'PRX 2021' if reference_of(c) == 'prx2021' else 'paper'}</dt><dd>{esc(c.get('paper', ''))}</dd>",
-           f"<dt>measured</dt><dd>{esc(c.get('measured', ''))}</dd>",
-           f"<dt>criterion</dt><dd>{esc(c.get('criterion', ''))}</dd>"]
+           f"{badge(verdict)}</h3><div class='claim-body'><dl>")]
+    if quote:
+        out.append(f"<dt>{'the statement (PRX 2021)' if prx else 'the paper says'}</dt>"
+                   f"<dd><blockquote class='quote'>{esc(quote)}</blockquote>{where}</dd>")
+    out += [f"<dt>{'PRX 2021' if prx else 'paper'}{' (paraphrase)' if quote else ''}</dt>"
+            f"<dd>{esc(c.get('paper', ''))}</dd>",
+            f"<dt>measured</dt><dd>{esc(c.get('measured', ''))}</dd>",
+            f"<dt>criterion</dt><dd>{esc(c.get('criterion', ''))}</dd>"]
+    if c.get("superseded"):
+        out.append(f"<dt>verdict now</dt><dd>{badge(verdict)} by the criterion above</dd>")
+        out += _superseded(c)
     if verdict == "undecided":
         out.append(f"<dt>undecided: the interval straddles</dt><dd>{esc(c.get('reason') or 'no boundary named')}</dd>")
         n = c.get("runs_needed")
@@ -242,14 +288,14 @@ def claim_section(c: dict[str, Any], anchor: str, out_dir: Path, back: str = "cl
         out += _evidence(e, "cause tested, undecided by the runs" if e.get("shown") is None and "shown" in e
                          else "cause tested, not shown by the runs")
     out.append("</dl>")
-    figs = [(f, s) for f, s in _figures(c) if (out_dir / f).is_file()] if verdict != "holds" else []
-    if figs:
-        out.append("<div class='figs'>")
-        for fig, study in figs:
-            cap = f"the <a href='#{esc(study)}'>{esc(study)}</a> study's figure" if study else esc(fig)
-            out.append(f"<figure><a href='{esc(fig)}'><img class='fig' src='{esc(fig)}' "
-                       f"alt='{esc(fig)}'></a><figcaption>Evidence: {cap}</figcaption></figure>")
-        out.append("</div>")
+    own = evidence_file(c, anchor, out_dir)
+    whole = [f"<a href='{esc(f)}'>{esc(s or f)}</a>" for f, s in _figures(c) if (out_dir / f).is_file()]
+    cap = ("The numbers that decide it, with the criterion's accepted region shaded"
+           + ("; beside them, the explaining runs" if c.get("explanation") else "") + "."
+           + (f" Whole figures: {', '.join(whole)}." if whole else ""))
+    out.append(f"<div class='figs'><figure class='evidence'><a href='{esc(own)}'><img class='fig evidence' "
+               f"src='{esc(own)}' alt='evidence for {esc(c.get('claim', ''))}'></a>"
+               f"<figcaption>{cap}</figcaption></figure></div>")
     out.append(f"</div><p class='back'><a href='#{esc(back)}'>back to the claims table</a></p></section>")
     return out
 

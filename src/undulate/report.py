@@ -7,8 +7,10 @@ a named controller), each with its own counts and one sentence saying what
 held; one short line per claim (study, claim, measured value with its 95 %
 interval, verdict, the cause in one sentence, or for an undecided claim the
 boundary its interval straddles: see :mod:`undulate.claims`) with every
-claim's own section below them (the paper's statement, criterion, whole
-explanation and evidence figure: :mod:`undulate._report_claims`), every
+claim's own section below them (the paper's own sentence quoted with where it
+stands, the criterion and the verdicts of the criteria it replaced, the whole
+explanation, and the claim's own evidence figure, ``evidence/*.png``:
+:mod:`undulate._report_claims`, :mod:`undulate._evidence`), every
 study's figure, the stages it ran, provenance, wall times, animations and
 links to every data file.  A failed study is shown as failed, with its error.
 """
@@ -78,6 +80,8 @@ section.claim{border-top:1px solid #eee;padding-top:.2em}section.claim h3{font-s
 img.fig{max-width:100%;border:1px solid #eee}.anims{display:flex;flex-wrap:wrap;gap:1em}.anims figure{margin:0;max-width:520px}
 .anims img{max-width:100%;border:1px solid #eee}.failed{background:#fde8ea;border:1px solid #f3b5bc;padding:.6em}
 code{background:#f6f6f6;padding:0 .2em}
+blockquote.quote{margin:.1em 0;padding:.1em .6em;border-left:3px solid #9bb7d4;font-style:italic}
+.where{color:#555;font-size:.9em}
 """
 
 

@@ -215,6 +215,14 @@ class Claim:
     superseded: tuple[SupersededCriterion, ...] = ()
     """Criteria this claim was judged by before (oldest first): each is judged on the same summary and
     shown beside the current verdict, so a changed criterion never hides the verdict the old one gives."""
+    bands: dict[str, tuple[float | None, float | None]] = field(default_factory=dict, compare=False)
+    """The criterion's accepted region of each number in the verdict's ``value``, for the claim's evidence
+    figure (:mod:`undulate._evidence`): ``{key: (low, high)}`` (None: unbounded), ``key`` the number's own
+    key in ``value`` (at any depth), ``"*"`` every number without its own; the judge, not this, decides."""
+    evidence: Callable[[dict[str, Any]], Figure] | None = field(default=None, repr=False, compare=False)
+    """A claim whose data needs its own picture: a function of the claim's row (``claims.json``'s, with
+    ``value`` and ``explanation``) returning a Figure; None (the default): the generic evidence figure of
+    :func:`undulate._evidence.evidence_figure`, drawn from ``value`` and :attr:`bands`."""
 
 
 @dataclass(frozen=True)

@@ -184,7 +184,7 @@ CLAIMS = (
                  r"observed between two swimmers (Fig.~\ref{fig:spacing_basins}). The central compatibility state "
                  r"broadened indicating that swimmers could compatibly move within a range of longitudinal "
                  r"separations without contact."),
-          where="Sec. III.F, Fig. 9"),
+          where="Sec. III.F, Fig. 9", bands={"central_width_over_lambda": (WIDTH_TOL, None)}),
 )
 
 

@@ -351,7 +351,8 @@ CLAIMS = tuple(
                  r"longitudinal position was larger in the group experiments compared with the robot pair experiments "
                  r"suggesting potential collective effects present in the three and four robot experiments that were "
                  r"not captured in the pair experiments."),
-          where="Sec. III.D, Fig. 6b")
+          where="Sec. III.D, Fig. 6b",
+          bands={"slope": (1 - GROUP_SLOPE_TOL, 1 + GROUP_SLOPE_TOL), "rms_residual_over_lambda": (None, GROUP_RMS_TOL)})
     for size in SIZES) + (
     Claim("the groups' larger scatter comes mainly from the larger lateral spacing they are afforded",
           "the principal influence of the groups' variance from the compatibility prediction is their larger "

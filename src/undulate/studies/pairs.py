@@ -500,7 +500,8 @@ CLAIMS = tuple(
           _CRITERION, _follows_line(key),
           quote=(r"Similarly in simulation we find good agreement between the model and observation, with some "
                  r"systematic variation that is a result of the sinusoidal assumption for the three-link robot."),
-          where="Sec. III.B, Fig. 3c")
+          where="Sec. III.B, Fig. 3c",
+          bands={"slope": (1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL), "rms_residual_over_lambda": (None, LINE_RMS_TOL)})
     for key, label in (("1", "1"), ("0.75", "3/4"), ("1.5", "3/2"))
 ) + (
     Claim("the standing wave (xi = 0) gives large scatter in dx",

@@ -581,7 +581,7 @@ CLAIMS = (
           quote=(r"The cumulative contact forces over the first two periods of oscillation are linearly dependent "
                  r"on the detuning phase difference, $\Delta \phi$, between the two swimmers "
                  r"(Fig.~\ref{fig:potential}a)."),
-          where="Sec. III.G, Fig. 10a"),
+          where="Sec. III.G, Fig. 10a", bands={"r2": (R2_MIN, None), "slope_Ns_per_rad": (0.0, None)}),
     Claim("dF against dx is linear (a harmonic well around compatibility)",
           "a linear relationship between the applied force and the steady separation",
           f"the median over (beta, d/2A) of the lower 95 % bound of R^2 of dF = k (dx - dx0) is >= {R2_MIN} "
@@ -589,7 +589,7 @@ CLAIMS = (
           quote=(r"We observed a linear relationship between the applied force and the steady state separation "
                  r"suggesting that compatible configurations act like a simple harmonic potential "
                  r"(Fig.~\ref{fig:potential}c)."),
-          where="Sec. III.G, Fig. 10c"),
+          where="Sec. III.G, Fig. 10c", bands={"median_r2": (R2_MIN, None)}),
     Claim("the cohesion stiffness k falls as the channel widens",
           "stiffness decreases with increasing wall width",
           "the bootstrap 95 % interval of Spearman's rho of k with d lies below 0 for every beta (fails if one "
@@ -604,7 +604,7 @@ CLAIMS = (
           "below that against d (fails if wholly above; undecided if they overlap)", _collapse,
           quote=(r"However, when we normalize the wall width by gait amplitude the stiffness curves follow a "
                  r"similar trend (Fig.~\ref{fig:potential}d)."),
-          where="Sec. III.G, Fig. 10d"),
+          where="Sec. III.G, Fig. 10d", bands={"*": (None, 0.0)}),
 )
 
 

@@ -161,7 +161,8 @@ CLAIMS = (
           quote=(r"In simulations we implemented viscous drag forces on the swimmers to make them swim forward and "
                  r"interact with each other through contact and we found no qualitative difference in spatial "
                  r"dynamics between the locomoting, and non locomoting simulations."),
-          where="Sec. II.A (Methods, robotics experiments)"),
+          where="Sec. II.A (Methods, robotics experiments)",
+          bands={"slope": (1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL), "rms": (None, LINE_RMS_TOL)}),
 )
 
 

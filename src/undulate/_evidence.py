@@ -1,0 +1,270 @@
+"""Each claim's own evidence figure: the numbers that decide it, the criterion's region, the paper's words.
+
+One generic figure serves every claim (a claim whose data needs its own picture sets
+:attr:`undulate.studies.Claim.evidence`).  It reads the verdict's ``value`` as the judge left it:
+
+- an :class:`~undulate.stats.Estimate` dict (``value``, ``ci95``) is a point with its interval;
+  a number ``X`` beside ``X_low`` and ``X_high`` is one too;
+- estimates are grouped by their own key (``slope``, ``rms``): one panel each, the keys above
+  them (``swimming``, ``viscous``) or numeric keys (links ``3``, ``5``: a trend) along its x axis;
+- equal-length lists of numbers in one dict: the first is x, the others are y (a curve);
+- other numbers, counts and flags are written under the panels.
+
+The criterion's accepted region of a number (:attr:`~undulate.studies.Claim.bands`) is shaded
+green behind its panel.  An explained claim shows, beside the default model's numbers, the
+explaining runs (the :class:`~undulate.studies.Explanation`'s ``value``: the criterion met, not met
+or undecided in each run, or their numbers).  The title is the claim, and the paper's statement is
+written above the panels.  Figures are 5.6 in wide at 100 dpi (560 px: shown at their own size beside
+the claim's text at 1366 px) with labels of at least 10 pt.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import textwrap
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+__all__ = ["evidence_figure", "write_evidence", "flatten"]
+
+WIDTH_IN, DPI, FONT_PT = 5.6, 100, 10
+MAX_PANELS = 6
+_OK, _NO, _UN = "#2e8b57", "#c0392b", "#d99a00"
+
+
+def _num(x: Any) -> float | None:
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        return None
+    return float(x) if math.isfinite(float(x)) else None
+
+
+def _is_estimate(d: Any) -> bool:
+    return isinstance(d, dict) and "value" in d and "ci95" in d
+
+
+def _numeric_key(k: str) -> bool:
+    try:
+        float(k)
+        return True
+    except ValueError:
+        return False
+
+
+def flatten(value: Any, path: tuple[str, ...] = ()) -> tuple[list, list, list, list]:
+    """(estimates, curves, scalars, flags) of a verdict's ``value``: ``(path, value, low, high)``,
+    ``(path, x key, xs, y key, ys)``, ``(path, number)`` and ``(path, True/False/None)``."""
+    est, curves, scalars, flags = [], [], [], []
+    if _is_estimate(value):
+        lo, hi = (value.get("ci95") or [None, None])[:2]
+        est.append((path, _num(value.get("value")), _num(lo), _num(hi)))
+        return est, curves, scalars, flags
+    if isinstance(value, dict):
+        keys = [str(k) for k in value]
+        lists = [k for k in keys if isinstance(value[k], list) and value[k]
+                 and all(_num(u) is not None or u is None for u in value[k])]
+        if len(lists) >= 2 and len({len(value[k]) for k in lists}) == 1:
+            for k in lists[1:]:
+                curves.append((path, lists[0], value[lists[0]], k, value[k]))
+        else:
+            lists = []
+        for k in keys:
+            v = value[k]
+            if k in lists:
+                continue
+            if (k.endswith("_low") or k.endswith("_high")) and k.rsplit("_", 1)[0] in value:
+                continue
+            if _num(v) is not None and f"{k}_low" in value and f"{k}_high" in value:
+                est.append((path + (k,), _num(v), _num(value[f"{k}_low"]), _num(value[f"{k}_high"])))
+                continue
+            e, c, s, f = flatten(v, path + (k,))
+            est += e
+            curves += c
+            scalars += s
+            flags += f
+        return est, curves, scalars, flags
+    if isinstance(value, bool) or value is None:
+        if path:
+            flags.append((path, value))
+        return est, curves, scalars, flags
+    if _num(value) is not None:
+        scalars.append((path, _num(value)))
+    return est, curves, scalars, flags
+
+
+def _name_and_category(path: tuple[str, ...]) -> tuple[str, str]:
+    """A number's panel (its own key; for a numeric key, the key above it) and its place on the x axis."""
+    if not path:
+        return "value", ""
+    if _numeric_key(path[-1]):
+        return (path[-2] if len(path) > 1 else "value"), path[-1]
+    return path[-1], "/".join(path[:-1])
+
+
+def _band(bands: dict[str, Any], name: str, path: tuple[str, ...]) -> tuple[float | None, float | None] | None:
+    for k in (".".join(path), name, "*"):
+        if k in bands:
+            lo, hi = bands[k]
+            return (None if lo is None else float(lo), None if hi is None else float(hi))
+    return None
+
+
+def _shade(ax, band, axis: str = "y") -> None:
+    if band is None:
+        return
+    lo, hi = band
+    span = ax.axhspan if axis == "y" else ax.axvspan
+    lim = ax.get_ylim() if axis == "y" else ax.get_xlim()
+    a = lo if lo is not None else min(lim[0], hi if hi is not None else lim[0]) - 1e6
+    b = hi if hi is not None else max(lim[1], lo if lo is not None else lim[1]) + 1e6
+    span(a, b, color=_OK, alpha=0.13, lw=0, zorder=0)
+    for edge in (lo, hi):
+        if edge is not None:
+            (ax.axhline if axis == "y" else ax.axvline)(edge, color=_OK, lw=1.2, ls="--", zorder=1)
+    (ax.set_ylim if axis == "y" else ax.set_xlim)(*lim)
+
+
+def _panels(value: Any, bands: dict[str, Any]) -> tuple[list[dict], list[str]]:
+    """Panels to draw (estimate groups and curves) and the text lines of the other numbers."""
+    est, curves, scalars, flags = flatten(value)
+    groups: dict[str, dict] = {}
+    for path, v, lo, hi in est:
+        name, cat = _name_and_category(path)
+        g = groups.setdefault(name, {"kind": "points", "name": name, "points": [], "band": _band(bands, name, path)})
+        g["points"].append((cat, v, lo, hi))
+    for path, v in scalars:  # a number with its own region is a point (no interval)
+        name, cat = _name_and_category(path)
+        if _band(bands, name, path) is not None and name not in groups:
+            groups[name] = {"kind": "points", "name": name, "points": [(cat, v, None, None)],
+                            "band": _band(bands, name, path)}
+    for name in sorted(groups, key=len, reverse=True):  # "pairs_rms" beside "rms": one panel, compared
+        base = next((b for b in groups if b != name and name.endswith("_" + b)), None)
+        if base is not None:
+            prefix = name[: -len(base) - 1]
+            g = groups.pop(name)
+            groups[base]["points"] += [((f"{c}/{prefix}" if c else prefix), v, lo, hi) for c, v, lo, hi in g["points"]]
+    panels = list(groups.values())
+    for path, xk, xs, yk, ys in curves:
+        panels.append({"kind": "curve", "name": yk, "x": xk, "xs": xs, "ys": ys, "band": _band(bands, yk, path + (yk,))})
+    shown = {p["name"] for p in panels}
+    text = [f"{'.'.join(p)} = {v:.4g}" for p, v in scalars if _name_and_category(p)[0] not in shown]
+    text += [f"{'.'.join(p)}: {'yes' if f else 'no' if f is False else 'undecided'}" for p, f in flags]
+    return panels[:MAX_PANELS], text
+
+
+def _title(name: str) -> str:
+    return textwrap.fill(name.replace("_", " "), 22)
+
+
+def _draw_points(ax, p: dict) -> None:
+    pts = p["points"]
+    xs = list(range(len(pts)))
+    for x, (cat, v, lo, hi) in zip(xs, pts):
+        if v is None:
+            continue
+        err = None
+        if lo is not None and hi is not None:
+            err = [[max(v - lo, 0.0)], [max(hi - v, 0.0)]]
+        ax.errorbar([x], [v], yerr=err, fmt="o", color="#1f4e99", ms=6, capsize=4, lw=1.6, zorder=3)
+        if lo is None or hi is None:
+            ax.plot([x], [v], "o", mfc="white", mec="#1f4e99", ms=6, zorder=4)
+    named = any(c for c, *_ in pts)
+    ax.set_xticks(xs, [(c if len(c) <= 12 else c[:11] + "…") or ("this claim" if named else " ") for c, *_ in pts])
+    ax.set_xlim(-0.6, len(pts) - 0.4)
+    vals = [u for _, v, lo, hi in pts for u in (v, lo, hi) if u is not None]
+    band = p["band"] or (None, None)
+    vals += [u for u in band if u is not None]
+    if vals:
+        lo, hi = min(vals), max(vals)
+        pad = 0.12 * (hi - lo) if hi > lo else 0.1 * abs(hi) + 0.05
+        ax.set_ylim(lo - pad, hi + pad)
+    _shade(ax, p["band"])
+    ax.set_title(_title(p["name"]), fontsize=FONT_PT)
+
+
+def _draw_curve(ax, p: dict) -> None:
+    pts = [(x, y) for x, y in zip(p["xs"], p["ys"]) if _num(x) is not None and _num(y) is not None]
+    ax.plot([x for x, _ in pts], [y for _, y in pts], "o-", color="#1f4e99", ms=5, lw=1.4, zorder=3)
+    ax.set_xlabel(p["x"], fontsize=FONT_PT)
+    _shade(ax, p["band"])
+    ax.set_title(_title(p["name"]), fontsize=FONT_PT)
+
+
+def _draw_explanation(ax, explanation: dict[str, Any], shown: bool) -> None:
+    """The explaining runs: the criterion met (holds), not met (fails) or undecided in each."""
+    value = explanation.get("value")
+    _, _, _, flags = flatten(value if isinstance(value, dict) else {"shown": explanation.get("shown")})
+    flags = flags[:8]
+    for i, (path, f) in enumerate(flags):
+        y = len(flags) - 1 - i
+        color, word = (_OK, "holds") if f is True else (_NO, "fails") if f is False else (_UN, "undecided")
+        ax.barh([y], [1], color=color, alpha=0.85)
+        label = ".".join(path)
+        label = label if len(label) <= 22 else label[:21] + "…"
+        ax.text(0.03, y, f"{label}: {word}", va="center",
+                ha="left", fontsize=FONT_PT, color="white" if f is not None else "black")
+    ax.set_xlim(0, 1)
+    ax.set_ylim(-0.6, max(len(flags), 1) - 0.4)
+    ax.set_xticks([])
+    ax.set_yticks([])
+    ax.set_title("explaining runs\n(changed model)" if shown else "a tested cause's runs\n(not shown)",
+                 fontsize=FONT_PT)
+
+
+def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
+                    evidence: Callable[[dict[str, Any]], Any] | None = None):
+    """The evidence figure of one claim row (``claims.json``'s): ``evidence`` (the claim's own hook)
+    when given, else the generic figure drawn from ``row["value"]`` with ``bands`` shaded."""
+    if evidence is not None:
+        return evidence(row)
+    from .plotting import new_figure
+
+    panels, text = _panels(row.get("value"), bands or {})
+    ex = row.get("explanation") or next(iter(row.get("explanations_not_shown") or []), None)
+    n = len(panels) + (1 if ex else 0)
+    cols = max(1, min(3, n))
+    nrows = max(1, math.ceil(n / cols))
+    header = textwrap.fill(f"Paper: {row.get('paper') or ''}", 72)
+    footer = textwrap.fill("; ".join(text), 90) if text else ""
+    height = 0.75 + 0.2 * header.count("\n") + 2.3 * nrows + (0.2 * (footer.count("\n") + 1) if footer else 0)
+    if n == 0:
+        height = 1.2 + 0.2 * header.count("\n") + 0.2 * footer.count("\n")
+    fig = new_figure(WIDTH_IN, height)
+    fig.suptitle(header, fontsize=FONT_PT, ha="left", x=0.01, color="#333")
+    if n:
+        axes = fig.subplots(nrows, cols, squeeze=False).ravel()
+        for ax, p in zip(axes, panels):
+            (_draw_points if p["kind"] == "points" else _draw_curve)(ax, p)
+            ax.tick_params(labelsize=FONT_PT)
+            if ex and p is panels[0]:
+                ax.set_ylabel("default model", fontsize=FONT_PT)
+        if ex:
+            _draw_explanation(axes[len(panels)], ex, bool(row.get("explanation")))
+        for ax in axes[n:]:
+            ax.set_visible(False)
+    if footer or n == 0:
+        fig.supxlabel(footer or "no number to draw: see the measured text", fontsize=FONT_PT, ha="left", x=0.01)
+    return fig
+
+
+def write_evidence(row: dict[str, Any], out_dir: Path, stem: str, bands: dict[str, Any] | None = None,
+                   evidence: Callable[[dict[str, Any]], Any] | None = None) -> str:
+    """Write ``out_dir/evidence/STEM-HASH.png`` (HASH: of what the figure is drawn from, so an unchanged
+    claim's figure is not drawn again) and return its path relative to ``out_dir``."""
+    from ._io import atomic_output
+
+    key = json.dumps({"row": {k: row.get(k) for k in ("claim", "paper", "value", "verdict", "explanation",
+                                                      "explanations_not_shown")},
+                      "bands": bands or {}, "hook": getattr(evidence, "__qualname__", None),
+                      "code": hashlib.sha1(Path(__file__).read_bytes()).hexdigest()},
+                     sort_keys=True, default=str)
+    rel = f"evidence/{stem}-{hashlib.sha1(key.encode()).hexdigest()[:8]}.png"
+    path = Path(out_dir) / rel
+    if not path.is_file():
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fig = evidence_figure(row, bands, evidence)
+        with atomic_output(path) as tmp:
+            fig.savefig(tmp, format="png", dpi=DPI)
+    return rel
