@@ -49,7 +49,7 @@ def test_values_are_converted_and_checked_by_type():
 def test_points_build_the_same_scene_as_the_mapping_describes():
     sc = pair_scene({"d_over_2A": 1.2, "amplitude_m": 0.05, "dphi_rad": 0.5, "phi0_rad": 0.25,
                      "dx0_over_lambda": 0.1, "force_N": 0.2})
-    assert sc.channel.width_m == pytest.approx(0.12)
+    assert sc.channel.width_m == pytest.approx(0.24)  # d per swimmer: W = 2 (d/2A) 2A
     assert sc.phases_rad == (0.25, 0.75)
     assert sc.dx0_m == pytest.approx((0.1 * sc.wavelength_m,))
     assert sc.forces_N == (-0.2, 0.2)

@@ -320,9 +320,10 @@ def test_the_leave_rule_on_constructed_period_means():
 
 @pytest.mark.slow
 def test_a_force_run_pulled_apart_stops_when_it_has_left_and_reads_broken():
-    """Potential's force runs: a pair the force pulls apart (45 deg, d/2A = 1.4, 0.3 N: broken in full
-    mode) stops once it has left its state, bitwise the prefix of the whole 50 s run, and the study
-    reads both as broken; a pair that holds (d/2A = 1.0, 0.1 N) stops as before (leaving never fires)."""
+    """Potential's force runs: a pair the force pulls apart (45 deg, d/2A = 0.7, W = 146 mm, 0.3 N: broken
+    in full mode) stops once it has left its state, bitwise the prefix of the whole 50 s run, and the study
+    reads both as broken; a pair that holds (d/2A = 0.5, W = 105 mm, 0.1 N) stops as before (leaving
+    never fires)."""
     from undulate.studies.potential import BREAK, DRIFT, DURATION_S, FORCE_STOP, SETTLE_S, _last_periods
 
     amp = float(lone_swimmer({"amplitude_rad": math.radians(45)}, 0)["amplitude_m"])
@@ -335,13 +336,13 @@ def test_a_force_run_pulled_apart_stops_when_it_has_left_and_reads_broken():
         last = _last_periods(pm, 3)[0]
         return bool(last.mean() - pm[0, k_before] > BREAK or np.ptp(last) > DRIFT)
 
-    pulled = {"amplitude_rad": math.radians(45), "amplitude_m": amp, "d_over_2A": 1.4, "force_N": 0.3}
+    pulled = {"amplitude_rad": math.radians(45), "amplitude_m": amp, "d_over_2A": 0.7, "force_N": 0.3}
     new, whole = run(pulled, 0, stop=FORCE_STOP), run(pulled, 0, stop=old)
     assert float(whole["stopped_at_s"]) == DURATION_S and float(new["stopped_at_s"]) <= 30.0
     n = _finite_len(new["dx_over_lambda"].values)
     np.testing.assert_array_equal(new["dx_over_lambda"].values[:n], whole["dx_over_lambda"].values[:n])
     assert broken(new) and broken(whole)
-    held = {**pulled, "d_over_2A": 1.0, "force_N": 0.1}
+    held = {**pulled, "d_over_2A": 0.5, "force_N": 0.1}
     a, b = run(held, 0, stop=FORCE_STOP), run(held, 0, stop=old)
     assert float(a["stopped_at_s"]) == float(b["stopped_at_s"]) < DURATION_S and not broken(a)
     np.testing.assert_array_equal(a["dx_period_over_lambda"].values, b["dx_period_over_lambda"].values)

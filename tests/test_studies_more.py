@@ -112,7 +112,7 @@ def test_pair_scene_maps_the_point():
     s = _runners.pair_scene({"dx0_over_lambda": 0.25, "dphi_rad": 1.0, "d_over_2A": 1.1, "force_N": 0.2},
                           amplitude_m=0.05, force_onset_s=6.0)
     assert s.phases_rad == (0.0, 1.0)
-    assert s.channel.width_m == pytest.approx(0.11)
+    assert s.channel.width_m == pytest.approx(0.22)  # the pair's channel W = 2 d, d = 1.1 * 2A
     assert s.dx0_m == pytest.approx((0.25 * 0.54,))
     assert s.forces_N == (-0.2, 0.2) and s.force_onset_s == 6.0
     with pytest.raises(ValueError):

@@ -36,6 +36,10 @@ def plot_basins(ds):
     ax.set_xlabel("time (s)")
     ax.set_ylabel(r"$\Delta x/\lambda$")
     ax.set_title(r"(a) $\Delta\phi = 0$; grey: threshold bracket", fontsize=10)
+    if "channel_width_m" in ds.attrs:
+        conf = ds.attrs.get("confinement_d_over_2A")
+        fig.suptitle(f"Pairs in a W = {100 * float(ds.attrs['channel_width_m']):g} cm channel"
+                     + ("" if conf is None else f" (d/2A = {float(conf):.2f}, d per swimmer)"), fontsize=11)
     ax.legend(fontsize=8, loc="upper left")
     ax.set_xlim(t[0], t[-1])
 

@@ -11,8 +11,9 @@ def plot_confinement(ds):
     """Figure from the ``confinement`` study dataset.
 
     Left: final ``dx/lambda`` against the start ``dx0/lambda``, one line per
-    ``d/2A`` (colour); the paper's range 0.6-1.2 solid, wider channels dashed.
-    Right: width of the central state against ``d/2A`` with the
+    ``d/2A`` (colour; ``d`` the wall distance per swimmer, the pair's channel
+    ``W = 2d``); the paper's range 0.6-1.2 solid, wider channels dashed.
+    Right: width of the central state against ``d/2A`` (top axis: ``W``, mm) with the
     compatibility model's band widths (sinusoids; bodies of width w).
     """
     import matplotlib as mpl
@@ -36,11 +37,15 @@ def plot_confinement(ds):
 
     ax = fig.add_subplot(1, 2, 2)
     ax.plot(r, ds["central_width"].values, "o-", color="k", label="simulation (range of final dx)")
-    ax.plot(r, ds["model_width_thin"].values, "--", color="tab:green", label=r"model, sinusoids ($\Delta y = d-2A$)")
+    ax.plot(r, ds["model_width_thin"].values, "--", color="tab:green", label=r"model, sinusoids ($\Delta y = W-2A$)")
     ax.plot(r, ds["model_width_bodies"].values, ":", color="tab:green",
-            label=r"model, bodies ($\Delta y = d-2A-2w$)")
+            label=r"model, bodies ($\Delta y = W-2A-2w$)")
     ax.axvspan(lo, hi, color="0.9", zorder=0, label="paper's range")
-    ax.set_xlabel(r"$d/2A$")
+    ax.set_xlabel(r"$d/2A$ ($d$ per swimmer: channel $W = 2d$)")
+    if "channel_width" in ds.coords:
+        top = ax.secondary_xaxis("top", functions=(lambda v, k=float(ds["channel_width"].values[0] / r[0]): v * k * 1e3,
+                                                    lambda v, k=float(ds["channel_width"].values[0] / r[0]): v / k / 1e3))
+        top.set_xlabel("channel width W, mm", fontsize=8)
     ax.set_ylabel(r"width of the central state / $\lambda$")
     ax.legend(fontsize=8)
     return fig

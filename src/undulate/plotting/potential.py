@@ -20,7 +20,7 @@ def plot_potential(ds):
     ``d/2A`` nearest 1.2); (c) ``dF`` against ``dx/lambda`` for three
     confinements (middle beta) with the fitted lines, broken pairs hollow;
     (d) stiffness k against ``d/2A`` per beta (log scale) and (e) against
-    ``d`` in metres (no collapse expected); (f) fitted ``dx0/lambda`` against
+    the channel width ``W = 2d`` in metres (no collapse expected); (f) fitted ``dx0/lambda`` against
     ``d/2A`` with the compatibility model (dashed: sinusoids, dotted: bodies).
     """
     fig = new_figure(14.0, 8.0)
@@ -98,7 +98,7 @@ def _force_panel(ax, ds, ib: int) -> None:
 
 
 def _stiffness_panels(ax_k, ax_d, ax_0, ds) -> None:
-    """(d) stiffness against d/2A and (e) against d per beta; (f) the fitted offset with the model."""
+    """(d) stiffness against d/2A and (e) against the channel width W = 2d per beta; (f) the fitted offset with the model."""
     beta, R = ds["beta"].values, ds["d_over_2A"].values
     for i in range(ds.sizes["beta"]):
         col = _COLOURS[i % len(_COLOURS)]
@@ -115,17 +115,17 @@ def _stiffness_panels(ax_k, ax_d, ax_0, ds) -> None:
             ax_0.errorbar(R, d0, yerr=[np.clip(d0 - c0[:, 0], 0, None), np.clip(c0[:, 1] - d0, 0, None)],
                           fmt="none", color=col, capsize=2)
         ax_0.plot(R, ds["model_dx0_bodies"].values[i], ":", color=col)
-    ax_0.plot(R, ds["model_dx0_thin"].values[0], "--", color="k", label=r"model, $\Delta y = d - 2A$")
-    ax_0.plot([], [], ":", color="k", label=r"model, $\Delta y = d - 2A - 2w$")
+    ax_0.plot(R, ds["model_dx0_thin"].values[0], "--", color="k", label=r"model, $\Delta y = W - 2A$")
+    ax_0.plot([], [], ":", color="k", label=r"model, $\Delta y = W - 2A - 2w$")
     for ax in (ax_k, ax_d):
         ax.set_yscale("log")
         ax.set_ylabel(r"stiffness $k$ (N/m)")
-    ax_k.set_xlabel(r"$d/2A$")
+    ax_k.set_xlabel(r"$d/2A$ ($d$ per swimmer)")
     ax_k.set_title(r"(d) $\delta F = k(\delta x - \delta x_0)$", fontsize=10)
     ax_k.legend(fontsize=8)
-    ax_d.set_xlabel(r"wall spacing $d$ (m)")
-    ax_d.set_title("(e) the same against d", fontsize=10)
-    ax_0.set_xlabel(r"$d/2A$")
+    ax_d.set_xlabel(r"channel width $W = 2d$ (m)")
+    ax_d.set_title("(e) the same against W", fontsize=10)
+    ax_0.set_xlabel(r"$d/2A$ ($d$ per swimmer)")
     ax_0.set_ylabel(r"$\delta x_0/\lambda$")
     ax_0.set_title(r"(f) offset $\delta x_0$", fontsize=10)
     ax_0.legend(fontsize=7)

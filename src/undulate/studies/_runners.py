@@ -28,6 +28,7 @@ import xarray as xr
 from ..errors import ParameterError
 from ..params import Channel, Ground, Scene, SimOptions, SwimmerGeometry
 from ..stopping import PhaseStop, SteadyStop
+from .. import theory
 from ._criteria import PAIR_CHANNEL_M, STEADY_TOL, STEADY_WINDOW
 from ._points import GroupPoint, LonePoint, PairPoint
 
@@ -196,9 +197,10 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
 
     Keys (all optional): ``dx0_over_lambda`` (initial x_b - x_a over lambda;
     0), ``dphi_rad`` (phi_b - phi_a, rad; 0), ``phi0_rad`` (phase of swimmer
-    a, rad; 0), ``channel_width_m`` (d, m; 0.13) or ``d_over_2A`` (d over
-    twice the gait amplitude, given by the key ``amplitude_m`` (m) or else the
-    keyword ``amplitude_m``),
+    a, rad; 0), ``channel_width_m`` (W, wall to wall, m; 0.13) or ``d_over_2A`` (the
+    paper's confinement: the wall distance per swimmer over twice the gait amplitude,
+    given by the key ``amplitude_m`` (m) or else the keyword ``amplitude_m``; the channel
+    is :func:`undulate.theory.channel_width_m` for two swimmers, ``W = 2 (d/2A) 2A``),
     ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body`` (xi; 1),
     ``force_N`` (dF, N: swimmer a is pushed toward -x and b toward +x, from
     ``force_onset_s``; 0), ``ground`` (``"viscous"`` or ``"swimming"``),
@@ -217,7 +219,7 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
         if amp is None:
             raise ParameterError("d_over_2A", "given with an amplitude (the point's amplitude_m or the "
                                  "keyword amplitude_m)", pt.d_over_2A)
-        width = pt.d_over_2A * 2.0 * float(amp)
+        width = float(theory.channel_width_m(pt.d_over_2A, float(amp), n_swimmers=2))
     else:
         width = PAIR_CHANNEL_M if pt.channel_width_m is None else pt.channel_width_m
     f = pt.force_N

@@ -1,7 +1,11 @@
 """Study ``basins`` (paper Fig. 8): where pairs end up from a given start.
 
-Two swimmers, ``d = 0.13 m``, ``xi = 1``, started straight and laterally in
-contact at an offset ``dx0`` (``Scene.dx0_m``), run for 15 periods (30 s).
+Two swimmers in the paper's "wall separation d = 13 cm" channel (0.13 m wall
+to wall: confinement ``d/2A = 0.62`` with ``d`` the wall distance per
+swimmer, :func:`undulate.theory.confinement_d_over_2A`, below the ``d/2A``
+about 1 above which a detuned pair pushes itself apart, as the paper says of
+it: "swimmers cannot push each other away laterally"; docs/confinement_d.md),
+``xi = 1``, started straight and laterally in contact at an offset ``dx0`` (``Scene.dx0_m``), run for 15 periods (30 s).
 
 * (8a) ``dphi = 0`` from ``dx0 / lambda`` across ``[-1, 1]``: ``dx(t)``.
   Starts near 0 return to the compatible ``dx = 0``; starts beyond a
@@ -182,6 +186,7 @@ def dataset(ctx: StudyContext, p: BasinsPlan):
         attrs={
             "title": "basins of attraction of a pair, d = 0.13 m (paper Fig. 8)",
             "channel_width_m": PAIR_CHANNEL_M,
+            "confinement_d_over_2A": float(theory.confinement_d_over_2A(PAIR_CHANNEL_M, amp, 2)),
             "duration_s": p.duration_s,
             "return_tol": RETURN_TOL,
             "theory_dy_m": clearance,

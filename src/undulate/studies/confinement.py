@@ -1,10 +1,15 @@
 """Study ``confinement`` (paper Fig. 9): the central state against wall spacing.
 
 Pairs with ``dphi = 0`` start laterally in contact at ``dx0 / lambda``
-across ``[-1, 1]`` in channels of width ``d``, with ``d / 2A`` (``A`` the
+across ``[-1, 1]`` in channels of confinement ``d / 2A`` (``A`` the
 measured gait amplitude of a free swimmer) from 0.6 to 1.2, the paper's
-range, and on to 1.6 (full mode) to show where the walls stop holding the
-pair together.  The final ``dx / lambda`` (mean of the last 3 of 20
+range, and on to 1.5 (quick) or 1.6 (full) to show where the walls stop
+holding the pair together.  ``d`` is the paper's wall distance per swimmer:
+the pair's channel is ``W = 2 d`` wall to wall
+(:func:`undulate.theory.channel_width_m`; 125-251 mm over the paper's range
+for ``2A = 104.5 mm``), the reading under which an in-phase pair is
+obstructed below ``d/2A`` about 0.5 and a detuned pair pushes itself apart
+above about 1, as the paper says (docs/confinement_d.md).  The final ``dx / lambda`` (mean of the last 3 of 20
 periods) is plotted against the start, per confinement.
 
 The *central state* of one confinement is the set of final offsets of the
@@ -14,7 +19,7 @@ those final offsets (:func:`central_state`); a pair that always returns to
 exactly 0 has width 0.  The compatibility model predicts a band of
 half-width ``(1 / pi) arcsin(dy / 2A)`` (in lambda) for a lateral clearance
 ``dy`` (see :mod:`undulate.studies.potential` for the clearance the walls
-leave, :func:`undulate.theory.neutral_offset_m`): the model widths are
+leave in the channel ``W``, :func:`undulate.theory.neutral_offset_m`): the model widths are
 stored beside the measured ones.  The width is a range of final offsets,
 not a fitted number: its resolution is set by the time the runs settle,
 not by sampling, so it carries no interval.
@@ -29,7 +34,7 @@ import numpy as np
 
 from ..params import Gait, SwimmerGeometry
 from ..stats import Check
-from ..theory import neutral_offset_m
+from ..theory import channel_width_m, neutral_offset_m
 from ._criteria import CENTRAL, WIDTH_TOL
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._stages import strides, thinned
@@ -93,6 +98,7 @@ def dataset(ctx: StudyContext, p: ConfinementPlan):
     x0 = g["dx0_over_lambda"].values
     stats = [central_state(x0, xf[i]) for i in range(xf.shape[0])]
     r = np.asarray(p.d_over_2A)
+    width = channel_width_m(r, amp, n_swimmers=2)
     one = {"units": "1"}
     failed = g["run_failed"].values.astype(bool)
     ds = xr.Dataset(
@@ -112,17 +118,19 @@ def dataset(ctx: StudyContext, p: ConfinementPlan):
                 **one, "long_name": "most negative start ending in the central state"}),
             "basin_hi": (("d_over_2A",), [s["basin_hi"] for s in stats], {
                 **one, "long_name": "most positive start ending in the central state"}),
-            "model_width_thin": (("d_over_2A",), 2 * model_dx0_m(r * 2 * amp, amp, lam) / lam, {
+            "model_width_thin": (("d_over_2A",), 2 * model_dx0_m(width, amp, lam) / lam, {
                 **one, "long_name": "compatibility band width, sinusoids (clearance d - 2A)"}),
-            "model_width_bodies": (("d_over_2A",), 2 * model_dx0_m(r * 2 * amp, amp, lam, geo.width_m) / lam, {
+            "model_width_bodies": (("d_over_2A",), 2 * model_dx0_m(width, amp, lam, geo.width_m) / lam, {
                 **one, "long_name": "compatibility band width, bodies of width w (clearance d - 2A - 2w)"}),
             "amplitude": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
         },
         coords={
-            "d_over_2A": ("d_over_2A", r, {**one, "long_name": "wall spacing over peak-to-peak amplitude"}),
+            "d_over_2A": ("d_over_2A", r, {**one, "long_name": "wall distance per swimmer over peak-to-peak "
+                                                                "amplitude"}),
             "dx0": ("dx0", x0, {**one, "long_name": "initial dx0 / lambda"}),
             "time": ("time", g["time"].values, {"units": "s"}),
-            "channel_width": ("d_over_2A", r * 2 * amp, {"units": "m", "long_name": "wall spacing d"}),
+            "channel_width": ("d_over_2A", width, {"units": "m", "long_name": "channel width W = 2 d, wall to wall "
+                                                                               "(undulate.theory.channel_width_m)"}),
         },
         attrs={"title": "final offset against start per confinement, dphi = 0 (paper Fig. 9)",
                "duration_s": p.duration_s, "paper_range_d_over_2A": list(PAPER_RANGE)},

@@ -33,11 +33,13 @@ pulling forces slide it freely to the band's edge, so the model's offset
 is that half-width.  The lateral room ``dy`` is what the walls leave:
 
 * sinusoids (zero thickness): each centre line keeps ``A`` from its wall,
-  so ``dy <= d - 2A``; this is the model drawn in the paper's terms
-  (``dy / 2A = d / 2A - 1``): ``dx0 = (lambda / pi) arcsin(clip(d / 2A - 1, 0, 1))``;
+  so ``dy <= W - 2A`` in a channel ``W`` wide; with the paper's ``d`` the
+  wall distance per swimmer (``W = 2 d`` for a pair,
+  :func:`undulate.theory.channel_width_m`, docs/confinement_d.md) that is
+  ``dy / 2A = 2 d / 2A - 1``: ``dx0 = (lambda / pi) arcsin(clip(2 d / 2A - 1, 0, 1))``;
 * bodies of width ``w``: each body edge keeps ``A + w / 2`` from its wall
   and the two bodies need ``w`` between centre lines, so the clearance
-  between the curves is ``d - 2A - 2w`` (:func:`lateral_clearance_m`).
+  between the curves is ``W - 2A - 2w`` (:func:`lateral_clearance_m`).
 
 Both are drawn; the measured offset is expected between or below them
 (three-link bodies do not fill the sinusoid's envelope).
@@ -93,14 +95,16 @@ means lies more than :data:`BREAK` from the settled offset before the force and 
 2 DRIFT (still sliding): the analysis reads such a run as broken (its drift exceeds DRIFT), as it would
 the whole run (full mode at 87ecc4f: the 54 broken runs of 663, all of them, met this at 14-28 s, and
 had slid 1.7-12.7 lambda by 50 s; no run that held met it).  A pair that creeps runs the whole duration."""
-SLIDING_FROM = 1.0
+SLIDING_FROM = 0.5
 """d/2A from which the collapse of k is also measured on its own: in narrower channels
-the two bodies are wedged between the walls (large joint errors; the pair barely moves
-under any force) and k is large but erratic."""
+the two bodies are wedged between the walls (an in-phase pair's gait is obstructed below
+d/2A = 0.48, W = 101 mm: docs/confinement_d.md; the paper's "d/2A < 0.5 ... obstructed"),
+the pair barely moves under any force and k is large but erratic."""
 
 
 lateral_clearance_m = theory.lateral_clearance_m
 model_dx0_m = theory.neutral_offset_m
+channel_width_m = theory.channel_width_m
 
 
 def stiffness_fit(dF, dx, valid=None, min_points: int = 3) -> dict[str, stats.Estimate]:
@@ -228,11 +232,12 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
                 "units": "N s", "long_name": "pair contact impulse over the first 2 periods"}),
             **_response_vars(resp),
             **_fit_vars(est, n_used, lam),
-            "model_dx0_thin": (("beta", "d_over_2A"), np.array([model_dx0_m(R * 2 * a, a, lam) / lam for a in amps]), {
-                **one, "long_name": "compatibility model dx0 / lambda, sinusoids (dy = d - 2A)"}),
+            "model_dx0_thin": (("beta", "d_over_2A"), np.array([model_dx0_m(channel_width_m(R, a, 2), a, lam) / lam
+                                                         for a in amps]), {
+                **one, "long_name": "compatibility model dx0 / lambda, sinusoids (dy = W - 2A, W = 2 d)"}),
             "model_dx0_bodies": (("beta", "d_over_2A"),
-                                 np.array([model_dx0_m(R * 2 * a, a, lam, geo.width_m) / lam for a in amps]), {
-                **one, "long_name": "compatibility model dx0 / lambda, bodies of width w (dy = d - 2A - 2w)"}),
+                                 np.array([model_dx0_m(channel_width_m(R, a, 2), a, lam, geo.width_m) / lam for a in amps]), {
+                **one, "long_name": "compatibility model dx0 / lambda, bodies of width w (dy = W - 2A - 2w)"}),
             "amplitude": (("beta",), amps, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
         },
         coords=_coords(p, amps, g["period_time"].values),
@@ -352,10 +357,12 @@ def _coords(p: PotentialPlan, amps, period_time) -> dict:
         "dphi": ("dphi", np.asarray(p.impulse_dphi), {"units": "rad", "long_name": "phase difference phi_b - phi_a"}),
         "phi0": ("phi0", np.asarray(p.impulse_phi0), {"units": "rad", "long_name": "phase phi_a"}),
         "beta": ("beta", np.asarray(p.betas_deg), {"units": "degree", "long_name": "joint amplitude beta"}),
-        "d_over_2A": ("d_over_2A", R, {**one, "long_name": "wall spacing over peak-to-peak amplitude"}),
+        "d_over_2A": ("d_over_2A", R, {**one, "long_name": "wall distance per swimmer over peak-to-peak "
+                                                            "amplitude"}),
         "force": ("force", np.asarray(p.forces_N), {"units": "N", "long_name": "applied force dF"}),
         "period_time": ("period_time", period_time, {"units": "s", "long_name": "middle of the gait period"}),
-        "channel_width": (("beta", "d_over_2A"), np.outer(2 * amps, R), {"units": "m", "long_name": "d"}),
+        "channel_width": (("beta", "d_over_2A"), np.array([channel_width_m(R, a, 2) for a in amps]), {
+            "units": "m", "long_name": "channel width W = 2 d, wall to wall (undulate.theory.channel_width_m)"}),
         "bound": ("bound", ["low", "high"], {"long_name": "bounds of an interval at attrs['interval_level']"}),
     }
 
