@@ -59,18 +59,25 @@ def test_a_renamed_key_raises_instead_of_becoming_no_result():
         judge("pairs", describe("pairs").claims, s)
 
 
-def test_links_claim_needs_a_fall_beyond_the_intervals():
-    def summary(rms):
+def test_links_claim_is_judged_on_the_trends_slope_and_shows_the_step_by_step_verdict_beside():
+    def summary(rms, slope):
         per_n = {str(n): {"rms_residual_over_lambda": est(*r)} for n, r in zip((3, 5, 7, 9), rms)}
-        return {"per_rule": {"fixed": {"per_n": per_n}, "curvature": {"per_n": per_n}}}
+        rule = {"per_n": per_n, "squared_residual_slope_per_link": est(*slope)}
+        return {"per_rule": {"fixed": rule, "curvature": rule}}
+
+    def old(s):
+        return [r["superseded"][0]["verdict"] for r in judge("links", describe("links").claims, s)]
 
     falls = [(0.08, 0.07, 0.09), (0.06, 0.05, 0.07), (0.04, 0.03, 0.05), (0.02, 0.01, 0.03)]
-    assert verdicts("links", summary(falls)) == ["holds", "holds"]
+    down, flat, up = (-4e-4, -6e-4, -2e-4), (-1e-4, -3e-4, 1e-4), (4e-4, 2e-4, 6e-4)
+    assert verdicts("links", summary(falls, down)) == ["holds", "holds"] == old(summary(falls, down))
+    assert verdicts("links", summary(falls, flat)) == ["undecided", "undecided"]
+    assert verdicts("links", summary(falls, up)) == ["fails", "fails"]
     falls[2] = (0.05, 0.01, 0.09)
     falls[3] = (0.045, 0.01, 0.085)  # falls at every step, but the last interval overlaps the first
-    assert verdicts("links", summary(falls)) == ["undecided", "undecided"]
+    assert old(summary(falls, down)) == ["undecided", "undecided"]
     falls[3] = (0.2, 0.15, 0.25)  # the last interval wholly above the one before it: a rise
-    assert verdicts("links", summary(falls)) == ["fails", "fails"]
+    assert old(summary(falls, down)) == ["fails", "fails"]
 
 
 def test_verdicts_are_one_of_four():

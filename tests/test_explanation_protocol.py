@@ -141,3 +141,43 @@ def test_display_labels_do_not_find_cases():
                                    factor=("case", ["other"] * ds.sizes["case"])))
     for e in X.EXPLANATIONS:
         assert e.check(a) == e.check(b)
+
+
+# ---- one change: an explanation names exactly one; several together are a finding ----------------
+def _judge(r):
+    return True, "", None
+
+
+def test_an_explanation_of_several_changes_together_is_refused():
+    from undulate.studies._explanations._protocol import MultipleChangesError
+
+    case = (X.xi32.N3,)
+    one = CaseExplanation(study="pairs", claim="c", cause="because", changes=("N = 3 -> 8 links",), cases=case,
+                          judge=_judge)
+    assert one.changes == ("N = 3 -> 8 links",) and not one.finding
+    with pytest.raises(MultipleChangesError, match="2 changes"):
+        CaseExplanation(study="pairs", claim="c", cause="because", changes=("a heading guide", "lambda_x"),
+                        cases=case, judge=_judge)
+    for bad in (None, (), "one change as a bare string", ("",)):
+        with pytest.raises(MultipleChangesError):
+            CaseExplanation(study="pairs", claim="c", cause="because", changes=bad, cases=case, judge=_judge)
+    # several changes together are a finding: accepted, and marked so
+    f = X.CaseFinding(study="pairs", claim="c", cause="because", changes=("a heading guide", "lambda_x"),
+                      cases=case, judge=_judge)
+    assert f.finding and len(f.changes) == 2
+    with pytest.raises(MultipleChangesError):
+        X.CaseFinding(study="pairs", claim="c", cause="because", changes=("a",), cases=case, judge=_judge,
+                      finding=False)
+
+
+def test_every_explanation_names_one_change_and_links_is_a_finding():
+    for e in X.EXPLANATIONS:
+        assert e.finding or len(e.changes) == 1, (e.claim, e.changes)
+    links = [e for e in X.EXPLANATIONS if e.study == "links"]
+    assert len(links) == 2 and all(isinstance(e, X.CaseFinding) and e.finding for e in links)
+    assert all(len(e.changes) >= 2 and e.cause.startswith("Finding, not an explanation") for e in links)
+    assert [e for e in X.EXPLANATIONS if not e.finding]  # the one-change explanations stay explanations
+    rows = [r for r in __import__("undulate.studies._registry", fromlist=["explain"]).explain(
+        "sensitivity", X.EXPLANATIONS, {"cases": {}, "skipped_cases": [str(c) for e in X.EXPLANATIONS
+                                                                        for c in e.cases]})]
+    assert [r["finding"] for r in rows] == [e.finding for e in X.EXPLANATIONS]

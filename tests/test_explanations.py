@@ -334,3 +334,18 @@ def test_the_link_number_criterion_is_judged_on_the_intervals():
     assert f([E(*v) for v in ((0.04, 0.03, 0.05), (0.035, 0.028, 0.045))]) is None  # overlapping: undecided
     assert f([E(*v) for v in ((0.04, 0.03, 0.05), (0.08, 0.06, 0.1))]) is False  # wholly above: fails
     assert f([E(0.04), E(0.01)]) is None
+
+
+def test_a_finding_is_written_beside_the_claim_and_never_explains_it():
+    """A finding (several changes together) shown by its runs leaves the failing claim `fails`, with the
+    finding listed beside it; an explanation of one change beside it still explains."""
+    finding = {**expl(True), "finding": True, "cause": "three changes together"}
+    (r,) = apply_explanations([row("fails")], [finding])
+    assert r["verdict"] == "fails" and r["explanation"] is None
+    assert [f["cause"] for f in r["findings"]] == ["three changes together"] and "explanations_not_shown" not in r
+    (r,) = apply_explanations([row("fails")], [{**finding, "shown": None}])
+    assert r["verdict"] == "fails" and r["findings"][0]["shown"] is None
+    (r,) = apply_explanations([row("fails")], [finding, {**expl(True), "finding": False}])
+    assert r["verdict"] == "explained" and r["explanation"]["cause"] == "because" and len(r["findings"]) == 1
+    (r,) = apply_explanations([row("holds")], [expl(True)])
+    assert "findings" not in r

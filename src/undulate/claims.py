@@ -17,7 +17,10 @@ true: e.g. the claim's criterion holds with only the named factor changed).
 Nothing else turns a failing claim into ``explained``: an explanation that
 its runs did not show (``shown`` false) or left undecided (``shown`` null) is
 listed with the row (``explanations_not_shown``) and the claim stays
-``fails``.
+``fails``.  A *finding* (an explanation that needs several changes together:
+:class:`~undulate.studies._explanations.CaseFinding`) never changes a verdict: it is written beside the
+claim (``findings``), shown or not.  Every study's summary and claim values must stay inside their
+quantities' physical domains (:func:`undulate.stats.domain_violations`), or :func:`collect` refuses it.
 
 A row: ``study``, ``claim``, ``paper`` (the paper's statement), ``measured``
 (the measured value with its uncertainty, as text), ``value`` (the same as
@@ -81,11 +84,17 @@ def reference_of(row: dict[str, Any]) -> str:
 def apply_explanations(rows: list[dict[str, Any]], explanations: list[dict[str, Any]]) -> list[dict[str, Any]]:
     """Rows with ``explanation`` set and ``fails`` -> ``explained`` where a shown explanation
     names that (study, claim); explanations not shown (false or undecided) go to
-    ``explanations_not_shown``."""
+    ``explanations_not_shown``.  A finding (an explanation row with ``finding`` true: several changes
+    together, :class:`~undulate.studies._explanations.CaseFinding`) never changes the verdict: shown or
+    not, it goes to ``findings``, written beside the claim."""
     out = []
     for r in rows:
         r = {**r, "explanation": None}
-        mine = [e for e in explanations if e.get("study") == r["study"] and e.get("claim") == r["claim"]]
+        about = [e for e in explanations if e.get("study") == r["study"] and e.get("claim") == r["claim"]]
+        findings = [{k: e.get(k) for k in _EXPLANATION_FIELDS} for e in about if e.get("finding")]
+        if findings:
+            r["findings"] = findings
+        mine = [e for e in about if not e.get("finding")]
         shown = [e for e in mine if e.get("shown") is True]
         if r["verdict"] == "fails" and shown:
             r["verdict"] = "explained"
@@ -100,7 +109,9 @@ def apply_explanations(rows: list[dict[str, Any]], explanations: list[dict[str, 
 def collect(out_dir: str | Path, names: list[str]) -> list[dict[str, Any]]:
     """The claim rows of studies ``names`` from ``out_dir/NAME.json`` (in that order), with the
     explanations of every study among ``names`` applied (:func:`apply_explanations`).  A row
-    without ``reference`` (an older study file) gets ``"paper"``."""
+    without ``reference`` (an older study file) gets ``"paper"``.  A study whose summary or claim
+    values report a number or interval outside its quantity's physical domain is refused
+    (:func:`undulate.stats.check_domains`: :class:`~undulate.errors.UndulateError`)."""
     rows, explanations = [], []
     for name in names:
         p = Path(out_dir) / f"{name}.json"
@@ -114,6 +125,10 @@ def collect(out_dir: str | Path, names: list[str]) -> list[dict[str, Any]]:
             row["superseded"] = row["superseded"] or []
             rows.append(row)
         explanations += doc.get("explanations", [])
+        from . import stats
+
+        stats.check_domains({"summary": doc.get("summary"), "claims": [r.get("value") for r in doc.get("claims", [])]},
+                            f"study {name!r} ({p})")
     return apply_explanations(rows, explanations)
 
 

@@ -272,20 +272,25 @@ class Explanation:
     e.g. "the claim's criterion fails with the default and holds with only
     this factor changed"), the evidence numbers as text, and as numbers.
     The explaining study's figure is the evidence figure.
+
+    ``finding``: a finding about the failing claim, not an explanation of it (e.g. the paper's behaviour
+    comes back only with several changes together): shown or not, it never turns ``fails`` into
+    ``explained`` (:func:`undulate.claims.apply_explanations` lists it with the row as a finding).
     """
 
     study: str
     claim: str
     cause: str
     check: Callable[[dict[str, Any]], tuple[bool, str, Any]] = field(repr=False, compare=False)
+    finding: bool = False
 
 
 def explain(study: str, explanations: tuple[Explanation, ...], summary: dict[str, Any]) -> list[dict[str, Any]]:
-    """Rows ``{study, claim, cause, shown, measured, value, evidence_study, evidence_figure}``."""
+    """Rows ``{study, claim, cause, finding, shown, measured, value, evidence_study, evidence_figure}``."""
     rows = []
     for e in explanations:
         shown, measured, value = e.check(summary)
-        rows.append({"study": e.study, "claim": e.claim, "cause": e.cause,
+        rows.append({"study": e.study, "claim": e.claim, "cause": e.cause, "finding": bool(e.finding),
                      "shown": None if shown is None else bool(shown),
                      "measured": measured, "value": value, "evidence_study": study,
                      "evidence_figure": f"{study}.png"})

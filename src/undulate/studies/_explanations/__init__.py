@@ -12,9 +12,9 @@ cases the study makes.
 from __future__ import annotations
 
 from . import confinement, groups, impulse, links, swimming, xi32
-from ._protocol import CaseExplanation, CaseResults, results_by_case
+from ._protocol import CaseExplanation, CaseFinding, CaseResults, results_by_case
 
-__all__ = ["EXPLANATIONS", "MODULES", "CaseExplanation", "CaseResults", "results_by_case"]
+__all__ = ["EXPLANATIONS", "MODULES", "CaseExplanation", "CaseFinding", "CaseResults", "results_by_case"]
 
 MODULES = (impulse, swimming, groups, xi32, links, confinement)
 """The explanation modules, in the order their explanations are judged and saved."""

@@ -27,6 +27,16 @@ A declared case among the summary's ``skipped_cases`` (its factor group was not
 run because the claim it explains does not fail:
 :func:`undulate.studies.sensitivity.needed_groups`) is no evidence either way:
 the check then returns ``(None, NOT_RUN, None)`` without calling ``judge``.
+
+**One change.**  An explanation a referee accepts is one change to the model,
+chosen from the paper's text or from physics before the runs that show it,
+that recovers the paper's behaviour under the claim's unchanged criterion,
+with the mechanism shown.  Every :class:`CaseExplanation` names its
+``changes`` (each in words, against the default model), and one that names
+more than one is refused when its module is imported
+(:class:`MultipleChangesError`).  Several changes together, or a yardstick
+chosen after seeing the data, are a :class:`CaseFinding`: judged the same way
+and listed beside the claim, which stays ``fails``.
 """
 
 from __future__ import annotations
@@ -38,11 +48,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from ... import stats
+from ...errors import UndulateError
 from .._registry import Explanation
 from .._sensitivity_design import CaseId, CaseSet, UnknownCaseError, known_cases
 
-__all__ = ["CaseExplanation", "CaseResults", "NOT_RUN", "Shown", "results_by_case", "all_of", "negate", "number",
-           "state_word"]
+__all__ = ["CaseExplanation", "CaseFinding", "CaseResults", "MultipleChangesError", "NOT_RUN", "Shown",
+           "results_by_case", "all_of", "negate", "number", "state_word"]
 
 NOT_RUN = "not run: the claim it explains does not fail in this reproduction"
 """The measured text of an explanation whose cases the sensitivity study did not run (``skipped_cases``)."""
@@ -129,17 +140,26 @@ class CaseResults:
         return self.summary.get("links_sets", {}).get(case_set.value)
 
 
+class MultipleChangesError(UndulateError, ValueError):
+    """An explanation that names other than exactly one change to the model (a :class:`CaseFinding` may
+    name several)."""
+
+
 @dataclass(frozen=True)
 class CaseExplanation(Explanation):
     """An :class:`~undulate.studies.Explanation` judged on the sensitivity study's cases by id.
 
-    Give ``study``, ``claim``, ``cause``, ``cases`` and ``judge`` (not ``check``: it is made here,
-    ``check(summary) = judge(CaseResults(summary, cases))``).  Every id in ``cases`` must be one the
-    study makes in quick or full mode (:func:`~undulate.studies._sensitivity_design.planned_cases`)."""
+    Give ``study``, ``claim``, ``cause``, ``changes``, ``cases`` and ``judge`` (not ``check``: it is made
+    here, ``check(summary) = judge(CaseResults(summary, cases))``).  Every id in ``cases`` must be one the
+    study makes in quick or full mode (:func:`~undulate.studies._sensitivity_design.planned_cases`).
+    ``changes``: the model changes against the default that the cause rests on, each in words (e.g.
+    ``("N = 3 -> 8 links",)``): exactly one, or :class:`MultipleChangesError` (a :class:`CaseFinding`
+    may name several)."""
 
     check: Callable[[dict[str, Any]], Shown] | None = field(default=None, repr=False, compare=False)
     cases: tuple[CaseId, ...] = ()
     judge: Callable[[CaseResults], Shown] | None = field(default=None, repr=False, compare=False)
+    changes: tuple[str, ...] | None = None
 
     def __post_init__(self):
         if self.judge is None or self.check is not None:
@@ -150,7 +170,32 @@ class CaseExplanation(Explanation):
         if unknown:
             raise UnknownCaseError(f"the explanation of {self.claim!r} names cases the sensitivity study does "
                                    f"not make: {', '.join(unknown)}")
+        changes = self.changes
+        if changes is None or isinstance(changes, str) or not all(isinstance(c, str) and c.strip() for c in changes):
+            raise MultipleChangesError(f"the explanation of {self.claim!r} must name its changes to the model "
+                                       f"(a tuple of non-empty texts), not {changes!r}")
+        object.__setattr__(self, "changes", tuple(changes))
+        if not self.finding and len(self.changes) != 1:
+            raise MultipleChangesError(
+                f"the explanation of {self.claim!r} names {len(self.changes)} changes to the model "
+                f"({'; '.join(self.changes) or 'none'}): an explanation is one change that recovers the claim "
+                "under its unchanged criterion; record several together as a CaseFinding (the claim stays fails)")
         object.__setattr__(self, "check", functools.partial(_check, self.judge, tuple(self.cases)))
+
+
+@dataclass(frozen=True)
+class CaseFinding(CaseExplanation):
+    """A finding about a failing claim, judged like a :class:`CaseExplanation` on the sensitivity
+    study's cases, that is not an explanation a referee accepts: several changes together (``changes``
+    may name any number), or a yardstick chosen after seeing the data.  Shown or not, the claim stays
+    ``fails`` and the finding is written beside it (:func:`undulate.claims.apply_explanations`)."""
+
+    finding: bool = True
+
+    def __post_init__(self):
+        if not self.finding:
+            raise MultipleChangesError(f"a CaseFinding of {self.claim!r} is a finding (finding=True)")
+        super().__post_init__()
 
 
 def skipped_cases(summary: dict[str, Any]) -> frozenset[CaseId]:

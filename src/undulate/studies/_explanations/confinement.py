@@ -44,5 +44,6 @@ EXPLANATIONS = (
         cause="bodies of width w leave a band of neutral offsets only when the clearance d - 2A - 2w is positive, "
               "i.e. from d/2A = 1 + w/A, above the paper's range for our 15 mm links; with thin links (only w "
               "changed) the central state opens within d/2A <= 1.2.",
+        changes=(f"link width w = {DEFAULT_BODY_M * 1000:g} -> {THIN_BODY_M * 1000:g} mm",),
         cases=(DEFAULT_WIDTH, THIN), judge=judge),
 )

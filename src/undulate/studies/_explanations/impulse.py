@@ -48,5 +48,7 @@ EXPLANATIONS = (
               "detuning; with more linear drag (only that changed: 8 and 16 N s/m per link) the pair stays in "
               "contact over the window, the phi0 spread shrinks and the impulse grows linearly with |dphi|. "
               "The claim depends on a drag magnitude the paper does not give.",
+        changes=(f"linear drag per link {IMPULSE_DRAG_DEFAULT:g} -> "
+                 + " and ".join(f"{c:g}" for c in IMPULSE_EXPLAIN_DRAGS) + " N s/m",),
         cases=CASES, judge=judge),
 )

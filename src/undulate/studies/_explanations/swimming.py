@@ -39,5 +39,6 @@ EXPLANATIONS = (
               "leaves sliding along the body nearly undamped: pairs at large detuning are pushed through the "
               "compatible branch and end in single file; with 0.5 N s/m (only the drag changed; the pairs "
               "still swim) they follow the line. The claim depends on a drag magnitude the paper does not fix.",
+        changes=(f"the swimming ground's linear drag per link -> {SWIM_DRAG_N_S_PER_M:g} N s/m",),
         cases=(DEFAULT, STRONG_DRAG), judge=judge),
 )
