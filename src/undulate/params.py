@@ -602,7 +602,11 @@ class Scene(_Params):
     forces_N: tuple[float, ...] | None = None
     """Constant longitudinal force on each swimmer, N (+x), or None."""
     force_onset_s: float = 0.0
-    """Time at which ``forces_N`` switch on, s (they stay on)."""
+    """Time at which ``forces_N`` switch on, s (they stay on until ``force_offset_s``)."""
+    force_offset_s: float | None = None
+    """Time at which ``forces_N`` switch off again, s (> ``force_onset_s``), or None: they stay on to the
+    end.  The potential study's release runs remove the force to see the pair go back (paper Sec. III.G:
+    the displaced position "was sustained until the force was removed")."""
     controller: ControllerParams = field(default_factory=ControllerParams)
     """The gait controller (default: the paper's open-loop travelling wave)."""
     hold_x: bool = False
@@ -642,6 +646,12 @@ class Scene(_Params):
         object.__setattr__(self, "dx0_m", dx0)
         gap = _nonneg("lateral_gap_m", self.lateral_gap_m, "m")
         _nonneg("force_onset_s", self.force_onset_s, "s")
+        if self.force_offset_s is not None:
+            off = _finite("force_offset_s", self.force_offset_s)
+            if not off > self.force_onset_s:
+                raise ParameterError("force_offset_s", f"None or a time > force_onset_s ({self.force_onset_s:g} s)",
+                                     self.force_offset_s)
+            object.__setattr__(self, "force_offset_s", off)
         object.__setattr__(self, "hold_x", _flag("hold_x", self.hold_x))
         object.__setattr__(self, "heading_guide", _flag("heading_guide", self.heading_guide))
         if self.heading_guide and self.controller.closed_loop:

@@ -501,6 +501,8 @@ class CompiledScene:
         u[:, ix.ctrl_vel] = omega_cmd
         if sc.forces_N is not None:
             on = (np.asarray(t_s) >= sc.force_onset_s)[:, None]
+            if sc.force_offset_s is not None:
+                on &= (np.asarray(t_s) < sc.force_offset_s)[:, None]
             per_link = np.asarray(sc.forces_N)[:, None] / sc.geometry.n_links * np.ones(ix.ctrl_push.shape)
             u[:, ix.ctrl_push] = np.where(on[..., None], per_link[None], 0.0)
         if ix.ctrl_heading.size:  # the commanded shape's chord along x (not the lead-corrected set-point)

@@ -192,7 +192,8 @@ def group_point(point: dict[str, Any], seed: int, *, n_swimmers: int = 2, channe
     )
 
 
-def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: float = 0.0) -> Scene:
+def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: float = 0.0,
+               force_offset_s: float | None = None) -> Scene:
     """The pair scene of a sweep point.
 
     Keys (all optional): ``dx0_over_lambda`` (initial x_b - x_a over lambda;
@@ -203,7 +204,7 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     is :func:`undulate.theory.channel_width_m` for two swimmers, ``W = 2 (d/2A) 2A``),
     ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body`` (xi; 1),
     ``force_N`` (dF, N: swimmer a is pushed toward -x and b toward +x, from
-    ``force_onset_s``; 0), ``ground`` (``"viscous"`` or ``"swimming"``),
+    ``force_onset_s`` until ``force_offset_s``, None: to the end; 0), ``ground`` (``"viscous"`` or ``"swimming"``),
     ``body_width_m`` (w of every link, m; the SwimmerGeometry default),
     ``fluid_density_kg_m3`` (the swimming ground's fluid density, kg/m^3:
     the strength of its anisotropic drag; :meth:`Ground.swimming`'s default),
@@ -232,12 +233,13 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
         dx0_m=pt.dx0_over_lambda * lam,
         forces_N=(-f, f) if f else None,
         force_onset_s=float(force_onset_s) if f else 0.0,
+        force_offset_s=force_offset_s if f else None,
     )
 
 
 def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
                amplitude_m: float | None = None, force_onset_s: float = 0.0,
-               record_hz: float = RECORD_HZ, stop: SteadyStop | None = None):
+               force_offset_s: float | None = None, record_hz: float = RECORD_HZ, stop: SteadyStop | None = None):
     """One pair run (sweep function): the offsets over time and their summary.
 
     ``point``: see :func:`pair_scene`.  Returns (``dx = x_1 - x_0``, swimmer
@@ -262,7 +264,7 @@ def pair_point(point: dict, seed: int, *, duration_s: float = PAIR_DURATION_S,
 
     from ..observables import contact_impulse, neighbour_offsets, period_average, steady_state
 
-    scene = pair_scene(point, amplitude_m=amplitude_m, force_onset_s=force_onset_s)
+    scene = pair_scene(point, amplitude_m=amplitude_m, force_onset_s=force_onset_s, force_offset_s=force_offset_s)
     ds, n_full = _simulate_stopped(scene, SimOptions(duration_s=duration_s), stop)
     lam = scene.wavelength_m
     T = scene.gait.period_s
