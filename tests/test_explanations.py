@@ -349,3 +349,15 @@ def test_a_finding_is_written_beside_the_claim_and_never_explains_it():
     assert r["verdict"] == "explained" and r["explanation"]["cause"] == "because" and len(r["findings"]) == 1
     (r,) = apply_explanations([row("holds")], [expl(True)])
     assert "findings" not in r
+
+
+def test_the_report_writes_a_finding_beside_the_failing_claim(tmp_path):
+    claim = describe("links").claims[0].claim
+    (tmp_path / "links.json").write_text(json.dumps({"claims": [row("fails", "links", claim)], "files": []}))
+    finding = {**expl(True, "links", claim), "finding": True, "cause": "three changes together recover it"}
+    (tmp_path / "sensitivity.json").write_text(json.dumps({"claims": [], "explanations": [finding], "files": []}))
+    rows = collect(tmp_path, ["links", "sensitivity"])
+    assert [r["verdict"] for r in rows] == ["fails"] and rows[0]["findings"][0]["shown"] is True
+    statuses = [{"name": n, "ok": True, "wall_s": 1.0} for n in ("links", "sensitivity")]
+    html = write_report(tmp_path, statuses, mode="quick").read_text()
+    assert "finding (not an explanation: the verdict stands)" in html and "three changes together" in html

@@ -113,6 +113,8 @@ def _cause_text(c: dict[str, Any]) -> tuple[str, str]:
             e.get("cause") or ""
     if c.get("verdict") == "no result" and c.get("reason"):
         return "", c["reason"]
+    if c.get("findings"):
+        return "finding: ", c["findings"][0].get("cause") or ""
     return "", ""
 
 
@@ -287,6 +289,8 @@ def claim_section(c: dict[str, Any], anchor: str, out_dir: Path, back: str = "cl
     for e in c.get("explanations_not_shown") or []:
         out += _evidence(e, "cause tested, undecided by the runs" if e.get("shown") is None and "shown" in e
                          else "cause tested, not shown by the runs")
+    for e in c.get("findings") or []:  # several changes together: written beside the verdict, never explaining it
+        out += _evidence(e, "finding (not an explanation: the verdict stands)")
     out.append("</dl>")
     own = evidence_file(c, anchor, out_dir)
     whole = [f"<a href='{esc(f)}'>{esc(s or f)}</a>" for f, s in _figures(c) if (out_dir / f).is_file()]
