@@ -27,7 +27,7 @@ if str(HERE) not in sys.path:
 
 import sweep_funcs  # noqa: E402
 
-from undulate import studies  # noqa: E402
+from undulate import stats, studies  # noqa: E402
 from undulate.reproduce import reproduce  # noqa: E402
 from undulate.studies import _registry  # noqa: E402
 from undulate.sweep import Grid  # noqa: E402
@@ -143,6 +143,8 @@ def test_every_registered_study_in_quick_mode(name, quick_folders):
     assert all(name == "phase-interaction" and c["verdict"] == "no result" and "H is zero" in c["reason"]
                for c in unjudged), (name, unjudged)
     assert doc["n_failed"] == 0 and (judged or not doc["claims"]), (name, doc["claims"])  # compatibility: none
+    # no reported number or interval leaves its quantity's physical domain (what claims.collect refuses)
+    assert stats.domain_violations({"summary": doc["summary"], "claims": [c["value"] for c in doc["claims"]]}) == []
     # a second run into the same folder computes nothing and gives the same numbers
     studies.run_study(name, a, quick=True, progress=False)
     again = json.loads((a / f"{name}.json").read_text())
