@@ -477,12 +477,13 @@ def test_a_group_size_whose_claim_is_decided_keeps_its_looks_runs(decided):
     from undulate.studies import groups
 
     looks = groups.stages(False)
-    claims = {c.claim.split()[2]: c.claim for c in groups.CLAIMS}
-    got = groups.size_plans(looks[3], {claims[n]: k for n, k in decided.items()}, False)
+    claims = {c.claim.split()[2]: c.claim for c in groups.CLAIMS[:2]}
+    spacing = {c.claim: 1 for c in groups.CLAIMS[2:]}  # read every size: decided at the first look here
+    got = groups.size_plans(looks[3], {**spacing, **{claims[n]: k for n, k in decided.items()}}, False)
     assert got[3] == (looks[decided["3"] - 1] if "3" in decided else looks[3])
     assert got[4] == (looks[decided["4"] - 1] if "4" in decided else looks[3])
     assert got[2] == (looks[max(decided.values()) - 1] if len(decided) == 2 else looks[3])
-    frozen = groups.frozen_sizes({claims[n]: k for n, k in decided.items()})
+    frozen = groups.frozen_sizes({**spacing, **{claims[n]: k for n, k in decided.items()}})
     assert frozen == {int(n): k for n, k in decided.items()} | ({2: max(decided.values())} if len(decided) == 2 else {})
     if "4" in decided:
         assert got[4].draws < looks[3].draws
@@ -508,7 +509,8 @@ def test_a_pairs_xi_whose_claims_are_decided_keeps_its_looks_runs(decided, froze
     asked = []
 
     class Ctx:
-        frozen_claims = {names[k]: v for k, v in decided.items()}
+        frozen_claims = {**{c.claim: 1 for c in pairs.CLAIMS[4:]},  # the other xi = 1 claims: decided at the first
+                         **{names[k]: v for k, v in decided.items()}}
         config = SimpleNamespace(quick=False, seed=0)
 
         def sweep(self, part, fn, grid):  # every run failed: no simulation

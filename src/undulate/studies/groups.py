@@ -366,7 +366,8 @@ CLAIMS = tuple(
           "overlap or the share's straddles", _spacing_explains,
           quote=(r"The principle influence of this variance from the compatibility prediction is the larger lateral "
                  r"spacing afforded to the larger robot groups."),
-          where="Sec. III.D, Fig. 6b"),
+          where="Sec. III.D, Fig. 6b",
+          bands={"unexplained_share": (None, PRINCIPAL_SHARE)}),
 )
 
 
