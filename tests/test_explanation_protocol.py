@@ -92,7 +92,7 @@ def _synthetic_dataset(p) -> xr.Dataset:
     g_dx = g_dphi / (2 * np.pi) + 0.02 * rng.standard_normal(g_dphi.shape)
     idphi, phi0, drags = np.asarray(p.impulse_dphi_rad), np.asarray(p.impulse_phi0_rad), S.impulse_drags()
     imp = np.abs(idphi)[None, :, None] + 0.1 + 0.01 * rng.random((len(drags), idphi.size, phi0.size))
-    widths, ratios = [S.DEFAULT_BODY_M, S.THIN_BODY_M], [0.9, 1.2, 1.4]
+    readings, ratios = list(S.D_READINGS), [0.9, 1.2, 1.4]
     gd = ("group_case", "neighbour")
     return xr.Dataset(
         {"dx_final_over_lambda": (("case", "dphi"), dx), "residual_over_lambda": (("case", "dphi"), dx - line),
@@ -100,7 +100,7 @@ def _synthetic_dataset(p) -> xr.Dataset:
          "n_links": ("case", [dict(c.levels).get("n_links", 3) for c in ids]),
          "joint_amplitude": ("case", np.full(len(ids), math.pi / 4)), "amplitude": ("case", np.full(len(ids), 0.05)),
          "wavelength": ("case", np.full(len(ids), 0.54)), "is_default": ("case", np.zeros(len(ids), bool)),
-         "conf_dx_final_over_lambda": (("body_width", "d_over_2A", "dx0"),
+         "conf_dx_final_over_lambda": (("d_reading", "d_over_2A", "dx0"),
                                        rng.uniform(-0.05, 0.05, (2, len(ratios), len(p.confinement_starts)))),
          "impulse": ("impulse_dphi", imp[1].mean(axis=1)), "impulse_drag_all": (("impulse_drag", "impulse_dphi", "phi0"), imp),
          "impulse_drag_escape": (("impulse_drag", "impulse_dphi", "phi0"), 0.1 * imp),
@@ -111,7 +111,7 @@ def _synthetic_dataset(p) -> xr.Dataset:
          "amplitude_3_links": ((), 0.05)},
         coords={"case_id": ("case", [str(c) for c in ids]), "claim": ("case", [c.case_set.value for c in ids]),
                 "factor": ("case", ["factor"] * len(ids)), "level": ("case", [str(c) for c in ids]), "dphi": dphi,
-                "body_width": widths, "d_over_2A": ratios, "dx0": list(p.confinement_starts),
+                "d_reading": readings, "d_over_2A": ratios, "dx0": list(p.confinement_starts),
                 "impulse_drag": list(drags), "impulse_dphi": idphi, "phi0": phi0,
                 "group_size": ("group_case", [g[0] for g in groups]),
                 "group_channel_width": ("group_case", [g[1] for g in groups]),

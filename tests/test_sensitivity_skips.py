@@ -159,14 +159,14 @@ def test_a_skipped_group_is_not_run_even_where_its_nan_rows_would_refute():
     None with the not-run text, not False."""
     from undulate.studies._explanations import confinement as XC
 
-    d = {"case_id": str(XC.DEFAULT_WIDTH), "body_width_m": 0.015, "d_over_2A": [0.9, 1.2],
-         "central_width_over_lambda": [math.nan, math.nan], "model_opening_d_over_2A": 1.3,
-         "broadens_centreline_A": None}
-    t = {**d, "case_id": str(XC.THIN), "body_width_m": 0.003}
-    summary = {"confinement": {"15 mm": d, "3 mm": t}}
+    d = {"case_id": str(XC.DEFAULT_READING), "body_width_m": 0.015, "d_over_2A": [0.9, 1.2],
+         "channel_width_m": [0.188, 0.251], "central_width_over_lambda": [math.nan, math.nan],
+         "model_opening_d_over_2A": 0.64, "broadens_centreline_A": None}
+    t = {**d, "case_id": str(XC.WHOLE), "channel_width_m": [0.094, 0.125], "model_opening_d_over_2A": 1.29}
+    summary = {"confinement": {"per-swimmer": d, "whole-width": t}}
     e = XC.EXPLANATIONS[0]
     assert e.check(summary)[0] is False  # what NaN rows alone would say
-    summary["skipped_cases"] = [str(XC.DEFAULT_WIDTH), str(XC.THIN)]
+    summary["skipped_cases"] = [str(XC.DEFAULT_READING), str(XC.WHOLE)]
     assert e.check(summary) == (None, NOT_RUN, None)
 
 

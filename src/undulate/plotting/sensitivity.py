@@ -16,7 +16,7 @@ COLOURS = {"holds": "#8fd19e", "fails": "#f3a6ae", "no result": "#dddddd"}
 def plot_sensitivity(ds, s: dict):
     """(a) one row per (factor, level) of the summary's table, one column per claim, coloured by
     verdict; (b) xi = 3/2 final dx/lambda against dphi/2pi per N; (c) equal-A rule: RMS residual
-    against N; (d) width of the central state against d/2A per body width, with the model's; (e) the
+    against N; (d) width of the central state against d/2A per reading of d, with the model's; (e) the
     two-period contact impulse against |dphi| per linear drag of the ground (mean over phi0, scaled by
     its largest value, so the shapes compare)."""
     rows = list(dict.fromkeys((t["factor"], t["level"]) for t in s["table"]))
@@ -79,15 +79,17 @@ def _links_panel(cx, sets: dict) -> None:
 
 
 def _confinement_panel(dx, s: dict) -> None:
-    """(d) the central state's width against d/2A per body width, measured and the model's."""
+    """(d) the central state's width against d/2A per reading of d (per swimmer: W = 2d, the default;
+    whole width: W = d), measured and the bodies' model in the same channels."""
     from ..theory import neutral_offset_m
 
     A = s["amplitude_3_links_m"]
-    r = np.linspace(0.6, 1.6, 101)
+    r = np.linspace(0.3, 1.6, 131)
     for key, c in s["confinement"].items():
-        line = dx.plot(c["d_over_2A"], c["central_width_over_lambda"], "o", label=f"measured, w = {key}")[0]
-        model = 2 * neutral_offset_m(r * 2 * A, A, 0.54, c["body_width_m"]) / 0.54
-        dx.plot(r, model, "-", color=line.get_color(), lw=0.8, label=f"model, w = {key}")
+        line = dx.plot(c["d_over_2A"], c["central_width_over_lambda"], "o", label=f"measured, d {key}")[0]
+        scale = float(c["channel_width_m"][0]) / float(c["d_over_2A"][0])  # W per unit d/2A, m
+        model = 2 * neutral_offset_m(r * scale, A, 0.54, c["body_width_m"]) / 0.54
+        dx.plot(r, model, "-", color=line.get_color(), lw=0.8, label=f"model, d {key}")
     dx.axvspan(0.6, 1.2, color="0.9", zorder=0)
     dx.set_xlabel("d / 2A (centre-line A)")
     dx.set_ylabel("central state width / lambda")

@@ -33,8 +33,15 @@ LONG_S = 60.0
 runs at N > 3 (stopped once steady, cut at 30 s), s."""
 DEFAULT_S = 30.0
 CONFINEMENT_S = 40.0
-THIN_BODY_M = 0.003
 DEFAULT_BODY_M = SwimmerGeometry().width_m
+PER_SWIMMER, WHOLE_WIDTH = "per-swimmer", "whole-width"
+D_READINGS = (PER_SWIMMER, WHOLE_WIDTH)
+"""The readings of the paper's confinement ``d`` in the confinement cases: the wall distance per swimmer
+(the default, :func:`undulate.theory.channel_width_m`: a pair's channel is ``W = 2 d``, the reading the
+measured thresholds support, docs/confinement_d.md) and the whole channel width (``W = d``), kept as one
+sensitivity row."""
+D_READING_SCALE = {PER_SWIMMER: 1.0, WHOLE_WIDTH: 0.5}
+"""Per reading, the per-swimmer ``d/2A`` of the channel that the reading calls ``d/2A = 1`` (a pair)."""
 IMPULSE_DRAGS_N_S_PER_M = (1.0, 4.0, 8.0, 16.0)
 """The viscous ground's linear drag per link for the impulse runs besides the default 2 N s/m: the drag sets
 how fast contact pushes the pair apart along x (overdamped: speed = force / drag), and so how much of the
@@ -92,7 +99,7 @@ class CaseSet(str, enum.Enum):
     GROUPS = "groups"
     """Groups (and their reference pairs), the groups criterion: size and channel width."""
     CONFINEMENT = "confinement"
-    """dphi = 0 pairs over d/2A, the confinement criterion: body width."""
+    """dphi = 0 pairs over d/2A, the confinement criterion: the reading of d (per swimmer; whole width)."""
     IMPULSE = "impulse"
     """The two-period contact impulse over |dphi|, the potential criterion: the ground's linear drag."""
 
@@ -103,7 +110,7 @@ FACTORS: dict[str, type] = {
     "kp_Nm_per_rad": float, "torque_limit_Nm": float, "max_speed_rad_s": float, "contact_timeconst_s": float,
     "drag_N_s_per_m": float, "duration_s": float, "steady_window_periods": int, "dphi_pi": str, "n_links": int,
     "fluid_density_kg_m3": float, "swim_drag_N_s_per_m": float, "n_swimmers": int, "channel_width_m": float,
-    "body_width_m": float,
+    "body_width_m": float, "d_reading": str,
 }
 """The factors a case id may name, and the type of their levels (SI units as the names say)."""
 
@@ -285,8 +292,9 @@ def group_cases() -> tuple[tuple[int, float, bool], ...]:
     return tuple(out)
 
 
-def confinement_case(body_width_m: float) -> CaseId:
-    return CaseId.of(CaseSet.CONFINEMENT, body_width_m=body_width_m)
+def confinement_case(d_reading: str = PER_SWIMMER, body_width_m: float = DEFAULT_BODY_M) -> CaseId:
+    """The confinement case of one reading of ``d`` (:data:`D_READINGS`) at link width ``body_width_m``."""
+    return CaseId.of(CaseSet.CONFINEMENT, body_width_m=body_width_m, d_reading=d_reading)
 
 
 def impulse_case(drag_N_s_per_m: float) -> CaseId:
@@ -300,9 +308,9 @@ def impulse_drags() -> tuple[float, ...]:
 
 def planned_cases(p: Plan) -> tuple[CaseId, ...]:
     """Every case id the sensitivity dataset of plan ``p`` holds (no run needed): the pair cases
-    (:func:`pair_cases`), the group cases, the two body widths and the impulse drags."""
+    (:func:`pair_cases`), the group cases, the two readings of d and the impulse drags."""
     return (pair_cases(p) + tuple(group_case(n, w) for n, w, _ in group_cases())
-            + tuple(confinement_case(w) for w in (DEFAULT_BODY_M, THIN_BODY_M))
+            + tuple(confinement_case(r) for r in D_READINGS)
             + tuple(impulse_case(c) for c in impulse_drags()))
 
 

@@ -37,11 +37,13 @@ xi = 1 60 s runs that are cut short at 20 / 30 / 60 s, which run whole:
 * **confinement** (the claim "the central state broadens over d/2A =
   0.6-1.2"): dphi = 0 pairs from dx0/lambda in {-0.15, 0, 0.15} (full: 5
   starts) for 40 s at d/2A = 0.9, 1.2 and the d at which the body's *edge*
-  amplitude A + w/2 gives d/2(A + w/2) = 1.2, for the default body width
-  w = 15 mm and for thin bodies (w = 3 mm, only w changed); the claim is
-  judged with A the centre-line amplitude (default) and with A + w/2.  The
-  compatibility model for bodies of width w has no band of neutral offsets
-  until the clearance d - 2A - 2w is positive, i.e. below d/2A = 1 + w/A.
+  amplitude A + w/2 gives d/2(A + w/2) = 1.2, under the paper's reading of
+  d (the wall distance per swimmer, a pair's channel W = 2 d: the default,
+  docs/confinement_d.md) and, as one row, d read as the whole channel width
+  (W = d, channels half as wide); the claim is judged with A the centre-line
+  amplitude (default) and with A + w/2.  The compatibility model for bodies
+  of width w has no band of neutral offsets until the clearance W - 2A - 2w
+  is positive: from d/2A = (A + w)/2A per swimmer, (A + w)/A whole-width.
 
 * **swimming** (the claim "swimming pairs behave like non-swimming ones",
   judged by the pairs criterion): the swimming ground's fluid density 1000
@@ -127,7 +129,8 @@ from ._runners import BODY_LENGTH_M, PAIR_STOP, PERIOD_S, RECORD_HZ, group_point
 from ._sensitivity_design import (  # noqa: F401 - the study's constants, re-exported
     BETA_DEG, CONFINEMENT_S, DEFAULT_BODY_M, DEFAULT_S, DURATIONS_S, FLUID_DENSITIES, IMPULSE_DRAG_DEFAULT,
     IMPULSE_DRAGS_N_S_PER_M, LEFT_OUT, LONG_S, MODEL_DEFAULTS, MODEL_LEVELS, PAIR_SPACING_M, PAPER_RANGE_HIGH,
-    SWIM_DRAG_N_S_PER_M, SWIM_MIN_SPEED_M_S, THIN_BODY_M, WINDOWS, CaseId, CaseSet, Plan, confinement_case,
+    SWIM_DRAG_N_S_PER_M, SWIM_MIN_SPEED_M_S, D_READING_SCALE, D_READINGS, PER_SWIMMER, WHOLE_WIDTH, WINDOWS,
+    CaseId, CaseSet, Plan, confinement_case,
     group_case, group_cases, impulse_case, impulse_drags, pair_cases, plan, spaced_channel_m, xi32_durations)
 from ._shared import group_part, group_sweep, impulse_sweep
 
@@ -423,33 +426,42 @@ def _data_links_guided(r: _Runs) -> list[_Case]:
 
 
 def _data_confinement(r: _Runs) -> tuple[dict, dict]:
-    """confinement: dphi = 0 pairs over d/2A (with the ratio at which the edge amplitude gives 1.2) for the
-    default and the thin body width; (data variables, coordinates)."""
+    """confinement: dphi = 0 pairs over d/2A (with the ratio at which the edge amplitude gives 1.2) under
+    each reading of d (:data:`D_READINGS`: per swimmer, the default; the whole width, whose channel at
+    the same d/2A is half as wide); (data variables, coordinates)."""
     w0 = DEFAULT_BODY_M
     r_edge = round(PAPER_RANGE_HIGH * (r.A3 + w0 / 2) / r.A3, 6)
     ratios = tuple(r.p.confinement_d_over_2A) + (r_edge,)
+    starts = list(r.p.confinement_starts)
     if r.runs("confinement"):
         fnc = functools.partial(pair_point, duration_s=CONFINEMENT_S, amplitude_m=r.A3, stop=PAIR_STOP)
-        gc = Grid(axes={"body_width_m": [w0, THIN_BODY_M], "d_over_2A": list(ratios),
-                        "dx0_over_lambda": list(r.p.confinement_starts)}, seed=r.seed)
-        conf = r.ctx.sweep("confinement", fnc, gc).isel(replicate=0)
-        conf_final = np.where(conf["run_failed"].values, np.nan, conf["dx_final_over_lambda"].values)
-        time, series = conf["time"].values, conf["dx_over_lambda"].values
+        finals, series_all = [], []
+        for reading in D_READINGS:
+            k = D_READING_SCALE[reading]
+            gc = Grid(axes={"d_over_2A": [round(k * x, 10) for x in ratios], "dx0_over_lambda": starts}, seed=r.seed)
+            part = "confinement" if reading == PER_SWIMMER else f"confinement-{reading}"
+            conf = r.ctx.sweep(part, fnc, gc).isel(replicate=0)
+            finals.append(np.where(conf["run_failed"].values, np.nan, conf["dx_final_over_lambda"].values))
+            series_all.append(conf["dx_over_lambda"].values)
+            time = conf["time"].values
+        conf_final, series = np.stack(finals), np.stack(series_all)
     else:  # not run: NaN on the runs' axes (pair_point records at RECORD_HZ)
         time = np.round(np.arange(int(round(CONFINEMENT_S * RECORD_HZ)) + 1) / RECORD_HZ, 12)
-        conf_final = np.full((2, len(ratios), len(r.p.confinement_starts)), np.nan)
+        conf_final = np.full((len(D_READINGS), len(ratios), len(starts)), np.nan)
         series = np.full(conf_final.shape + (len(time),), np.nan)
     one = {"units": "1"}
     data = {
-        "conf_dx_final_over_lambda": (("body_width", "d_over_2A", "dx0"), conf_final, {
+        "conf_dx_final_over_lambda": (("d_reading", "d_over_2A", "dx0"), conf_final, {
             **one, "long_name": "confinement runs: final dx/lambda (mean of the last 3 periods)"}),
-        "conf_dx_over_lambda": (("body_width", "d_over_2A", "dx0", "time"), series, {
+        "conf_dx_over_lambda": (("d_reading", "d_over_2A", "dx0", "time"), series, {
             **one, "long_name": "confinement runs: dx/lambda over time"}),
     }
     coords = {
-        "body_width": ("body_width", [w0, THIN_BODY_M], {"units": "m", "long_name": "link width w"}),
-        "d_over_2A": ("d_over_2A", list(ratios), {**one, "long_name": "wall spacing over 2 A (centre-line A)"}),
-        "dx0": ("dx0", list(r.p.confinement_starts), {**one, "long_name": "initial dx0/lambda"}),
+        "d_reading": ("d_reading", list(D_READINGS), {
+            "long_name": "reading of the paper's d: wall distance per swimmer (W = 2 d, default) or whole width "
+                         "(W = d)"}),
+        "d_over_2A": ("d_over_2A", list(ratios), {**one, "long_name": "d over 2 A (centre-line A)"}),
+        "dx0": ("dx0", starts, {**one, "long_name": "initial dx0/lambda"}),
         "time": ("time", time, {"units": "s"}),
     }
     return data, coords
@@ -856,31 +868,37 @@ def _summary_impulse(ds: xr.Dataset) -> tuple[dict[str, Any], list[dict]]:
 
 
 def _summary_confinement(ds: xr.Dataset) -> tuple[dict[str, dict], list[dict]]:
-    """confinement: per body width (keyed ``"15 mm"``, each with its ``case_id``) the central state's width
-    over d/2A and whether it broadens, by centre-line A and by edge amplitude A + w/2."""
+    """confinement: per reading of d (keyed by :data:`D_READINGS`, each with its ``case_id``) the channel
+    widths, the central state's width over d/2A and whether it broadens, by centre-line A and by edge
+    amplitude A + w/2; the bodies' model opens where the clearance W - 2A - 2w turns positive."""
     A = float(ds["amplitude_3_links"])
     ratios = ds["d_over_2A"].values
+    w = DEFAULT_BODY_M
     conf = {}
-    for wi, w in enumerate(ds["body_width"].values):
-        widths = [central_width(ds["conf_dx_final_over_lambda"].values[wi, k]) for k in range(len(ratios))]
-        r_edge = ratios * A / (A + float(w) / 2)
-        conf[f"{float(w) * 1000:g} mm"] = {
-            "case_id": str(confinement_case(float(w))),
-            "body_width_m": float(w), "d_over_2A": ratios, "d_over_2A_edge": r_edge,
+    for ri, reading in enumerate(ds["d_reading"].values):
+        reading = str(reading)
+        k = D_READING_SCALE[reading]
+        widths = [central_width(ds["conf_dx_final_over_lambda"].values[ri, j]) for j in range(len(ratios))]
+        r_edge = ratios * A / (A + w / 2)
+        conf[reading] = {
+            "case_id": str(confinement_case(reading)), "d_reading": reading, "body_width_m": w,
+            "d_over_2A": ratios, "d_over_2A_edge": r_edge,
+            "channel_width_m": 2 * k * ratios * 2 * A,
             "central_width_over_lambda": np.asarray(widths),
-            "model_opening_d_over_2A": 1.0 + float(w) / A,
+            "model_opening_d_over_2A": (2 * A + 2 * w) / (2 * k * 2 * A),
             "broadens_centreline_A": _broadens(ratios, widths),
             "broadens_edge_A": _broadens(r_edge, widths)}
-    w0 = f"{float(ds['body_width'].values[0]) * 1000:g} mm"
     table = []
-    for key, v in conf.items():
-        wtxt = ", ".join(f"{r:.2f}: {x:.3f}" for r, x in zip(v["d_over_2A"], v["central_width_over_lambda"]))
-        table.append({"claim": "central state broadens over d/2A 0.6-1.2", "factor": "body width w",
-                      "level": f"w = {key}" + (" (default)" if key == w0 else ""),
+    label = {PER_SWIMMER: "wall distance per swimmer, W = 2d (default)", WHOLE_WIDTH: "whole channel width, W = d"}
+    for reading, v in conf.items():
+        wtxt = ", ".join(f"{r:.2f} ({W * 1000:.0f} mm): {x:.3f}" for r, W, x in
+                         zip(v["d_over_2A"], v["channel_width_m"], v["central_width_over_lambda"]))
+        table.append({"claim": "central state broadens over d/2A 0.6-1.2", "factor": "reading of d",
+                      "level": label.get(reading, reading),
                       "verdict": _verdict(v["broadens_centreline_A"], missing=v["broadens_centreline_A"] is None),
-                      "key number": f"width/lambda at d/2A = {wtxt}; model opens at d/2A = "
+                      "key number": f"width/lambda at d/2A (W) = {wtxt}; bodies' model opens at d/2A = "
                                     f"{v['model_opening_d_over_2A']:.2f}"})
-    v = conf[w0]
+    v = conf[PER_SWIMMER]
     table.append({"claim": "central state broadens over d/2A 0.6-1.2", "factor": "definition of A",
                   "level": "edge amplitude A + w/2 (default: centre line A)",
                   "verdict": _verdict(v["broadens_edge_A"], missing=v["broadens_edge_A"] is None),
