@@ -199,9 +199,9 @@ def claims_table_markdown(claims: str | Path | dict[str, Any]) -> str:
                 "| study | claim | verdict | measured | the sentence it tests (where) |", "|---|---|---|---|---|"]
         for r in mine:
             quote = quote_text(r.get("quote") or "") or f"(paraphrase) {r.get('paper') or ''}"
-            where = f" ({r['where']})" if r.get("where") else ""
+            where = f"({r['where']})" if r.get("where") else ""
             old = "; ".join(f"before: {o.get('criterion')} -> {o.get('verdict')}" for o in r.get("superseded") or [])
             verdict = r.get("verdict", "") + (f" ({old})" if old else "")
             out.append(f"| {_cell(r.get('study'))} | {_cell(r.get('claim'))} | {_cell(verdict)} | "
-                       f"{_cell(r.get('measured'))} | \u201c{_cell(quote)}\u201d{_cell(where)} |")
+                       f"{_cell(r.get('measured'))} | \u201c{_cell(quote)}\u201d {_cell(where)} |")
     return "\n".join(out) + "\n"

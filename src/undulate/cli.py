@@ -327,6 +327,28 @@ def _stop_on_termination() -> None:
     unwind_on_signals((signal.SIGTERM, signal.SIGHUP), _Terminated)
 
 
+@app.command("claims-table")
+def claims_table(
+    claims_json: Path = typer.Argument(..., help="A claims.json written by `undulate reproduce`."),
+) -> None:
+    """Print a reproduction's claims table as Markdown: the paper's counts apart from the PRX 2021 ones, then
+    every claim with its verdict, measured value and the paper's sentence it tests (what
+    docs/full_reproduction.md opens with)."""
+    from .claims import claims_table_markdown
+
+    try:
+        if not claims_json.is_file():
+            raise ParameterError("CLAIMS_JSON", "an existing claims.json", str(claims_json))
+        try:
+            text = claims_table_markdown(claims_json)
+        except (ValueError, AttributeError, TypeError) as e:
+            raise ParameterError("CLAIMS_JSON", "a claims.json written by `undulate reproduce`",
+                                 f"{claims_json} ({type(e).__name__})") from None
+    except ParameterError as e:
+        _fail(str(e), 2)
+    typer.echo(text, nl=False)
+
+
 @app.command()
 def study(
     name: str = typer.Argument(..., help="Study name (see `undulate studies`)."),
