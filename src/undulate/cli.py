@@ -52,7 +52,8 @@ def simulate(
     waves_per_body: float = typer.Option(_GAIT.waves_per_body, help="xi = L/lambda, body waves per body length (0 = standing wave)."),
     amplitude: float = typer.Option(round(math.degrees(_GAIT.amplitude_rad), 9), help="Joint amplitude beta, DEGREES (0, 90]."),
     frequency: float = typer.Option(_GAIT.frequency_hz, help="Gait frequency f, Hz."),
-    channel_width: float = typer.Option(_CHAN.width_m, help="Wall-to-wall channel width d, m."),
+    channel_width: float = typer.Option(_CHAN.width_m, help="Wall-to-wall channel width W, m (a pair's W = 2 d; "
+                                               "undulate.theory.channel_width_m)."),
     dx0: float = typer.Option(0.0, help="Initial longitudinal offset of each swimmer from the previous one, m."),
     separating_force: float = typer.Option(0.0, help="Longitudinal force, N: +F on the second swimmer and -F on the first."),
     duration: float = typer.Option(_SIM.duration_s, help="Simulated time, s."),

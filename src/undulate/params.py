@@ -442,7 +442,8 @@ class Channel(_Params):
     """
 
     width_m: float = 0.13
-    """d: wall-to-wall separation, m."""
+    """W: wall-to-wall separation, m (the paper's confinement d is the wall distance per swimmer side by
+    side, so a pair's W = 2 d: :func:`undulate.theory.channel_width_m`)."""
     length_m: float = 1.2
     """Channel length, m (walls are drawn this long; >= 1 m)."""
     end_walls_m: float | None = None
