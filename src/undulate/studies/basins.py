@@ -367,7 +367,8 @@ CLAIMS = (
           quote=(r"In both experiment and simulation we noticed that the equilibrium $\Delta x$ formed discrete "
                  r"clusters along the compatibility prediction line while the prediction from a sinusoidal model "
                  r"is a linear phase-displacement relationship."),
-          where="Sec. III.C (Figs. 3b, 5a); explained in Sec. III.F, Fig. 8b"),
+          where="Sec. III.C (Figs. 3b, 5a); explained in Sec. III.F, Fig. 8b",
+          bands={"tread_share": (0.5, None), "line_distance": (None, 0.25)}),
 )
 
 
