@@ -463,3 +463,32 @@ def test_each_claim_section_has_its_own_evidence_figure_and_quotes_the_paper(cla
     for src in srcs:
         with Image.open(out / src) as im:
             assert im.size[0] <= 600 and im.size[1] <= 900, im.size  # few elements, small
+
+
+def test_the_generic_evidence_figure_draws_each_estimate_group_its_region_and_the_explaining_runs(tmp_path):
+    """One panel per kind of number (a key and its "pairs_" twin share one, compared), the criterion's region
+    shaded where it is known, a curve from equal-length lists, the explaining runs beside an explained claim's
+    numbers; a figure is drawn again only when what it shows changed."""
+    from undulate._evidence import evidence_figure, write_evidence
+
+    e = lambda v, lo, hi: {"value": v, "stderr": 0.1, "ci95": [lo, hi], "n": 9, "method": "t", "level": 0.95}  # noqa: E731
+    row = {"study": "groups", "claim": "c", "paper": "p", "verdict": "fails",
+           "value": {"slope": e(0.6, 0.5, 0.7), "rms": e(0.3, 0.2, 0.4), "pairs_rms": e(0.05, 0.0, 0.1),
+                     "d_over_2A": [0.6, 0.9, 1.2], "width": [0.0, 0.1, 0.2], "n_runs": 9}}
+    fig = evidence_figure(row, {"slope": (0.8, 1.2), "rms": (None, 0.2)})
+    axes = [a for a in fig.axes if a.get_visible()]
+    assert [a.get_title() for a in axes] == ["slope", "rms", "width"]
+    slope, rms, width = axes
+    assert [t.get_text() for t in rms.get_xticklabels()] == ["measured", "pairs"]
+    lines = {round(y, 6) for a in (slope,) for ln in a.get_lines() if len(set(ln.get_ydata())) == 1
+             for y in ln.get_ydata()[:1]}
+    assert {0.8, 1.2} <= lines and slope.patches  # the region's edges and its shading
+    assert not width.patches and width.get_xlabel() == "d_over_2A"
+    explained = {**row, "verdict": "explained",
+                 "explanation": {"cause": "x", "shown": True, "value": {"default": False, "changed": True}}}
+    ax = [a for a in evidence_figure(explained, {}).axes if a.get_visible()][-1]
+    assert "explaining runs" in ax.get_title() and [t.get_text() for t in ax.texts] == ["default: fails", "changed: holds"]
+    first = write_evidence(row, tmp_path, "claim-a")
+    made = (tmp_path / first).stat().st_mtime_ns
+    assert write_evidence(row, tmp_path, "claim-a") == first and (tmp_path / first).stat().st_mtime_ns == made
+    assert write_evidence({**row, "value": {"slope": e(0.9, 0.85, 0.95)}}, tmp_path, "claim-a") != first

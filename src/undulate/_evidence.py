@@ -32,6 +32,7 @@ __all__ = ["evidence_figure", "write_evidence", "flatten"]
 
 WIDTH_IN, DPI, FONT_PT = 5.6, 100, 10
 MAX_PANELS = 6
+MAX_TEXT = 5
 _OK, _NO, _UN = "#2e8b57", "#c0392b", "#d99a00"
 
 
@@ -80,6 +81,14 @@ def flatten(value: Any, path: tuple[str, ...] = ()) -> tuple[list, list, list, l
                 est.append((path + (k,), _num(v), _num(value[f"{k}_low"]), _num(value[f"{k}_high"])))
                 continue
             e, c, s, f = flatten(v, path + (k,))
+            est += e
+            curves += c
+            scalars += s
+            flags += f
+        return est, curves, scalars, flags
+    if isinstance(value, list) and value and all(isinstance(v, dict) for v in value):  # one entry per run
+        for i, v in enumerate(value):
+            e, c, s, f = flatten(v, path + (str(i),))
             est += e
             curves += c
             scalars += s
@@ -139,18 +148,26 @@ def _panels(value: Any, bands: dict[str, Any]) -> tuple[list[dict], list[str]]:
         if _band(bands, name, path) is not None and name not in groups:
             groups[name] = {"kind": "points", "name": name, "points": [(cat, v, None, None)],
                             "band": _band(bands, name, path)}
-    for name in sorted(groups, key=len, reverse=True):  # "pairs_rms" beside "rms": one panel, compared
-        base = next((b for b in groups if b != name and name.endswith("_" + b)), None)
+    for name in sorted(groups, key=len, reverse=True):  # "pairs_rms" or "rms_sinusoid" beside "rms": compared
+        base = next((b for b in groups if b != name and (name.endswith("_" + b) or name.startswith(b + "_"))), None)
         if base is not None:
-            prefix = name[: -len(base) - 1]
+            tag = name[: -len(base) - 1] if name.endswith("_" + base) else name[len(base) + 1:]
             g = groups.pop(name)
-            groups[base]["points"] += [((f"{c}/{prefix}" if c else prefix), v, lo, hi) for c, v, lo, hi in g["points"]]
+            groups[base]["points"] += [((f"{c}/{tag}" if c else tag), v, lo, hi) for c, v, lo, hi in g["points"]]
+    for g in groups.values():  # the x labels without what all of a panel's points share
+        parts = [c.split("/") if c else [] for c, *_ in g["points"]]
+        k = 0
+        while len(parts) > 1 and all(len(q) > k + 1 for q in parts) and len({q[k] for q in parts}) == 1:
+            k += 1
+        g["points"] = [("/".join(q[k:]), v, lo, hi) for q, (_, v, lo, hi) in zip(parts, g["points"])]
     panels = list(groups.values())
     for path, xk, xs, yk, ys in curves:
         panels.append({"kind": "curve", "name": yk, "x": xk, "xs": xs, "ys": ys, "band": _band(bands, yk, path + (yk,))})
     shown = {p["name"] for p in panels}
     text = [f"{'.'.join(p)} = {v:.4g}" for p, v in scalars if _name_and_category(p)[0] not in shown]
     text += [f"{'.'.join(p)}: {'yes' if f else 'no' if f is False else 'undecided'}" for p, f in flags]
+    if len(text) > MAX_TEXT:
+        text = text[:MAX_TEXT] + [f"{len(text) - MAX_TEXT} more in the claim's value (claims.json)"]
     return panels[:MAX_PANELS], text
 
 
@@ -171,7 +188,7 @@ def _draw_points(ax, p: dict) -> None:
         if lo is None or hi is None:
             ax.plot([x], [v], "o", mfc="white", mec="#1f4e99", ms=6, zorder=4)
     named = any(c for c, *_ in pts)
-    ax.set_xticks(xs, [(c if len(c) <= 12 else c[:11] + "…") or ("this claim" if named else " ") for c, *_ in pts])
+    ax.set_xticks(xs, [(c if len(c) <= 12 else c[:11] + "…") or ("measured" if named else " ") for c, *_ in pts])
     ax.set_xlim(-0.6, len(pts) - 0.4)
     vals = [u for _, v, lo, hi in pts for u in (v, lo, hi) if u is not None]
     band = p["band"] or (None, None)
@@ -227,7 +244,7 @@ def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
     cols = max(1, min(3, n))
     nrows = max(1, math.ceil(n / cols))
     header = textwrap.fill(f"Paper: {row.get('paper') or ''}", 72)
-    footer = textwrap.fill("; ".join(text), 90) if text else ""
+    footer = textwrap.fill("; ".join(text), 80) if text else ""
     height = 0.75 + 0.2 * header.count("\n") + 2.3 * nrows + (0.2 * (footer.count("\n") + 1) if footer else 0)
     if n == 0:
         height = 1.2 + 0.2 * header.count("\n") + 0.2 * footer.count("\n")
