@@ -219,7 +219,7 @@ def _draw_explanation(ax, explanation: dict[str, Any], shown: bool) -> None:
         color, word = (_OK, "holds") if f is True else (_NO, "fails") if f is False else (_UN, "undecided")
         ax.barh([y], [1], color=color, alpha=0.85)
         label = ".".join(path)
-        label = label if len(label) <= 22 else label[:21] + "…"
+        label = label if len(label) <= 18 else label[:17] + "…"  # with ": undecided", within the panel
         ax.text(0.03, y, f"{label}: {word}", va="center",
                 ha="left", fontsize=FONT_PT, color="white" if f is not None else "black")
     ax.set_xlim(0, 1)
