@@ -230,3 +230,16 @@ def test_warp_steps_the_resistive_medium(monkeypatch):
     assert w.attrs["backend"] == "warp"
     np.testing.assert_allclose(w["x"].values, m["x"].values, atol=1e-6)
     np.testing.assert_allclose(w["y"].values, m["y"].values, atol=1e-6)
+
+
+def test_study_points_name_the_resistive_ground():
+    """Sweep points: ``ground="resistive"`` is :meth:`Ground.resistive`, with ``drag_N_s_per_m`` (if given)
+    its tangential coefficient; an unknown ground is refused naming the allowed ones."""
+    from undulate.studies._points import LonePoint, PairPoint
+    from undulate.studies._runners import pair_scene
+
+    assert LonePoint.of({"ground": "resistive"}).ground_model() == Ground.resistive()
+    assert pair_scene({"ground": "resistive"}).ground == Ground.resistive()
+    assert pair_scene({"ground": "resistive", "drag_N_s_per_m": 1.0}).ground == Ground.resistive(drag_N_s_per_m=1.0)
+    with pytest.raises(ParameterError, match="resistive"):
+        PairPoint.of({"ground": "rft"})

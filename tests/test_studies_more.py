@@ -170,13 +170,17 @@ def test_swimming_reduced(tmp_path):
 
 
 def _check_swimming(ds, summary):
-    # the lone swimmer advances head first (toward -x) in the fluid; on the viscous ground
+    # the lone swimmer advances head first (toward -x) in the resistive medium, at the inertialess RFT
+    # speed of its gait (tests/test_resistive.py: 0.0146 m per period = 0.027 L); on the viscous ground
     # it only creeps (the integrator's O(dt) drift)
     assert 0.004 < summary["lone_swimmer_speed_m_s"] < 0.02
+    assert summary["lone_swimmer_speed_body_lengths_per_period"] == pytest.approx(0.027, rel=0.05)
+    lo, hi = summary["lone_swimmer_speed_body_lengths_per_period_range"]
+    assert lo <= summary["lone_swimmer_speed_body_lengths_per_period"] * (1 + 1e-6) and hi - lo < 0.002
     assert abs(summary["lone_viscous_speed_m_s"]) < 1e-3
     vis = summary["modes"]["viscous"]
     assert 0.8 < vis["slope"]["value"] < 1.2 and vis["rms_residual_over_lambda"]["value"] < 0.08
-    sw = ds["dx_final_over_lambda"].sel(mode="swimming")
+    sw = ds["dx_final_over_lambda"].sel(mode="resistive")
     # small detuning: swimming pairs settle where non-swimming ones do
     small = np.abs(ds["dphi"]) <= np.pi / 4 + 1e-9
     assert int(small.sum()) >= 1

@@ -79,7 +79,8 @@ def test_group_follows_line_is_three_valued():
 def swimming_summary(slope=(1.0, 0.9, 1.1), rms=(0.04, 0.03, 0.05)):
     line = {"slope": est(1.0, 0.95, 1.05), "rms_residual_over_lambda": est(0.03, 0.02, 0.04)}
     return {"lone_swimmer_speed_m_s": 0.0085,
-            "modes": {"viscous": line, "swimming": {"slope": est(*slope), "rms_residual_over_lambda": est(*rms)}}}
+            "lone_swimmer_speed_body_lengths_per_period": 0.0085 * 2.0 / 0.54,
+            "modes": {"viscous": line, "resistive": {"slope": est(*slope), "rms_residual_over_lambda": est(*rms)}}}
 
 
 @pytest.mark.parametrize("kw, verdict", [
@@ -98,7 +99,7 @@ def test_swimming(kw, verdict):
 
 def test_swimming_missing_interval_is_no_result():
     s = swimming_summary()
-    s["modes"]["swimming"]["slope"] = stats.Estimate(math.nan).to_dict()
+    s["modes"]["resistive"]["slope"] = stats.Estimate(math.nan).to_dict()
     assert verdicts("swimming", s) == [NO_RESULT]
 
 

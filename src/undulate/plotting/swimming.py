@@ -11,7 +11,8 @@ from . import new_figure, phase_axis
 __all__ = ["plot_swimming"]
 
 _STYLE = {"viscous": ("tab:purple", "o", "not swimming (viscous ground)"),
-          "swimming": ("tab:cyan", "s", "swimming (fluid drag)")}
+          "resistive": ("tab:cyan", "s", "swimming (resistive-force drag)"),
+          "swimming": ("tab:cyan", "s", "swimming (ellipsoid fluid drag)")}
 
 
 def plot_swimming(ds):
@@ -55,6 +56,7 @@ def plot_swimming(ds):
     ax.set_xlabel("time (s)")
     ax.set_ylabel(r"$\Delta x/\lambda$")
     speeds = ds["lone_speed"].values
+    per_T = float(ds.attrs.get("period_s", 2.0)) / float(ds.attrs.get("body_length_m", 0.54))
     ax.set_title("lone swimmer: " + ", ".join(
-        f"{m} {1e3 * v:.1f} mm/s" for m, v in zip(ds["mode"].values, speeds)), fontsize=9)
+        f"{m} {1e3 * v:.1f} mm/s ({v * per_T:.3f} L/period)" for m, v in zip(ds["mode"].values, speeds)), fontsize=9)
     return fig

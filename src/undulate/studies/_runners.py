@@ -204,7 +204,8 @@ def pair_scene(point: dict, *, amplitude_m: float | None = None, force_onset_s: 
     is :func:`undulate.theory.channel_width_m` for two swimmers, ``W = 2 (d/2A) 2A``),
     ``amplitude_rad`` (beta, rad; 45 degrees), ``waves_per_body`` (xi; 1),
     ``force_N`` (dF, N: swimmer a is pushed toward -x and b toward +x, from
-    ``force_onset_s`` until ``force_offset_s``, None: to the end; 0), ``ground`` (``"viscous"`` or ``"swimming"``),
+    ``force_onset_s`` until ``force_offset_s``, None: to the end; 0), ``ground`` (``"viscous"``;
+    ``"resistive"``: :meth:`Ground.resistive`, with ``drag_N_s_per_m`` its c_par if given; or ``"swimming"``),
     ``body_width_m`` (w of every link, m; the SwimmerGeometry default),
     ``fluid_density_kg_m3`` (the swimming ground's fluid density, kg/m^3:
     the strength of its anisotropic drag; :meth:`Ground.swimming`'s default),
