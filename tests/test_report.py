@@ -458,6 +458,8 @@ def test_each_claim_section_has_its_own_evidence_figure_and_quotes_the_paper(cla
     (beta,) = [s for s in secs if "groups follow the line" in s["text"]]
     assert "criterion before" in beta["text"] and "no step rises beyond its interval" in beta["text"]
     assert "one noisy step decided it" in beta["text"]
+    table = _measure(out, "() => document.querySelector('h2#claims ~ table').innerText")
+    assert "before: holds" in table  # the replaced criterion's verdict beside the current one in the table too
     from PIL import Image
 
     for src in srcs:

@@ -192,8 +192,11 @@ def claims_table(rows: list[dict[str, Any]], ids: list[str], statuses: list[dict
                 claim = f"<td>{ctl_cell}</td><td>{esc(rest)}</td>"
             else:
                 claim = f"<td>{claim}</td>"
+            before = "".join(f"<br><span class='na before'>before: {esc(o.get('verdict'))}</span>"
+                             for o in c.get("superseded") or [])
             out.append(f"<tr class='verdict-{BADGE.get(c.get('verdict'), 'na')}'><td>{esc(name)}</td>{claim}"
-                       f"<td>{esc(clip(c.get('measured', ''), MEASURED_WORDS))}</td><td>{badge(c.get('verdict'))}</td>"
+                       f"<td>{esc(clip(c.get('measured', ''), MEASURED_WORDS))}</td><td>{badge(c.get('verdict'))}"
+                       f"{before}</td>"
                        f"<td>{_cause_cell(c, a, previous)}</td></tr>")
             previous = _cause_text(c)
     out.append("</tbody></table>")
