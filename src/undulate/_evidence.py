@@ -213,6 +213,8 @@ def _draw_explanation(ax, explanation: dict[str, Any], shown: bool) -> None:
     """The explaining runs: the criterion met (holds), not met (fails) or undecided in each."""
     value = explanation.get("value")
     _, _, _, flags = flatten(value if isinstance(value, dict) else {"shown": explanation.get("shown")})
+    if not flags:  # numbers only (or none): the explanation's own verdict on them
+        flags = [(("cause shown",), explanation.get("shown"))]
     flags = flags[:8]
     for i, (path, f) in enumerate(flags):
         y = len(flags) - 1 - i
