@@ -226,8 +226,9 @@ def test_potential_quick(quick_runs):
 
 def test_potential_reduced(tmp_path):
     """A reduced real potential run: 7 dphi x 2 common phases, 2 beta x 2 d/2A x 3 forces (26 runs, of 81
-    quick)."""
-    p = potential.PotentialPlan(np.pi * np.array([-1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0]), [30, 60], [0.8, 1.2],
+    quick).  d/2A = 0.4 and 0.6 (per swimmer: channels 2 (d/2A) 2A, 84 and 125 mm at beta = 45 deg), where
+    the settled pair still touches and holds against every force here."""
+    p = potential.PotentialPlan(np.pi * np.array([-1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0]), [30, 60], [0.4, 0.6],
                                 [0.02, 0.1, 0.3], impulse_phi0=(0.0, np.pi))
     ds = potential.dataset(_context(tmp_path, "potential"), p)
     _check_units("potential", ds)
