@@ -1,6 +1,7 @@
 """The two channel widths that fix what the paper's confinement ``d`` is (docs/confinement_d.md).
 
     python explorations/d_thresholds.py [--out explorations/results/d_thresholds.json]
+    python explorations/d_thresholds.py --cohesion   # the potential study's force runs by d/2A
 
 The paper says of ``d/2A`` (its section on confinement): below 0.5 "the
 undulatory gait is obstructed", above 1 "swimmers through initial contact
@@ -105,10 +106,55 @@ def threshold(run, scan, bad_key: str) -> dict:
     return {"coarse": coarse, "state_changes_along_scan": changes, "bracket_m": [lo, hi], "bisection": steps}
 
 
+COHESION_D_OVER_2A = (0.5, 0.6, 0.7, 0.8, 0.9, 1.2)
+COHESION_FORCES_N = (0.005, 0.02, 0.1, 0.3)
+
+
+def cohesion(out_path: str) -> None:
+    """``--cohesion``: where a settled in-phase pair holds against the potential study's forces, by d/2A per
+    swimmer (its force runs, judged by its own rules: broken when dx / lambda > BREAK or the last 3 period
+    means span more than DRIFT)."""
+    import functools
+
+    from undulate.studies._runners import pair_point
+    from undulate.studies.potential import BREAK, DRIFT, DURATION_S, FORCE_STOP, SETTLE_S, _last_periods
+    from undulate.theory import channel_width_m
+
+    t0 = time.process_time()
+    amp = float(lone_swimmer({}, 0)["amplitude_m"])
+    fn = functools.partial(pair_point, duration_s=DURATION_S, force_onset_s=SETTLE_S, stop=FORCE_STOP)
+    rows = []
+    for r in COHESION_D_OVER_2A:
+        for f in COHESION_FORCES_N:
+            g = fn({"amplitude_m": amp, "d_over_2A": r, "force_N": f}, 0)
+            pm = g["dx_period_over_lambda"].values[None, :]
+            k_before = int(np.flatnonzero(g["period_time"].values < SETTLE_S)[-1])
+            last = _last_periods(pm, 3)[0]
+            dx, drift = float(last.mean() - pm[0, k_before]), float(np.ptp(last))
+            rows.append({"d_over_2A": r, "channel_width_m": float(channel_width_m(r, amp, 2)), "force_N": f,
+                         "dx_over_lambda": dx, "drift_over_lambda": drift,
+                         "held": bool(dx <= BREAK and drift <= DRIFT)})
+            print(f"d/2A = {r:.1f} (W = {rows[-1]['channel_width_m'] * 1e3:.0f} mm), dF = {f} N: dx/lambda {dx:.3f}, "
+                  f"drift {drift:.4f}: {'held' if rows[-1]['held'] else 'broken'}", flush=True)
+    out = {"what": "in-phase pairs (beta = 45 deg) settled, then pulled apart by dF, by d/2A per swimmer "
+                   "(explorations/d_thresholds.py --cohesion; docs/confinement_d.md)",
+           "provenance": provenance(), "amplitude_m": amp, "rows": rows,
+           "rules": {"break_over_lambda": BREAK, "drift_over_lambda": DRIFT, "settle_s": SETTLE_S,
+                     "duration_s": DURATION_S},
+           "cpu_s": round(time.process_time() - t0, 1)}
+    Path(out_path).write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
+    print(f"cpu {out['cpu_s']} s -> {out_path}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", default=str(Path(__file__).parent / "results" / "d_thresholds.json"))
+    ap.add_argument("--cohesion", action="store_true",
+                    help="instead: where a settled in-phase pair holds against the potential study's forces "
+                         "(writes results/d_cohesion.json)")
     args = ap.parse_args(argv)
+    if args.cohesion:
+        return cohesion(str(Path(__file__).parent / "results" / "d_cohesion.json"))
     t0 = time.process_time()
     lone = lone_swimmer({}, 0)
     amp, lone_err = float(lone["amplitude_m"]), float(lone["mean_joint_error_rad"])
