@@ -18,8 +18,9 @@ it: "swimmers cannot push each other away laterally"; docs/confinement_d.md),
   final offset is the mean of the last three periods), beside the
   sinusoidal theory :func:`undulate.theory.sinusoid_basin_displacement`
   (target ``"line"``, the paper's) with the lateral clearance the channel
-  leaves two bodies of width ``w`` and stroke ``A`` (``max(0, d - 2A -
-  2w)``, :func:`undulate.theory.lateral_clearance_m`; 0 at ``d = 0.13 m``).
+  leaves two bodies of width ``w`` and stroke ``A`` (``max(0, W - 2A -
+  2w)`` for the channel's whole width ``W``, :func:`undulate.theory.lateral_clearance_m`;
+  0 at ``W = 0.13 m``).
 
 Runs: :func:`._runners.pair_point`.  The threshold's uncertainty is its
 bracket (the last start that returned, the first that was pushed away).

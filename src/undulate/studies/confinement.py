@@ -119,9 +119,9 @@ def dataset(ctx: StudyContext, p: ConfinementPlan):
             "basin_hi": (("d_over_2A",), [s["basin_hi"] for s in stats], {
                 **one, "long_name": "most positive start ending in the central state"}),
             "model_width_thin": (("d_over_2A",), 2 * model_dx0_m(width, amp, lam) / lam, {
-                **one, "long_name": "compatibility band width, sinusoids (clearance d - 2A)"}),
+                **one, "long_name": "compatibility band width, sinusoids (clearance W - 2A)"}),
             "model_width_bodies": (("d_over_2A",), 2 * model_dx0_m(width, amp, lam, geo.width_m) / lam, {
-                **one, "long_name": "compatibility band width, bodies of width w (clearance d - 2A - 2w)"}),
+                **one, "long_name": "compatibility band width, bodies of width w (clearance W - 2A - 2w)"}),
             "amplitude": ((), amp, {"units": "m", "long_name": "gait amplitude A of a free swimmer"}),
         },
         coords={
