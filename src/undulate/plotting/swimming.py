@@ -45,7 +45,7 @@ def plot_swimming(ds):
     ax.set_ylabel(r"steady $\Delta x/\lambda$")
     ax.set_title(r"$d$ = 0.13 m, $\xi$ = 1; dashed: compatibility $\Delta x/\lambda = \Delta\phi/2\pi + n$",
                  fontsize=9)
-    ax.legend(fontsize=8, loc="upper left")
+    ax.legend(fontsize=8, loc="lower right")  # the upper left holds points on the n = 1 branch
 
     ax = fig.add_subplot(1, 2, 2)
     t = ds["time"].values
