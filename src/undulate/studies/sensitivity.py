@@ -78,7 +78,7 @@ marks such a claim ``explained`` only when the check is true; None when a
 condition it rests on is undecided): one module
 per cause in :mod:`._explanations`, each reading the summary's results by
 typed case id (:class:`~._sensitivity_design.CaseId`; every pair case's
-entry, group case, body width and impulse drag carries its ``case_id``).
+entry, group case, reading of d and impulse drag carries its ``case_id``).
 The constants, the plan and the case ids live in :mod:`._sensitivity_design`;
 the dataset is assembled one factor group at a time (the ``_data_*`` steps)
 and summarised the same way (the ``_summary_*`` steps and
@@ -1019,5 +1019,5 @@ register(Study(
     figure=figure,
     description="Model sensitivity: the xi = 1 and xi = 3/2 pair claims, the link-number trend and the "
                 "confinement claim against servo, contact, drag, duration, steady rule, dphi = +-pi, links per "
-                "body, the equal-A amplitude rule, body width and the definition of A; groups against the "
+                "body, the equal-A amplitude rule, the reading of d and the definition of A; groups against the "
                 "neighbours' lateral spacing (one at a time)."))
