@@ -106,3 +106,27 @@ def test_the_claims_table_command_prints_a_claims_json_and_refuses_anything_else
         assert len(err) == 1 and "CLAIMS_JSON" in err[0]
     (tmp_path / "list.json").write_text("[1, 2]")
     assert main(["claims-table", str(tmp_path / "list.json")]) == 2
+
+
+def test_claims_json_rows_carry_the_quote_where_and_superseded_verdicts(tmp_path):
+    """``collect`` keeps each row's quote, where and superseded criteria (judged rows from
+    :func:`undulate.studies.judge`); a study file older than the fields gives "", "" and []."""
+    import json
+
+    from undulate.claims import collect
+    from undulate.studies import Claim, SupersededCriterion, Verdict
+    from undulate.studies._registry import judge
+
+    claim = Claim("k falls", "k decreases", "rho < 0", lambda s: Verdict.judged(s["rho"] < 0, f"rho {s['rho']}"),
+                  quote="We found that k decreases.", where="Sec. III.G, Fig. 10d",
+                  superseded=(SupersededCriterion("no step rises", lambda s: Verdict.judged(False, "a step rose"),
+                                                  "one noisy step decided it"),))
+    rows = judge("potential", (claim,), {"rho": -0.5})
+    (tmp_path / "potential.json").write_text(json.dumps({"claims": rows}))
+    old = {k: v for k, v in rows[0].items() if k not in ("quote", "where", "superseded")}
+    (tmp_path / "old.json").write_text(json.dumps({"claims": [{**old, "study": "old"}]}))
+    new, older = collect(tmp_path, ["potential", "old"])
+    assert (new["quote"], new["where"], new["verdict"]) == ("We found that k decreases.", "Sec. III.G, Fig. 10d", "holds")
+    assert new["superseded"] == [{"criterion": "no step rises", "why": "one noisy step decided it", "verdict": "fails",
+                                  "measured": "a step rose", "reason": ""}]
+    assert (older["quote"], older["where"], older["superseded"]) == ("", "", [])
