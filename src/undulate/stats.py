@@ -475,7 +475,7 @@ def bootstrap(statistic: Callable[..., float], *samples, seed: int | None = None
     (:func:`level`).  ``method``: ``"BCa"`` (bias-corrected and accelerated; Efron & Tibshirani 1993,
     ch. 14: the percentiles moved by the distribution's median bias ``z0`` and the jackknife's
     acceleration ``a``; :func:`_bca_levels`) or ``"percentile"`` (the distribution's plain
-    percentiles; the package's method until 2026-11-29, whose upper bound on an RMS or an R^2 falls
+    percentiles, whose upper bound on an RMS or an R^2 falls
     short of the truth several times more often than it says: docs/verdicts.md).  A resample on which
     the statistic is undefined (NaN: an R^2 of a resample with no spread) is left out of the
     distribution, and of the jackknife, rather than voiding the interval as ``scipy.stats.bootstrap``'s
@@ -486,7 +486,7 @@ def bootstrap(statistic: Callable[..., float], *samples, seed: int | None = None
     resample at once (rows of 2-D arrays); the resamples are the same as without it (scipy draws them
     before evaluating), only evaluated in one NumPy call instead of one Python call each.
 
-    ``expand`` (default, since 2026-11-29): the interval's levels are those of
+    ``expand`` (default): the interval's levels are those of
     :func:`expanded_z` for the ``n`` points resampled (for a cluster bootstrap, the clusters) instead
     of the normal quantile, in either method: the interval widens by ~20 % at 9 points, ~10 % at 17,
     ~5 % at 33, and misses the truth on either side less often at every size measured
@@ -822,8 +822,8 @@ def rank_correlation(x, y, *, seed: int | None = None) -> Estimate:
     data, ``n!`` over the factorials of the tie counts in ``x`` and in ``y``, are fewer than ``2 / (1 -
     level)``: with no trend the most extreme ordering comes by chance once in that many, so no data
     could exclude rho = 0 at the level (without ties: 5 points up to 98.3 %, 6 up to 99.7 %), whereas
-    every resample of a monotone sample is monotone and the bootstrap's interval is [-1, -1] (since
-    2026-11-29; before, a quick reproduction judged rho = -1 [-1, -1] on 3 channel widths)."""
+    every resample of a monotone sample is monotone and the bootstrap's interval is [-1, -1] (three
+    channel widths in a monotone order would otherwise be judged rho = -1 [-1, -1])."""
     from scipy import stats as st
 
     x, y = _clean(x, y)

@@ -60,7 +60,7 @@ def lone_swimmers_backend(device: str | None) -> str:
 
     Why a GPU hands lone swimmers to the cores: a lone swimmer touches nothing but the channel
     walls, and its batches are small (a study's free swimmers, 1-36 at a time), where a GPU step
-    costs the same ~0.32 ms as a model of a thousand worlds (an H200, 2026-11-27) and one core steps a
+    costs the same ~0.32 ms as a model of a thousand worlds (on an H200) and one core steps a
     9-link swimmer in ~14 us (MuJoCo on a 2-core VM).  The free swimmers are also the reproduction's longest chain of steps
     that must follow one another (sensitivity's equal-A search: up to three 30 s runs in turn).  Such
     runs step on MuJoCo (float64, the MuJoCo backend's results bitwise), and their Datasets say so
@@ -81,7 +81,7 @@ def cores_up_to(device: str | None) -> int:
     Warp), else on a GPU the cores this process may use and on Warp's CPU device 0.
 
     Why on a GPU: a step of a small Warp model costs about the same whatever its worlds, ~0.35 ms for
-    pairs and ~1.5 ms for 3-12 jammed packs in a quick reproduction on an H200 (2026-11-29), where one
+    pairs and ~1.5 ms for 3-12 jammed packs in a quick reproduction on an H200, where one
     core steps a pair in ~23 us and a pack in ~0.7 ms (that machine's cores, ../shared/GPU.md).  Up to
     one scene per core, the cores step every scene 2x (packs) to 15x (pairs) faster than the device
     steps the batch, and a quick reproduction's longest chains are such batches stepped one after
@@ -100,7 +100,7 @@ def warp_prefetch(device: str | None) -> bool:
     ``UNDULATE_WARP_PREFETCH`` (``1`` or ``0``), else on a GPU and not on Warp's CPU device.
 
     Why by device: on a GPU a step costs about the same for one world as for hundreds (an H200: ~0.32 ms
-    for one world, 0.34 ms for 1 024, 2026-11-27), so stepping every stage's runs at once costs about
+    for one world, 0.34 ms for 1 024), so stepping every stage's runs at once costs about
     the first look's time and spares the later looks' chains of steps.  On Warp's CPU device each world
     costs its own steps, so the runs no look reads are time lost: full mode's packing study would step
     its last stage's 182 jammed packs where its first look, which decides on the MuJoCo backend, reads

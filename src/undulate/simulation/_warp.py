@@ -162,8 +162,8 @@ def capacities(mjm: mujoco.MjModel) -> dict[str, int]:
     The bound used is 6 contacts per colliding geom plus 16.  Constraint rows: per contact, 1
     for a frictionless contact (condim 1), else ``2 (condim - 1)`` in a pyramidal friction cone
     or ``condim`` in an elliptic one; plus one per joint limit, per dof with friction loss and
-    per equality row (6 at most each), and 16.  (Until 2026-11-27 a frictionless contact was
-    counted as 0 rows: a group of three overflowed on Warp's CPU device.)"""
+    per equality row (6 at most each), and 16.  (A frictionless contact counted as 0 rows would let a
+    group of three overflow.)"""
     colliding = int(((mjm.geom_contype != 0) | (mjm.geom_conaffinity != 0)).sum())
     nconmax = 6 * colliding + 16
     condim = max([int(mjm.geom_condim.max()) if mjm.ngeom else 3] + ([int(mjm.pair_dim.max())] if mjm.npair else []))
@@ -201,9 +201,8 @@ _OPT_FIELDS = ("timestep", "tolerance", "ls_tolerance", "noslip_tolerance", "ccd
 #: every world leaves the bit off, the worlds need not agree on them (the Warp model carries the first
 #: world's).  ``dof_length`` (the velocity norm's weights) is read by island sleeping alone
 #: (mujoco_warp/_src/sleep.py; checked against the installed sources in tests/test_warp.py), and it
-#: differs by ~1e-17 between pair scenes that differ in their start offset dx0: until 2026-11-30 that
-#: split every dx0 sweep into ~5 Warp models stepped one after another (an H200's quick reproduction,
-#: docs/gpu.md).
+#: differs by ~1e-17 between pair scenes that differ in their start offset dx0: counted, it would split
+#: every dx0 sweep into ~5 Warp models (as measured in an H200's quick reproduction, docs/gpu.md).
 ONLY_WITH_FLAG = {"dof_length": int(mujoco.mjtEnableBit.mjENBL_SLEEP)}
 
 
@@ -381,7 +380,7 @@ class _Timeline:
     Warp's CPU device also the wait for the device lock) and how many steps it had.  Between two chunks
     of one model lies the host's work of its batch (recording, stopping rules, the next control table).
 
-    Why: on an H200 (2026-11-27) a quick reproduction stepped ~20 small Warp models at once and each
+    Why: on an H200 a quick reproduction stepped ~20 small Warp models at once and each
     step took ~8x one model's alone (docs/gpu.md).  From one reproduction's timeline,
     ``benchmarks/bench_warp_timeline.py`` reads how many models stepped at once, how a step's time grew with
     that number, how much of a model's life was the host's, and how many of the models stepping at
@@ -389,14 +388,14 @@ class _Timeline:
 
     A line is ``{"pid", "group", "structure", "nworld", "device", "label", "chunks": [[start_unix_s,
     wall_s, steps, first], ...]}`` (``first``: the call compiled or captured the model's graphs;
-    ``label``: the sweep a gathered batch steps for, ``STUDY/SWEEP-MODE-seedS...``, since 2026-11-28,
+    ``label``: the sweep a gathered batch steps for, ``STUDY/SWEEP-MODE-seedS...``,
     else ""), written each second of a model's stepping and when its batch ends, so a run cut short
     loses at most its last second.  Several processes may append to one file (whole lines, each in one write).
     """
 
     def __init__(self, structure: tuple, nworld: int, device: str):
         """``structure``: what two models must share to be one, as numbers: the sizes a gathered batch
-        shares (nq, nv, nu, na, nsensordata, ngeom; ``na`` since 2026-11-28) and the time step (last)."""
+        shares (nq, nv, nu, na, nsensordata, ngeom) and the time step (last)."""
         self.path = os.environ.get(TIMELINE_ENV) or None
         self.head = {"pid": os.getpid(), "group": next(_TIMELINE_IDS), "structure": list(structure),
                      "nworld": int(nworld), "device": device, "label": BATCH_LABEL.get()}
@@ -733,7 +732,7 @@ def determinism(device: str = "cuda") -> int:
     On the CPU device it costs nothing measurable (a pair: 27.0 k against 26.5 k world-steps/s) and the
     kernels run on one thread, so the same inputs give the same results either way.  On a GPU its
     order-invariant atomics are sort-reduce launches whose workspace grows with the launch size times
-    the constraint rows: on an H200 (2026-11-27) it made the pair's steps 8.9x slower at 1 024 worlds
+    the constraint rows: on an H200 it made the pair's steps 8.9x slower at 1 024 worlds
     and 20x at 8 192, and could not allocate at 32 768 worlds nor for one jammed 50-swimmer pack
     (Warp's arrays stop at 2^31 elements).  Off, identical worlds of a jammed pack drift apart on a GPU
     (4 cm in 1 s on an H200, GPU.md): only statistics over runs are comparable there, as between the
@@ -916,8 +915,7 @@ class WarpRollout:
     def _step_groups(self, cur: np.ndarray, table: np.ndarray, nstep: int):
         """Step every group ``nstep`` steps from ``cur`` under ``table``: all of them launched first,
         so that on a GPU a batch's Warp models step side by side on their streams, then each one's
-        chunk collected (``[(group, what :meth:`_Group.collect` returns)]``, in order).  (Until
-        2026-11-30 each group was stepped and collected before the next was launched.)"""
+        chunk collected (``[(group, what :meth:`_Group.collect` returns)]``, in order)."""
         nq, nv = self.nq, self.nv
         for g in self.groups:
             idx = _cols(g.idx)  # a slice where the group's worlds are evenly spaced (no gathers; the

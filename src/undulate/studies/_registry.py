@@ -406,9 +406,8 @@ SERIAL_BELOW = 4
 """Sweeps of fewer runs than this run in this process (starting worker processes costs more), unless
 the warm pool's processes are up already (:func:`undulate.sweep._executors.warm_pool_running`, a
 reproduction's or a study's later sweeps): then a sweep of 2 or 3 runs steps them side by side there.
-(Until 2026-11-30 such sweeps ran in this process one run after another: the packing study's third
-bisection look, 3 jammed packs, took 14.3 s on the chain of the study that ended a 16-core quick
-reproduction, 2026-11-29.)"""
+(Run here one after another, the packing study's third bisection look, 3 jammed packs, took 14.3 s
+on the chain of the study that ended a 16-core quick reproduction.)"""
 
 
 _STORE_LOCKS: dict[str, threading.Lock] = {}
@@ -808,7 +807,7 @@ WIDE_WORKERS = 8
 (:meth:`StudyContext.together`) and a reproduction runs every study at once, with explaining studies'
 runs made ahead (:func:`undulate.reproduce.reproduce`).  On 2 cores the quick reproduction, two
 studies at a time, keeps the cores 94-97 % busy: its time is its work, and running more at once only
-adds runs made ahead.  On 16 cores (the H100 machine, 2026-11-26) the same schedule took 70.5 s for
+adds runs made ahead.  On 16 cores (an H100 machine) the same schedule took 70.5 s for
 ~345 core-s of work, the cores ~30 % busy: its time was its chain of sequential stages.  8 is a
 judgement between those two measurements, not a measured crossover (docs/performance.md)."""
 

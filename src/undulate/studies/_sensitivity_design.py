@@ -230,7 +230,7 @@ def thinned_plan(p: Plan, k: int, k_dphi: int | None = None, k_xi1: int | None =
 
 FULL_PAIR_REFINE = 2
 """Full mode's cap of pair phases: the 17 (step pi/8) with every step cut in two, 33 (step pi/16),
-reached at the third look (:func:`undulate.studies.sensitivity.stages`).  Sized on 2026-11-29 by the
+reached at the third look (:func:`undulate.studies.sensitivity.stages`).  Sized by the
 swimming explanation's check (the pairs criterion at 0.5 N s/m): at the third look, on the second's 17 dphi
 (9 distinct |dphi|, +dphi and -dphi resampled together; 97 %), its RMS residual 0.060 [0.029, 0.104] lambda
 straddled 0.1 and needed ~1.2x its runs; the next nested grid is 33.  The xi = 1 cases feed the table

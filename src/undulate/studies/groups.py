@@ -86,7 +86,7 @@ def plan(quick: bool) -> Plan:
     """The mode's cap.  Quick: the paper's nine dphi, 8 draws of four.  Full: 385 dphi (step pi/192), 120
     draws, and the reference pairs at 33 dphi (step pi/16): they are compared with the groups on the RMS
     residual only, and their 33 decide that comparison by a wide margin (0.035 [0.026, 0.044] lambda
-    against the groups' 0.12-0.14 at 0ca5397)."""
+    against the groups' 0.12-0.14)."""
     if quick:
         return Plan(tuple(float(p) for p in C.group_phases(True)), C.GROUP_DRAWS[True])
     return Plan(tuple(float(p) for p in C.group_cap_phases()), C.GROUP_CAP_DRAWS,
@@ -388,7 +388,7 @@ def stages(quick: bool) -> tuple[Plan, ...]:
     """The plan in looks (:mod:`._stages`).  Quick: the dphi thinned and the draws of four in proportion
     (5 dphi, 4 draws; 9, 8).  Full: 9 dphi and 10 draws; 33, 40; 129, 80; 385, 120 (:data:`FULL_STRIDES`,
     :data:`FULL_DRAWS`), the reference pairs on the groups' dphi up to 33.  Full mode's cap is set by the
-    runs the straddling slopes needed at 0ca5397's cap of 33 dphi and 40 draws (groups of three: ~640
+    runs the straddling slopes needed at a cap of 33 dphi and 40 draws (groups of three: ~640
     neighbour pairs at 97 %, ~690 at the fourth look's 97.5 %, so 385 dphi give 770; four: ~160 at
     97.5 %, 120 draws give 360), not by where their estimates may go."""
     p = plan(quick)

@@ -44,7 +44,7 @@ XI_VALUES = (0.0, 0.75, 1.0, 1.5)
 FULL_PHASES = 49  # step pi/24; contains the paper's nine values
 FULL_REFINE = 4
 """Full mode's cap: every step of the :data:`FULL_PHASES` grid cut into this many (193 dphi, step pi/96),
-its fourth look (:func:`stages`).  Sized on 2026-11-29 by the runs the xi = 3/4 claim's RMS interval
+its fourth look (:func:`stages`).  Sized by the runs the xi = 3/4 claim's RMS interval
 needed at the third look once +dphi and -dphi were resampled together (~102 dphi at 97 %, more at a
 fourth look's 97.5 %): the next nested grid above, 193 (``explorations/pairs_cap.py``)."""
 
@@ -59,8 +59,8 @@ class Plan:
 
 QUICK_REFINE = 4
 """Quick mode's cap: every step of the paper's nine dphi cut into this many (33 dphi, step pi/16), its
-third look (:func:`stages`).  Sized on 2026-11-29 by the runs the quick claims undecided on the nine
-needed at b112001's second look (96 %): xi = 3/4 (slope 0.955 [0.771, 1.14], RMS residual 0.065 [0.020,
+third look (:func:`stages`).  Sized by the runs the quick claims undecided on the nine needed at
+the second look (96 %): xi = 3/4 (slope 0.955 [0.771, 1.14], RMS residual 0.065 [0.020,
 0.118] lambda) and the standing wave (std of dx at xi = 0 [0.002, 0.318] m against 3 x xi = 1's RMS
 residual [0.029, 0.079] m) each ~21 dphi; the next nested grid above, 33.  A pair run costs ~0.1
 physics core-s."""

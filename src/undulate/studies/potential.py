@@ -105,7 +105,7 @@ windows, no trend that would move them by DRIFT by the end of the run, never bef
 (the force switches on after 3); or, a pair the force pulls apart, once each of its last 3 period
 means lies more than :data:`BREAK` from the settled offset before the force and they span more than
 2 DRIFT (still sliding): the analysis reads such a run as broken (its drift exceeds DRIFT), as it would
-the whole run (full mode at 87ecc4f: the 54 broken runs of 663, all of them, met this at 14-28 s, and
+the whole run (in full mode the 54 broken runs of 663, all of them, met this at 14-28 s, and
 had slid 1.7-12.7 lambda by 50 s; no run that held met it).  A pair that creeps runs the whole duration."""
 SLIDING_FROM = 0.5
 """d/2A from which the collapse of k is also measured on its own: in narrower channels
@@ -577,8 +577,8 @@ def impulse_r2_without_phase_scatter(dphi, impulse_all) -> stats.Estimate:
     +dphi and at -dphi) taken out of the residual and the total (:func:`_r2_without_scatter_value`); a
     paired bootstrap over |dphi| at the current level.  ``dphi``: the signed phase differences, one row
     of ``impulse_all`` (dphi, phi0) each.  Tells how much of the line's shortfall is the phases' scatter
-    and how much is shape.  Until 2026-11-27 the error variance was var(phi0) / n, as if the phases were
-    drawn at random; on the equally spaced phases it overstated the error several times (full mode's
+    and how much is shape.  Not var(phi0) / n, as if the phases were drawn at random: on the equally
+    spaced phases that overstates the error several times (full mode's
     37 |dphi|: 0.86 against 0.82 from four times the phases, whose plain R^2 is 0.815:
     ``explorations/impulse_cap.py``)."""
     x, y, nv = _split_half_means(dphi, impulse_all)
@@ -896,10 +896,10 @@ def figure(ds):
 FULL_LOOKS = ((8, 4, 8, 2), (4, 2, 4, 1), (2, 1, 4, 1), (1, 1, 1, 1))
 """Full mode's looks: strides over the cap's (impulse dphi, common phases, d/2A, forces): 10 dphi x 2
 phases and 3 x 5 x 7 force runs; 19 x 4 and 3 x 9 x 13; 37 x 8 and 3 x 9 x 13; 73 x 8 and 3 x 33 x 13.
-The fourth look (the cap) was set by the runs the four claims needed at 0ca5397's third look, at 97 %
+The fourth look (the cap) was set by the runs the four claims needed at a cap of the third look's size, at 97 %
 (~57 dphi for the impulse R^2; ~30 stiffness fits; ~12 d/2A per beta for the rank correlation: 17),
 not by where their estimates may go.  Its d/2A grid went from 17 to 33 (the next nested one; the 17
-are among them, bitwise the same runs) when the bootstrap's levels were expanded (b514ffe): the rank
+are among them, bitwise the same runs) once the bootstrap's levels were expanded (:func:`undulate.stats.expanded_z`): the rank
 correlation at 30 deg, -0.68 [-0.97, +0.15] on the 17 at 97.5 %, needed ~26."""
 
 

@@ -1000,7 +1000,7 @@ def stages(quick: bool) -> tuple[Plan, ...]:
     """The plan in looks, in step with the studies whose runs it shares (groups, potential): the pair
     phases, the groups' phases and draws and the impulse grid thinned (:mod:`._stages`).  Full mode's
     pair phases 9, 17, 33 (the xi = 1 cases' 9, 17, 17: :data:`~._sensitivity_design.FULL_PAIR_REFINE`).
-    Quick mode's 5 and 9 (the xi = 1 cases' 5 and 5; since 2026-11-29, one look of 5 before): a slope on
+    Quick mode's 5 and 9 (the xi = 1 cases' 5 and 5), not one look of 5: a slope on
     5 mirrored dphi rests on 2 mirror pairs (:func:`undulate.stats.mirrored_line_fit`, 1 degree of
     freedom), too few to show an explanation's "follows the line"; the second look runs only the factor
     groups of the explanations still undecided (:func:`frozen_groups`)."""
