@@ -494,3 +494,13 @@ def test_the_generic_evidence_figure_draws_each_estimate_group_its_region_and_th
     made = (tmp_path / first).stat().st_mtime_ns
     assert write_evidence(row, tmp_path, "claim-a") == first and (tmp_path / first).stat().st_mtime_ns == made
     assert write_evidence({**row, "value": {"slope": e(0.9, 0.85, 0.95)}}, tmp_path, "claim-a") != first
+
+
+def test_quotes_show_their_math_as_text_on_the_page():
+    from undulate._report_claims import readable_math
+
+    assert readable_math(r"when $\frac{d}{2A} > 1$ swimmers") == "when d/2A > 1 swimmers"
+    assert readable_math(r"$\Delta x_{i,i+1}$ versus $\Delta \phi_{i,i+1}$") == "Δx_(i,i+1) versus Δφ_(i,i+1)"
+    assert readable_math(r"$\frac{d}{2A} \in [0.6, 1.2]$ and $\delta x_0$, $\rho = \frac{1}{w}$") == \
+        "d/2A ∈ [0.6, 1.2] and δx0, ρ = 1/w"
+    assert readable_math("no math here") == "no math here"

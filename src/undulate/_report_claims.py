@@ -224,6 +224,31 @@ def _evidence(e: dict[str, Any], title: str) -> list[str]:
             f"<dt>evidence</dt><dd>{esc(e.get('measured'))}" + (f" ({', '.join(where)})" if where else "") + "</dd>"]
 
 
+_GREEK = {"Delta": "\u0394", "delta": "\u03b4", "phi": "\u03c6", "lambda": "\u03bb", "pi": "\u03c0",
+          "rho": "\u03c1", "xi": "\u03be", "omega": "\u03c9", "beta": "\u03b2", "alpha": "\u03b1",
+          "in": "\u2208", "leq": "\u2264", "geq": "\u2265", "neq": "\u2260", "cdot": "\u00b7", "tilde": ""}
+
+
+_OPERATORS = ("in", "leq", "geq", "neq", "cdot")
+
+
+def readable_math(text: str) -> str:
+    """A quote's LaTeX math as plain text for the page (``$\\frac{\\Delta y}{2A} > 1$`` -> ``Δy/2A > 1``);
+    the quote itself, in ``claims.json``, stays as the paper writes it."""
+    def one(m: re.Match) -> str:
+        s = m.group(1)
+        for _ in range(3):
+            s = re.sub(r"\\frac\{([^{}]*)\}\{([^{}]*)\}", r"\1/\2", s)
+        s = re.sub(r"\\(?:text|mathrm)\{([^{}]*)\}", r"\1", s)
+        s = re.sub(r"\\([A-Za-z]+)(?: (?=[A-Za-z\\]))?",  # "\\Delta x" -> "Δx"; "\\in [" keeps its space
+                   lambda g: _GREEK.get(g.group(1), g.group(1)) + (" " if g.group(1) in _OPERATORS else ""), s)
+        s = re.sub(r"_\{([^{}]*)\}", lambda g: g.group(1) if len(g.group(1)) == 1 else f"_({g.group(1)})", s)
+        s = re.sub(r"_(\w)", r"\1", s)
+        s = re.sub(r"\^\{([^{}]*)\}", r"^\1", s)
+        return " ".join(s.replace("{", "").replace("}", "").split())
+    return re.sub(r"\$([^$]*)\$", one, str(text or ""))
+
+
 def _claim_hooks(study: str, claim: str) -> tuple[dict[str, Any], Any]:
     """(bands, evidence hook) of a registered claim (:class:`~undulate.studies.Claim`); ({}, None) for a
     claim the registry does not know (a study file from other code)."""
@@ -268,7 +293,7 @@ def claim_section(c: dict[str, Any], anchor: str, out_dir: Path, back: str = "cl
            f"{badge(verdict)}</h3><div class='claim-body'><dl>")]
     if quote:
         out.append(f"<dt>{'the statement (PRX 2021)' if prx else 'the paper says'}</dt>"
-                   f"<dd><blockquote class='quote'>{esc(quote)}</blockquote>{where}</dd>")
+                   f"<dd><blockquote class='quote'>{esc(readable_math(quote))}</blockquote>{where}</dd>")
     out += [f"<dt>{'PRX 2021' if prx else 'paper'}{' (paraphrase)' if quote else ''}</dt>"
             f"<dd>{esc(c.get('paper', ''))}</dd>",
             f"<dt>measured</dt><dd>{esc(c.get('measured', ''))}</dd>",
@@ -355,8 +380,8 @@ def _intro(ref: str, rows: list[dict[str, Any]], failed: list[str]) -> str:
                "own runs show the cause; a failing claim without a demonstrated cause stays "
                f"{badge('fails')}. {badge('undecided')}: an interval straddles its criterion's boundary "
                "(the row names it, and about how many runs would decide it). Each claim's section below the "
-               "tables has the paper's statement, the criterion, the whole explanation with its numbers, and "
-               "the evidence figure.")
+               "tables quotes the paper's sentence it tests and has the criterion, the whole explanation with its "
+               "numbers, and its own evidence figure: the numbers that decide it with the criterion's region.")
     k = counts(rows)
     return (f"<p class='verdicts'><b>{esc(head)}</b></p><p>{how} Counts: "
             + ", ".join(f"{badge(v)} {n}" for v, n in k.items())
