@@ -106,16 +106,19 @@ def test_swimming_missing_interval_is_no_result():
 # ------------------------------------------------------------------ basins (counts: exact)
 def basins_summary(returned=11, pushed=16, negative=(-0.33, -0.34, -0.32)):
     nan = stats.Estimate(math.nan).to_dict()
+    treads = {"tread_share": est(0.75, 0.6, 0.9), "line_distance": est(0.11, 0.08, 0.14),  # holds: its own tests
+              "n_pairs": 72, "n_treads": 54, "n_offsets": 81, "n_starts": 9, "n_phases": 9}
     return {"n_returned": returned, "n_pushed_away_from_zero": pushed, "n_starts_dphi0": 29,
             "return_threshold": {"positive": {"threshold_dx0_over_lambda": est(0.29, 0.28, 0.30)},
-                                 "negative": {"threshold_dx0_over_lambda": est(*negative) if negative else nan}}}
+                                 "negative": {"threshold_dx0_over_lambda": est(*negative) if negative else nan}},
+            "stair_steps": treads, "stair_steps_sinusoid": {**treads, "tread_share": est(0.0, 0.0, 0.0)}}
 
 
 def test_basins_is_exact():
-    assert verdicts("basins", basins_summary()) == [HOLDS]
-    assert verdicts("basins", basins_summary(pushed=0)) == [FAILS]
-    assert verdicts("basins", basins_summary(returned=0)) == [FAILS]
-    assert verdicts("basins", basins_summary(negative=None)) == [FAILS]  # not bracketed on one side
+    assert verdicts("basins", basins_summary()) == [HOLDS] * 2
+    assert verdicts("basins", basins_summary(pushed=0))[0] == FAILS
+    assert verdicts("basins", basins_summary(returned=0))[0] == FAILS
+    assert verdicts("basins", basins_summary(negative=None))[0] == FAILS  # not bracketed on one side
 
 
 # ------------------------------------------------------------------ confinement (no interval: exact)
@@ -142,11 +145,19 @@ def potential_summary(r2=(0.95, 0.92, 0.99), a=(4.0, 2.5, 5.5), fit_r2=(0.99, 0.
             "median_fit_r2": fit_r2[0], "fit_r2_ci95_low_median": fit_r2[1], "fit_r2_ci95_high_median": fit_r2[2],
             "n_fits": 9, "n_fit_points": 45, "fit_r2_level": stats.CONFIDENCE,
             "per_beta": {b: {"spearman_k_vs_d": est(*r, n=3)} for b, r in zip(("30", "45", "60"), rho)},
-            "collapse_rms_log10k_vs_d_over_2A": est(*collapse[0]), "collapse_rms_log10k_vs_d_m": est(*collapse[1])}
+            "collapse_rms_log10k_vs_d_over_2A": est(*collapse[0]), "collapse_rms_log10k_vs_d_m": est(*collapse[1]),
+            # the dx0 and release claims hold here (their own tests: tests/test_new_claims_potential_basins.py)
+            "dx0_vs_model": {"n_fits": 9, "n_below": 9, "n_above": 0, "n_unresolved": 0,
+                             "share_below": est(1.0, 0.66, 1.0), "share_not_above": est(1.0, 0.66, 1.0),
+                             "mean_difference_over_lambda": est(-0.1, -0.12, -0.08)},
+            "release": {"sustain_frac": 0.1, "runs": [
+                {"beta_deg": 45.0, "d_over_2A": 0.8, "force_N": 0.02, "failed": False,
+                 "separation": est(0.04, 0.039, 0.041), "drift_3T": est(0.0, -0.001, 0.001),
+                 "back": est(0.035, 0.03, 0.04)}]}}
 
 
 def test_potential_holds():
-    assert verdicts("potential", potential_summary()) == [HOLDS] * 4
+    assert verdicts("potential", potential_summary()) == [HOLDS] * 6
 
 
 @pytest.mark.parametrize("kw, index, verdict", [
@@ -195,7 +206,7 @@ def test_potential_missing_numbers_are_no_result():
     s["impulse_fit"]["r2"] = stats.Estimate(math.nan).to_dict()
     s["per_beta"]["30"]["spearman_k_vs_d"] = stats.Estimate(math.nan).to_dict()
     s["collapse_rms_log10k_vs_d_m"] = stats.Estimate(math.nan).to_dict()
-    assert verdicts("potential", s) == [NO_RESULT, HOLDS, NO_RESULT, NO_RESULT]
+    assert verdicts("potential", s) == [NO_RESULT, HOLDS, NO_RESULT, NO_RESULT, HOLDS, HOLDS]
 
 
 # ------------------------------------------------------------------ packing
