@@ -490,6 +490,10 @@ def test_the_generic_evidence_figure_draws_each_estimate_group_its_region_and_th
                  "explanation": {"cause": "x", "shown": True, "value": {"default": False, "changed": True}}}
     ax = [a for a in evidence_figure(explained, {}).axes if a.get_visible()][-1]
     assert "explaining runs" in ax.get_title() and [t.get_text() for t in ax.texts] == ["default: fails", "changed: holds"]
+    finding = {**row, "findings": [{"cause": "y", "shown": True, "value": {"guide+wavelength": True}}]}
+    ax = [a for a in evidence_figure(finding, {}).axes if a.get_visible()][-1]
+    assert "finding" in ax.get_title() and [t.get_text() for t in ax.texts] == ["guide+wavelength: holds"]
+    assert evidence_figure(row, {}, evidence=lambda r: ("own", r["claim"])) == ("own", "c")  # a claim's own hook
     first = write_evidence(row, tmp_path, "claim-a")
     made = (tmp_path / first).stat().st_mtime_ns
     assert write_evidence(row, tmp_path, "claim-a") == first and (tmp_path / first).stat().st_mtime_ns == made

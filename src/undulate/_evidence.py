@@ -12,7 +12,7 @@ One generic figure serves every claim (a claim whose data needs its own picture 
 
 The criterion's accepted region of a number (:attr:`~undulate.studies.Claim.bands`) is shaded
 green behind its panel.  An explained claim shows, side by side, the default model's numbers (left) and the
-explaining runs (the :class:`~undulate.studies.Explanation`'s ``value``: the criterion met, not met
+explaining runs (or a finding's, or a tested cause's: the :class:`~undulate.studies.Explanation`'s ``value``: the criterion met, not met
 or undecided in each run; for a value of numbers only, the explanation's own verdict).  The paper's
 statement (the claim's short paraphrase) is written above the panels.  Figures are 5.6 in wide at 100 dpi (560 px: shown at their own size beside
 the claim's text at 1366 px), two panels a row, labels of at least 10 pt, laid out by hand (constrained
@@ -210,7 +210,7 @@ def _draw_curve(ax, p: dict) -> None:
     ax.set_title(_title(p["name"]), fontsize=FONT_PT)
 
 
-def _draw_explanation(ax, explanation: dict[str, Any], shown: bool) -> None:
+def _draw_explanation(ax, explanation: dict[str, Any], kind: str) -> None:
     """The explaining runs: the criterion met (holds), not met (fails) or undecided in each."""
     value = explanation.get("value")
     _, _, _, flags = flatten(value if isinstance(value, dict) else {"shown": explanation.get("shown")})
@@ -229,7 +229,8 @@ def _draw_explanation(ax, explanation: dict[str, Any], shown: bool) -> None:
     ax.set_ylim(-0.6, max(len(flags), 1) - 0.4)
     ax.set_xticks([])
     ax.set_yticks([])
-    ax.set_title("explaining runs\n(changed model)" if shown else "a tested cause\n(not shown)",
+    ax.set_title({"explanation": "explaining runs\n(changed model)",
+                  "finding": "a finding's runs\n(several changes)"}.get(kind, "a tested cause\n(not shown)"),
                  fontsize=FONT_PT)
 
 
@@ -243,7 +244,10 @@ def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
     from matplotlib.figure import Figure
 
     panels, text = _panels(row.get("value"), bands or {})
-    ex = row.get("explanation") or next(iter(row.get("explanations_not_shown") or []), None)
+    kind, ex = next(((k, e) for k, e in (("explanation", row.get("explanation")),
+                                         ("finding", next(iter(row.get("findings") or []), None)),
+                                         ("tested", next(iter(row.get("explanations_not_shown") or []), None)))
+                     if e), ("", None))
     n = len(panels) + (1 if ex else 0)
     cols = max(1, min(2, n))  # two panels a row: each about 2 in wide, its labels legible at 10 pt
     nrows = max(1, math.ceil(n / cols)) if n else 0
@@ -277,7 +281,7 @@ def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
             if ex:
                 ax.set_ylabel("default model", fontsize=FONT_PT)
         if ex:
-            _draw_explanation(axes[-1], ex, bool(row.get("explanation")))
+            _draw_explanation(axes[-1], ex, kind)
         for ax in axes[n:]:
             ax.set_visible(False)
     return fig
@@ -290,7 +294,7 @@ def write_evidence(row: dict[str, Any], out_dir: Path, stem: str, bands: dict[st
     from ._io import atomic_output
 
     key = json.dumps({"row": {k: row.get(k) for k in ("claim", "paper", "value", "verdict", "explanation",
-                                                      "explanations_not_shown")},
+                                                      "findings", "explanations_not_shown")},
                       "bands": bands or {}, "hook": getattr(evidence, "__qualname__", None),
                       "code": hashlib.sha1(Path(__file__).read_bytes()).hexdigest()},
                      sort_keys=True, default=str)
