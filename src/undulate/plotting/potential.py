@@ -17,7 +17,7 @@ def plot_potential(ds):
     (a) contact impulse over the first two periods against dphi (grey: each
     common phase; black: their mean) with the fit ``a |dphi| + b``; (b)
     period means of ``dx/lambda`` over time under each force (middle beta,
-    ``d/2A`` nearest 1.2); (c) ``dF`` against ``dx/lambda`` for three
+    ``d/2A`` nearest 1.2), with the release run there (dashed: the force removed at the dash-dotted line); (c) ``dF`` against ``dx/lambda`` for three
     confinements (middle beta) with the fitted lines, broken pairs hollow;
     (d) stiffness k against ``d/2A`` per beta (log scale) and (e) against
     the channel width ``W = 2d`` in metres (no collapse expected); (f) fitted ``dx0/lambda`` against
@@ -64,6 +64,7 @@ def _response_panel(ax, ds, ib: int, ir: int) -> None:
         ax.plot(t, ds["dx_period"].values[ib, ir, m], ".-", color=cmap(m / max(len(forces), 1)), lw=0.9,
                 label=f"{f:g} N" if m in (0, len(forces) - 1) else None)
     ax.axvline(float(ds.attrs["settle_s"]), color="0.5", ls=":")
+    _release_overlay(ax, ds, beta[ib], R[ir])
     ax.set_xlabel("time (s)")
     ax.set_ylabel(r"period mean of $\Delta x/\lambda$")
     shown = ds["dx_period"].values[ib, ir]
@@ -72,6 +73,20 @@ def _response_panel(ax, ds, ib: int, ir: int) -> None:
     ax.set_title(rf"(b) $\pm\delta F$ from t = {float(ds.attrs['settle_s']):g} s; "
                  rf"$\beta$ = {beta[ib]:g}$^\circ$, $d/2A$ = {R[ir]:g}", fontsize=10)
     ax.legend(fontsize=8)
+
+
+def _release_overlay(ax, ds, beta: float, r: float) -> None:
+    """(b) the release run at this (beta, d/2A), if any: dx/lambda with the force on, then removed (black,
+    dashed), and the removal time (dash-dotted)."""
+    if "release_dx_period" not in ds or ds.sizes.get("release", 0) == 0:
+        return
+    at = np.flatnonzero(np.isclose(ds["release_beta"].values, beta) & np.isclose(ds["release_d_over_2A"].values, r))
+    if not at.size:
+        return
+    i = int(at[0])
+    ax.plot(ds["release_period_time"].values, ds["release_dx_period"].values[i], "--", color="k", lw=1.2,
+            label=f"{float(ds['release_force'].values[i]):g} N, removed")
+    ax.axvline(float(ds.attrs["release_force_offset_s"]), color="k", ls="-.", lw=0.8)
 
 
 def _force_panel(ax, ds, ib: int) -> None:
