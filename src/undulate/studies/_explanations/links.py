@@ -29,17 +29,18 @@ CHANGES = ("the joint amplitude set so that A stays the 3-link value at every N 
 """The changes the trend needs together: a finding, never an explanation (:mod:`._protocol`)."""
 
 CAUSE = (
-    "Finding, not an explanation (three changes together; each alone fails): the compatibility model assumes "
-    "each body is a lab-frame travelling sinusoid y = A sin(2 pi x / lambda - omega t). Our free bodies are not, in two ways that do not shrink with N: on isotropic drag a free body turns "
-    "back and forth as it bends (yaw recoil: its head-to-tail chord swings by about +-0.1 rad at every N), which "
-    "adds a standing wave to its lab-frame shape (an N = 9 body's lateral excursion runs 20-52 mm along it instead "
-    "of a uniform 39 mm), and its wavelength along the channel, lambda_x (the head-to-tail extent), is 0.92-0.95 L, "
-    "not L. The links study's amplitude rules also change A, and so the confinement, with N. Observed only if, with "
-    "A held at the 3-link value (equal-A rule), the yaw recoil removed by a heading guide (only that changed in "
-    "the model) and the line drawn with the lambda_x measured in the runs, the error falls with N by the claim's "
-    "superseded step-by-step criterion (the sensitivity study keeps per-N RMS values only), while in the equal-A runs with lambda = L or lambda_x, and the recoil-free runs with lambda = L, "
-    "it does not hold and its fall from N = 3 to the largest N is decisively smaller (a partial change does not "
-    "make the trend).")
+    "Finding, not an explanation (three changes together; each alone fails): the compatibility model assumes each"
+    " body is a lab-frame travelling sinusoid y = A sin(2 pi x / lambda - omega t). Our free bodies are not, in "
+    "two ways that do not shrink with N: on isotropic drag a free body turns back and forth as it bends (yaw "
+    "recoil: its head-to-tail chord swings by about +-0.1 rad at every N), which adds a standing wave to its lab-"
+    "frame shape (an N = 9 body's lateral excursion runs 20-52 mm along it instead of a uniform 39 mm), and its "
+    "wavelength along the channel, lambda_x (the head-to-tail extent), is 0.92-0.95 L, not L. The links study's "
+    "amplitude rules also change A, and so the confinement, with N. Observed only if, with A held at the 3-link "
+    "value (equal-A rule), the yaw recoil removed by a heading guide (only that changed in the model) and the "
+    "line drawn with the lambda_x measured in the runs, the error falls with N by the claim's superseded step-by-"
+    "step criterion (the sensitivity study keeps per-N RMS values only), while in the equal-A runs with lambda = "
+    "L or lambda_x, and the recoil-free runs with lambda = L, it does not hold and its fall from N = 3 to the "
+    "largest N is decisively smaller (a partial change does not make the trend).")
 
 
 def _text(entry: dict) -> str:
