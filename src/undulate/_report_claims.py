@@ -204,13 +204,11 @@ def claims_table(rows: list[dict[str, Any]], ids: list[str], statuses: list[dict
 
 
 def _figures(c: dict[str, Any]) -> list[tuple[str, str]]:
-    """(file, the study it is from) of a claim's evidence: the shown explanation's figure, or the
-    claim's own study's figure and those of the explanations its runs did not show."""
-    ex = c.get("explanation")
-    if ex and ex.get("evidence_figure"):
-        return [(ex["evidence_figure"], ex.get("evidence_study") or "")]
+    """(file, the study it is from) of the whole figures behind a claim's evidence (linked under its own
+    figure): its own study's, and that of its shown explanation, its findings and the explanations its runs
+    did not show."""
     figs = [(f"{c['study']}.png", c["study"])]
-    for e in c.get("explanations_not_shown") or []:
+    for e in [c.get("explanation") or {}] + (c.get("findings") or []) + (c.get("explanations_not_shown") or []):
         if e.get("evidence_figure") and e["evidence_figure"] not in [f for f, _ in figs]:
             figs.append((e["evidence_figure"], e.get("evidence_study") or ""))
     return figs
