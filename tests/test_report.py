@@ -508,3 +508,17 @@ def test_quotes_show_their_math_as_text_on_the_page():
     assert readable_math(r"$\frac{d}{2A} \in [0.6, 1.2]$ and $\delta x_0$, $\rho = \frac{1}{w}$") == \
         "d/2A ∈ [0.6, 1.2] and δx0, ρ = 1/w"
     assert readable_math("no math here") == "no math here"
+
+
+def test_a_claim_whose_evidence_cannot_be_drawn_says_so_and_the_page_is_still_written(tmp_path, monkeypatch):
+    from undulate import _evidence
+
+    def broken(*a, **k):
+        raise ValueError("a value of a new shape")
+
+    monkeypatch.setattr(_evidence, "evidence_figure", broken)
+    (tmp_path / "alpha.json").write_text(json.dumps({"claims": [_claim("alpha", "k falls", "holds")]}))
+    write_report(tmp_path, [{"name": "alpha", "ok": True, "wall_s": 1.0}], mode="quick")
+    page = (tmp_path / "index.html").read_text()
+    assert "No evidence figure: drawing it failed (ValueError: a value of a new shape)" in page
+    assert "img class='fig evidence'" not in page

@@ -318,14 +318,21 @@ def claim_section(c: dict[str, Any], anchor: str, out_dir: Path, back: str = "cl
     for e in c.get("findings") or []:  # several changes together: written beside the verdict, never explaining it
         out += _evidence(e, "finding (not an explanation: the verdict stands)")
     out.append("</dl>")
-    own = evidence_file(c, anchor, out_dir)
     whole = [f"<a href='{esc(f)}'>{esc(s or f)}</a>" for f, s in _figures(c) if (out_dir / f).is_file()]
     cap = ("The numbers that decide it, with the criterion's accepted region shaded"
            + ("; beside them, the explaining runs" if c.get("explanation") else "") + "."
            + (f" Whole figures: {', '.join(whole)}." if whole else ""))
-    out.append(f"<div class='figs'><figure class='evidence'><a href='{esc(own)}'><img class='fig evidence' "
-               f"src='{esc(own)}' alt='evidence for {esc(c.get('claim', ''))}'></a>"
-               f"<figcaption>{cap}</figcaption></figure></div>")
+    try:
+        own = evidence_file(c, anchor, out_dir)
+    except (OSError, MemoryError):  # the disk or the machine, not the claim: the reproduction stops here
+        raise
+    except Exception as e:  # a value the drawing does not know: said on the page, which the rest still gets
+        out.append(f"<div class='figs failed'>No evidence figure: drawing it failed ({esc(type(e).__name__)}: "
+                   f"{esc(e)}). {cap}</div>")
+    else:
+        out.append(f"<div class='figs'><figure class='evidence'><a href='{esc(own)}'><img class='fig evidence' "
+                   f"src='{esc(own)}' alt='evidence for {esc(c.get('claim', ''))}'></a>"
+                   f"<figcaption>{cap}</figcaption></figure></div>")
     out.append(f"</div><p class='back'><a href='#{esc(back)}'>back to the claims table</a></p></section>")
     return out
 
