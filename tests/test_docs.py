@@ -147,3 +147,73 @@ def test_getting_started_has_the_readme_commands():
     guide = (DOCS / "getting_started.md").read_text(encoding="utf-8")
     for command in commands:
         assert command in guide, command
+
+
+# ------------------------------------------------------------------ docs state what is, not when
+SRC = ROOT / "src" / "undulate"
+_DATE = re.compile(r"\b(?:19|20)\d\d-[01]\d-[0-3]\d\b")
+# a commit-hash-looking token: 7-40 hex digits with at least one digit and one letter a-f
+_HASH = r"\b(?=[0-9a-f]*[a-f])(?=[0-9a-f]*[0-9])[0-9a-f]{7,40}\b"
+_HASH_IN_PARENS = re.compile(r"\([^)]*" + _HASH + r"[^)]*\)")
+_COMMIT_HASH = re.compile(r"\bcommits?\s+" + _HASH)
+_HEADING = re.compile(r"^#{1,6}\s")
+
+
+def dated_headings(text: str) -> list[str]:
+    """The section headings of a markdown text (outside fenced code) that carry a date (YYYY-MM-DD), a
+    commit-hash-looking token in parentheses, or "commit <hash>": a lab notebook's sections, which
+    belong in CHANGELOG.md and benchmarks/, not in a page that says what is."""
+    found, fenced = [], False
+    for line in text.splitlines():
+        if line.lstrip().startswith(("```", "~~~")):
+            fenced = not fenced
+            continue
+        if not fenced and _HEADING.match(line) and (
+                _DATE.search(line) or _HASH_IN_PARENS.search(line) or _COMMIT_HASH.search(line)):
+            found.append(line)
+    return found
+
+
+def dated_lines(text: str) -> list[str]:
+    """The lines of a text that contain a calendar date, YYYY-MM-DD."""
+    return [line for line in text.splitlines() if _DATE.search(line)]
+
+
+def test_the_dated_checks_catch_what_they_are_for():
+    """The two checks below are not vacuous: the headings the docs used to have are caught, plain ones are not."""
+    notebook = ("# The GPU backend\n\n## The H200 check, second lease (2026-11-27 evening, e9b2b39)\n"
+                "### Before that: commit 3516c02\n## Full mode (3e5da81)\n"
+                "```bash\n# 2026-11-27 a shell comment in a code block\n```\n")
+    assert len(dated_headings(notebook)) == 3
+    current = ("# Performance\n\n## Current figures\n### `undulate robot run`\n## Agreement (measured)\n"
+               "## Kernels (sm_90, sm_75)\n## How to measure (decade, facade)\n")
+    assert dated_headings(current) == []
+    assert dated_lines('x = 1\n"""Sized on 2026-11-29 by the runs."""\nfmt = "%Y-%m-%d"\n') == [
+        '"""Sized on 2026-11-29 by the runs."""']
+
+
+def test_no_page_has_a_dated_section():
+    """Every page under docs/ states current facts: its history lives in CHANGELOG.md and benchmarks/."""
+    pages = sorted(DOCS.rglob("*.md"))
+    assert len(pages) > 20  # the walk saw the docs
+    bad = [f"{p.relative_to(ROOT)}: {h}" for p in pages for h in dated_headings(p.read_text(encoding="utf-8"))]
+    assert not bad, "dated section headings:\n" + "\n".join(bad)
+
+
+def test_no_source_line_has_a_date():
+    """A constant's docstring says why its value is what it is, not when: no YYYY-MM-DD in src/undulate."""
+    files = sorted(SRC.rglob("*.py"))
+    assert len(files) > 50
+    bad = [f"{f.relative_to(ROOT)}: {line.strip()}" for f in files for line in dated_lines(f.read_text(encoding="utf-8"))]
+    assert not bad, "dated lines in src/:\n" + "\n".join(bad)
+
+
+def test_the_history_has_one_home():
+    """The measurement history is CHANGELOG.md at the root, newest first, linking to the benchmark files it moved to."""
+    changelog = (ROOT / "CHANGELOG.md").read_text(encoding="utf-8")
+    for moved in ("benchmarks/gpu_leases.md", "benchmarks/performance_history.md", "benchmarks/readme_history.md"):
+        assert (ROOT / moved).is_file(), moved
+        assert moved in changelog, moved
+    assert not (DOCS / "history.md").exists()
+    # one page each for the robots and the tracking (the guide's twins were merged into them)
+    assert not (DOCS / "guide" / "robots.md").exists() and not (DOCS / "guide" / "tracking.md").exists()
