@@ -148,7 +148,8 @@ def throughput(which: str, budget: float) -> None:
     import numpy as np
 
     from undulate import Scene, SimOptions
-    from undulate.simulation._warp import WarpRollout, _device_seconds, _Reduction
+    from undulate.simulation._warp import WarpRollout, _Reduction
+    from undulate.simulation._warp_group import _device_seconds
     from undulate.simulation import _initial_state, compile_scene, resolve_options
     from undulate.studies.packing import _pack
 
@@ -210,7 +211,8 @@ def determinism(budget: float) -> None:
 
     from undulate import Scene, SimOptions
     from undulate.simulation import _initial_state, compile_scene, resolve_options, simulate_batch
-    from undulate.simulation._warp import WarpRollout, _device_seconds
+    from undulate.simulation._warp import WarpRollout
+    from undulate.simulation._warp_group import _device_seconds
     from undulate.studies.packing import _pack
 
     pack = _pack({"phi_max_rad": math.pi, "rho_tilde": 3.0, "draw": 0}, amplitude_m=0.05226, base_seed=0,

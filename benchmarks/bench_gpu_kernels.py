@@ -11,7 +11,7 @@ architecture without a device (``wp.compile_aot_module``). So this script:
    :func:`undulate.simulation._backend.lone_swimmers_backend`), builds the Warp backend's models for
    its largest batch on Warp's CPU device, with MuJoCo Warp's determinism as on a GPU
    (``UNDULATE_WARP_DETERMINISTIC``, default off there), and traces one step as the backend does
-   before a first step (:func:`undulate.simulation._warp._traced_modules`): the modules and their
+   before a first step (:func:`undulate.simulation._warp_group._traced_modules`): the modules and their
    CUDA block sizes;
 3. compiles each module for ``sm_90`` (H100, H200) both ways Warp may load it there: a CUBIN, and PTX
    for ``sm_75`` (Warp's default PTX target, used where the device's driver is at least as new as
@@ -43,7 +43,7 @@ from pathlib import Path
 def _record_batches(full: bool) -> dict:
     """``{structure: (n_calls, scenes of its largest call)}`` of a reproduction's batches (the structure
     key's last two entries: closed loop, pushed)."""
-    import undulate.simulation as sim
+    import undulate.simulation._run as sim  # where simulate_batch plans its batches
     from undulate.reproduce import reproduce
 
     seen: dict = {}
@@ -77,7 +77,9 @@ def _traced(scenes: list, closed: bool) -> list:
     from unittest import mock
 
     from undulate.params import SimOptions
-    from undulate.simulation import _Clock, _plan_batch, _Stepper, _warp
+    from undulate.simulation import _warp, _warp_group
+    from undulate.simulation._batch import _Clock, _plan_batch
+    from undulate.simulation._stepper import _Stepper
 
     controller = None
     if closed:
@@ -91,7 +93,7 @@ def _traced(scenes: list, closed: bool) -> list:
         runner = _Stepper(bt, 0, _Clock()).runner  # the backend's own models of the batch (not stepped)
     # a CUDA launch's block size: its own, else 256 (warp's _resolve_launch_block_dim; on the CPU it is 1)
     return [(mod, 256 if bd is None or bd <= 0 else int(bd))
-            for g in runner.groups for mod, bd in _warp._traced_modules(g)]
+            for g in runner.groups for mod, bd in _warp_group._traced_modules(g)]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -70,7 +70,7 @@ def main() -> None:
         a.processes = 1
     os.environ["UNDULATE_WARP_PROCESSES"] = str(a.processes)
 
-    import undulate.simulation as sim
+    import undulate.simulation._run as sim  # where simulate_batch steps a batch now
     import undulate.sweep._sweep as sweep_mod
     import undulate.sweep._worker as worker
     from undulate.simulation import use_backend

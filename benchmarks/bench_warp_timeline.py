@@ -3,7 +3,7 @@
     python benchmarks/bench_warp_timeline.py TIMELINE.jsonl [--json]
 
 The backend appends every chunk a Warp model steps to the timeline
-(:class:`undulate.simulation._warp._Timeline`).  This reads one run's timeline -- typically a whole
+(:class:`undulate.simulation._warp_timeline.Timeline`).  This reads one run's timeline -- typically a whole
 reproduction on the Warp backend, the GPU check's ``quick-warp`` -- and says where its time went:
 
 * ``models_at_once`` -- how many models were inside a chunk at once, averaged over the time any

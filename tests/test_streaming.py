@@ -23,9 +23,9 @@ PAIR = Scene(phases_rad=(0.0, 1.0), dx0_m=0.02)
 @pytest.mark.parametrize("flush_bytes", [1 << 20, 3000], ids=["one-flush", "many-flushes"])
 @pytest.mark.parametrize("scene", [PAIR, Scene(phases_rad=(0.0,))], ids=["pair", "lone"])
 def test_streamed_file_equals_the_in_memory_run_bitwise(tmp_path, scene, flush_bytes, monkeypatch):
-    from undulate import simulation
+    from undulate.simulation import _record
 
-    monkeypatch.setattr(simulation._NetCDFRecorder, "FLUSH_BYTES", flush_bytes)  # small: many appends
+    monkeypatch.setattr(_record._NetCDFRecorder, "FLUSH_BYTES", flush_bytes)  # small: many appends
     opt = SimOptions(duration_s=3.0, sample_rate_hz=100, chunk_steps=137)  # chunks not aligned with samples
     mem = simulate(scene, opt)
     with simulate(scene, opt, out=tmp_path / "run.nc") as disk:  # lone: an empty pair dimension

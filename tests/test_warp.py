@@ -38,14 +38,14 @@ def test_affine_servo_with_slew_on_the_stream_equals_mujocos_pid(heading_guide):
     included (where the 6 rad/s slew limit acts); also the heading guide's pid (no slew state)."""
     import mujoco
 
-    from undulate.simulation._warp import _Servos
+    from undulate.simulation._warp_servo import AffineServoTable
 
     sc = Scene(phases_rad=(0.0, 1.57), heading_guide=heading_guide)
     dt = resolve_options(sc, SimOptions(duration_s=2)).timestep_s
     pid, aff = build(sc, dt), build(sc, dt, servo="affine")
     k = 3000
     u = pid.controls(np.arange(k) * dt)
-    servos = _Servos(pid.model, aff.model, dt, [pid.model])
+    servos = AffineServoTable(pid.model, aff.model, dt, [pid.model])
     table, slewed = servos.table(u[None], np.zeros((1, len(servos.act))))
     da, db = mujoco.MjData(pid.model), mujoco.MjData(aff.model)
     worst_q = worst_act = 0.0
@@ -70,12 +70,12 @@ def test_the_control_table_is_bitwise_the_gathered_one(heading_guide, shuffled):
     """The Warp control table is built step-major with slices where the columns are evenly spaced;
     bitwise the plain gather: per scene, the slewed position command plus (kv/kp) times the velocity
     command on each servo, the other inputs (the heading guide's) copied."""
-    from undulate.simulation._warp import _Servos, slew
+    from undulate.simulation._warp_servo import AffineServoTable, slew
 
     sc = Scene(phases_rad=(0.0, 1.57), heading_guide=heading_guide)
     dt = resolve_options(sc, SimOptions(duration_s=2)).timestep_s
     pid, aff = build(sc, dt), build(sc, dt, servo="affine")
-    servos = _Servos(pid.model, aff.model, dt, [pid.model] * 3)
+    servos = AffineServoTable(pid.model, aff.model, dt, [pid.model] * 3)
     if shuffled:  # columns not evenly spaced (gathers), and inputs copied as they are
         servos.src_vel = servos.src_vel[::-1].copy()
         servos.copy_src, servos.copy_dst = np.array([1, 2, 6]), np.array([0, 3, 1])
@@ -92,10 +92,10 @@ def test_the_control_table_is_bitwise_the_gathered_one(heading_guide, shuffled):
 
 
 def test_the_slew_rule_without_a_python_step_per_step_is_bitwise_the_step_by_step_rule():
-    """:func:`undulate.simulation._warp.slew` copies the steps where the state stays on its command;
+    """:func:`undulate.simulation._warp_servo.slew` copies the steps where the state stays on its command;
     against MuJoCo's rule applied step by step: ramps from far off, jumps mid-chunk, plateaus, sign
     crossings (where ``t + (t' - t)`` can miss ``t'``), unlimited servos, empty chunks -- bitwise."""
-    from undulate.simulation._warp import slew
+    from undulate.simulation._warp_servo import slew
 
     def step_by_step(target, rate, act0):
         finite = np.isfinite(rate)
@@ -233,7 +233,7 @@ def test_a_batch_of_different_channels_is_one_warp_model_with_per_world_fields()
     and the static walls' poses per world in the Data: MuJoCo Warp never recomputes them); each world
     agrees with its scene stepped alone on the MuJoCo backend (a wall left at the first world's width
     moved a pair by 4.7 mm)."""
-    from undulate.simulation import _warp
+    from undulate.simulation import _warp_worlds
     from undulate.params import Channel, ContactModel, Ground, Servo
 
     scenes = [Scene(phases_rad=(0.0, 1.0), channel=Channel(width_m=w), ground=Ground(drag_N_s_per_m=g),
@@ -245,7 +245,7 @@ def test_a_batch_of_different_channels_is_one_warp_model_with_per_world_fields()
     from undulate.simulation import compile_scene
 
     aff = [compile_scene(sc, resolve_options(sc, opts), servo="affine") for sc in scenes]
-    groups = _warp._plan_worlds([a.model for a in aff])
+    groups = _warp_worlds.plan_worlds([a.model for a in aff])
     assert len(groups) == 1 and {"geom_pos", "opt.viscosity", "actuator_gainprm",
                                  "geom_solref"} <= set(groups[0][1])
     got = simulate_batch(scenes, SimOptions(duration_s=0.5, **WARP))
@@ -259,20 +259,20 @@ def test_scenes_that_differ_in_their_start_offset_are_one_warp_model():
     """Pair scenes that differ in dx0 differ in ``dof_length`` by ~1e-17, a field MuJoCo Warp cannot give
     per world but reads only for island sleeping, which our models leave off: they are one Warp model
     (until 2026-11-30 ~5, stepped one after another), and each world is its scene's run alone."""
-    from undulate.simulation import _warp, compile_scene
+    from undulate.simulation import _warp_worlds, compile_scene
 
     scenes = [Scene(phases_rad=(0.0, 1.0), dx0_m=x) for x in (-0.27, -0.09, 0.0, 0.18)]
     opts = SimOptions(duration_s=0.3, **WARP)
     models = [compile_scene(sc, resolve_options(sc, opts), servo="affine").model for sc in scenes]
     assert len({m.dof_length.tobytes() for m in models}) > 1  # what used to split them
-    assert [len(idx) for idx, _ in _warp._plan_worlds(models)] == [4]
+    assert [len(idx) for idx, _ in _warp_worlds.plan_worlds(models)] == [4]
     got = simulate_batch(scenes, opts)
     for sc, g in zip(scenes, got):
         assert _max_dx(simulate(sc, opts), g) < 1e-9
 
 
 def test_dof_length_is_read_by_island_sleeping_alone_in_the_installed_mujoco_warp():
-    """What lets :data:`undulate.simulation._warp.ONLY_WITH_FLAG` leave ``dof_length`` out of a Warp
+    """What lets :data:`undulate.simulation._warp_worlds.ONLY_WITH_FLAG` leave ``dof_length`` out of a Warp
     model's grouping: no code of the installed MuJoCo Warp names it outside its declaration and the
     sleep module (a release that reads it elsewhere fails here)."""
     import io
@@ -281,7 +281,7 @@ def test_dof_length_is_read_by_island_sleeping_alone_in_the_installed_mujoco_war
 
     import mujoco_warp
 
-    from undulate.simulation import _warp
+    from undulate.simulation import _warp_worlds
 
     root = pathlib.Path(mujoco_warp.__file__).parent
     readers = set()
@@ -292,19 +292,19 @@ def test_dof_length_is_read_by_island_sleeping_alone_in_the_installed_mujoco_war
         if any(t.type == tokenize.NAME and t.string == "dof_length" for t in toks):
             readers.add(path.relative_to(root).as_posix())
     assert readers - {"_src/types.py"} == {"_src/sleep.py"}
-    assert set(_warp.ONLY_WITH_FLAG) == {"dof_length"}
+    assert set(_warp_worlds.ONLY_WITH_FLAG) == {"dof_length"}
 
 
 def test_the_warp_models_of_one_batch_are_launched_before_any_is_collected(monkeypatch):
     """A batch whose worlds need several Warp models (here: dof_length counted, as before 2026-11-30)
     launches every model's chunk before it waits for any (on a GPU they step side by side on their
     streams), and each world is the same as in one model."""
-    from undulate.simulation import _warp
+    from undulate.simulation import _warp, _warp_worlds
 
     scenes = [Scene(phases_rad=(0.0, 1.0), dx0_m=x) for x in (-0.27, -0.09, 0.0, 0.18)]
     opts = SimOptions(duration_s=0.3, **WARP)
     one = simulate_batch(scenes, opts)
-    monkeypatch.setattr(_warp, "ONLY_WITH_FLAG", {})
+    monkeypatch.setattr(_warp_worlds, "ONLY_WITH_FLAG", {})
     calls: list[str] = []
     for name in ("launch", "collect"):
         real = getattr(_warp._Group, name)
@@ -538,7 +538,8 @@ def test_a_stopped_scene_steps_on_the_device_under_finite_controls(monkeypatch, 
     those of clean buffers."""
     import warnings
 
-    from undulate.simulation import _Stepper, _warp
+    from undulate.simulation import _warp
+    from undulate.simulation._stepper import _Stepper
 
     monkeypatch.setenv("UNDULATE_WARP_REDUCE", reduce)
     scenes = [Scene(phases_rad=(0.0, 1.0)), Scene(phases_rad=(0.0, 2.5), dx0_m=0.05)]
@@ -709,14 +710,14 @@ def test_a_capacity_overflow_stops_the_run_naming_the_capacity(monkeypatch, capf
     """A contact sensor allowed fewer matches than the pair's contacts: the run stops with CapacityError
     naming the capacity, not with wrong forces or one warning per step.  Contacts allocated below what
     the first state has: CapacityError too, before stepping."""
-    from undulate.simulation import _warp
+    from undulate.simulation import _warp, _warp_group
 
     real = _warp.capacities
     sc = Scene(phases_rad=(0.0, 1.57))
-    monkeypatch.setattr(_warp, "capacities", lambda m: {**real(m), "contact_sensor_maxmatch": 1})
+    monkeypatch.setattr(_warp_group, "capacities", lambda m: {**real(m), "contact_sensor_maxmatch": 1})
     with pytest.raises(_warp.CapacityError, match="contact_sensor_maxmatch"):
         simulate(sc, SimOptions(duration_s=0.1, **WARP))
-    monkeypatch.setattr(_warp, "capacities", lambda m: {**real(m), "nconmax": 1})
+    monkeypatch.setattr(_warp_group, "capacities", lambda m: {**real(m), "nconmax": 1})
     with pytest.raises(_warp.CapacityError, match="nconmax"):
         simulate(sc, SimOptions(duration_s=0.1, **WARP))
     assert "overflow" not in capfd.readouterr().out.lower()  # no print from the kernels either
@@ -724,14 +725,14 @@ def test_a_capacity_overflow_stops_the_run_naming_the_capacity(monkeypatch, capf
 
 def test_the_traced_step_names_every_kernel_the_first_step_loads_and_leaves_the_data_alone(monkeypatch):
     """A Warp model's kernels are compiled on threads before its first step
-    (:func:`undulate.simulation._warp._compile_kernels`) from a trace of the step whose launches are
+    (:func:`undulate.simulation._warp_group._compile_kernels`) from a trace of the step whose launches are
     recorded, not run.  Every module the real step then launches is among those traced (so nothing is
     left to compile one after another), and the trace leaves the group's data, and its model's
     solver loop, as they were (it steps throwaway data)."""
     import mujoco
     import warp as wp
 
-    from undulate.simulation import _warp, compile_scene
+    from undulate.simulation import _warp, _warp_group, compile_scene
     from warp._src.context import _normalize_launch_dim, _resolve_launch_block_dim
 
     sc = Scene(phases_rad=(0.0, 1.57))
@@ -740,7 +741,7 @@ def test_the_traced_step_names_every_kernel_the_first_step_loads_and_leaves_the_
     group = _warp._Group(aff, np.arange(3), {}, "cpu", [aff] * 3)
     fields = {n: v.numpy().copy() for n, v in vars(group.d).items() if isinstance(v, wp.array)}
     conditional = group.m.opt.graph_conditional
-    traced = _warp._traced_modules(group)
+    traced = _warp_group._traced_modules(group)
     assert len(traced) > 20 and group.m.opt.graph_conditional == conditional
     for n, v in fields.items():
         assert np.array_equal(getattr(group.d, n).numpy(), v, equal_nan=True), n
@@ -860,7 +861,7 @@ def test_capacities_count_a_frictionless_contact_as_one_constraint_row():
 def test_a_failed_compile_on_threads_leaves_the_kernels_to_the_first_step(monkeypatch):
     """Compiling on threads is an optimisation: a module that fails to load there (a path never met
     on this device) is left to the first step, which loads it the Warp way; one warning says so."""
-    from undulate.simulation import _warp
+    from undulate.simulation import _warp_group
 
     class Broken:
         name = "broken"
@@ -869,8 +870,8 @@ def test_a_failed_compile_on_threads_leaves_the_kernels_to_the_first_step(monkey
             raise RuntimeError("no compiler here")
 
     monkeypatch.setenv("UNDULATE_WARP_COMPILE_WORKERS", "2")
-    monkeypatch.setattr(_warp, "_traced_modules", lambda group: [(Broken(), None)])
-    monkeypatch.setattr(_warp, "_COMPILE_FALLBACK_SAID", False)
+    monkeypatch.setattr(_warp_group, "_traced_modules", lambda group: [(Broken(), None)])
+    monkeypatch.setattr(_warp_group, "_COMPILE_FALLBACK_SAID", False)
     sc = Scene(phases_rad=(0.0, 1.57))
     with pytest.warns(RuntimeWarning, match="compiled on threads failed.*no compiler here"):
         ds = simulate(sc, SimOptions(duration_s=0.05, **WARP))

@@ -53,16 +53,16 @@ def test_a_routed_lone_swimmer_is_the_mujoco_run_and_a_pair_still_steps_on_warp(
 
 def _rollout_threads(monkeypatch) -> list[int]:
     """The threads of every MuJoCo rollout made from now on (a list it fills)."""
-    from undulate import simulation
+    from undulate.simulation import _mujoco
 
     threads: list[int] = []
-    real = simulation._WarmRollout.__init__
+    real = _mujoco._WarmRollout.__init__
 
     def spy(self, models, nthread):
         threads.append(nthread)
         real(self, models, nthread)
 
-    monkeypatch.setattr(simulation._WarmRollout, "__init__", spy)
+    monkeypatch.setattr(_mujoco._WarmRollout, "__init__", spy)
     return threads
 
 

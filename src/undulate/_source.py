@@ -35,7 +35,8 @@ __all__ = ["PACKAGE", "module_files", "import_graph", "find_cycle", "closure", "
 
 PACKAGE = "undulate"
 _ROOT = Path(__file__).resolve().parent
-BACKEND_MODULES = {"warp": ("undulate.simulation._warp", "undulate.simulation._warp_kernels")}
+BACKEND_MODULES = {"warp": tuple(f"undulate.simulation._warp{part}" for part in (
+    "", "_device", "_group", "_kernels", "_private", "_servo", "_timeline", "_worlds"))}
 """The modules of each optional stepping backend.  :func:`code_hash` counts those of the session's
 backend only (``UNDULATE_BACKEND``, :func:`undulate.simulation.use_backend`): an edit to the Warp
 backend does not invalidate results of the MuJoCo one, and a Warp result names its backend's code."""

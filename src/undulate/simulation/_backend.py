@@ -8,6 +8,7 @@ import os
 
 from ..errors import ParameterError
 from ..params import SimOptions
+from ._engines import backend as engine
 from ._env import env_count, env_switch, is_cpu_device, usable_cpus
 
 BACKEND_ENV, DEVICE_ENV = "UNDULATE_BACKEND", "UNDULATE_DEVICE"
@@ -25,10 +26,8 @@ def use_backend(backend: str | None, device: str | None = None) -> None:
     ``UNDULATE_DEVICE``).  The ``warp`` backend is checked here: its extra must be installed and
     the device present."""
     SimOptions(backend=backend, device=device)  # validated as options are
-    if backend == "warp":
-        from . import _warp
-
-        device = _warp.resolve_device(device)
+    if backend is not None:  # the engine checks its extra and device (MuJoCo's: none)
+        device = engine(backend).resolve_device(device)
     for var, value in ((BACKEND_ENV, backend), (DEVICE_ENV, device)):
         if value is None:
             os.environ.pop(var, None)
@@ -116,12 +115,7 @@ def check_backend(options: SimOptions) -> SimOptions:
     """``options`` with a concrete backend and device (:func:`default_backend` where left out); a
     ParameterError if the Warp backend's extra or device is missing."""
     backend, device = (options.backend, options.device) if options.backend is not None else default_backend()
-    if backend == "warp":
-        from . import _warp
-
-        device = _warp.resolve_device(options.device or device)  # the extra and the device are there
-    else:
-        device = None
+    device = engine(backend).resolve_device(options.device or device)  # the extra and the device are there
     if (backend, device) == (options.backend, options.device):
         return options
     return dataclasses.replace(options, backend=backend, device=device)
@@ -130,10 +124,17 @@ def check_backend(options: SimOptions) -> SimOptions:
 def backend_attrs(options: SimOptions) -> dict[str, str]:
     """What stepped a run (resolved ``options``): ``backend``, ``device``, ``precision`` and, for
     Warp, the versions of mujoco-warp and warp-lang and whether MuJoCo Warp's determinism was on
-    (``warp_determinism``: ``all`` or ``none``; Dataset attrs, sweep identity)."""
-    if options.backend != "warp":
-        return {"backend": "mujoco", "device": "cpu", "precision": "float64"}
-    from . import _warp
+    (``warp_determinism``: ``all`` or ``none``; Dataset attrs, sweep identity): the engine's
+    :meth:`~undulate.simulation._engines.Backend.attrs`."""
+    return engine(options.backend).attrs(options)
 
-    return {"backend": "warp", "device": options.device or "", "precision": _warp.PRECISION,
-            "backend_versions": _warp.versions(), "warp_determinism": "all" if _warp.determinism(options.device) else "none"}
+
+def on_cores(options: SimOptions, *, n_scenes: int | None = None, n_swimmers: int | None = None) -> SimOptions:
+    """``options`` (backend resolved) moved to MuJoCo (device None) where the Warp backend hands a batch
+    of ``n_scenes`` scenes (:func:`cores_up_to`) or a scene of ``n_swimmers`` swimmers
+    (:func:`lone_swimmers_backend`) to the cores; otherwise ``options`` as they are."""
+    if options.backend != "warp":
+        return options
+    lone = n_swimmers == 1 and lone_swimmers_backend(options.device) == "mujoco"
+    small = n_scenes is not None and n_scenes <= cores_up_to(options.device)
+    return dataclasses.replace(options, backend="mujoco", device=None) if lone or small else options

@@ -13,7 +13,7 @@ from ..errors import ParameterError
 from ._mujoco import _state_layout
 
 if TYPE_CHECKING:
-    from . import _Batch
+    from ._batch import _Batch
 
 @dataclass(frozen=True, eq=False)
 class Checkpoint:

@@ -1,5 +1,7 @@
-"""A scene's model as the runner needs it: the resolved options (time step, backend) and the
-compiled scene with the chosen solver and integrator."""
+"""A scene's model as the engines step it: compiled with the chosen solver and integrator, and kept
+(scenes that differ only in their gait phases compile once a process).  The options are resolved by
+the caller (:func:`undulate.simulation._resolve.resolve_options`); the engines choose how the servos
+are expressed (:meth:`undulate.simulation._engines.Backend.compile`)."""
 
 from __future__ import annotations
 
@@ -10,53 +12,23 @@ import functools
 import mujoco
 import numpy as np
 
-from ..errors import ParameterError
 from ..params import Scene, SimOptions
-from ..scene import CompiledScene, auto_timestep, build, servo_damping_rate_per_s, snap_timestep
-from ._backend import check_backend, lone_swimmers_backend
+from ..scene import CompiledScene, build
 
-RK4_DAMPING_STEP = 1.0
-"""``rate dt`` allowed for the servo damping under ``rk4`` (its real-axis stability limit is 2.79)."""
+__all__ = ["compiled_model", "clear_model_cache", "controls", "MODEL_CACHE_SIZE"]
 
 
-def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
-    """``options`` with a concrete time step (the explicit one, or the
-    time-step rule's, :func:`undulate.scene.auto_timestep`, for ``scene``) and
-    a concrete backend and device (:func:`default_backend` where left out).  A scene of one swimmer
-    asked of the Warp backend steps where :func:`lone_swimmers_backend` says (on a GPU: MuJoCo)."""
-    options = check_backend(options)
-    if (options.backend == "warp" and scene.n_swimmers == 1
-            and lone_swimmers_backend(options.device) == "mujoco"):
-        options = dataclasses.replace(options, backend="mujoco", device=None)
-    if options.timestep_s is not None:
-        return options
-    dt = auto_timestep(scene)
-    if options.integrator == "rk4":  # explicit in the servo damping too: resolve its decay
-        dt = min(dt, snap_timestep(RK4_DAMPING_STEP / servo_damping_rate_per_s(scene)))
-    try:
-        return options.with_timestep(dt)
-    except ParameterError as e:  # e.g. a sample rate above 1/dt
-        raise ParameterError(e.name, f"{e.allowed} (automatic time step for this scene: {dt:g} s)",
-                             e.got) from None
-
-
-def compile_scene(scene: Scene, options: SimOptions, *, push: bool | None = None,
-                  loads: bool | None = None, servo: str = "pid") -> CompiledScene:
-    """Build the model for ``scene`` with the solver settings the runner needs
-    (``options.timestep_s`` must be resolved: :func:`resolve_options`).
-    ``push``: include the perturbation-force actuators (default: only if
-    ``scene.forces_N`` is set; see :func:`undulate.scene.swimmer_spec`);
-    ``loads``: servo-torque sensors for a closed-loop controller (default: if
-    the scene's controller is closed-loop); ``servo``: how the servos are expressed
-    (:data:`undulate.scene.SERVO_MODELS`; the Warp backend steps ``"affine"``).
+def compiled_model(scene: Scene, options: SimOptions, *, push: bool, loads: bool,
+                   servo: str = "pid") -> CompiledScene:
+    """The model of ``scene`` under resolved ``options`` (its time step, solver and integrator;
+    ``pair_sensors`` where ``contact_force_pair`` is recorded), with the perturbation-force actuators
+    if ``push``, servo-torque sensors if ``loads`` and the servos expressed as ``servo``
+    (:data:`undulate.scene.SERVO_MODELS`).
 
     A scene's model does not depend on its gait phases (they enter only its controls), so scenes
     that differ only in them -- a sweep over phase lags -- compile once a process (the last
     :data:`MODEL_CACHE_SIZE` models); each call gets its own copy of the model (~0.2 ms against ~0.9
     ms for a pair's compile), which it may change (``tests/test_simulation.py``)."""
-    options = resolve_options(scene, options)
-    push = scene.forces_N is not None if push is None else push
-    loads = scene.controller.closed_loop if loads is None else loads
     args = (options.timestep_s, "contact_force_pair" in options.recorded, push, loads, servo, options.solver,
             options.integrator)
     try:
@@ -67,7 +39,7 @@ def compile_scene(scene: Scene, options: SimOptions, *, push: bool | None = None
 
 
 MODEL_CACHE_SIZE = 64
-"""Compiled models :func:`compile_scene` keeps per process (each in the solver settings asked for)."""
+"""Compiled models :func:`compiled_model` keeps per process (each in the solver settings asked for)."""
 
 
 def _model(scene: Scene, timestep_s: float, pair_sensors: bool, push: bool, loads: bool, servo: str,

@@ -12,7 +12,7 @@ from ..errors import ParameterError
 BATCH_LABEL: contextvars.ContextVar[str] = contextvars.ContextVar("undulate_batch_label", default="")
 """What a gathered batch steps for (its sweep: ``STUDY/SWEEP``, :attr:`undulate.simulation.Gather.label`),
 set while it steps; the Warp backend's timeline names its models by it
-(:class:`undulate.simulation._warp._Timeline`)."""
+(:class:`undulate.simulation._warp_timeline.Timeline`)."""
 
 
 def env_count(name: str, default: int, most: int = 10**6, least: int = 1) -> int:

@@ -12,8 +12,9 @@ import xarray as xr
 from .. import _physics
 from ..params import SimOptions
 from ._checkpoint import Checkpoint, as_list
-from ._compile import compile_scene, resolve_options
+from ._engines import backend
 from ._env import BATCH_LABEL
+from ._resolve import resolve_options
 
 class _NoStop:
     """The stopping rule of a scene that has none, in a gathered batch (it never ends a run)."""
@@ -97,7 +98,7 @@ class Gather:
 
     def submit(self, scenes, options, stop, run, start=None) -> list[xr.Dataset]:
         """Wait for the other threads, then step the calls together; ``run(scenes, options, stop=,
-        progress=, start=)`` steps one batch now (:func:`undulate.simulation._simulate_batch_now`)."""
+        progress=, start=)`` steps one batch now (:func:`undulate.simulation._run._simulate_batch_now`)."""
         req = _Request(scenes, options or SimOptions(), stop, run, start)
         with self.cond:
             self.pending.append(req)
@@ -199,7 +200,7 @@ def _gather_groups(reqs: list[_Request]) -> list[list[_Request]]:
         opts = [resolve_options(sc, r.options) for sc in r.scenes]
         o = opts[0]
         push = any(sc.forces_N is not None for sc in r.scenes)
-        cs = compile_scene(r.scenes[0], o, push=push)
+        cs = backend(o.backend).compile(r.scenes[0], o, push=push, loads=r.scenes[0].controller.closed_loop)
         r.compiled = (push, cs)  # the batch's plan takes it rather than compiling the scene again
         m = cs.model
         closed = r.scenes[0].controller.closed_loop

@@ -1,5 +1,5 @@
-"""The MuJoCo backend: each scene rolled out in C by ``mujoco.rollout``, its solver warm start carried
-across calls (:class:`_WarmRollout`), and MuJoCo's FULLPHYSICS state layout."""
+"""The MuJoCo backend (:class:`MujocoBackend`): each scene rolled out in C by ``mujoco.rollout``, its
+solver warm start carried across calls (:class:`_WarmRollout`), and MuJoCo's FULLPHYSICS state layout."""
 
 from __future__ import annotations
 
@@ -9,6 +9,11 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 from mujoco import rollout as _rollout
+
+from ._compile import compiled_model
+
+__all__ = ["MujocoBackend"]
+
 
 def _state_layout(m: mujoco.MjModel) -> tuple[int, int]:
     """Offsets of qpos in a FULLPHYSICS state vector: (qpos_start, nstate)."""
@@ -25,6 +30,7 @@ def _initial_state(m: mujoco.MjModel) -> np.ndarray:
 
 
 _log = logging.getLogger(__name__)
+
 
 
 def _log_mujoco_warning(msg: str) -> None:
@@ -91,3 +97,28 @@ class _WarmRollout:
             r.close()
         if self.pool is not None:
             self.pool.shutdown()
+
+
+class MujocoBackend:
+    """MuJoCo's C engine (:class:`undulate.simulation._engines.Backend`): float64 on the CPU, every
+    scene its own ``MjData``, results bitwise a plain ``mj_step`` loop (``tests/test_simulation.py``)."""
+
+    name = "mujoco"
+
+    def resolve_device(self, device: str | None) -> None:
+        """None: MuJoCo steps on this process's cores."""
+        return None
+
+    def attrs(self, options) -> dict[str, str]:
+        return {"backend": "mujoco", "device": "cpu", "precision": "float64"}
+
+    def compile(self, scene, options, *, push: bool, loads: bool):
+        """The scene's model with MuJoCo's ``pid`` servos."""
+        return compiled_model(scene, options, push=push, loads=loads)
+
+    def reduces_on_device(self, closed_loop: bool) -> bool:
+        return False
+
+    def prepare(self, compiled, options, *, nthread: int = 0, reduce=None) -> _WarmRollout:
+        """Each scene rolled out from its own ``MjData`` (``nthread > 0``: on that many threads)."""
+        return _WarmRollout([c.model for c in compiled], nthread)

@@ -24,7 +24,7 @@ from ._backend import backend_attrs
 from ._mujoco import _state_layout
 
 if TYPE_CHECKING:
-    from . import _Batch
+    from ._batch import _Batch
 
 RECORDABLE = SimOptions.RECORDABLE
 """Variables a run can record (``SimOptions.record``)."""
