@@ -494,6 +494,8 @@ def test_the_generic_evidence_figure_draws_each_estimate_group_its_region_and_th
     ax = [a for a in evidence_figure(finding, {}).axes if a.get_visible()][-1]
     assert "finding" in ax.get_title() and [t.get_text() for t in ax.texts] == ["guide+wavelength: holds"]
     assert evidence_figure(row, {}, evidence=lambda r: ("own", r["claim"])) == ("own", "c")  # a claim's own hook
+    counts = [a for a in evidence_figure({"paper": "p", "value": {"both": 3, "n_runs": 9}}).axes if a.get_visible()]
+    assert [a.get_title() for a in counts] == ["counts"] and [b.get_width() for b in counts[0].patches] == [3, 9]
     first = write_evidence(row, tmp_path, "claim-a")
     made = (tmp_path / first).stat().st_mtime_ns
     assert write_evidence(row, tmp_path, "claim-a") == first and (tmp_path / first).stat().st_mtime_ns == made

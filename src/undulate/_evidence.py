@@ -164,6 +164,10 @@ def _panels(value: Any, bands: dict[str, Any]) -> tuple[list[dict], list[str]]:
     panels = list(groups.values())
     for path, xk, xs, yk, ys in curves:
         panels.append({"kind": "curve", "name": yk, "x": xk, "xs": xs, "ys": ys, "band": _band(bands, yk, path + (yk,))})
+    counts = [(p, v) for p, v in scalars if float(v).is_integer() and v >= 0 and _band(bands, p[-1], p) is None]
+    if not panels and len(counts) >= 2:  # counts only (runs that did what the claim says, of how many): bars
+        panels.append({"kind": "counts", "name": "counts", "bars": [(".".join(p), v) for p, v in counts[:8]]})
+        scalars = [(p, v) for p, v in scalars if (p, v) not in counts[:8]]
     shown = {p["name"] for p in panels}
     text = [f"{'.'.join(p)} = {v:.4g}" for p, v in scalars if _name_and_category(p)[0] not in shown]
     text += [f"{'.'.join(p)}: {'yes' if f else 'no' if f is False else 'undecided'}" for p, f in flags]
@@ -200,6 +204,18 @@ def _draw_points(ax, p: dict) -> None:
         ax.set_ylim(lo - pad, hi + pad)
     _shade(ax, p["band"])
     ax.set_title(_title(p["name"]), fontsize=FONT_PT)
+
+
+def _draw_counts(ax, p: dict) -> None:
+    bars = p["bars"]
+    ys = list(range(len(bars)))[::-1]
+    ax.barh(ys, [v for _, v in bars], color="#1f4e99", alpha=0.8)
+    ax.set_yticks(ys, [k if len(k) <= 16 else k[:15] + "…" for k, _ in bars])
+    top = max(v for _, v in bars) or 1
+    for y, (_, v) in zip(ys, bars):
+        ax.text(v + 0.02 * top, y, f"{v:g}", va="center", fontsize=FONT_PT)
+    ax.set_xlim(0, 1.15 * top)
+    ax.set_title("counts", fontsize=FONT_PT)
 
 
 def _draw_curve(ax, p: dict) -> None:
@@ -267,7 +283,9 @@ def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
     if footer:
         fig.text(0.01, 0.05 / height, footer, fontsize=FONT_PT, ha="left", va="bottom")
     if n:
-        fig.subplots_adjust(left=0.72 / WIDTH_IN, right=1 - 0.08 / WIDTH_IN,
+        labels = [min(len(k), 16) for q in panels if q["kind"] == "counts" for k, _ in q["bars"]]
+        left_in = max(0.72, 0.2 + 0.085 * max(labels, default=0))  # a count's name fits left of its bar
+        fig.subplots_adjust(left=left_in / WIDTH_IN, right=1 - 0.08 / WIDTH_IN,
                             top=1 - (head_in + title_in) / height, bottom=(foot_in + ticks_in) / height,
                             wspace=0.35, hspace=(title_in + ticks_in) / panel_in)
         if ex:
@@ -276,7 +294,7 @@ def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
         else:
             axes = list(fig.subplots(nrows, cols, squeeze=False).ravel())
         for ax, p in zip(axes, panels):
-            (_draw_points if p["kind"] == "points" else _draw_curve)(ax, p)
+            {"points": _draw_points, "curve": _draw_curve, "counts": _draw_counts}[p["kind"]](ax, p)
             ax.tick_params(labelsize=FONT_PT)
             if ex:
                 ax.set_ylabel("default model", fontsize=FONT_PT)
