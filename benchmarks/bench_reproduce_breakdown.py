@@ -9,7 +9,7 @@ time, sharing the worker processes), so their wall times overlap:
 * ``runs``: simulations it computed (sweep runs, free swimmers included);
 * ``physics``: core-seconds inside ``mujoco.rollout``, measured where it
   happens -- each sweep run records its own rollout seconds and steps
-  (``undulate._physics.meter`` around the run, saved in the run file and
+  (``undulate._walltime.meter`` around the run, saved in the run file and
   reported back to the parent), and this process counts its own (serial
   sweeps, direct simulations);
 * ``us/step``: physics seconds per scene-step;
@@ -110,7 +110,7 @@ def main() -> None:
 
     from undulate.reproduce import reproduce
     from undulate.sweep._executors import default_workers
-    from undulate import _physics
+    from undulate import _walltime
 
     workers = args.workers or default_workers()
     tmp = None
@@ -124,7 +124,7 @@ def main() -> None:
     cpu0 = _cpu()
     t0 = time.perf_counter()
     kw = {"workers": args.workers} if args.workers else {}
-    with _physics.meter() as here:  # everything simulated here and in the workers' reports
+    with _walltime.meter() as here:  # everything simulated here and in the workers' reports
         _, statuses = reproduce(out, quick=not args.full, studies=args.only.split(",") if args.only else None,
                                 log=lambda m: print(m, flush=True), **kw)
     wall = time.perf_counter() - t0

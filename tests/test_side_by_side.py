@@ -23,7 +23,7 @@ if str(HERE) not in sys.path:
 
 import sweep_funcs  # noqa: E402
 
-from undulate import _physics, studies  # noqa: E402
+from undulate import _walltime, studies  # noqa: E402
 from undulate.reproduce import _dependencies, _side_by_side, reproduce  # noqa: E402
 from undulate.studies import _registry  # noqa: E402
 from undulate.sweep import Grid  # noqa: E402
@@ -91,12 +91,12 @@ def test_dependencies_are_the_explained_studies():
 
 # ---- physics meters per context ---------------------------------------------------------------
 def test_a_meter_sees_its_own_thread_and_the_threads_started_in_its_context():
-    with _physics.meter() as outer:
+    with _walltime.meter() as outer:
         mine = {}
 
         def study(name, seconds):
-            with _physics.meter() as own:
-                _physics.report(seconds, 10)
+            with _walltime.meter() as own:
+                _walltime.report(seconds, 10)
                 time.sleep(0.05)  # both meters open at once
             mine[name] = own.read()
 
@@ -106,7 +106,7 @@ def test_a_meter_sees_its_own_thread_and_the_threads_started_in_its_context():
             t.start()
         for t in threads:
             t.join()
-        stranger = threading.Thread(target=_physics.report, args=(100.0, 1))  # a fresh context: not ours
+        stranger = threading.Thread(target=_walltime.report, args=(100.0, 1))  # a fresh context: not ours
         stranger.start()
         stranger.join()
     assert mine == {"a": (1.0, 10), "b": (2.0, 10)}

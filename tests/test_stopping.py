@@ -9,7 +9,7 @@ import pytest
 
 from undulate import Scene, SimOptions, simulate
 from undulate.params import Channel
-from undulate import _physics
+from undulate import _walltime
 from undulate.stopping import ExcessStop, PhaseStop, SteadyStop
 from undulate.studies import _analysis as C
 from undulate.studies._criteria import STEADY_TOL
@@ -73,7 +73,7 @@ def test_simulate_records_its_stop_and_its_physics_time():
 
     sc = Scene(phases_rad=(0.0, 1.0), channel=Channel(width_m=0.13))
     opt = SimOptions(duration_s=10.0, timestep_s=0.002, chunk_steps=500)
-    with _physics.meter() as tally:
+    with _walltime.meter() as tally:
         ds = simulate(sc, opt, stop=stop)
     assert calls[0] == 0.0 and ds.attrs["stop_reason"] == "enough"
     assert ds.attrs["stopped_at"] == pytest.approx(3.0)
@@ -98,7 +98,7 @@ def test_a_stopped_run_goes_on_from_its_checkpoint_bitwise_as_the_uninterrupted_
     stopped = simulate(sc, opt, stop=lambda b: "enough" if float(b[0]["time"][-1]) >= 1.5 else None)
     end = Checkpoint.of(stopped)
     assert end.time_s == pytest.approx(float(stopped["time"][-1]))
-    with _physics.meter() as tally:
+    with _walltime.meter() as tally:
         rest = simulate(sc, opt, start=end)
     full = simulate(sc, opt)
     assert float(rest["time"][0]) > end.time_s and rest.sizes["time"] + stopped.sizes["time"] == full.sizes["time"]
@@ -132,7 +132,7 @@ def test_a_batch_with_one_rule_per_scene_stops_each_scene_as_its_run_alone():
     scenes = [Scene(phases_rad=(0.0, d), channel=Channel(width_m=0.13), controller=p) for d in (0.5, 2.0, -2.5)]
     opt = SimOptions(duration_s=4.0, chunk_steps=300, record=("x", "joint_angle", "contact_force_pair", "gait_phase"))
     ends = (1.0, 4.0, 2.0)
-    with _physics.meter() as tally:
+    with _walltime.meter() as tally:
         batch = simulate_batch(scenes, opt, stop=[stop_at(e) for e in ends])
     alone = [simulate(sc, opt, stop=stop_at(e)) for sc, e in zip(scenes, ends)]
     assert tally.steps == sum(a.attrs["physics_steps"] for a in alone) < 3 * alone[1].attrs["physics_steps"]

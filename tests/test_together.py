@@ -10,14 +10,14 @@ import numpy as np
 import pytest
 import xarray as xr
 
-from undulate import _physics, studies
+from undulate import _walltime, studies
 from undulate.studies import _registry
 from undulate.sweep import Grid
 
 
 def toy(point: dict, seed: int) -> xr.Dataset:
     """A sweep function that simulates nothing: its point's value, and the physics it reports."""
-    _physics.report(0.5, 7)
+    _walltime.report(0.5, 7)
     return xr.Dataset({"v": ((), float(point["v"]), {"units": "1"})})
 
 
@@ -56,7 +56,7 @@ def test_on_the_warp_backend_the_calls_run_side_by_side_and_record_in_their_orde
         time.sleep(delay)
         return float(ctx.sweep(part, toy, Grid(points=[{"v": value}], seed=0))["v"].item())
 
-    with _physics.meter() as tally:
+    with _walltime.meter() as tally:
         got = ctx.together(lambda: call("a", 1.0, 0.5), lambda: call("b", 2.0, 0.0))
     assert got == [1.0, 2.0]
     assert [s["part"] for s in ctx.sweeps] == ["a", "b"]

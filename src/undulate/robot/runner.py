@@ -384,7 +384,7 @@ class _Signals:
 # --- the run -----------------------------------------------------------------------------------
 
 
-class _Servos:
+class _ServoBus:
     """The servos of a run on a bus: units, limits, reads and writes."""
 
     def __init__(self, cfg: RobotConfig, bus: DynamixelBus):
@@ -546,7 +546,7 @@ def _loop(cfg: RobotConfig, ctl: Controller, rec: _Recorder, io, clock, sleep_un
 class _BusIO:
     """The real servos, for :func:`_loop`."""
 
-    def __init__(self, cfg: RobotConfig, servos: _Servos, log):
+    def __init__(self, cfg: RobotConfig, servos: _ServoBus, log):
         self.cfg, self.s, self.log = cfg, servos, log
         self.torque_on_sent = False
 
@@ -643,7 +643,7 @@ def run_robot(cfg: RobotConfig, out: str | Path | None = None, *, controller: Co
         io = None
         try:
             bus.open()
-            servos = _Servos(cfg, bus)
+            servos = _ServoBus(cfg, bus)
             servos.check()
             io = _BusIO(cfg, servos, log)
             _loop(cfg, ctl, rec, io, time.monotonic, _sleep_until, log)

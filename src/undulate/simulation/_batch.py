@@ -46,7 +46,7 @@ def _diagnose(cs: CompiledScene, options: SimOptions, t: float, what: str) -> Di
 
 class _Clock:
     """Physics time of one :func:`simulate_batch` call: wall seconds inside ``mujoco.rollout`` and
-    scene-steps taken there (reported to the open meters, :func:`undulate._physics.report`, when the
+    scene-steps taken there (reported to the open meters, :func:`undulate._walltime.report`, when the
     call ends)."""
 
     def __init__(self):

@@ -9,7 +9,7 @@ from collections.abc import Callable
 
 import xarray as xr
 
-from .. import _physics
+from .. import _walltime
 from ..params import SimOptions
 from ._checkpoint import Checkpoint, as_list
 from ._engines import backend
@@ -112,7 +112,7 @@ class Gather:
             self._run(flush)
         if req.error is not None:
             raise req.error
-        _physics.report(*req.physics)
+        _walltime.report(*req.physics)
         return req.result
 
     def thread_done(self) -> None:
@@ -161,13 +161,13 @@ class Gather:
             self.batches.append(len(scenes))
             hook = self._report(len(self.batches), len(scenes))
         try:
-            with _physics.meter() as tally:  # this batch's physics, shared among its calls
+            with _walltime.meter() as tally:  # this batch's physics, shared among its calls
                 dss = self._context().run(group[0].run, scenes, group[0].options, stop=rules, progress=hook,
                                           start=starts, compiled=_compiled(group))
         except Exception:  # noqa: BLE001 - isolate the failing call
             for r in group:
                 try:
-                    with _physics.meter() as tally:
+                    with _walltime.meter() as tally:
                         r.result = self._context().run(r.run, r.scenes, r.options, stop=r.stop, start=r.start)
                     r.physics = tally.read()
                 except Exception as e:  # noqa: BLE001

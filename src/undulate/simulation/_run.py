@@ -10,7 +10,7 @@ import mujoco
 import numpy as np
 import xarray as xr
 
-from .. import _physics
+from .. import _walltime
 from ..control import Controller
 from ..errors import ParameterError
 from ..params import Scene, SimOptions
@@ -79,7 +79,7 @@ def simulate_batch(
     Every Dataset's attrs ``physics_time`` (s, wall time inside
     ``mujoco.rollout`` for the whole batch) and ``physics_steps`` (scene-steps)
     record what the call cost; the same is reported to the open physics meters
-    (:func:`undulate._physics.meter`).
+    (:func:`undulate._walltime.meter`).
     """
     _check_scenes(scenes, options)
     g = _gathering()
@@ -112,7 +112,7 @@ def _simulate_batch_now(scenes, options, *, nthread=0, out=None, controller=None
     finally:
         stepper.close()
         mujoco.set_mju_user_warning(previous_handler)
-        _physics.report(clock.seconds, clock.steps)
+        _walltime.report(clock.seconds, clock.steps)
         if not ok:
             recorders.abort()
     _stamp(results, clock, recorders, ends)

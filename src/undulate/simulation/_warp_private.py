@@ -21,14 +21,20 @@ class WarpInternals:
     ``per_world_model_fields`` / ``per_world_option_fields``: those it may batch per world (an array
     spec whose first dimension is ``"*"``; ``Model`` and ``Option``); ``normalize_launch_dim``,
     ``resolve_launch_block_dim``: how ``wp.launch`` reads a launch's size and block size;
-    ``runtime``: Warp's runtime (its native stream synchronisation and CUDA context)."""
+    ``context``: the module holding Warp's runtime (:attr:`runtime`)."""
 
     model_fields: frozenset[str]
     per_world_model_fields: frozenset[str]
     per_world_option_fields: frozenset[str]
     normalize_launch_dim: Callable[..., Any]
     resolve_launch_block_dim: Callable[..., Any]
-    runtime: Any
+    context: Any
+
+    @property
+    def runtime(self) -> Any:
+        """Warp's runtime (its native stream synchronisation and CUDA context), set by ``wp.init()``:
+        read when asked for, not when the adapter was made."""
+        return self.context.runtime
 
 
 def _per_world(field: dataclasses.Field) -> bool:
@@ -44,7 +50,8 @@ def private_api() -> WarpInternals:
 
     require()
     from mujoco_warp._src import types
-    from warp._src.context import _normalize_launch_dim, _resolve_launch_block_dim, runtime
+    from warp._src import context
+    from warp._src.context import _normalize_launch_dim, _resolve_launch_block_dim
 
     model = dataclasses.fields(types.Model)
     return WarpInternals(
@@ -52,4 +59,4 @@ def private_api() -> WarpInternals:
         per_world_model_fields=frozenset(f.name for f in model if _per_world(f)),
         per_world_option_fields=frozenset(f.name for f in dataclasses.fields(types.Option) if _per_world(f)),
         normalize_launch_dim=_normalize_launch_dim, resolve_launch_block_dim=_resolve_launch_block_dim,
-        runtime=runtime)
+        context=context)

@@ -62,7 +62,7 @@ if TYPE_CHECKING:  # heavy imports stay lazy
     import xarray as xr
     from matplotlib.figure import Figure
 
-    from .. import _physics
+    from .. import _walltime
     from ..sweep import Grid, SweepResult
 
 __all__ = [
@@ -664,7 +664,7 @@ def _write_all(name: str, ds: xr.Dataset, figure: Figure, doc: dict[str, Any], o
     return out_dir / f"{name}.nc"
 
 
-def _timing(ctx: StudyContext, here: _physics.Tally, thread_cpu_s: float) -> dict[str, Any]:
+def _timing(ctx: StudyContext, here: _walltime.Tally, thread_cpu_s: float) -> dict[str, Any]:
     """Physics time of a study: inside ``mujoco.rollout`` in this process (``here``: serial sweeps
     and direct simulations) plus what its sweeps' worker processes report; ``thread_cpu_s``: the CPU
     time of the thread that ran the study here (its serial runs, summaries, judging, figure, files).
@@ -880,7 +880,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     (:func:`_keep_decided`: ``decided_at``).  Each look's own verdicts are in ``stages``.  The study's
     files hold the last look.
     """
-    from .. import _physics
+    from .. import _walltime
 
     t0, cpu0 = time.perf_counter(), time.thread_time()
     ctx = StudyContext(config, name, progress=progress)
@@ -890,7 +890,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     decided_claims: dict[Any, dict[str, Any]] = {}
     decided_explanations: dict[Any, dict[str, Any]] = {}
     futile_at: dict[str, int] = {}
-    with _physics.meter() as here:  # what this process simulates (serial sweeps, direct runs)
+    with _walltime.meter() as here:  # what this process simulates (serial sweeps, direct runs)
         prefetched = _prefetch(info, ctx, plans)
         for k, (plan, level) in enumerate(zip(plans, levels), start=1):
             first = len(ctx.sweeps)

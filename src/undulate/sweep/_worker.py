@@ -15,7 +15,7 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from .. import _physics
+from .. import _walltime
 from ._grid import Run
 from ._store import check_output, result_path, write_failure, write_result
 
@@ -99,7 +99,7 @@ def init_local_worker(parent_pid: int | None = None) -> None:
     threading.Thread(target=watch, name="undulate-parent-watch", daemon=True).start()
 
 
-def _timing(wall: float, physics: _physics.Tally, share: int = 1) -> dict:
+def _timing(wall: float, physics: _walltime.Tally, share: int = 1) -> dict:
     return {"wall_s": wall / share, "physics_s": physics.seconds / share, "steps": physics.steps // share}
 
 
@@ -136,7 +136,7 @@ def run_chunk(chunk: Chunk) -> list[Outcome]:
 
 def _run_one(chunk: Chunk, runs_dir: Path, run: Run, compute: Callable[[Run], object]) -> Outcome:
     t0 = time.perf_counter()
-    with _physics.meter() as physics:
+    with _walltime.meter() as physics:
         try:
             ds = check_output(compute(run), chunk.grid_names)
             tm = _timing(time.perf_counter() - t0, physics)
@@ -199,7 +199,7 @@ def _run_batched(chunk: Chunk, runs_dir: Path, runs: Sequence[Run]) -> list[Outc
     if not runs:
         return []
     t0 = time.perf_counter()
-    with _physics.meter() as physics:
+    with _walltime.meter() as physics:
         try:
             results = list(chunk.fn([dict(r.point) for r in runs], [r.seed for r in runs]))
             if len(results) != len(runs):

@@ -1,4 +1,5 @@
-"""Physics time: wall seconds inside ``mujoco.rollout`` and the scene-steps taken there.
+"""A wall-time meter for stepping: the wall seconds spent inside the engines' rollouts ("physics time")
+and the scene-steps taken there.
 
 :func:`undulate.simulation.simulate_batch` measures its own cost (its
 Datasets' ``physics_time`` and ``physics_steps`` attrs) and, once when it
