@@ -17,7 +17,7 @@ def plot_potential(ds):
     (a) contact impulse over the first two periods against dphi (grey: each
     common phase; black: their mean) with the fit ``a |dphi| + b``; (b)
     period means of ``dx/lambda`` over time under each force (middle beta,
-    ``d/2A`` nearest 1.2), with the release run there (dashed: the force removed at the dash-dotted line); (c) ``dF`` against ``dx/lambda`` for three
+    ``d/2A`` nearest 0.7), with the release run there (dashed: the force removed at the dash-dotted line); (c) ``dF`` against ``dx/lambda`` for three
     confinements (middle beta) with the fitted lines, broken pairs hollow;
     (d) stiffness k against ``d/2A`` per beta (log scale) and (e) against
     the channel width ``W = 2d`` in metres (no collapse expected); (f) fitted ``dx0/lambda`` against
@@ -26,7 +26,8 @@ def plot_potential(ds):
     fig = new_figure(14.0, 8.0)
     gs = fig.add_gridspec(2, 3)
     ib = ds.sizes["beta"] // 2
-    ir = int(np.argmin(np.abs(ds["d_over_2A"].values - 1.2)))  # a confinement with a visible response
+    # a confinement with a visible response that still holds (the pair touches up to d/2A ~0.8)
+    ir = int(np.argmin(np.abs(ds["d_over_2A"].values - 0.7)))
     _impulse_panel(fig.add_subplot(gs[0, 0]), ds)
     _response_panel(fig.add_subplot(gs[0, 1]), ds, ib, ir)
     _force_panel(fig.add_subplot(gs[0, 2]), ds, ib)
@@ -113,7 +114,8 @@ def _force_panel(ax, ds, ib: int) -> None:
 
 
 def _stiffness_panels(ax_k, ax_d, ax_0, ds) -> None:
-    """(d) stiffness against d/2A and (e) against the channel width W = 2d per beta; (f) the fitted offset with the model."""
+    """(d) stiffness against d/2A (crosses on the axis: no rung held, k = 0) and (e) against the channel width
+    W = 2d per beta; (f) the fitted offset with the model."""
     beta, R = ds["beta"].values, ds["d_over_2A"].values
     for i in range(ds.sizes["beta"]):
         col = _COLOURS[i % len(_COLOURS)]
@@ -122,6 +124,11 @@ def _stiffness_panels(ax_k, ax_d, ax_0, ds) -> None:
         ax_k.plot(R[pos], k[pos], "o-", color=col, label=rf"$\beta$ = {beta[i]:g}$^\circ$")
         ax_d.plot(ds["channel_width"].values[i][pos], k[pos], "o-", color=col)
         ax_0.plot(R, ds["dx0"].values[i], "o-", color=col, label=rf"$\beta$ = {beta[i]:g}$^\circ$")
+        none = ds["broken"].values[i].all(axis=-1)  # no rung held: no cohesion, k = 0 (off a log axis)
+        if none.any():
+            ax_k.plot(R[none], np.full(int(none.sum()), 0.03), "x", color=col, ms=8,
+                      transform=ax_k.get_xaxis_transform(), clip_on=False,
+                      label=r"no force held: $k = 0$" if i == 0 else None)
         if "stiffness_ci95" in ds:  # 95 % intervals (k: t interval; dx0: bootstrap)
             ci = ds["stiffness_ci95"].values[i]
             lo, hi = np.clip(k - ci[:, 0], 0, None), np.clip(ci[:, 1] - k, 0, None)

@@ -20,6 +20,34 @@ left out of the fit :func:`fit_stiffness`, ``dF = k (dx - dx0)``.  Done for
 every ``d / 2A`` and ``beta`` in {30, 45, 60} degrees, with ``A`` measured
 per beta on a free swimmer.
 
+Design of the force runs: which channels, which forces
+-----------------------------------------------------
+``d`` is the wall distance per swimmer (a pair's channel is ``W = 2 d``, docs/confinement_d.md), and
+what this part measures, the restoring force of a compatible pair, exists only where the settled pair
+touches.  The design follows the cohesion scan of a settled ``beta = 45`` deg pair under these runs'
+own rules (``explorations/d_thresholds.py --cohesion``, ``explorations/results/d_cohesion.json``,
+forces 5 mN to 0.3 N, d/2A 0.5 to 1.2):
+
+* below d/2A = 0.48 (W = 101 mm) an in-phase pair's gait is obstructed: the grid starts at 0.5, just
+  above it (the paper's "d/2A < 0.5 ... obstructed"), and takes in the lower part of the paper's range
+  [0.6, 1.2];
+* at 0.5 and 0.6 the pair holds every force of the scan (dx/lambda up to 0.04 and 0.18 at 0.3 N);
+  at 0.7 it holds 5 and 20 mN and breaks at 0.1 N; at 0.8 it holds 20 mN (0.22 lambda) and breaks at
+  0.1 N; from 0.9 it does not touch, and every force slides it away (the same 0.099 lambda after 5 mN
+  from 0.8 to 1.2: the free slide across the neutral band).  Cohesion ends between 0.8 and 0.9, and
+  where it exists the holding force falls from above 0.3 N to between 20 and 100 mN.
+
+So the d/2A grid runs from 0.5 to where cohesion ends (:data:`D_OVER_2A_FULL`: 0.5 to 0.9 in steps of
+0.025, the last widths measuring its end; :data:`D_OVER_2A_QUICK`: 0.5, 0.6, 0.7, 0.8), the same d/2A
+for every beta (each normalised by its own free swimmer's ``A``, so each beta's channels are its own).
+The forces are one geometric ladder, doubling from a few mN (:data:`FORCES_N_FULL`: 5 mN to 0.16 N;
+:data:`FORCES_N_QUICK`: 5 to 40 mN, the rungs below the narrowest holding force of the scan): its low
+rungs lie in every touching channel's linear regime, its high rungs find where the wider channels let
+go.  A stiffness is fitted from the rungs that held; the holding force (largest rung held, the next rung
+broken) is reported per (beta, d/2A) (``summary["per_beta"][beta]["cohesion"]``).  A (beta, d/2A) at
+which no rung held has no cohesion: the summary reports ``k = 0`` there, as measured, and no fit (the
+claims read the fits; such widths are listed beside them, not fed to them).
+
 Compatibility model of ``dx0`` (:func:`model_dx0_m`)
 ----------------------------------------------------
 Full compatibility region (paper Eq. fullcompatibility), at ``dphi = 0``:
@@ -47,8 +75,8 @@ Both are drawn; the measured offset is expected between or below them
 Release runs (paper Fig. 10b: "for small dF this position was sustained until the force was removed")
 ----------------------------------------------------------------------------------------------------
 The force runs keep the force on to their end, so they cannot show what happens when it is removed.
-A few more ``dphi = 0`` pairs (:data:`RELEASE_FORCE_N`, the smallest force both modes apply, at the
-quick grid's ``d / 2A``: one beta in quick, every beta in full) settle for :data:`SETTLE_S`, feel
+A few more ``dphi = 0`` pairs (:data:`RELEASE_FORCE_N`, the ladder's smallest rung, which both modes
+apply, at every ``d / 2A`` of the quick grid: one beta in quick, every beta in full) settle for :data:`SETTLE_S`, feel
 ``+-dF`` for :data:`RELEASE_HOLD_S` and run :data:`RELEASE_AFTER_S` more without it
 (``Scene.force_offset_s``).  From their period means of ``dx / lambda`` (:func:`release_response`):
 the separation ``D`` (hold window minus the periods before the onset), the drift over the hold window
@@ -78,6 +106,7 @@ from ._runners import pair_point
 from ._shared import impulse_sweep
 
 __all__ = [
+    "cohesion",
     "lateral_clearance_m",
     "model_dx0_m",
     "fit_stiffness",
@@ -113,9 +142,22 @@ the two bodies are wedged between the walls (an in-phase pair's gait is obstruct
 d/2A = 0.48, W = 101 mm: docs/confinement_d.md; the paper's "d/2A < 0.5 ... obstructed"),
 the pair barely moves under any force and k is large but erratic."""
 
-RELEASE_FORCE_N = 0.02
-"""dF of the release runs, N: the paper's "small dF" read as the smallest force both modes' grids apply
-(4 % of the full grid's largest, 0.5 N); fixed from the design, before any release run."""
+D_OVER_2A_QUICK = (0.5, 0.6, 0.7, 0.8)
+"""Quick mode's d/2A (per swimmer): from just above the obstruction (0.48) to the last width at which the
+cohesion scan's pair held a force (0.8); module docstring, "Design"."""
+D_OVER_2A_FULL = tuple(float(v) for v in np.round(np.linspace(0.5, 0.9, 17), 10))
+"""Full mode's d/2A: 0.5 to 0.9 in steps of 0.025 (17, for a rank correlation's interval per beta), up
+to the first width of the cohesion scan with no contact (0.9), so the end of cohesion is measured."""
+FORCES_N_FULL = (0.005, 0.01, 0.02, 0.04, 0.08, 0.16)
+"""Full mode's force ladder dF, N: doubling from 5 mN (the cohesion scan's smallest force, inside the
+linear regime at every touching width) to 0.16 N, past the holding force of d/2A 0.7 and 0.8 (between
+20 and 100 mN in the scan)."""
+FORCES_N_QUICK = FORCES_N_FULL[:4]
+"""Quick mode's ladder, N: its four lowest rungs (5 to 40 mN), up to about the holding force of the
+widest touching channels (module docstring, "Design")."""
+RELEASE_FORCE_N = min(FORCES_N_QUICK[0], FORCES_N_FULL[0])
+"""dF of the release runs, N: the paper's "small dF" read as the smallest rung of the force ladder, which
+both modes apply; fixed from the design, before any release run."""
 RELEASE_HOLD_S = 20.0
 """How long the release runs hold the force, s (10 periods: twice the 5 periods after the onset from
 which :data:`FORCE_STOP` may call a force run steady)."""
@@ -210,18 +252,16 @@ class PotentialPlan:
 
 
 def plan(quick: bool) -> PotentialPlan:
-    """The mode's cap.  Full: 73 dphi (step pi/36) x 8 common phases; 3 beta x 33 d/2A (0.6 to 1.4, step
-    0.025) x 13 forces (5 mN to 0.5 N) = 1 287 force runs.  Quick: 9 dphi x 4 phases; 3 x 3 x 5 = 45 force
-    runs.  Release runs (:data:`RELEASE_FORCE_N` at the quick grid's 3 d/2A): 1 beta in quick (3 runs), 3 in
-    full (9 runs).  The third full look's impulse grid (37 x 8) is :func:`._analysis.impulse_design`, shared with
-    the studies that rerun these runs (``sensitivity``)."""
+    """The mode's cap (module docstring, "Design").  Full: 73 dphi (step pi/36) x 8 common phases; 3 beta x
+    17 d/2A (:data:`D_OVER_2A_FULL`) x 6 forces (:data:`FORCES_N_FULL`) = 306 force runs.  Quick: 9 dphi x 4
+    phases; 3 x 4 x 4 = 48 force runs.  Release runs (:data:`RELEASE_FORCE_N` at the quick grid's 4 d/2A): 1
+    beta in quick (4 runs), 3 in full (12 runs).  The third full look's impulse grid (37 x 8) is
+    :func:`._analysis.impulse_design`, shared with the studies that rerun these runs (``sensitivity``)."""
     dphi, phi0 = C.impulse_design(quick)
     if quick:
-        p = PotentialPlan(dphi, [30, 45, 60], [0.8, 1.0, 1.2], [0.02, 0.05, 0.1, 0.2, 0.3], impulse_phi0=phi0)
+        p = PotentialPlan(dphi, [30, 45, 60], D_OVER_2A_QUICK, FORCES_N_QUICK, impulse_phi0=phi0)
     else:
-        p = PotentialPlan(C.refined(dphi, 2), [30, 45, 60], np.round(np.linspace(0.6, 1.4, 33), 10),
-                          [0.005, 0.01, 0.02, 0.03, 0.04, 0.06, 0.08, 0.1, 0.15, 0.2, 0.3, 0.4, 0.5],
-                          impulse_phi0=phi0)
+        p = PotentialPlan(C.refined(dphi, 2), [30, 45, 60], D_OVER_2A_FULL, FORCES_N_FULL, impulse_phi0=phi0)
     # release runs: the quick grid's d/2A at the default beta (quick) or every beta (full), dF = RELEASE_FORCE_N
     widths = p.d_over_2A if quick else plan(True).d_over_2A
     p.release = ((45.0,) if quick else tuple(p.betas_deg), tuple(widths), (RELEASE_FORCE_N,))
@@ -511,6 +551,31 @@ def _coords(p: PotentialPlan, amps, period_time) -> dict:
     }
 
 
+def cohesion(forces_N, broken) -> dict[str, Any]:
+    """What one (beta, d/2A)'s force ladder says about the pair's cohesion (``forces_N``: the rungs, N;
+    ``broken``: per rung, the run broke apart or still drifted).  ``held_N``: the rungs that held;
+    ``holds_up_to_N``: the largest of them (NaN if none); ``breaks_from_N``: the first rung above it,
+    which broke (NaN if the largest rung held: the holding force lies above the ladder); ``cohesive``:
+    some rung held.  A width where none held has no cohesion, and its stiffness is reported as
+    ``k_N_per_m = 0`` (measured: any force there slides the pair away), not fitted; elsewhere
+    ``k_N_per_m`` is NaN here (the fit gives it).  Rungs below ``holds_up_to_N`` that broke
+    (``slid_below_hold_N``) are the small forces that creep across a neutral band for the whole run."""
+    f = np.asarray(forces_N, float).ravel()
+    b = np.asarray(broken, bool).ravel()
+    if f.shape != b.shape:
+        raise ParameterError("broken", f"one flag per force ({f.size})", b.size)
+    order = np.argsort(f)
+    f, b = f[order], b[order]
+    held = f[~b]
+    top = float(held.max()) if held.size else math.nan
+    above = f[(f > top) & b] if held.size else f[b]
+    breaks = float(above.min()) if held.size and above.size else (float(f.min()) if not held.size and f.size
+                                                                     else math.nan)
+    return {"held_N": [float(v) for v in held], "holds_up_to_N": top, "breaks_from_N": breaks,
+            "slid_below_hold_N": [float(v) for v in f[b & (f < top)]] if held.size else [],
+            "cohesive": bool(held.size), "k_N_per_m": math.nan if held.size else 0.0}
+
+
 def _collapse_rms_value(x, logk) -> float:
     x, logk = np.asarray(x, float).ravel(), np.asarray(logk, float).ravel()
     ok = np.isfinite(x) & np.isfinite(logk)
@@ -628,7 +693,11 @@ def summary(ds) -> dict[str, Any]:
             "spearman_k_vs_d": stats.rank_correlation(R[ok], k[i][ok]).to_dict(),
             "model_dx0_thin_over_lambda": ds["model_dx0_thin"].values[i],
             "model_dx0_bodies_over_lambda": ds["model_dx0_bodies"].values[i],
+            "cohesion": [{"d_over_2A": float(r), **cohesion(ds["force"].values, ds["broken"].values[i, j])}
+                         for j, r in enumerate(R)],
         }
+        per_beta[f"{b:g}"]["no_cohesion_d_over_2A"] = [c["d_over_2A"] for c in per_beta[f"{b:g}"]["cohesion"]
+                                                       if not c["cohesive"]]
     r2_all = ds["fit_r2"].values
     return {
         "impulse_fit": {"slope_Ns_per_rad": fit_a.slope.to_dict(), "intercept_Ns": fit_a.intercept.to_dict(),
@@ -653,6 +722,9 @@ def summary(ds) -> dict[str, Any]:
         "collapse_rms_log10k_vs_d_over_2A_sliding": _collapse_rms(x_scaled[sliding], logk[sliding]).to_dict(),
         "collapse_rms_log10k_vs_d_m_sliding": _collapse_rms(x_metres[sliding], logk[sliding]).to_dict(),
         "sliding_regime": f"d/2A >= {SLIDING_FROM} (below it the pair is wedged between the walls)",
+        "no_cohesion": {b: v["no_cohesion_d_over_2A"] for b, v in per_beta.items()},
+        "no_cohesion_note": "(beta, d/2A) where no rung of the force ladder held: k = 0 as measured (any "
+                            "force slides the pair away), not fitted; the stiffness claims read the fits only",
         "n_points_broken": int(ds["broken"].values.sum()),
         "n_points": int(ds["broken"].size),
         "n_failed": int(ds["run_failed"].values.sum()),
@@ -851,14 +923,14 @@ CLAIMS = (
           quote=(r"We found that the cohesion stiffness of the compatible state decreases with increasing wall "
                  r"width and becomes increasingly large as the confining wall spacing decreases "
                  r"(Fig.~\ref{fig:potential}d)."),
-          where="Sec. III.G, Fig. 10d"),
+          where="Sec. III.G, Fig. 10d", bands={"*": (None, 0.0)}),
     Claim("stiffness curves for different amplitudes collapse when d is scaled by 2A",
           "when we normalise the wall width by gait amplitude the stiffness curves follow a similar trend",
           "the bootstrap 95 % interval of the scatter of log10 k about one quadratic against d/2A lies wholly "
           "below that against d (fails if wholly above; undecided if they overlap)", _collapse,
           quote=(r"However, when we normalize the wall width by gait amplitude the stiffness curves follow a "
                  r"similar trend (Fig.~\ref{fig:potential}d)."),
-          where="Sec. III.G, Fig. 10d", bands={"*": (None, 0.0)}),
+          where="Sec. III.G, Fig. 10d"),
     Claim(DX0_CLAIM,
           "the neutral region dx0 likely lies below the compatibility model's prediction (three-link geometry)",
           "each (beta, d/2A) fit's dx0 is below the sinusoid model's (its bootstrap interval wholly below), above "
@@ -893,14 +965,13 @@ def figure(ds):
     return plot_potential(ds)
 
 
-FULL_LOOKS = ((8, 4, 8, 2), (4, 2, 4, 1), (2, 1, 4, 1), (1, 1, 1, 1))
+FULL_LOOKS = ((8, 4, 8, 1), (4, 2, 4, 1), (2, 1, 4, 1), (1, 1, 1, 1))
 """Full mode's looks: strides over the cap's (impulse dphi, common phases, d/2A, forces): 10 dphi x 2
-phases and 3 x 5 x 7 force runs; 19 x 4 and 3 x 9 x 13; 37 x 8 and 3 x 9 x 13; 73 x 8 and 3 x 33 x 13.
-The fourth look (the cap) was set by the runs the four claims needed at a cap of the third look's size, at 97 %
-(~57 dphi for the impulse R^2; ~30 stiffness fits; ~12 d/2A per beta for the rank correlation: 17),
-not by where their estimates may go.  Its d/2A grid went from 17 to 33 (the next nested one; the 17
-are among them, bitwise the same runs) once the bootstrap's levels were expanded (:func:`undulate.stats.expanded_z`): the rank
-correlation at 30 deg, -0.68 [-0.97, +0.15] on the 17 at 97.5 %, needed ~26."""
+phases and 3 x 3 x 6 force runs; 19 x 4 and 3 x 5 x 6; 37 x 8 and 3 x 5 x 6; 73 x 8 and 3 x 17 x 6.  The
+force ladder is never thinned: a fit and a holding force need all its rungs.  The impulse strides size
+the impulse R^2 (~57 dphi at 97 %); the cap's 17 d/2A per beta are what a rank correlation of k with d
+needed for an interval on the earlier grids (~12-26 widths), within the band where the pair touches
+(module docstring, "Design")."""
 
 
 def stages(quick: bool) -> tuple[PotentialPlan, ...]:
