@@ -150,8 +150,27 @@ def _stair_finals():
     return np.round(_line_finals() * 2) / 2
 
 
-def _basins_summary(finals):
-    return {"stair_steps": B.stair_steps(finals, DPHI), "stair_steps_sinusoid": B.stair_steps(_line_finals(), DPHI)}
+APART = np.abs(np.abs(DX0) - 1.0) < 1e-12  # starts a whole wavelength apart: bodies that never overlap
+
+
+def _untouched_rows(finals):
+    """``finals`` with the starts a wavelength apart ending where they began (no contact ever moved
+    them), and the touched mask that says so."""
+    f = np.array(finals, float)
+    f[APART] = DX0[APART, None]
+    touched = np.ones(f.shape, bool)
+    touched[APART] = False
+    return f, touched
+
+
+def _basins_summary(finals, touched=None):
+    if touched is None:
+        touched = np.ones(np.shape(finals), bool)
+    line = _line_finals()
+    return {"stair_steps": B.stair_steps(finals, DPHI, touched),
+            "stair_steps_sinusoid": B.stair_steps(line, DPHI, touched),
+            "stair_steps_all_starts": B.stair_steps(finals, DPHI),
+            "stair_steps_sinusoid_all_starts": B.stair_steps(line, DPHI)}
 
 
 def test_stair_steps_counts_treads_and_distance_from_the_line():
@@ -186,3 +205,82 @@ def test_clusters_claim_holds_fails_and_is_undecided():
     v = judge(_basins_summary(half))
     assert v.verdict == "undecided", v
     assert judge(_basins_summary(np.full((9, 9), np.nan))).verdict == "no result"
+
+
+def test_stair_steps_leaves_out_runs_whose_pair_never_touched():
+    """A start a wavelength apart ends where it began: every phase pair of its row is a 'tread' and its
+    offsets lie |dphi|/2pi off the line without any contact.  Counted only where both runs touched."""
+    finals, touched = _untouched_rows(_line_finals())
+    every = B.stair_steps(finals, DPHI)
+    only = B.stair_steps(finals, DPHI, touched)
+    assert every["n_treads"] == 16 and every["n_pairs"] == 72  # the two rows' 8 pairs each, trivially
+    assert only["n_treads"] == 0 and only["n_pairs"] == 56 and only["n_untouched"] == 18
+    assert only["n_offsets"] == 63 and only["line_distance"]["value"] == pytest.approx(0.0, abs=1e-12)
+    # one untouched run in a row breaks the two pairs it belongs to, not the row
+    t = np.ones((9, 9), bool)
+    t[4, 4] = False
+    assert B.stair_steps(_line_finals(), DPHI, t)["n_pairs"] == 70
+    for bad in (np.ones((9, 8), bool), np.ones((9, 9), int)):
+        with pytest.raises(ParameterError, match="touched"):
+            B.stair_steps(_line_finals(), DPHI, bad)
+
+
+def test_clusters_claim_on_touched_runs_holds_fails_and_is_undecided_beside_the_old_reading():
+    """The claim reads the runs that touched; the superseded criterion (every start) is judged beside it."""
+    (old,) = _clusters_claim().superseded
+    judge = _clusters_claim().judge
+    stair, touched = _untouched_rows(_stair_finals())
+    assert judge(_basins_summary(stair, touched)).verdict == "holds"
+    # the sinusoid's line on every start that touched: no treads, fails
+    line, touched = _untouched_rows(_line_finals())
+    assert judge(_basins_summary(line, touched)).verdict == "fails"
+    # half the touching starts on a stair, half on the line: straddles 1/2
+    half = np.where(np.arange(9)[:, None] % 2 == 0, _stair_finals(), _line_finals())
+    half, touched = _untouched_rows(half)
+    v = judge(_basins_summary(half, touched))
+    assert v.verdict == "undecided", v
+    assert "runs that never touched left out" in v.measured
+    # the untouched rows alone make a tread share the contacts did not: the old reading counts them
+    s = _basins_summary(half, touched)
+    assert s["stair_steps_all_starts"]["n_treads"] == s["stair_steps"]["n_treads"] + 16
+    assert s["stair_steps_all_starts"]["tread_share"]["value"] > s["stair_steps"]["tread_share"]["value"]
+    assert "every start" in old.judge(s).measured
+    # contacts that leave the line intact, beside two rows that never touched: those rows alone give the
+    # old reading 16 treads of 72 (the sinusoid's map none) and leave it open; on the runs that touched
+    # there is no tread, and the claim fails
+    bare = _basins_summary(*_untouched_rows(_line_finals()))
+    assert bare["stair_steps_all_starts"]["tread_share"]["value"] == pytest.approx(16 / 72)
+    assert old.judge(bare).verdict == "undecided" and judge(bare).verdict == "fails"
+    # no run touched: nothing to judge
+    assert judge(_basins_summary(np.zeros((9, 9)), np.zeros((9, 9), bool))).verdict == "no result"
+
+
+# ------------------------------------------------------------------ potential: cohesion per (beta, d/2A)
+def test_cohesion_reads_the_holding_force_off_the_ladder():
+    """The largest rung held and the next one, broken, bracket the holding force; a width where no rung
+    held has no cohesion and is reported with k = 0, not fitted."""
+    ladder = [0.005, 0.01, 0.02, 0.04]
+    c = P.cohesion(ladder, [True, True, False, True])  # creeping across a neutral band at 5 and 10 mN
+    assert c["cohesive"] and c["held_N"] == [0.02] and c["holds_up_to_N"] == 0.02
+    assert c["breaks_from_N"] == 0.04 and c["slid_below_hold_N"] == [0.005, 0.01] and math.isnan(c["k_N_per_m"])
+    every = P.cohesion(ladder[::-1], [False] * 4)  # the order of the rungs does not matter
+    assert every["holds_up_to_N"] == 0.04 and math.isnan(every["breaks_from_N"])  # holds above the ladder
+    none = P.cohesion(ladder, [True] * 4)
+    assert not none["cohesive"] and none["k_N_per_m"] == 0.0 and none["breaks_from_N"] == 0.005
+    assert none["held_N"] == [] and math.isnan(none["holds_up_to_N"])
+    with pytest.raises(ParameterError, match="broken"):
+        P.cohesion(ladder, [True] * 3)
+
+
+def test_the_force_design_spans_the_touching_channels_and_the_release_follows_it():
+    """The design (module docstring): d/2A from just above the obstruction (0.48) to the end of cohesion,
+    the same for every beta; one doubling ladder; the release runs at the ladder's smallest rung at every
+    d/2A of the quick grid."""
+    for quick in (True, False):
+        p = P.plan(quick)
+        assert p.d_over_2A[0] == 0.5 and 0.6 in p.d_over_2A and p.d_over_2A[-1] >= 0.8
+        f = np.asarray(p.forces_N)
+        np.testing.assert_allclose(f[1:] / f[:-1], 2.0)
+        assert f[0] <= 0.005 and p.release[1] == tuple(P.plan(True).d_over_2A)
+        assert p.release[2] == (P.RELEASE_FORCE_N,) == (float(f[0]),)
+    assert P.plan(False).d_over_2A[-1] == pytest.approx(0.9)  # the first width of the scan with no contact
