@@ -40,7 +40,7 @@ forces 5 mN to 0.3 N, d/2A 0.5 to 1.2):
 So the d/2A grid runs from 0.5 to where cohesion ends (:data:`D_OVER_2A_FULL`: 0.5 to 0.9 in steps of
 0.025, the last widths measuring its end; :data:`D_OVER_2A_QUICK`: 0.5, 0.6, 0.7, 0.8), the same d/2A
 for every beta (each normalised by its own free swimmer's ``A``, so each beta's channels are its own).
-The forces are one geometric ladder, doubling from a few mN (:data:`FORCES_N_FULL`: 5 mN to 0.16 N;
+The forces are one geometric ladder, doubling from a few mN (:data:`FORCES_N_FULL`: 5 to 80 mN;
 :data:`FORCES_N_QUICK`: 5 to 40 mN, the rungs below the narrowest holding force of the scan): its low
 rungs lie in every touching channel's linear regime, its high rungs find where the wider channels let
 go.  A stiffness is fitted from the rungs that held; the holding force (largest rung held, the next rung
@@ -148,10 +148,11 @@ cohesion scan's pair held a force (0.8); module docstring, "Design"."""
 D_OVER_2A_FULL = tuple(float(v) for v in np.round(np.linspace(0.5, 0.9, 17), 10))
 """Full mode's d/2A: 0.5 to 0.9 in steps of 0.025 (17, for a rank correlation's interval per beta), up
 to the first width of the cohesion scan with no contact (0.9), so the end of cohesion is measured."""
-FORCES_N_FULL = (0.005, 0.01, 0.02, 0.04, 0.08, 0.16)
+FORCES_N_FULL = (0.005, 0.01, 0.02, 0.04, 0.08)
 """Full mode's force ladder dF, N: doubling from 5 mN (the cohesion scan's smallest force, inside the
-linear regime at every touching width) to 0.16 N, past the holding force of d/2A 0.7 and 0.8 (between
-20 and 100 mN in the scan)."""
+linear regime at every touching width) to 80 mN, into the holding force of d/2A 0.7 and 0.8 (between
+20 and 100 mN in the scan).  A rung above it would find nothing new (the narrow channels hold 0.3 N) at
+3 x 17 runs: the study's full runs stay within about 4 minutes on 2 cores."""
 FORCES_N_QUICK = FORCES_N_FULL[:4]
 """Quick mode's ladder, N: its four lowest rungs (5 to 40 mN), up to about the holding force of the
 widest touching channels (module docstring, "Design")."""
@@ -253,7 +254,7 @@ class PotentialPlan:
 
 def plan(quick: bool) -> PotentialPlan:
     """The mode's cap (module docstring, "Design").  Full: 73 dphi (step pi/36) x 8 common phases; 3 beta x
-    17 d/2A (:data:`D_OVER_2A_FULL`) x 6 forces (:data:`FORCES_N_FULL`) = 306 force runs.  Quick: 9 dphi x 4
+    17 d/2A (:data:`D_OVER_2A_FULL`) x 5 forces (:data:`FORCES_N_FULL`) = 255 force runs.  Quick: 9 dphi x 4
     phases; 3 x 4 x 4 = 48 force runs.  Release runs (:data:`RELEASE_FORCE_N` at the quick grid's 4 d/2A): 1
     beta in quick (4 runs), 3 in full (12 runs).  The third full look's impulse grid (37 x 8) is
     :func:`._analysis.impulse_design`, shared with the studies that rerun these runs (``sensitivity``)."""
@@ -967,7 +968,7 @@ def figure(ds):
 
 FULL_LOOKS = ((8, 4, 8, 1), (4, 2, 4, 1), (2, 1, 4, 1), (1, 1, 1, 1))
 """Full mode's looks: strides over the cap's (impulse dphi, common phases, d/2A, forces): 10 dphi x 2
-phases and 3 x 3 x 6 force runs; 19 x 4 and 3 x 5 x 6; 37 x 8 and 3 x 5 x 6; 73 x 8 and 3 x 17 x 6.  The
+phases and 3 x 3 x 5 force runs; 19 x 4 and 3 x 5 x 5; 37 x 8 and 3 x 5 x 5; 73 x 8 and 3 x 17 x 5.  The
 force ladder is never thinned: a fit and a holding force need all its rungs.  The impulse strides size
 the impulse R^2 (~57 dphi at 97 %); the cap's 17 d/2A per beta are what a rank correlation of k with d
 needed for an interval on the earlier grids (~12-26 widths), within the band where the pair touches
