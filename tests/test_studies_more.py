@@ -219,17 +219,18 @@ def _check_confinement(ds, summary):
 
 @pytest.mark.slow
 def test_potential_quick(quick_runs):
-    """The whole quick plan (36 impulse and 45 force runs); test_potential_reduced runs by default."""
+    """The whole quick plan (36 impulse, 48 force and 4 release runs); test_potential_reduced runs by default."""
     ds, summary, _ = quick_runs("potential")
     _check_potential(ds, summary, min_stiffnesses=6)
 
 
 def test_potential_reduced(tmp_path):
-    """A reduced real potential run: 7 dphi x 2 common phases, 2 beta x 2 d/2A x 3 forces (26 runs, of 81
-    quick).  d/2A = 0.4 and 0.6 (per swimmer: channels 2 (d/2A) 2A, 84 and 125 mm at beta = 45 deg), where
-    the settled pair still touches and holds against every force here."""
-    p = potential.PotentialPlan(np.pi * np.array([-1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0]), [30, 60], [0.4, 0.6],
-                                [0.02, 0.1, 0.3], impulse_phi0=(0.0, np.pi))
+    """A reduced real potential run: 7 dphi x 2 common phases, 2 beta x 2 d/2A x 3 forces (26 runs, of 88
+    quick).  d/2A = 0.5 and 0.6 (per swimmer: channels 2 (d/2A) 2A, 105 and 125 mm at beta = 45 deg), just
+    above the in-phase pair's obstruction (0.48), where the settled pair touches and holds against the
+    quick ladder's low rungs (docs/confinement_d.md's cohesion scan)."""
+    p = potential.PotentialPlan(np.pi * np.array([-1.0, -0.5, -0.25, 0.0, 0.25, 0.5, 1.0]), [30, 60], [0.5, 0.6],
+                                list(potential.FORCES_N_QUICK[:3]), impulse_phi0=(0.0, np.pi))
     ds = potential.dataset(_context(tmp_path, "potential"), p)
     _check_units("potential", ds)
     _check_potential(ds, potential.summary(ds), min_stiffnesses=4)
@@ -258,7 +259,18 @@ def _check_potential(ds, summary, min_stiffnesses: int):
     assert float(np.nanmin(k)) > 0
     for b in ds["beta"].values:
         kb = k.sel(beta=b).values
-        assert kb[0] > kb[-1]
+        fitted = kb[np.isfinite(kb)]
+        assert fitted.size >= 2 and fitted[0] > fitted[-1]  # narrowest fitted channel stiffer than the widest
+    # the narrowest channel, just above the obstruction, holds every rung (cohesion there); a width with
+    # no rung held is reported with k = 0 and no fit, never the other way round
+    for b, v in summary["per_beta"].items():
+        coh = v["cohesion"]
+        assert coh[0]["cohesive"] and coh[0]["held_N"] == [float(f) for f in ds["force"].values]
+        for j, c in enumerate(coh):
+            assert c["d_over_2A"] == pytest.approx(float(ds["d_over_2A"].values[j]))
+            if not c["cohesive"]:
+                assert c["k_N_per_m"] == 0.0 and not np.isfinite(ds["stiffness"].sel(beta=float(b)).values[j])
+                assert c["d_over_2A"] in summary["no_cohesion"][b]
 
 
 @pytest.mark.slow
@@ -301,6 +313,11 @@ def _check_basins(ds, summary):
         assert t["value"] is not None and 0.05 < abs(t["value"]) < 0.8
         assert min(t["ci95"]) <= t["value"] <= max(t["ci95"])  # the bracket
     assert ds["theory_displacement_over_lambda"].shape == ds["grid_displacement_over_lambda"].shape
+    # starts with overlapping bodies (|dx0| <= lambda / 2) touch at once; starts a wavelength apart never do
+    x0 = ds["dx0"].values
+    assert bool(ds["grid_touched"].values[np.abs(x0) <= 0.5].all())
+    assert not bool(ds["grid_touched"].values[np.isclose(np.abs(x0), 1.0)].any())
+    assert summary["stair_steps"]["n_untouched"] == int((~ds["grid_touched"].values).sum())
 
 
 def _check_packing(ds, summary):
