@@ -16,8 +16,8 @@ def plot_basins(ds):
     (a) ``dx/lambda`` over time for every ``dphi = 0`` start, coloured by
     outcome (returned to 0: blue; pushed away: red), with the measured
     thresholds; (b) the map of ``(dx_f - dx0)/lambda`` over ``(dphi,
-    dx0/lambda)`` for the simulation and (c) for the sinusoid basin model,
-    with the compatibility lines dashed.
+    dx0/lambda)`` for the simulation (crosses: runs whose pair never touched) and (c) for the sinusoid
+    basin model, with the compatibility lines dashed.
     """
     fig = new_figure(14.0, 4.6)
     gs = fig.add_gridspec(1, 3, width_ratios=[1.0, 1.0, 1.0])
@@ -59,6 +59,12 @@ def plot_basins(ds):
         phase_axis(ax.xaxis)
         ax.set_xlabel(r"$\Delta\phi$ (rad)")
         ax.set_ylabel(r"$\Delta x_0/\lambda$")
+        if j == 0 and "grid_touched" in ds:  # runs whose pair never touched: left out of the clusters claim
+            P, X = np.meshgrid(dphi, dx0)
+            apart = ~ds["grid_touched"].values.astype(bool)
+            if apart.any():
+                ax.plot(P[apart], X[apart], "x", color="k", ms=6, label="never touched")
+                ax.legend(fontsize=8, loc="lower right")
         ax.set_title(title, fontsize=10)
     cb = fig.colorbar(mesh, ax=fig.axes[-2:], shrink=0.9)
     cb.set_label(r"$(\Delta x_f - \Delta x_0)/\lambda$")
