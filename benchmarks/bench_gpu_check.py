@@ -80,7 +80,7 @@ def left(budget: float) -> float:
     return budget - (time.perf_counter() - T0)
 
 
-CORES_UP_TO_ENV = "UNDULATE_WARP_CORES_UP_TO"  # undulate.simulation._backend.cores_up_to
+CORES_UP_TO_ENV = "UNDULATE_WARP_CORES_UP_TO"  # undulate.execution.cores_up_to
 FALLBACKS = {"UNDULATE_WARP_STREAMS": "0", "UNDULATE_WARP_COMPILE_WORKERS": "1", "UNDULATE_WARP_STEPS_PER_GRAPH": "1",
              "UNDULATE_WARP_DETERMINISTIC": "0"}
 """Settings the check turns to the plain way, one more at a time, while the pair's first run fails
@@ -359,9 +359,9 @@ def _reproduce(tag: str, args: list[str], timeout: float, env: dict) -> dict:
     if "warp" in args:  # where its lone swimmers stepped (on a GPU by default: the cores)
         from unittest import mock
 
-        from undulate.simulation._backend import cores_up_to, lone_swimmers_backend
+        from undulate.execution import cores_up_to, lone_swimmers_engine
         with mock.patch.dict(os.environ, env, clear=True):
-            rec["lone_swimmers"] = lone_swimmers_backend(DEVICE)
+            rec["lone_swimmers"] = lone_swimmers_engine(DEVICE)
             rec["cores_up_to"] = cores_up_to(DEVICE)  # batches of at most this many scenes on the cores
     if env.get("CUDA_DEVICE_MAX_CONNECTIONS"):  # set by the side-by-side step where it helped
         rec["cuda_device_max_connections"] = env["CUDA_DEVICE_MAX_CONNECTIONS"]

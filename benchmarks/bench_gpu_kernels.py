@@ -8,7 +8,7 @@ architecture without a device (``wp.compile_aot_module``). So this script:
 1. runs ``undulate reproduce`` (quick by default) on the MuJoCo backend in this process, one worker,
    recording every batch it asks for (:func:`undulate.simulation._plan_batch`);
 2. for each model structure (but the lone swimmers', which a GPU steps on the cores,
-   :func:`undulate.simulation._backend.lone_swimmers_backend`), builds the Warp backend's models for
+   :func:`undulate.execution.lone_swimmers_engine`), builds the Warp backend's models for
    its largest batch on Warp's CPU device, with MuJoCo Warp's determinism as on a GPU
    (``UNDULATE_WARP_DETERMINISTIC``, default off there), and traces one step as the backend does
    before a first step (:func:`undulate.simulation._warp_group._traced_modules`): the modules and their
@@ -110,7 +110,7 @@ def main(argv: list[str] | None = None) -> int:
     wp.init()
     from warp._src.context import runtime
 
-    from undulate.simulation._backend import lone_swimmers_backend
+    from undulate.execution import lone_swimmers_engine
 
     t0 = time.perf_counter()
     batches = args.outdir / "batches.pkl"  # the recorded batches, kept: a second run only traces and compiles
@@ -123,7 +123,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"{len(seen)} model structures in {t_rec:.0f} s", flush=True)
     modules: dict = {}
     structures = []
-    lone_on_cores = lone_swimmers_backend("cuda") == "mujoco"
+    lone_on_cores = lone_swimmers_engine("cuda") == "mujoco"
     for key, (n, scenes) in sorted(seen.items(), key=lambda kv: kv[0][1]):
         if lone_on_cores and all(sc.n_swimmers == 1 for sc in scenes):  # a GPU steps them on MuJoCo
             structures.append({"nv": key[1], "ngeom": key[5], "batches": n, "lone_swimmers_on_mujoco": True})

@@ -156,3 +156,13 @@ def pendulum_disk_full(point: dict, seed: int) -> xr.Dataset:
         raise WriteError(os.path.join(os.path.dirname(point["full_flag"]), "run.nc"),
                          OSError(errno.ENOSPC, os.strerror(errno.ENOSPC)))
     return pendulum({k: v for k, v in point.items() if k != "full_flag"}, seed)
+
+
+def execution_seen(point: dict, seed: int) -> xr.Dataset:
+    """The execution settings in effect where the run ran (tests/test_execution.py): the largest batch
+    asked of Warp that steps on the cores (``cores_up_to``, -1 for "by the device") and the process."""
+    from undulate.execution import current
+
+    ex = current()
+    return xr.Dataset({"cores_up_to": ((), -1 if ex.cores_up_to is None else ex.cores_up_to),
+                       "pid": ((), os.getpid())})

@@ -62,9 +62,9 @@ def test_frame_rates_a_format_cannot_keep_are_refused(tmp_path, run_ds):
 def test_a_gif_too_large_for_memory_is_refused_and_an_mp4_streams(tmp_path, run_ds, monkeypatch):
     """A GIF holds all its frames until it is written: one that cannot fit in the memory available is
     refused before drawing, naming ``--stride``; an MP4 of the same frames streams and is written."""
-    import undulate.simulation._record as rec
+    import undulate.execution as execution
 
-    monkeypatch.setattr(rec, "_memory_available_bytes", lambda: 10**6)  # ~1 MB left: 21 frames of ~100 kB don't fit
+    monkeypatch.setattr(execution, "memory_available_bytes", lambda: 10**6)  # ~1 MB left: 21 frames of ~100 kB don't fit
     with pytest.raises(ParameterError, match=r"invalid --stride: must be large enough for the GIF's frames.*\.mp4"):
         animate(run_ds, tmp_path / "a.gif", dpi=40)
     assert list(tmp_path.iterdir()) == []

@@ -220,9 +220,7 @@ def test_warp_steps_the_resistive_medium(monkeypatch):
     the MuJoCo backend to 1e-6 m over one period (float32; measured 2e-8 m)."""
     pytest.importorskip("warp")
     pytest.importorskip("mujoco_warp")
-    from undulate.simulation._backend import LONE_ENV
-
-    monkeypatch.setenv(LONE_ENV, "warp")
+    monkeypatch.setenv("UNDULATE_WARP_LONE_SWIMMERS", "warp")
     sc = _lone()
     o = dict(duration_s=2.0, sample_rate_hz=50.0)
     w = simulate(sc, SimOptions(**o, backend="warp", device="cpu"))

@@ -25,6 +25,8 @@ import sweep_funcs  # noqa: E402
 
 from undulate import _walltime, studies  # noqa: E402
 from undulate.reproduce import _dependencies, _side_by_side, reproduce  # noqa: E402
+from undulate import execution  # noqa: E402
+from undulate.execution import Execution, runs_wide  # noqa: E402
 from undulate.studies import _registry  # noqa: E402
 from undulate.sweep import Grid  # noqa: E402
 
@@ -195,7 +197,7 @@ def test_on_the_warp_backend_an_explaining_study_makes_its_runs_ahead(tmp_path, 
     names = list(swing_studies)
     one, ahead = tmp_path / "one", tmp_path / "ahead"
     reproduce(one, quick=True, studies=names, log=lambda m: None, animation_s=0.3, workers=2, side_by_side=1)
-    monkeypatch.setattr(rp, "_runs_ahead", lambda workers, scheduler: True)
+    monkeypatch.setattr(rp, "runs_ahead", lambda execution: True)
     log: list[str] = []
     reproduce(ahead, quick=True, studies=names, log=log.append, animation_s=0.3, workers=2, side_by_side=2)
     assert _results(one, names) == _results(ahead, names)
@@ -216,15 +218,15 @@ def test_on_many_workers_every_study_runs_at_once_with_its_runs_ahead(tmp_path, 
 
     monkeypatch.delenv("UNDULATE_BACKEND", raising=False)
     names = list(swing_studies)
-    assert not _registry._wide(2) and not _registry._wide(64, scheduler="tcp://x:1")
-    assert _registry._wide(_registry.WIDE_WORKERS)
+    assert not runs_wide(Execution(workers=2)) and not runs_wide(Execution(scheduler="tcp://x:1"))
+    assert runs_wide(Execution(workers=execution.WIDE_WORKERS))
     one, wide = tmp_path / "one", tmp_path / "wide"
     reproduce(one, quick=True, studies=names, log=lambda m: None, animation_s=0.3, workers=2, side_by_side=1)
     at_once: list[int] = []
     real = rp._side_by_side
     monkeypatch.setattr(rp, "_side_by_side", lambda todo, deps, one, finished, n: at_once.append(n)
                         or real(todo, deps, one, finished, n))
-    monkeypatch.setattr(_registry, "WIDE_WORKERS", 2)
+    monkeypatch.setattr(execution, "WIDE_WORKERS", 2)
     log: list[str] = []
     reproduce(wide, quick=True, studies=names, log=log.append, animation_s=0.3, workers=2)
     assert at_once == [len(names) + 1 + 1]  # every study, the animations and the job ahead

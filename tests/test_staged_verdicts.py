@@ -339,7 +339,7 @@ def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, mon
 
     monkeypatch.setattr(staged, "REGION", (-1.0, 5.0))  # undecided at the first look: stages are added
     run_study("_staged", tmp_path / "staged", workers=1, progress=False)
-    monkeypatch.setattr(_registry, "_prefetching", lambda: True)
+    monkeypatch.setattr(_registry, "_prefetching", lambda execution: True)
     run_study("_staged", tmp_path / "prefetched", workers=1, progress=False)
     plain, pre = _doc(tmp_path / "staged", "_staged"), _doc(tmp_path / "prefetched", "_staged")
     assert plain["prefetched"] is None
@@ -355,15 +355,16 @@ def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, mon
 @pytest.mark.parametrize("backend, device, env, expected", [
     ("mujoco", None, None, False),
     ("warp", "cuda", None, True),
-    ("warp", "cuda:1", None, True),
+    ("warp", "cpu", "0", False),
     ("warp", "cpu", None, False),  # each world costs its own steps there: only the looks' runs
     ("warp", "cpu", "1", True),
     ("warp", "cuda", "0", False),
     ("mujoco", None, "1", False),  # the setting is the Warp backend's
 ])
 def test_studies_step_their_last_stage_first_on_a_gpu_only(monkeypatch, backend, device, env, expected):
-    """The prefetch rule (:func:`undulate.simulation._backend.warp_prefetch`): by device, unless
+    """The prefetch rule (:func:`undulate.execution.prefetch`): by device, unless
     ``UNDULATE_WARP_PREFETCH`` says; a study on the Warp backend still runs wide on either device."""
+    from undulate.execution import current, runs_wide
     from undulate.studies import _registry
 
     monkeypatch.setenv("UNDULATE_BACKEND", backend)
@@ -372,17 +373,17 @@ def test_studies_step_their_last_stage_first_on_a_gpu_only(monkeypatch, backend,
             monkeypatch.delenv(var, raising=False)
         else:
             monkeypatch.setenv(var, value)
-    assert _registry._prefetching() is expected
-    assert _registry._wide(1) is (backend == "warp")
+    assert _registry._prefetching(current()) is expected
+    assert runs_wide(current().replace(workers=1)) is (backend == "warp")
 
 
 def test_a_prefetch_setting_other_than_1_or_0_is_refused(monkeypatch):
     from undulate.errors import ParameterError
-    from undulate.simulation._backend import warp_prefetch
+    from undulate.execution import prefetch
 
     monkeypatch.setenv("UNDULATE_WARP_PREFETCH", "yes")
     with pytest.raises(ParameterError, match="UNDULATE_WARP_PREFETCH"):
-        warp_prefetch("cuda")
+        prefetch("cuda")  # the settings are read first: the variable is named
 
 
 def test_a_decided_claim_stays_decided_while_the_study_runs_on(tmp_path, staged, monkeypatch):

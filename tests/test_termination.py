@@ -165,9 +165,9 @@ _CTRL_C_AS_ANOTHER_ERROR = """
 import os, signal, sys
 signal.signal(signal.SIGINT, signal.default_int_handler)  # a background job's shell starts it ignored
 from undulate import cli
-from undulate.sweep import _executors
+from undulate import execution
 
-def default_workers():  # imports MuJoCo: Ctrl-C there came out of pybind11 as its ImportError
+def usable_cpus():  # imports MuJoCo: Ctrl-C there came out of pybind11 as its ImportError
     try:
         os.kill(os.getpid(), signal.SIGINT)
         for _ in range(10**6):
@@ -176,7 +176,7 @@ def default_workers():  # imports MuJoCo: Ctrl-C there came out of pybind11 as i
         raise ImportError("initialization failed") from None
     return 1
 
-_executors.default_workers = default_workers
+execution.usable_cpus = usable_cpus
 sys.exit(cli.main(["study", "pairs", "--quick", "--workers", "1", "--out", sys.argv[1]]))
 """
 

@@ -11,6 +11,7 @@ import pytest
 import xarray as xr
 
 from undulate import _walltime, studies
+from undulate import execution
 from undulate.studies import _registry
 from undulate.sweep import Grid
 
@@ -34,11 +35,11 @@ def test_on_the_mujoco_backend_and_a_few_cores_the_calls_run_here_one_after_anot
 
 
 def test_on_the_mujoco_backend_and_many_workers_the_calls_run_side_by_side(tmp_path, monkeypatch):
-    """From :data:`undulate.studies._registry.WIDE_WORKERS` local workers on, a few stages of 10-20
+    """From :data:`undulate.execution.WIDE_WORKERS` local workers on, a few stages of 10-20
     runs would leave most of the pool idle: the calls run side by side there too (two calls that
     each wait for the other)."""
     monkeypatch.delenv("UNDULATE_BACKEND", raising=False)
-    ctx = _ctx(tmp_path, workers=_registry.WIDE_WORKERS)
+    ctx = _ctx(tmp_path, workers=execution.WIDE_WORKERS)
     both = threading.Barrier(2, timeout=10)  # one after another, the first call would time out
     assert ctx.together(lambda: (both.wait(), "a")[1], lambda: (both.wait(), "b")[1]) == ["a", "b"]
 
@@ -47,7 +48,7 @@ def test_on_the_warp_backend_the_calls_run_side_by_side_and_record_in_their_orde
     """Two calls that each wait for the other (one after another they would time out), the first
     finishing last: their results, sweeps and failures come back in the calls' order, and the study's
     physics meter counts what both simulated; a nested ``together`` keeps its calls' order too."""
-    monkeypatch.setattr(_registry, "_on_warp", lambda: True)
+    monkeypatch.setattr(_registry, "runs_wide", lambda execution: True)  # as on the Warp backend
     ctx = _ctx(tmp_path)
     both = threading.Barrier(2, timeout=30)
 
@@ -71,7 +72,7 @@ def test_on_the_warp_backend_the_calls_run_side_by_side_and_record_in_their_orde
 
 
 def test_the_first_failing_call_raises_once_all_have_ended(tmp_path, monkeypatch):
-    monkeypatch.setattr(_registry, "_on_warp", lambda: True)
+    monkeypatch.setattr(_registry, "runs_wide", lambda execution: True)  # as on the Warp backend
     ctx = _ctx(tmp_path)
     ended = []
 
@@ -95,7 +96,7 @@ def test_a_study_on_threads_gives_the_same_dataset(tmp_path, monkeypatch):
 
     plan = swimming.SwimmingPlan(dphi=[0.0, np.pi / 2], duration_s=4.0)
     seq = swimming.dataset(_ctx(tmp_path / "seq"), plan)
-    monkeypatch.setattr(_registry, "_on_warp", lambda: True)
+    monkeypatch.setattr(_registry, "runs_wide", lambda execution: True)  # as on the Warp backend
     ctx = _ctx(tmp_path / "threads")
     par = swimming.dataset(ctx, plan)
     xr.testing.assert_equal(seq, par)
@@ -116,7 +117,7 @@ def test_a_sweep_of_a_few_runs_steps_them_in_the_warm_pool_once_its_processes_ar
 
     with warm_workers(2):
         ctx.sweep("cold", toy, grid(1, 2))  # no pool yet
-        ctx.sweep("big", toy, grid(*range(10, 10 + _registry.SERIAL_BELOW)))  # starts it
+        ctx.sweep("big", toy, grid(*range(10, 10 + execution.SERIAL_BELOW)))  # starts it
         ctx.sweep("small", toy, grid(3, 4, 5))
         ctx.sweep("one", toy, grid(6))
     assert [s["timing"]["executor"] for s in ctx.sweeps] == ["serial", "local", "local", "serial"]

@@ -780,7 +780,7 @@ def test_warp_determinism_is_on_for_the_cpu_device_and_off_on_a_gpu_unless_told_
     assert _warp._Group(aff, np.arange(1), {}, "cpu").m.opt.deterministic == DeterminismType.ALL
     assert _warp.determinism("cpu") == DeterminismType.ALL
     assert _warp.determinism("cuda") == _warp.determinism("cuda:0") == DeterminismType.NONE
-    from undulate.sweep._store import backend_identity
+    from undulate.sweep import backend_identity
 
     monkeypatch.setenv("UNDULATE_BACKEND", "warp")
     monkeypatch.setenv("UNDULATE_DEVICE", "cpu")

@@ -1,5 +1,5 @@
 """Lone swimmers on the cores when the Warp backend is asked for (``UNDULATE_WARP_LONE_SWIMMERS``,
-:func:`undulate.simulation._backend.lone_swimmers_backend`): on a GPU by default, here on Warp's CPU
+:func:`undulate.execution.lone_swimmers_engine`): on a GPU by default, here on Warp's CPU
 device by setting it.  A routed run is the MuJoCo backend's run, bitwise, and says so; a scene of two
 swimmers still steps on Warp; a sweep's identity records the rule, so its runs are never served
 under the other rule."""
@@ -16,26 +16,26 @@ from undulate import Scene, SimOptions
 from undulate.errors import ParameterError
 from undulate.params import Gait
 from undulate.simulation import simulate, simulate_batch
-from undulate.simulation._backend import LONE_ENV, lone_swimmers_backend
-from undulate.simulation._env import usable_cpus
+from undulate.execution import cores_up_to, lone_swimmers_engine, usable_cpus
 
 pytest.importorskip("warp", reason="the gpu extra (mujoco-warp, warp-lang) is not installed")
 pytest.importorskip("mujoco_warp")
 
 WARP = dict(backend="warp", device="cpu")
+LONE_ENV, CORES_UP_TO_ENV = "UNDULATE_WARP_LONE_SWIMMERS", "UNDULATE_WARP_CORES_UP_TO"
 
 
 def test_the_rule_is_the_cores_on_a_gpu_and_warp_on_its_cpu_device_unless_set(monkeypatch):
     monkeypatch.delenv(LONE_ENV, raising=False)
-    assert lone_swimmers_backend("cuda") == "mujoco"
-    assert lone_swimmers_backend("cpu") == "warp"
+    assert lone_swimmers_engine("cuda") == "mujoco"
+    assert lone_swimmers_engine("cpu") == "warp"
     monkeypatch.setenv(LONE_ENV, "warp")
-    assert lone_swimmers_backend("cuda") == "warp"
+    assert lone_swimmers_engine("cuda") == "warp"
     monkeypatch.setenv(LONE_ENV, "mujoco")
-    assert lone_swimmers_backend("cpu") == "mujoco"
+    assert lone_swimmers_engine("cpu") == "mujoco"
     monkeypatch.setenv(LONE_ENV, "gpu")
     with pytest.raises(ParameterError, match=LONE_ENV):
-        lone_swimmers_backend("cpu")
+        lone_swimmers_engine("cpu")
 
 
 def test_a_routed_lone_swimmer_is_the_mujoco_run_and_a_pair_still_steps_on_warp(monkeypatch):
@@ -101,8 +101,6 @@ def test_a_sweeps_identity_records_the_rule_and_a_change_of_rule_recomputes(tmp_
 
 
 def test_the_small_batch_rule_is_one_scene_per_core_on_a_gpu_and_none_on_warps_cpu_device_unless_set(monkeypatch):
-    from undulate.simulation._backend import CORES_UP_TO_ENV, cores_up_to
-
     monkeypatch.delenv(CORES_UP_TO_ENV, raising=False)
     assert cores_up_to("cuda") == usable_cpus() and cores_up_to("cuda:1") == usable_cpus()
     assert cores_up_to("cpu") == 0
@@ -120,8 +118,7 @@ def test_a_batch_of_at_most_the_rules_scenes_is_the_mujoco_run_on_every_core_and
         monkeypatch):
     """A batch of two pairs with the rule at 2 steps on the cores (each run the MuJoCo backend's,
     bitwise, one thread per scene), a batch of three on Warp; a sweep's identity names the rule."""
-    from undulate.simulation._backend import CORES_UP_TO_ENV
-    from undulate.sweep._store import backend_identity
+    from undulate.sweep import backend_identity
 
     monkeypatch.setenv(CORES_UP_TO_ENV, "2")
     threads = _rollout_threads(monkeypatch)

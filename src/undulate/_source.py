@@ -23,12 +23,12 @@ from __future__ import annotations
 import ast
 import functools
 import hashlib
-import os
 import sys
 from collections.abc import Callable, Iterable
 from pathlib import Path
 
 from .errors import UndulateError
+from .execution import Execution, current
 
 __all__ = ["PACKAGE", "module_files", "import_graph", "find_cycle", "closure", "code_hash", "function_modules",
            "snapshot", "check_unchanged", "SourceChangedError"]
@@ -38,7 +38,7 @@ _ROOT = Path(__file__).resolve().parent
 BACKEND_MODULES = {"warp": tuple(f"undulate.simulation._warp{part}" for part in (
     "", "_device", "_group", "_kernels", "_private", "_servo", "_timeline", "_worlds"))}
 """The modules of each optional stepping backend.  :func:`code_hash` counts those of the session's
-backend only (``UNDULATE_BACKEND``, :func:`undulate.simulation.use_backend`): an edit to the Warp
+backend only (:attr:`undulate.execution.Execution.backend`): an edit to the Warp
 backend does not invalidate results of the MuJoCo one, and a Warp result names its backend's code."""
 
 
@@ -204,12 +204,13 @@ def check_unchanged(fn: Callable) -> None:
     code_hash(fn)
 
 
-def code_hash(fn: Callable) -> str:
+def code_hash(fn: Callable, execution: Execution | None = None) -> str:
     """SHA-256 (hex, 16 characters) of the source behind ``fn``.
 
     The files of the modules :func:`function_modules` names and, for
     ``undulate`` modules, of every ``undulate`` module they reach
-    (:func:`closure`).  A module outside the package (a test's or a user's
+    (:func:`closure`), of the stepping backend ``execution`` names only (None: the settings in effect,
+    :func:`undulate.execution.current`).  A module outside the package (a test's or a user's
     sweep function) contributes its own file.
     """
     files = module_files()
@@ -217,7 +218,7 @@ def code_hash(fn: Callable) -> str:
     own = closure([m for m in mods if m in files])
     optional = {m for ms in BACKEND_MODULES.values() for m in ms}
     if own & optional:  # the code reaches the backends: count the session's own only
-        selected = set(BACKEND_MODULES.get(os.environ.get("UNDULATE_BACKEND", ""), ()))
+        selected = set(BACKEND_MODULES.get((execution or current()).backend, ()))
         own = (own - optional) | (selected & set(files))
     paths: dict[str, Path] = {m: files[m] for m in own}
     for m in mods:

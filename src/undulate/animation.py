@@ -130,10 +130,10 @@ def _check_request(ds, out: Path, stride: int) -> None:
 def _check_gif_fits(n_frames: int, size: tuple[int, int], stride: int) -> None:
     """Refuse a GIF whose frames cannot be held in memory: Pillow writes a GIF from all its frames at
     once (an RGB(A) image each, and its palette copy), where an MP4 streams them to ffmpeg."""
-    from .simulation._record import _memory_available_bytes
+    from . import execution
 
     need = n_frames * size[0] * size[1] * 5  # 4 bytes a pixel (RGBA at most), 1 of its palette image
-    have = _memory_available_bytes()
+    have = execution.memory_available_bytes()
     if need > have:
         gib = 2.0**30
         raise ParameterError("--stride", f"large enough for the GIF's frames to fit in memory: {n_frames} frames of "

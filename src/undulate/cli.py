@@ -181,15 +181,22 @@ def _check_backend(backend: str, device: str | None) -> None:
         raise ParameterError("--device", "given only with --backend warp (mujoco steps on the CPU)", device)
 
 
-def _use_backend(backend: str, device: str | None) -> None:
-    """``study``'s and ``reproduce``'s ``--backend``: the default of every run they start."""
-    from .simulation import use_backend
+def _execution(backend: str, device: str | None, workers: int | None, scheduler: str | None):
+    """``study``'s and ``reproduce``'s settings, built once (:class:`undulate.execution.Execution`):
+    ``--backend``, ``--device``, ``--workers`` and ``--scheduler`` over the environment's
+    (:meth:`~undulate.execution.Execution.from_environment`), the Warp extra and device checked, errors
+    named as the options, before anything is written."""
+    from .execution import settings
+    from .simulation import backend as engine
 
     _check_backend(backend, device)
     try:
-        use_backend(backend, device)
+        if backend != "mujoco":  # the engine checks its extra and device
+            device = engine(backend).resolve_device(device)
+        return settings(workers=workers, scheduler=scheduler).replace(backend=backend, device=device)
     except ParameterError as e:
-        raise _cli_name(e, {"backend": "--backend", "device": "--device"}) from None
+        raise _cli_name(e, {"backend": "--backend", "device": "--device", "workers": "--workers",
+                            "scheduler": "--scheduler"}) from None
 
 
 def _print_estimate(scene, options, out: Path) -> None:
@@ -366,12 +373,12 @@ def study(
 
     try:
         _check_config(workers, scheduler, seed)
-        _use_backend(backend, device)
+        execution = _execution(backend, device, workers, scheduler)
         out_path = Path(out)
         if out_path.exists() and not out_path.is_dir():
             raise ParameterError("--out", "a directory", str(out))
         _stop_on_termination()
-        path = studies.run_study(name, out_path, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
+        path = studies.run_study(name, out_path, quick=quick, seed=seed, execution=execution)
     except ParameterError as e:
         _fail(str(_cli_name(e, {"out_dir": "--out"})), 2)  # another process writing to it
     except UndulateError as e:
@@ -404,7 +411,7 @@ def reproduce(
     try:
         _check_config(workers, scheduler, seed)
         check_animation_s(animation_s, "--animation-s")
-        _use_backend(backend, device)
+        execution = _execution(backend, device, workers, scheduler)
         if out.exists() and not out.is_dir():
             raise ParameterError("--out", "a directory", str(out))
         names = None
@@ -419,9 +426,8 @@ def reproduce(
         _fail(str(e), 2)
     _stop_on_termination()
     try:
-        path, statuses = run_all(out, quick=quick, scheduler=scheduler, seed=seed, studies=names,
-                                 log=lambda m: typer.echo(m), workers=workers, beyond_paper=beyond_paper,
-                                 animation_s=animation_s)
+        path, statuses = run_all(out, quick=quick, seed=seed, studies=names, log=lambda m: typer.echo(m),
+                                 beyond_paper=beyond_paper, animation_s=animation_s, execution=execution)
     except ParameterError as e:  # another process writing to --out: refused before anything is written
         _fail(str(_cli_name(e, {"out_dir": "--out"})), 2)
     except SourceChangedError as e:
@@ -490,19 +496,11 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _no_mujoco_gl() -> None:
-    """``MUJOCO_GL=disable`` for this command and the worker processes it starts (they inherit it),
-    where the user has not chosen an OpenGL backend.
+    """``MUJOCO_GL=disable`` for this command and the worker processes it starts, where the user has not
+    chosen an OpenGL backend (:func:`undulate.execution.headless_mujoco`, which says why)."""
+    from .execution import headless_mujoco
 
-    No command draws with MuJoCo's OpenGL (figures and films are matplotlib's, test videos OpenCV's),
-    but ``import mujoco`` with ``MUJOCO_GL`` unset loads glfw, whose library search starts a
-    ``python -c`` child that reads a path on stdin and prints the library's version on stdout, its
-    stderr the command's own.  Ctrl-C or a worker stopped while one ran left that child's traceback
-    after the command's last line ("File "<string>", line 36: BrokenPipeError", or line 28:
-    EOFError; once in ~40 Ctrl-C sent to a study as its first run is saved, and in CI), and each
-    process paid ~50 ms for it."""
-    import os
-
-    os.environ.setdefault("MUJOCO_GL", "disable")
+    headless_mujoco()
 
 
 def _resumes(argv: list[str] | None) -> str:

@@ -25,26 +25,14 @@ from ._signals import stop_if_signalled
 from ._io import atomic_output
 from ._source import SourceChangedError
 from .errors import ParameterError
+from .execution import SIDE_BY_SIDE, Execution, local_workers, runs_ahead, studies_side_by_side, using
 
 __all__ = ["reproduce", "ANIMATIONS"]
 
-#: How many studies a reproduction runs at once (threads sharing one pool of worker processes): while one
-#: study summarises, judges and draws (in this process), the other's runs keep the workers busy.
-SIDE_BY_SIDE = 2
-
 _ANIMATIONS_JOB = "(animations)"
 _AHEAD = "(ahead) "
-"""The job that makes an explaining study's runs ahead of the studies it explains (the Warp backend:
-:func:`undulate.studies._registry.run_ahead`): ``_AHEAD + name``."""
-
-
-def _runs_ahead(workers: int | None, scheduler: Any) -> bool:
-    """Whether explaining studies make their runs ahead, beside the studies they explain: where the
-    reproduction runs wide (:func:`undulate.studies._registry._wide`: the Warp backend, or many local
-    workers), whose time is its chain of sequential steps, not its work."""
-    from .studies._registry import _wide
-
-    return _wide(workers, scheduler)
+"""The job that makes an explaining study's runs ahead of the studies it explains (where it runs wide,
+:func:`undulate.execution.runs_ahead`; :func:`undulate.studies.run_ahead`): ``_AHEAD + name``."""
 
 #: The report's animations: (file stem, caption, scene keyword arguments, duration s).
 ANIMATIONS = (
@@ -75,11 +63,12 @@ def _save_state(out: Path, state: dict) -> None:
         tmp.write_text(json.dumps(state, indent=2))
 
 
-def _study_done(out: Path, name: str, quick: bool, seed: int = 0) -> bool:
-    """``NAME.json`` in ``out`` was written by this code, in this mode, with this seed."""
+def _study_done(out: Path, name: str, quick: bool, seed: int = 0, execution: Execution | None = None) -> bool:
+    """``NAME.json`` in ``out`` was written by this code, in this mode, with this seed, on the engine
+    ``execution`` names (None: the settings in effect)."""
     from .studies import StudyConfig, is_current
 
-    return is_current(name, StudyConfig(out_dir=out, quick=quick, seed=seed))
+    return is_current(name, StudyConfig(out_dir=out, quick=quick, seed=seed, execution=execution))
 
 
 #: How an animation is drawn: its recording rate (Hz), frame stride, frames per second (twice real
@@ -147,7 +136,7 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
     process dies, is drawn here instead; one that fails here too is logged and left out."""
     from concurrent.futures.process import BrokenProcessPool
 
-    from .sweep._executors import default_workers, local_pool
+    from .sweep import local_pool
 
     jobs = [(stem, caption, kw, dur if animation_s is None else animation_s) for stem, caption, kw, dur in ANIMATIONS]
     done: dict[str, dict] = {}
@@ -156,7 +145,7 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
         if _animation_current(anim_dir / f"{stem}.gif", anim_dir / f"{stem}.nc", _animation_stamp(caption, kw, dur)):
             done[stem] = _animation_entry(stem, caption)
     todo = [j for j in jobs if j[0] not in done]
-    n = min(workers or default_workers(), len(todo))
+    n = min(workers or local_workers(), len(todo))
     if n > 1:
         try:
             with local_pool(n) as pool:
@@ -185,7 +174,8 @@ def _animations(out: Path, animation_s: float | None, log: Callable[[str], None]
 def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None = None, seed: int = 0,
               studies: list[str] | None = None, log: Callable[[str], None] = print,
               animation_s: float | None = None, workers: int | None = None,
-              side_by_side: int | None = None, beyond_paper: bool = False) -> tuple[Path, list[dict]]:
+              side_by_side: int | None = None, beyond_paper: bool = False,
+              execution: Execution | None = None) -> tuple[Path, list[dict]]:
     """Run every registered study (or ``studies``) and write ``out_dir/index.html``.
 
     ``beyond_paper``: also run the studies beyond the reproduced paper (``Study.reference`` not
@@ -198,10 +188,13 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     :data:`MIN_ANIMATION_S`); an animation still current (same code, scene, duration and drawing) is kept.
     ``workers``: local worker processes (default: every core this process may
     use); one pool of them stays warm across every study's sweeps.
+    ``execution``: how every run is executed (:class:`undulate.execution.Execution`, which then holds
+    the workers and scheduler; default: the settings in effect with ``workers`` and ``scheduler``).
     ``side_by_side``: studies run at once (threads sharing that pool; an explaining study waits for
-    the studies it explains).  Default: :data:`SIDE_BY_SIDE` on a few cores, where the reproduction's
+    the studies it explains).  Default (:func:`undulate.execution.studies_side_by_side`):
+    :data:`~undulate.execution.SIDE_BY_SIDE` on a few cores, where the reproduction's
     time is its work; every study at once, with explaining studies' runs made ahead, where it runs
-    wide (:data:`undulate.studies._registry.WIDE_WORKERS` or more local workers, where its time is
+    wide (:data:`undulate.execution.WIDE_WORKERS` or more local workers, where its time is
     its chain of sequential stages; or the Warp backend, each Warp model on its own stream of the
     device, so that their small batches overlap there: a step costs a GPU about the same at any small
     number of worlds, docs/gpu.md).  Results do not depend on it: every run's result is a function of
@@ -217,19 +210,17 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     from .studies import StudyConfig
     from .sweep import warm_workers
 
-    StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed, workers=workers)  # validate first
+    ex = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed, workers=workers,
+                     execution=execution).execution  # validated first
     check_animation_s(animation_s)
     log = _one_line_at_a_time(log)
     if studies is None:
         beyond = bool(beyond_paper)
         studies = [n for n in registry.names() if beyond or registry.describe(n).reference == "paper"]
     if side_by_side is None:
-        from .studies._registry import _wide
-
-        side_by_side = len(studies) + 1 if _wide(workers, scheduler) else SIDE_BY_SIDE  # + animations
-    with writing_to(out_dir, "out_dir"), warm_workers(None if scheduler is not None else workers):
-        return _reproduce(registry, Path(out_dir), quick, scheduler, seed, studies, log, animation_s, workers,
-                          side_by_side)
+        side_by_side = studies_side_by_side(len(studies), ex)  # every study at once: + the animations
+    with writing_to(out_dir, "out_dir"), warm_workers(ex.workers), using(ex):
+        return _reproduce(registry, Path(out_dir), quick, ex, seed, studies, log, animation_s, side_by_side)
 
 
 #: The shortest animation (s): two frames at the drawing's recording rate.
@@ -293,12 +284,12 @@ def _side_by_side(todo: list[str], deps: dict[str, set[str]], one: Callable[[str
     waited for others go first (an explaining study: the longest), then those others wait for (so that
     it starts early), then the rest, each kind in ``todo``'s order.  Threads start in a copy of this
     context (a physics meter open here sees what they simulate).  An interrupt (Ctrl-C, a changed
-    source) stops the sweeps in flight (:func:`undulate.sweep._executors.stop_sweeps`) and is raised
+    source) stops the sweeps in flight (:func:`undulate.sweep.stop_sweeps`) and is raised
     once their threads end."""
     import contextvars
     from concurrent.futures import FIRST_COMPLETED, ThreadPoolExecutor, wait
 
-    from .sweep._executors import stop_sweeps
+    from .sweep import stop_sweeps
 
     if at_once == 1:
         for name in todo:
@@ -329,8 +320,8 @@ def _side_by_side(todo: list[str], deps: dict[str, set[str]], one: Callable[[str
             raise
 
 
-def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, log, animation_s,
-               workers, side_by_side: int = SIDE_BY_SIDE) -> tuple[Path, list[dict]]:
+def _reproduce(registry, out: Path, quick: bool, ex: Execution, seed: int, studies, log, animation_s,
+               side_by_side: int = SIDE_BY_SIDE) -> tuple[Path, list[dict]]:
     from .report import write_report
 
     out.mkdir(parents=True, exist_ok=True)
@@ -344,7 +335,7 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
     todo: list[str] = []
     for i, name in enumerate(names, 1):
         prev = state["studies"].get(name, {})
-        if _study_done(out, name, quick, seed):
+        if _study_done(out, name, quick, seed, ex):
             log(f"[{i}/{len(names)}] {name}: done earlier ({prev.get('wall_s', float('nan')):.1f} s), kept")
             results[name] = {"name": name, "ok": True, "wall_s": prev.get("wall_s"), "error": None, "reused": True}
         else:
@@ -356,7 +347,7 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
         log(f"[{number[name]}/{len(names)}] {name}: running ({mode})")
         t0 = time.perf_counter()
         try:
-            registry.run_study(name, out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
+            registry.run_study(name, out, quick=quick, seed=seed, execution=ex)
             st = {"name": name, "ok": True, "wall_s": time.perf_counter() - t0, "error": None, "reused": False}
             log(f"[{number[name]}/{len(names)}] {name}: done in {st['wall_s']:.1f} s")
         except (KeyboardInterrupt, SourceChangedError):  # the code changed under us: nothing after is attributable
@@ -371,15 +362,15 @@ def _reproduce(registry, out: Path, quick: bool, scheduler, seed: int, studies, 
 
     anims: list[dict] = []
     deps = _dependencies(registry, names)
-    ahead = [n for n in todo if deps.get(n, set()) & set(todo)] if _runs_ahead(workers, scheduler) else []
+    ahead = [n for n in todo if deps.get(n, set()) & set(todo)] if runs_ahead(ex) else []
 
     def job(name: str) -> Any:
         if name == _ANIMATIONS_JOB:
-            return _animations(out, animation_s, log, None if scheduler is not None else workers)
+            return _animations(out, animation_s, log, ex.workers)
         if name.startswith(_AHEAD):
             name = name[len(_AHEAD):]
             return _run_ahead(registry, name, f"[{number[name]}/{len(names)}] {name}", log,
-                              out, quick=quick, scheduler=scheduler, seed=seed, workers=workers)
+                              out, quick=quick, seed=seed, execution=ex)
         return one(name)
 
     def finished(name: str, result: Any) -> None:

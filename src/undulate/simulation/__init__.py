@@ -42,7 +42,8 @@ from ._checkpoint import Checkpoint
 from ._compile import controls
 from ._engines import Backend, Rollout, SampledRollout, backend
 from ._gather import Gather
-from ._mujoco import _initial_state, _state_layout
+from ._mujoco import _initial_state
+from ._mujoco import _state_layout as state_layout
 from ._record import RECORDABLE
 from ._resolve import RK4_DAMPING_STEP, compile_scene, resolve_options
 from ._run import simulate, simulate_batch
@@ -51,4 +52,5 @@ _lazy_dask()  # no Dask import for NumPy-only data (undulate._xrcompat)
 
 __all__ = ["simulate", "simulate_batch", "Checkpoint", "compile_scene", "controls", "resolve_options", "RECORDABLE",
            "use_backend", "default_backend", "check_backend", "backend_attrs", "warp_processes", "Gather",
-           "Backend", "Rollout", "SampledRollout", "backend", "scene_attrs", "variable", "RK4_DAMPING_STEP"]
+           "Backend", "Rollout", "SampledRollout", "backend", "scene_attrs", "variable", "RK4_DAMPING_STEP",
+           "state_layout"]

@@ -10,6 +10,7 @@ from collections.abc import Callable
 import xarray as xr
 
 from .. import _walltime
+from ..execution import carry_into
 from ..params import SimOptions
 from ._checkpoint import Checkpoint, as_list
 from ._engines import backend
@@ -147,9 +148,11 @@ class Gather:
                 self.cond.notify_all()
 
     def _context(self) -> contextvars.Context:
-        """A fresh context for a batch's call: none of the calling threads' variables, the label set."""
+        """A fresh context for a batch's call: none of the calling threads' variables but the label and
+        the execution settings in effect (:func:`undulate.execution.carry_into`)."""
         ctx = contextvars.Context()
         ctx.run(BATCH_LABEL.set, self.label)
+        carry_into(ctx)
         return ctx
 
     def _run_group(self, group: list[_Request]) -> None:

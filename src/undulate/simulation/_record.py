@@ -17,10 +17,11 @@ import xarray as xr
 
 from .._signals import deferred
 from ..errors import ParameterError
+from ..execution import engine_for, memory_available_bytes
 from ..params import SimOptions
 from ..schema import scene_attrs, variable
 from ..scene import CompiledScene, root_link, root_offset_m
-from ._backend import backend_attrs
+from ._backend import backend_attrs, check_backend
 from ._mujoco import _state_layout
 
 if TYPE_CHECKING:
@@ -64,24 +65,13 @@ def _chunk_samples(sample_shape, max_samples: int) -> int:
     return max(1, min(_NetCDFRecorder.CHUNK_BYTES // per_sample, int(max_samples)))
 
 
-def _memory_available_bytes() -> int:
-    try:
-        with open("/proc/meminfo") as f:
-            for line in f:
-                if line.startswith("MemAvailable:"):
-                    return int(line.split()[1]) * 1024
-    except OSError:
-        pass
-    return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-
-
 def _check_fits(compiled: Sequence[CompiledScene], record: Sequence[str], n_samples: int,
                 outs: Sequence[Path] | None) -> None:
     """Refuse, before stepping, a recording that cannot fit in memory or on disk."""
     need = sum(_per_sample_bytes(c, record) for c in compiled) * (n_samples + 1)
     gib = 2.0**30
     if outs is None:
-        have = _memory_available_bytes()
+        have = memory_available_bytes()
         if 2 * need > have:  # the samples plus the Dataset built from them
             raise ParameterError(
                 "duration_s / sample_rate_hz (--duration / --sample-rate)",
@@ -110,7 +100,7 @@ def _check_chunk_fits(compiled: Sequence[CompiledScene], chunk_steps: int, times
     m = compiled[0].model
     per_step = m.nu + (0 if reduced else _state_layout(m)[1] + m.nsensordata)  # what _Stepper._buffers holds
     need = 2 * 8 * len(compiled) * chunk_steps * per_step  # the float64 buffers and the arrays made from them
-    have = _memory_available_bytes()
+    have = memory_available_bytes()
     if need > have:
         gib = 2.0**30
         step = f"{timestep_s:.3g} s" + (" (the automatic time step for this scene)" if automatic else "")
@@ -295,10 +285,12 @@ class _Recorders:
         self.reasons: list[str | None] = [None] * bt.nb
         self.recorders = [_MemoryRecorder() for _ in range(bt.nb)] if bt.outs is None else \
             [_NetCDFRecorder(p_, bt.n_samples + 1) for p_ in bt.outs]
+        asked = check_backend(bt.requested)  # the engine asked for (the session's where left out)
         self.builders = [functools.partial(_to_dataset, cs, bt.options, record=bt.options.recorded,
                                            timestep_auto=bt.requested.timestep_s is None,
                                            control_rate_hz=None if bt.ctl is None else 1.0 / (bt.tick * bt.dt),
-                                           controller_kind=None if bt.ctl is None else bt.ctl.kind)
+                                           controller_kind=None if bt.ctl is None else bt.ctl.kind,
+                                           engine=_engine_attrs(asked, bt.options, cs.scene.n_swimmers, bt.nb))
                          for cs in bt.compiled]
 
     def rule(self, b: int) -> str:
@@ -389,9 +381,22 @@ def _sample_vars(cs: CompiledScene, t, qpos, sens, fpair, fwall, pen, record, cm
     return {k: v for k, v in out.items() if k == "time" or k in record}
 
 
+def _engine_attrs(asked: SimOptions, options: SimOptions, n_swimmers: int, n_scenes: int) -> dict[str, str]:
+    """Which engine stepped a run (``engine``: ``options``'s) and which was asked for (``engine_requested``:
+    ``asked``'s, resolved); where they differ, why (``engine_reason``: a lone swimmer or a small batch asked
+    of Warp on the cores, :func:`undulate.execution.engine_for`)."""
+    attrs = {"engine": options.backend, "engine_requested": asked.backend}
+    if options.backend != asked.backend:
+        _, why = engine_for(asked.backend, asked.device, n_swimmers=n_swimmers)
+        if why is None:
+            _, why = engine_for(asked.backend, asked.device, n_scenes=n_scenes)
+        attrs["engine_reason"] = f"{why or 'the execution policy'}: undulate.execution.engine_for"
+    return attrs
+
+
 def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=RECORDABLE,
                 timestep_auto: bool = False, control_rate_hz: float | None = None,
-                controller_kind: str | None = None) -> xr.Dataset:
+                controller_kind: str | None = None, engine: dict[str, str] | None = None) -> xr.Dataset:
     from ..provenance import provenance
 
     sc, ix = cs.scene, cs.index
@@ -425,6 +430,7 @@ def _to_dataset(cs: CompiledScene, options: SimOptions, block: dict, *, record=R
                            "dphi = phi_upper - phi_lower; compatibility dx = lambda dphi / 2pi",
             "config": json.dumps(config),
             **backend_attrs(options),
+            **(engine or {"engine": options.backend, "engine_requested": options.backend}),
             **{f"provenance_{k}": v for k, v in provenance().items()},
         },
     )

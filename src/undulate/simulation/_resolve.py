@@ -20,7 +20,7 @@ def resolve_options(scene: Scene, options: SimOptions) -> SimOptions:
     """``options`` with a concrete time step (the explicit one, or the
     time-step rule's, :func:`undulate.scene.auto_timestep`, for ``scene``) and
     a concrete backend and device (:func:`default_backend` where left out).  A scene of one swimmer
-    asked of the Warp backend steps where :func:`lone_swimmers_backend` says (on a GPU: MuJoCo)."""
+    asked of the Warp backend steps where :func:`undulate.execution.lone_swimmers_engine` says (on a GPU: MuJoCo)."""
     options = on_cores(check_backend(options), n_swimmers=scene.n_swimmers)
     if options.timestep_s is not None:
         return options

@@ -40,12 +40,11 @@ kernels) and :mod:`._warp_private` (the one door into MuJoCo Warp's and Warp's p
 
 from __future__ import annotations
 
-import os
-
 import mujoco
 import numpy as np
 
 from ..errors import ParameterError
+from ..execution import current
 from ._compile import compiled_model
 from ._warp_device import (_DEVICE_LOCK, DEVICES, PRECISION, STEPS_PER_GRAPH, CapacityError, available, capacities,
                            compile_workers, determinism, device_name, require, resolve_device, steps_per_graph,
@@ -220,7 +219,7 @@ class WarpBackend:
     def reduces_on_device(self, closed_loop: bool) -> bool:
         """Open-loop chunks are reduced on the device unless ``UNDULATE_WARP_REDUCE=0`` (closed-loop
         controllers sense at the control rate: every step comes back)."""
-        return not closed_loop and os.environ.get("UNDULATE_WARP_REDUCE", "1") != "0"
+        return not closed_loop and current().reduce_on_device
 
     def prepare(self, compiled, options, *, nthread: int = 0, reduce=None) -> WarpRollout:
         """The device models (each scene's with affine servos, :data:`undulate.scene.SERVO_MODELS`), their

@@ -12,7 +12,8 @@ import threading
 import mujoco
 
 from ..errors import ParameterError, UndulateError
-from ._env import env_count, env_switch, is_cpu_device, usable_cpus
+from ..execution import current
+from ._env import is_cpu_device, usable_cpus
 
 __all__ = ["available", "require", "versions", "resolve_device", "device_name", "capacities", "CapacityError",
            "determinism", "steps_per_graph", "compile_workers", "DEVICES", "PRECISION", "STEPS_PER_GRAPH"]
@@ -157,7 +158,8 @@ def determinism(device: str = "cuda") -> int:
     _, mjw = require()
     DeterminismType = mjw.DeterminismType
 
-    on = env_switch("UNDULATE_WARP_DETERMINISTIC", is_cpu_device(device))
+    on = current().deterministic
+    on = is_cpu_device(device) if on is None else on
     return int(DeterminismType.ALL if on else DeterminismType.NONE)
 
 
@@ -171,10 +173,11 @@ way) and capturing 16 steps costs each new model ~0.4 s."""
 def steps_per_graph(device: str = "cuda") -> int:
     """Steps in one captured graph on ``device``: ``UNDULATE_WARP_STEPS_PER_GRAPH``, else
     :data:`STEPS_PER_GRAPH` on a GPU and 1 on Warp's CPU device."""
-    return env_count("UNDULATE_WARP_STEPS_PER_GRAPH", 1 if is_cpu_device(device) else STEPS_PER_GRAPH, 1000)
+    n = current().steps_per_graph
+    return n if n is not None else 1 if is_cpu_device(device) else STEPS_PER_GRAPH
 
 
 def compile_workers() -> int:
     """Threads that compile a Warp model's kernels at once: ``UNDULATE_WARP_COMPILE_WORKERS``, or
     the CPUs this process may use (1: one module after another, as Warp's first step does)."""
-    return env_count("UNDULATE_WARP_COMPILE_WORKERS", usable_cpus())
+    return current().compile_workers or usable_cpus()

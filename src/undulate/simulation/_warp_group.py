@@ -5,7 +5,6 @@ launched on the group's own stream and copied back; and what a group reduces on 
 
 from __future__ import annotations
 
-import os
 import threading
 import time
 from collections.abc import Sequence
@@ -13,6 +12,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
+from ..execution import current
 from ._warp_device import (_DEVICE_LOCK, CapacityError, capacities, compile_workers, determinism, require,
                            steps_per_graph)
 from ._warp_private import private_api
@@ -52,7 +52,7 @@ class _Group:
             # its own stream on a GPU: the groups of threads running side by side (studies, gathered
             # sweeps) overlap on the device instead of queueing on its default stream
             # (UNDULATE_WARP_STREAMS=0: every group on the device's current stream, one thread at a time)
-            own = wp.get_device(device).is_cuda and os.environ.get("UNDULATE_WARP_STREAMS", "1") != "0"
+            own = wp.get_device(device).is_cuda and current().streams
             self.stream = wp.Stream(device) if own else None
         self.graphs: list = []  # (steps, captured graph), the longest first; none until captured
         self.bufs = None
@@ -419,7 +419,7 @@ def _note_first_step(seconds: float, nworld: int, nv: int, steps_per_graph: int 
     """The first step of a Warp model (kernel compilation unless cached, then the graph capture):
     appended as a JSON line to the file ``UNDULATE_WARP_STATS`` names, if set (benchmarks/bench_gpu_check.py
     reports compile time apart from stepping with it)."""
-    path = os.environ.get("UNDULATE_WARP_STATS")
+    path = current().stats_file
     if path:
         import json
 

@@ -8,6 +8,7 @@ import os
 import threading
 import time
 
+from ..execution import current
 from ._env import BATCH_LABEL
 
 __all__ = ["Timeline", "TIMELINE_ENV"]
@@ -44,7 +45,7 @@ class Timeline:
     def __init__(self, structure: tuple, nworld: int, device: str):
         """``structure``: what two models must share to be one, as numbers: the sizes a gathered batch
         shares (nq, nv, nu, na, nsensordata, ngeom) and the time step (last)."""
-        self.path = os.environ.get(TIMELINE_ENV) or None
+        self.path = current().timeline
         self.head = {"pid": os.getpid(), "group": next(_TIMELINE_IDS), "structure": list(structure),
                      "nworld": int(nworld), "device": device, "label": BATCH_LABEL.get()}
         self.rows: list[list] = []

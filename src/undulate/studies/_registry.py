@@ -55,6 +55,7 @@ import numpy as np
 
 from .. import stats
 from ..errors import ParameterError, UndulateError
+from ..execution import Execution, prefetch, runs_here, runs_wide, settings, substitution_note, using
 from ..params import _flag
 from ..provenance import provenance
 
@@ -102,7 +103,10 @@ class StudyConfig:
     ``quick``: the reduced plan that runs in minutes; ``scheduler``: a Dask
     scheduler address, or None for local processes; ``seed``: the root seed
     of every random draw; ``workers``: local worker processes (None: every
-    core this process may use; results do not depend on it).
+    core this process may use; results do not depend on it); ``execution``: how its runs are executed
+    (:class:`undulate.execution.Execution`; None: the settings in effect with ``workers`` and
+    ``scheduler``, :func:`undulate.execution.settings`).  ``workers`` and ``scheduler`` always
+    read as ``execution``'s.
     """
 
     out_dir: Path
@@ -110,6 +114,7 @@ class StudyConfig:
     scheduler: str | None = None
     seed: int = 0
     workers: int | None = None
+    execution: Execution | None = None
 
     def __post_init__(self):
         if isinstance(self.out_dir, bytes) or not isinstance(self.out_dir, str | os.PathLike):
@@ -120,16 +125,20 @@ class StudyConfig:
         if isinstance(s, bool) or not isinstance(s, int | np.integer) or s < 0:
             raise ParameterError("seed", "an integer >= 0", s)
         object.__setattr__(self, "seed", int(s))
-        from ..sweep._executors import check_scheduler, check_workers
-
-        check_workers(self.workers, self.scheduler)
-        if self.scheduler is not None:  # its form now, before anything is written (a connection at the first sweep)
-            check_scheduler(self.scheduler)
+        ex = self.execution
+        if ex is not None and (self.workers, self.scheduler) in ((None, None), (ex.workers, ex.scheduler)):
+            object.__setattr__(self, "workers", None)  # theirs, read from it below
+            object.__setattr__(self, "scheduler", None)
+        ex = settings(ex, workers=self.workers, scheduler=self.scheduler)  # the scheduler's form checked now
+        object.__setattr__(self, "execution", ex)
+        object.__setattr__(self, "workers", ex.workers)
+        object.__setattr__(self, "scheduler", ex.scheduler)
 
     def to_dict(self) -> dict[str, Any]:
-        d = dataclasses.asdict(self)
-        d["out_dir"] = str(self.out_dir)
-        return d
+        """What the study's JSON records of it (``config``): its folder, mode, scheduler, seed and workers
+        (the engine is in its identity, :func:`identity`)."""
+        return {"out_dir": str(self.out_dir), "quick": self.quick, "scheduler": self.scheduler, "seed": self.seed,
+                "workers": self.workers}
 
     @property
     def mode(self) -> str:
@@ -402,14 +411,6 @@ def describe(name: str) -> Study:
 
 
 # ------------------------------------------------------------------- running
-SERIAL_BELOW = 4
-"""Sweeps of fewer runs than this run in this process (starting worker processes costs more), unless
-the warm pool's processes are up already (:func:`undulate.sweep._executors.warm_pool_running`, a
-reproduction's or a study's later sweeps): then a sweep of 2 or 3 runs steps them side by side there.
-(Run here one after another, the packing study's third bisection look, 3 jammed packs, took 14.3 s
-on the chain of the study that ended a 16-core quick reproduction.)"""
-
-
 _STORE_LOCKS: dict[str, threading.Lock] = {}
 _STORE_LOCKS_GUARD = threading.Lock()
 
@@ -468,7 +469,7 @@ class StudyContext:
         """The store of sweep ``part``: ``OUT/.sweeps/FOLDER/PART-{quick|full}-seedS`` (``FOLDER``: the
         study's name unless given)."""
         return (Path(self.config.out_dir) / ".sweeps" / (folder or self.name)
-                / f"{part}-{self.config.mode}-seed{self.config.seed}{_backend_suffix()}")
+                / f"{part}-{self.config.mode}-seed{self.config.seed}{_backend_suffix(self.config.execution)}")
 
     def shared_sweep(self, part: str, fn: Callable, grid: Grid, *, batched: bool | None = None) -> xr.Dataset:
         """:meth:`sweep` in the store every study of this output folder shares,
@@ -488,15 +489,14 @@ class StudyContext:
         runs NaN and flagged ``run_failed``; they are listed in the study's
         JSON, not raised).
         """
-        from ..sweep import run_sweep
-        from ..sweep._executors import warm_pool_running
+        from ..sweep import run_sweep, warm_pool_running
 
         out = where or self.sweep_dir(part)
-        small = grid.n_runs < SERIAL_BELOW and not (grid.n_runs > 1 and warm_pool_running())
-        workers = 1 if self.config.scheduler is None and small else self.config.workers
+        ex = self.config.execution
+        if runs_here(grid.n_runs, warm_pool_running(), ex):  # a few runs: here (undulate.execution.SERIAL_BELOW)
+            ex = ex.replace(workers=1)
         with _store_lock(out):  # studies run side by side share stores (_shared, _lone): one sweep at a time
-            res: SweepResult = run_sweep(fn, grid, out, scheduler=self.config.scheduler, workers=workers,
-                                         progress=self.progress, batched=batched)
+            res: SweepResult = run_sweep(fn, grid, out, progress=self.progress, batched=batched, execution=ex)
         try:
             rel = str(out.relative_to(self.config.out_dir))
         except ValueError:
@@ -515,7 +515,8 @@ class StudyContext:
 
     def together(self, *calls: Callable[[], Any]) -> list[Any]:
         """``[call() for call in calls]``, for calls that do not depend on each other (each runs its own
-        sweeps).  Where the study runs wide (:func:`_wide`: the Warp backend, or many local workers) they
+        sweeps).  Where the study runs wide (:func:`undulate.execution.runs_wide`: the Warp backend, or
+        many local workers) they
         run side by side on threads, so their runs reach the device or the worker pool at once: a
         study's chain of sequential steps is then its longest call's, not the sum of them (a device
         step costs about the same for one world as for hundreds; a stage of 10-20 runs leaves most of
@@ -523,7 +524,7 @@ class StudyContext:
         call (in that order) that raised raises here once all have ended.  Otherwise (a few cores,
         already kept busy) they run one after another, as written.  Results never depend on it
         (content-keyed stores; a store shared by two calls is computed once)."""
-        if len(calls) < 2 or not _wide(self.config.workers, self.config.scheduler):
+        if len(calls) < 2 or not runs_wide(self.config.execution):
             return [call() for call in calls]
         import contextvars
         from concurrent.futures import ThreadPoolExecutor
@@ -567,20 +568,17 @@ class StudyContext:
         if heading_guide:  # Scene.heading_guide (the yaw recoil removed)
             point["heading_guide"] = True
             key += "-headingguide"
-        out = Path(self.config.out_dir) / ".sweeps" / "_lone" / (key + _backend_suffix())
+        out = Path(self.config.out_dir) / ".sweeps" / "_lone" / (key + _backend_suffix(self.config.execution))
         ds = self.sweep(f"lone {key}", lone_swimmer, Grid(points=[point], seed=0), where=out)
         if bool(ds["run_failed"].any()):
             raise UndulateError(f"study {self.name!r}: the free swimmer {key} failed: {self._records()[1][-1]}")
         return ds.isel(point=0, replicate=0)
 
 
-def _backend_suffix() -> str:
+def _backend_suffix(execution: Execution) -> str:
     """``""`` for the MuJoCo backend, ``"-warp-DEVICE"`` for Warp: the two backends' stores live
     side by side in one output folder (their runs are never served for each other)."""
-    from ..simulation import default_backend
-
-    backend, device = default_backend()
-    return "" if backend == "mujoco" else f"-{backend}-{device or 'default'}"
+    return "" if execution.backend == "mujoco" else f"-{execution.backend}-{execution.device or 'default'}"
 
 
 def _jsonable(obj: Any) -> Any:
@@ -618,12 +616,12 @@ def identity(name: str, config: StudyConfig) -> dict[str, Any]:
     claims that fail: :meth:`StudyContext.needs_explanation`)."""
     from .._source import code_hash
     from ..provenance import package_version
-    from ..sweep._store import backend_identity
+    from ..sweep import backend_identity
 
     info = describe(name)
     ident = {"study": name, "quick": bool(config.quick), "seed": int(config.seed),
-             "undulate_version": package_version("undulate"), "code": code_hash(info.dataset),
-             "backend": backend_identity()}
+             "undulate_version": package_version("undulate"), "code": code_hash(info.dataset, config.execution),
+             "backend": backend_identity(config.execution)}
     if info.explanations:  # which explanations it runs for depends on the verdicts it explains
         known = _claim_verdicts(Path(config.out_dir), config)
         ident["explains"] = [list(t) for t in sorted({(e.study, e.claim, known.get((e.study, e.claim), "unknown"))
@@ -679,7 +677,7 @@ def _timing(ctx: StudyContext, here: _walltime.Tally, thread_cpu_s: float) -> di
 
 def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
               scheduler: str | None = None, seed: int = 0, progress: bool = True,
-              workers: int | None = None) -> Path:
+              workers: int | None = None, execution: Execution | None = None) -> Path:
     """Run study ``name`` and write its files into ``out_dir`` (created if needed).
 
     Returns ``out_dir/NAME.nc``; beside it ``NAME.png``, ``NAME.pdf`` and
@@ -688,25 +686,27 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
     unknown ``name`` raises :class:`~undulate.errors.ParameterError`.
     ``workers``: local worker processes (default: every core this process may
     use), kept warm across the study's sweeps (:func:`undulate.sweep.warm_workers`).
+    ``execution``: how its runs are executed (:class:`undulate.execution.Execution`, which then holds
+    the workers and scheduler; default: the settings in effect with ``workers`` and ``scheduler``).
     Another process writing to ``out_dir`` (a reproduction or a study) is a ParameterError before
     anything is written (:func:`undulate._outdir.writing_to`).
     """
     info = describe(name)
     config = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed,
-                         workers=workers)
+                         workers=workers, execution=execution)
     _flag("progress", progress)
     out = config.out_dir
     from .._outdir import writing_to
     from ..sweep import warm_workers
 
-    with writing_to(out, "out_dir"), warm_workers(workers):
+    with writing_to(out, "out_dir"), warm_workers(config.workers), using(config.execution):
         return _run_study(info, name, config, out, progress)
 
 
 def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, scheduler: str | None = None,
-              seed: int = 0, workers: int | None = None) -> dict[str, Any]:
+              seed: int = 0, workers: int | None = None, execution: Execution | None = None) -> dict[str, Any]:
     """An explaining study's runs before the studies it explains have finished (the reproduction does
-    this where it runs wide, :func:`_wide`, so that the explaining study does not start its long chains
+    this where it runs wide, :func:`undulate.execution.runs_ahead`, so that the explaining study does not start its long chains
     only once the others end): a stage's dataset with every explanation taken as needed, into the
     stores the study reads when it then runs.  On the Warp backend on a GPU its last stage's (a few
     more worlds cost the device little, and the study steps its last stage first there,
@@ -718,13 +718,14 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     was computed (``n_runs``, ``n_computed``, ``wall_s``)."""
     info = describe(name)
     config = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed,
-                         workers=workers)
+                         workers=workers, execution=execution)
     config.out_dir.mkdir(parents=True, exist_ok=True)
     ctx = StudyContext(config, name, progress=False)
     ctx.needs_explanation = lambda study, claim: True  # the verdicts are not known yet: every one
     t0 = time.perf_counter()
     plans = stage_plans(info, config.quick)
-    info.dataset(ctx, plans[-1] if _prefetching() else plans[0])
+    with using(config.execution):
+        info.dataset(ctx, plans[-1] if _prefetching(config.execution) else plans[0])
     return {"n_runs": sum(s["n_runs"] for s in ctx.sweeps), "n_computed": sum(s["n_computed"] for s in ctx.sweeps),
             "wall_s": time.perf_counter() - t0}
 
@@ -785,45 +786,39 @@ def _claim_verdicts(out_dir: Path, config: StudyConfig) -> dict[tuple[str, str],
     return out
 
 
-def _on_warp() -> bool:
-    """Whether the session's runs step on the Warp backend (:func:`undulate.simulation.default_backend`)."""
-    from ..simulation import default_backend
-
-    return default_backend()[0] == "warp"
-
-
-def _prefetching() -> bool:
-    """Whether studies step their last stage first (:func:`_prefetch`): on the Warp backend on a GPU
-    (:func:`undulate.simulation._backend.warp_prefetch`, which ``UNDULATE_WARP_PREFETCH`` overrides)."""
-    from ..simulation import default_backend
-    from ..simulation._backend import warp_prefetch
-
-    backend, device = default_backend()
-    return backend == "warp" and warp_prefetch(device)
-
-
-WIDE_WORKERS = 8
-"""Local worker processes from which a study's independent calls run side by side
-(:meth:`StudyContext.together`) and a reproduction runs every study at once, with explaining studies'
-runs made ahead (:func:`undulate.reproduce.reproduce`).  On 2 cores the quick reproduction, two
-studies at a time, keeps the cores 94-97 % busy: its time is its work, and running more at once only
-adds runs made ahead.  On 16 cores (an H100 machine) the same schedule took 70.5 s for
-~345 core-s of work, the cores ~30 % busy: its time was its chain of sequential stages.  8 is a
-judgement between those two measurements, not a measured crossover (docs/performance.md)."""
-
-
-def _wide(workers: int | None, scheduler: Any = None) -> bool:
-    """Whether a study or reproduction runs wide (:data:`WIDE_WORKERS`): on the Warp backend (a device
-    step costs about the same for one world as for hundreds), or on at least ``WIDE_WORKERS`` local
-    worker processes (``workers``; None: every core this process may use).  Not with a Dask scheduler
-    (its size is the cluster's, unknown here).  Results never depend on it."""
-    if _on_warp():
-        return True
-    if scheduler is not None:
+def _prefetching(execution: Execution) -> bool:
+    """Whether studies under ``execution`` step their last stage first (:func:`_prefetch`): on the Warp
+    backend on a GPU (:func:`undulate.execution.prefetch`; its device resolved only where the setting
+    leaves it to the device)."""
+    if execution.backend != "warp":
         return False
-    from ..sweep._executors import default_workers
+    device = execution.device
+    if execution.prefetch is None and device is None:  # the default device: the machine's
+        from ..simulation import backend
 
-    return (workers or default_workers()) >= WIDE_WORKERS
+        device = backend(execution.backend).resolve_device(device)
+    return prefetch(device, execution)
+
+
+def _engine_note(name: str, execution: Execution, progress: bool) -> str | None:
+    """Which of the study's runs step on another engine than the one asked for
+    (:func:`undulate.execution.substitution_note`: lone swimmers and small batches asked of Warp on the
+    cores), said once in the study's log (standard error with ``progress``, else the logger
+    ``undulate.studies``) and returned for its JSON (``engines``); None where every run steps on the
+    engine asked for.  Each such run's Dataset says so too (attrs ``engine``, ``engine_requested``)."""
+    if execution.backend == "mujoco":
+        return None
+    from ..simulation import backend
+
+    note = substitution_note(execution, backend(execution.backend).resolve_device(execution.device))
+    if note is not None:
+        if progress:
+            print(f"{name}: {note}", file=sys.stderr, flush=True)
+        else:
+            import logging
+
+            logging.getLogger("undulate.studies").info("%s: %s", name, note)
+    return note
 
 
 def _prefetch(info: Study, ctx: "StudyContext", plans: tuple[Any, ...]) -> dict[str, Any] | None:
@@ -834,7 +829,7 @@ def _prefetch(info: Study, ctx: "StudyContext", plans: tuple[Any, ...]) -> dict[
     run its stage would not have made); runs a decided claim did not need are computed and left unread.
     None on the MuJoCo backend, on Warp's CPU device, or with one stage; else what was computed
     (``n_runs``, ``n_computed``, ``wall_s``)."""
-    if len(plans) < 2 or not _prefetching():
+    if len(plans) < 2 or not _prefetching(ctx.config.execution):
         return None
     t0, first = time.perf_counter(), len(ctx.sweeps)
     info.dataset(ctx, plans[-1])
@@ -884,6 +879,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
 
     t0, cpu0 = time.perf_counter(), time.thread_time()
     ctx = StudyContext(config, name, progress=progress)
+    engines = _engine_note(name, config.execution, progress)
     plans = stage_plans(info, config.quick)
     levels = stats.look_levels(len(plans))
     looks: list[dict[str, Any]] = []
@@ -935,6 +931,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
         "explanations": explanations,
         "stages": looks,
         "prefetched": prefetched,
+        "engines": engines,
         "n_failed": len(set(ctx.failures)),
         "failures": list(dict.fromkeys(ctx.failures))[:50],  # a failed run is met again at each later stage
         "sweeps": ctx.sweeps,

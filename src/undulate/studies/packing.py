@@ -295,13 +295,13 @@ def _result(scene: Scene, duration_s: float, width: float, sr, end, skip_s: floa
 
 def _nan_run(scene: Scene, duration_s: float):
     """A NaN per-sample record and end state of the run's shapes (for a run that diverged)."""
-    from ..simulation import Checkpoint, _state_layout, compile_scene, resolve_options
+    from ..simulation import Checkpoint, compile_scene, resolve_options, state_layout
 
     cs = compile_scene(scene, resolve_options(scene, _options(duration_s)))
     nan = np.full(1, np.nan)
     sr = {"time": nan, "joint_error": nan, "penetration": nan,
           "wall_force": np.full((1, len(cs.index.wall_names)), np.nan)}
-    return sr, Checkpoint(np.full(_state_layout(cs.model)[1], np.nan), np.full(cs.model.nv, np.nan))
+    return sr, Checkpoint(np.full(state_layout(cs.model)[1], np.nan), np.full(cs.model.nv, np.nan))
 
 
 class Resumes:

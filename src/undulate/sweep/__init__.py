@@ -10,9 +10,11 @@ See docs/sweeps.md for the store layout, resuming, Dask and SLURM.
 """
 
 from ._grid import Grid, Run
-from ._executors import warm_workers
+from ._executors import local_pool, stop_sweeps, warm_pool_running, warm_workers
+from ._store import backend_identity
 from ._sweep import (RunFailure, SweepFailed, SweepResult, batched_sweep_function, is_batched_sweep_function,
                      load_sweep, run_sweep)
 
 __all__ = ["Grid", "Run", "RunFailure", "SweepFailed", "SweepResult", "batched_sweep_function",
-           "is_batched_sweep_function", "load_sweep", "run_sweep", "warm_workers"]
+           "is_batched_sweep_function", "load_sweep", "run_sweep", "warm_workers", "warm_pool_running", "local_pool",
+           "stop_sweeps", "backend_identity"]

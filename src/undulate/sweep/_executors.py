@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ParameterError, UndulateError
+from ..execution import MAX_WORKERS_PER_CORE, check_scheduler, check_workers, usable_cpus  # noqa: F401 - used here and by run_sweep
 from ._worker import Chunk, Outcome, _stop_if_disk_full, init_local_worker, run_chunk
 
 OnDone = Callable[[Chunk, list[Outcome]], None]
@@ -32,31 +33,8 @@ MAX_ATTEMPTS = 3
 
 
 def default_workers() -> int:
-    """Cores this process may use."""
-    from ..simulation._env import usable_cpus
-
+    """Cores this process may use (:func:`undulate.execution.usable_cpus`)."""
     return usable_cpus()
-
-
-MAX_WORKERS_PER_CORE = 4
-"""Local worker processes allowed a core: each is a process with its own interpreter and MuJoCo (~0.2 GB),
-and past a few a core they only queue for the cores (``--workers 100000`` would start as many processes
-as a sweep has runs)."""
-
-
-def check_workers(workers: Any, scheduler: Any = None) -> None:
-    """``workers`` is None (every core) or an integer from 1 to :data:`MAX_WORKERS_PER_CORE` a core this
-    process may use, and left out when a Dask ``scheduler`` is given; else a :class:`ParameterError`
-    naming ``workers``."""
-    if workers is None:
-        return
-    cap = MAX_WORKERS_PER_CORE * default_workers()
-    if isinstance(workers, bool) or not isinstance(workers, int) or not 1 <= workers <= cap:
-        raise ParameterError("workers", f"an integer in [1, {cap}] ({MAX_WORKERS_PER_CORE} a core of the "
-                             f"{default_workers()} this process may use), or None: every core", workers)
-    if scheduler is not None:
-        raise ParameterError("workers", "left out when a Dask scheduler is given (the cluster sets the workers)",
-                             workers)
 
 
 def run_serial(chunks: Sequence[Chunk], on_done: OnDone, on_lost: OnLost) -> None:
@@ -332,30 +310,6 @@ def _stop_now(pool: ProcessPoolExecutor) -> None:
             p.terminate()
         except Exception:  # noqa: BLE001 - already gone
             pass
-
-
-def check_scheduler(scheduler: Any) -> str:
-    """What ``scheduler`` is, without connecting: ``"client"`` (an existing ``distributed.Client``),
-    ``"file"`` (the path of a scheduler file) or ``"address"`` (a string with a port, any address Dask
-    accepts); anything else is a :class:`ParameterError`, raised before a study or reproduction writes."""
-    try:
-        import distributed
-    except ImportError:
-        raise ParameterError(
-            "scheduler", "usable only with Dask installed: pip install 'undulate[dask]'", scheduler
-        ) from None
-    if isinstance(scheduler, distributed.Client):
-        return "client"
-    if isinstance(scheduler, str | os.PathLike):
-        if Path(scheduler).expanduser().is_file():
-            return "file"
-        if isinstance(scheduler, str) and ":" in scheduler:
-            return "address"
-    raise ParameterError(
-        "scheduler",
-        "a Dask scheduler address tcp://HOST:PORT, the path of an existing scheduler file, or a distributed.Client",
-        scheduler,
-    )
 
 
 def connect(scheduler: Any):

@@ -38,6 +38,7 @@ import xarray as xr
 
 from .._io import atomic_write_bytes, atomic_write_text, make_folder, remove_temporaries, write_netcdf
 from ..errors import ParameterError
+from ..execution import Execution
 from ._fastread import RUN_ATTR, FastLayout, read_raw, same_attr
 from ._fastwrite import run_file_bytes
 from ._grid import RESERVED, Grid, Run
@@ -149,35 +150,35 @@ def function_id(fn: Callable) -> str:
     return f"{function_name(fn)}({', '.join(f'{k}={v}' for k, v in args.items())})"
 
 
-def backend_identity() -> str:
-    """The session's default stepping backend as a sweep's identity records it: ``"mujoco"``, or
+def backend_identity(execution: Execution | None = None) -> str:
+    """The stepping backend of ``execution`` (None: the settings in effect,
+    :func:`undulate.execution.current`) as a sweep's identity records it: ``"mujoco"``, or
     ``"warp DEVICE float32 (mujoco-warp X, warp-lang Y)"``, with `` nondeterministic`` after the
-    precision where MuJoCo Warp's determinism is off (:func:`undulate.simulation.use_backend`,
-    :func:`undulate.simulation._warp.determinism`), then ``, lone swimmers on mujoco`` where scenes of
-    one swimmer step on the cores (:func:`undulate.simulation._backend.lone_swimmers_backend`) and
+    precision where MuJoCo Warp's determinism is off, then ``, lone swimmers on mujoco`` where scenes of
+    one swimmer step on the cores (:func:`undulate.execution.lone_swimmers_engine`) and
     ``, batches of up to N on mujoco`` where batches of at most N scenes do
-    (:func:`undulate.simulation._backend.cores_up_to`).  Runs of one backend, or of one rule for lone
+    (:func:`undulate.execution.cores_up_to`).  Runs of one backend, or of one rule for lone
     swimmers or small batches, are never served for another."""
-    from ..simulation import backend_attrs, default_backend
+    from ..execution import cores_up_to, current, lone_swimmers_engine, using
     from ..params import SimOptions
+    from ..simulation import backend, backend_attrs
 
-    backend, device = default_backend()
-    if backend == "mujoco":
+    ex = execution or current()
+    if ex.backend == "mujoco":
         return "mujoco"
-    from ..simulation import _warp
-    from ..simulation._backend import cores_up_to, lone_swimmers_backend
-
-    a = backend_attrs(SimOptions(backend=backend, device=_warp.resolve_device(device)))
+    with using(ex):  # the engine's attrs read its switches (determinism) from the settings in effect
+        a = backend_attrs(SimOptions(backend=ex.backend, device=backend(ex.backend).resolve_device(ex.device)))
     nondet = " nondeterministic" if a["warp_determinism"] == "none" else ""
-    lone = ", lone swimmers on mujoco" if lone_swimmers_backend(a["device"]) == "mujoco" else ""
-    small = cores_up_to(a["device"])
+    lone = ", lone swimmers on mujoco" if lone_swimmers_engine(a["device"], ex) == "mujoco" else ""
+    small = cores_up_to(a["device"], ex)
     lone += f", batches of up to {small} on mujoco" if small else ""
     return f"warp {a['device']} {a['precision']}{nondet}{lone} ({a['backend_versions']})"
 
 
-def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:
+def make_manifest(fn: Callable, grid: Grid, batched: bool, execution: Execution | None = None) -> dict[str, Any]:
     """What a sweep is: the function (fully bound call), the hash of the code that
-    computes a run (:func:`undulate._source.code_hash`), the package version, the grid."""
+    computes a run (:func:`undulate._source.code_hash`), the backend that steps it under ``execution``
+    (:func:`backend_identity`), the package version, the grid."""
     from .._source import code_hash
     from ..provenance import package_version
 
@@ -185,8 +186,8 @@ def make_manifest(fn: Callable, grid: Grid, batched: bool) -> dict[str, Any]:
         "format": FORMAT,
         "function": function_id(fn),
         "function_name": function_name(fn),
-        "code": code_hash(fn),
-        "backend": backend_identity(),
+        "code": code_hash(fn, execution),
+        "backend": backend_identity(execution),
         "undulate_version": package_version("undulate"),
         "batched": bool(batched),
         "grid": grid.to_dict(),

@@ -17,6 +17,7 @@ from typing import Any, TextIO
 import xarray as xr
 
 from ..errors import ParameterError, UndulateError
+from ..execution import Execution, local_workers, settings, using, warp_processes
 from ..params import _flag
 from . import _executors, _worker
 from ._grid import Grid
@@ -115,7 +116,7 @@ class SweepResult:
 GATHER_MAX = 4096
 """Most runs of one task on the Warp backend (one thread each; their scenes become worlds)."""
 GATHER_MIN_SPLIT = 64
-"""Fewest runs a process (or Dask task) gets where ``UNDULATE_WARP_PROCESSES`` (or Dask) splits a
+"""Fewest runs a process (or Dask task) gets where ``warp_processes`` (or Dask) splits a
 Warp sweep: a split pays only where the runs' host work (~20 ms a run on 2 cores) outweighs the step
 latency each batch pays on the device whatever its size (0.34 ms a step on an H200: 64 runs' host
 work is ~3 800 steps).  A judgement from those two figures, not a measured crossover."""
@@ -183,6 +184,7 @@ def run_sweep(
     batch: int | None = None,
     batched: bool | None = None,
     stream: TextIO | None = None,
+    execution: Execution | None = None,
 ) -> SweepResult:
     """Run ``fn`` on every point (and replicate) of ``grid``; resumable.
 
@@ -216,6 +218,11 @@ def run_sweep(
     batch:
         Runs per task (per ``fn`` call when ``batched``).  Default: enough
         for ~8 tasks per worker, at most 16.  Serial runs use 1 unless batched.
+    execution:
+        How the runs are executed (:class:`undulate.execution.Execution`: engine, device,
+        workers, scheduler...); ``workers`` and ``scheduler`` are then left out.  Default: the
+        settings in effect (:func:`undulate.execution.current`) with ``workers`` and ``scheduler``.
+        The runs step under it wherever they run (this process, a local pool, Dask).
 
     Returns
     -------
@@ -229,17 +236,25 @@ def run_sweep(
     """
     t_start = time.monotonic()
     batched = _check_arguments(fn, grid, workers, scheduler, batch, batched, progress, stream)
+    ex = settings(execution, workers=workers, scheduler=scheduler)
+    workers, scheduler = ex.workers, ex.scheduler
     if scheduler is None and workers != 1:
         _check_importable(fn)
+    with using(ex):  # this process's runs, the code hash and the identity: under ex
+        return _run_sweep(fn, grid, out_dir, ex, progress, batch, batched, stream, t_start)
 
-    with Store.open(out_dir, make_manifest(fn, grid, batched)) as store:
+
+def _run_sweep(fn, grid: Grid, out_dir, ex: Execution, progress: bool, batch, batched: bool, stream,
+               t_start: float) -> SweepResult:
+    """:func:`run_sweep` under its settings ``ex``."""
+    with Store.open(out_dir, make_manifest(fn, grid, batched, ex)) as store:
         _report_stale(store, progress, stream)
         runs = grid.runs()
         done = store.done_keys()
         todo = [r for r in runs if r.key not in done]
         n_reused = len(runs) - len(todo)
-        counts, timing = _compute(fn, grid, store, runs, todo, workers=workers, scheduler=scheduler,
-                                  progress=progress, batch=batch, batched=batched, stream=stream)
+        counts, timing = _compute(fn, grid, store, runs, todo, ex, progress=progress, batch=batch,
+                                  batched=batched, stream=stream)
         check_unchanged(fn)  # the runs above ran the code the manifest names
         ds = merge(grid, runs, store.runs_dir, store.manifest.get("code"))
         failures = _failures(runs, store)
@@ -282,13 +297,12 @@ def _report_stale(store: Store, progress: bool, stream: TextIO | None) -> None:
         log.warning(msg)
 
 
-def _chunks(fn, grid: Grid, store: Store, todo: list, *, workers, client, batch, batched: bool):
-    """Where the ``todo`` runs go: ``(processes or Dask threads, runs per task, where in words, the
-    tasks)``.  On the Warp backend a task's runs are gathered into one batch: one task in this
-    process, or with ``UNDULATE_WARP_PROCESSES`` > 1 one a process of the local pool, or on Dask one
-    a worker thread (at least :data:`GATHER_MIN_SPLIT` runs each where split)."""
-    from ..simulation import default_backend, warp_processes
-
+def _chunks(fn, grid: Grid, store: Store, todo: list, ex: Execution, *, client, batch, batched: bool):
+    """Where the ``todo`` runs go under ``ex``: ``(processes or Dask threads, runs per task, where in
+    words, the tasks)``.  On the Warp backend a task's runs are gathered into one batch: one task in
+    this process, or with ``warp_processes`` > 1 (:func:`undulate.execution.warp_processes`) one a
+    process of the local pool, or on Dask one a worker thread (at least :data:`GATHER_MIN_SPLIT` runs
+    each where split)."""
     gather = store.manifest.get("backend", "mujoco") != "mujoco"
     if client is not None:
         _executors.check_shared_dir(client, str(store.runs_dir))
@@ -298,36 +312,36 @@ def _chunks(fn, grid: Grid, store: Store, todo: list, *, workers, client, batch,
         if gather:  # as many batches as threads, none smaller than a split's least
             n_workers = max(1, min(n_workers, len(todo) // GATHER_MIN_SPLIT))
             where += ", each task's runs stepped together as Warp worlds"
-    elif gather:  # its runs' host work shared by UNDULATE_WARP_PROCESSES processes (default 1)
-        n_workers = max(1, min(warp_processes(), len(todo) // GATHER_MIN_SPLIT))
+    elif gather:  # its runs' host work shared by warp_processes processes (default 1)
+        n_workers = max(1, min(warp_processes(ex), len(todo) // GATHER_MIN_SPLIT))
         where = ("this process, each task's runs stepped together as Warp worlds" if n_workers == 1 else
                  f"{n_workers} local processes, each task's runs stepped together as Warp worlds")
     else:
-        n_workers = min(workers or _executors.default_workers(), max(len(todo), 1))
+        n_workers = min(local_workers(ex), max(len(todo), 1))
         where = "this process" if n_workers == 1 else f"{n_workers} local processes"
     if gather:  # the runs reach the device together: one task (a process) of up to GATHER_MAX runs
         size = batch or min(GATHER_MAX, max(math.ceil(len(todo) / n_workers), 1))
     else:
         size = batch or (1 if (client is None and n_workers == 1 and not batched) else _auto_chunk(len(todo), n_workers))
     run_prov = tuple(run_provenance(store.manifest).items())
-    # the workers (a local pool's processes, Dask's) step on this process's backend, named in every task
-    backend = default_backend() if client is not None or n_workers > 1 else None
-    chunks = [Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov, gather, backend)
+    # the workers (a local pool's processes, Dask's) step under this sweep's settings, named in every task
+    chunks = [Chunk(fn, str(store.runs_dir), tuple(todo[i : i + size]), grid.names, batched, run_prov, gather,
+                    ex.for_workers())
               for i in range(0, len(todo), size)]
     return n_workers, size, where, chunks
 
 
-def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, *, workers, scheduler, progress: bool,
+def _compute(fn, grid: Grid, store: Store, runs: list, todo: list, ex: Execution, *, progress: bool,
              batch, batched: bool, stream) -> tuple[dict, dict]:
     """Run the ``todo`` runs in chunks on the chosen executor, saving each as it finishes.
 
     Returns the outcome counts (``OK``, ``FAILED``, ``EXISTS``) and the timing
     (executor, the runs' own wall and physics seconds, scene-steps)."""
     client, own_client = None, False
-    if scheduler is not None and todo:
-        client, own_client = _executors.connect(scheduler)
+    if ex.scheduler is not None and todo:
+        client, own_client = _executors.connect(ex.scheduler)
     try:
-        n_workers, size, where, chunks = _chunks(fn, grid, store, todo, workers=workers, client=client, batch=batch,
+        n_workers, size, where, chunks = _chunks(fn, grid, store, todo, ex, client=client, batch=batch,
                                                  batched=batched)
         # named by its store's folder: sweeps side by side (a reproduction's studies) print between each other;
         # the function's whole bound call is in the store's manifest (sweep_function)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .. import _walltime
+from ..execution import Execution, using
 from ._grid import Run
 from ._store import check_output, result_path, write_failure, write_result
 
@@ -54,13 +55,12 @@ class Chunk:
     gather: bool = False
     """Run the chunk's runs on threads whose simulations are stepped together
     (:class:`undulate.simulation.Gather`: the Warp backend's worlds)."""
-    backend: tuple[str, str | None] | None = None
-    """``(backend, device)`` the runs step on, made the worker process's default before they run
-    (:func:`undulate.simulation.use_backend`): a local pool's processes serve sweeps of either
-    backend and keep whatever an earlier chunk set, and a Dask worker has the environment it was
-    started with, not the sweep's.  Where the worker cannot step on it (no gpu extra, no such
-    device), every run of the chunk fails saying why.  None: the process's own default (this
-    process, where the sweep was started)."""
+    execution: Execution | None = None
+    """The settings the runs step under (:func:`undulate.execution.using`, for the chunk only), those
+    of the process that started the sweep (:meth:`undulate.execution.Execution.for_workers`): a local
+    pool's processes serve sweeps of either backend, and a Dask worker has the environment it was
+    started with, not the sweep's.  Where the worker cannot step on its engine (no gpu extra, no such
+    device), every run of the chunk fails saying why.  None: the settings in effect where it runs."""
 
 
 STEP_PROGRESS: contextvars.ContextVar[Callable[[float, float, int], None] | None] = contextvars.ContextVar(
@@ -109,14 +109,21 @@ def run_chunk(chunk: Chunk) -> list[Outcome]:
     A run that raises is recorded (``*.failed.json``) and the chunk goes on.
     """
     runs_dir = Path(chunk.runs_dir)
-    if chunk.backend is not None:
-        from ..simulation import use_backend
+    ex = chunk.execution
+    if ex is not None and ex.backend != "mujoco":
+        from ..simulation import backend
 
         try:
-            use_backend(*chunk.backend)
+            ex = ex.replace(device=backend(ex.backend).resolve_device(ex.device))
         except Exception as exc:  # noqa: BLE001 - e.g. a Dask worker without the gpu extra: said per run
             return [Outcome(r.key, EXISTS) if result_path(runs_dir, r).exists()
                     else Outcome(r.key, FAILED, write_failure(runs_dir, r, exc)["error"]) for r in chunk.runs]
+    with using(ex):
+        return _run_chunk(chunk, runs_dir)
+
+
+def _run_chunk(chunk: Chunk, runs_dir: Path) -> list[Outcome]:
+    """:func:`run_chunk` under its settings."""
     todo = []
     out = []
     for run in chunk.runs:

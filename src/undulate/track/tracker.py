@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ParameterError
+from ..execution import quiet_opencv_ffmpeg
 from .calibration import DICTIONARY, FIXED_IDS, MAX_ROBOTS, TrackCalibration, robot_tag_link
 
 __all__ = ["track_video", "make_detector"]
@@ -200,9 +201,7 @@ def _read_video(video: Path, n: int, calibration_s: float, progress: bool | None
     ``calibration_s`` of video has been read (or at its end, if shorter)."""
     import cv2
 
-    # FFmpeg's own messages ("moov atom not found") would add lines to our one-line errors; the user's
-    # setting of this variable wins
-    os.environ.setdefault("OPENCV_FFMPEG_LOGLEVEL", "-8")
+    quiet_opencv_ffmpeg()  # FFmpeg's own messages would add lines to our one-line errors
     cap = cv2.VideoCapture(str(video))
     ok, img = cap.read() if cap.isOpened() else (False, None)
     if not ok or img is None:
