@@ -219,13 +219,13 @@ def _check_confinement(ds, summary):
 
 @pytest.mark.slow
 def test_potential_quick(quick_runs):
-    """The whole quick plan (36 impulse, 48 force and 4 release runs); test_potential_reduced runs by default."""
+    """The whole quick plan (36 impulse, 36 force and 3 release runs); test_potential_reduced runs by default."""
     ds, summary, _ = quick_runs("potential")
     _check_potential(ds, summary, min_stiffnesses=6)
 
 
 def test_potential_reduced(tmp_path):
-    """A reduced real potential run: 7 dphi x 2 common phases, 2 beta x 2 d/2A x 3 forces (26 runs, of 88
+    """A reduced real potential run: 7 dphi x 2 common phases, 2 beta x 2 d/2A x 3 forces (26 runs, of 75
     quick).  d/2A = 0.5 and 0.6 (per swimmer: channels 2 (d/2A) 2A, 105 and 125 mm at beta = 45 deg), just
     above the in-phase pair's obstruction (0.48), where the settled pair touches and holds against the
     quick ladder's low rungs (docs/confinement_d.md's cohesion scan)."""
