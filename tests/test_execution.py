@@ -304,3 +304,14 @@ def test_a_study_says_once_which_runs_step_on_another_engine(capsys):
     assert "batches of up to 4 scenes step on mujoco" in note
     assert capsys.readouterr().err.count("toy: ") == 1
     assert _engine_note("toy", Execution(), progress=True) is None
+
+
+# ------------------------------------------------------------------ the docs' table
+@pytest.mark.parametrize("page", ["README.md", "docs/guide/execution.md"])
+def test_the_docs_table_names_every_setting(page):
+    """The README and the guide explain the settings in one table: Python name, CLI option, environment
+    variable, meaning, one row per setting, as :data:`undulate.execution.SETTINGS` has them."""
+    text = (SRC.parents[1] / page).read_text()
+    rows = [line for line in text.splitlines() if line.startswith("| `") and "`UNDULATE_" in line]
+    want = [f"| `{s.name}` | " + (f"`{s.cli}`" if s.cli else "-") + f" | `{s.env}` | {s.meaning} |" for s in SETTINGS]
+    assert rows == want

@@ -749,13 +749,14 @@ class SimOptions(_Params):
     """Which engine steps the scenes: ``"mujoco"`` (MuJoCo's C engine through
     ``mujoco.rollout``, float64, on the CPU) or ``"warp"`` (MuJoCo Warp: every
     scene of a batch is one world of one model, float32, on a GPU or on Warp's
-    CPU device; the ``gpu`` extra).  None: the session's default
-    (:func:`undulate.simulation.use_backend`, the CLI's ``--backend``, or the
-    environment variable ``UNDULATE_BACKEND``; else ``"mujoco"``).  The dataset
-    records the one used (attrs ``backend``, ``device``, ``precision``)."""
+    CPU device; the ``gpu`` extra).  None: the settings in effect
+    (:attr:`undulate.execution.Execution.backend`: the ``execution=`` a study or sweep
+    was given, the CLI's ``--backend``, or ``UNDULATE_BACKEND``; else ``"mujoco"``).  The dataset
+    records the one used (attrs ``backend``, ``device``, ``precision``; ``engine`` and
+    ``engine_requested`` where a run asked of Warp steps on MuJoCo)."""
     device: str | None = None
-    """The Warp backend's device: ``"cuda"`` or ``"cpu"`` (None: the session's
-    default, ``UNDULATE_DEVICE``, else ``"cuda"`` where there is one).  Left out
+    """The Warp backend's device: ``"cuda"`` or ``"cpu"`` (None: the settings in effect,
+    :attr:`undulate.execution.Execution.device`, else ``"cuda"`` where there is one).  Left out
     for the ``"mujoco"`` backend, which steps on the CPU."""
 
     record: tuple[str, ...] | None = None

@@ -160,7 +160,7 @@ def warm_workers(workers: int | None = None) -> Iterator[None]:
 
 def warm_pool_running() -> bool:
     """Whether the warm pool of :func:`warm_workers` is up now (its processes started by an earlier
-    sweep): a small sweep sent there pays no start (:data:`undulate.studies._registry.SERIAL_BELOW`)."""
+    sweep): a small sweep sent there pays no start (:func:`undulate.execution.runs_here`)."""
     with _WARM_LOCK:
         pool = _WARM["pool"]
         return _WARM["depth"] > 0 and pool is not None and not getattr(pool, "_broken", False)
