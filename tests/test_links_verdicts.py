@@ -255,10 +255,14 @@ class _RecordingContext:
     """A context whose sweep records the points asked for and answers with failed runs (no simulation)."""
 
     def __init__(self, decided):
-        from types import SimpleNamespace
+        from undulate.studies._registry import StudyConfig, StudyContext, describe, part_plans, stage_plans
 
-        self.frozen_claims = decided
-        self.config = SimpleNamespace(quick=False, seed=0)
+        info = describe("links")
+        staged = StudyContext(StudyConfig(out_dir="unused", workers=1), "links", progress=False)
+        staged.parts = part_plans(info, stage_plans(info, False), decided, {}, lambda study, claim: True)
+        self.plan_for = staged.plan_for  # the staging engine's answer: claim decided -> its rule's plan kept
+        self.frozen_at = staged.parts.frozen_at
+        self.seed = 0
         self.points = []
 
     def sweep(self, part, fn, grid):
@@ -294,7 +298,7 @@ def test_a_rule_whose_claim_is_decided_keeps_its_looks_runs(decided_rule):
         ran = np.isin(np.round(ds["dphi"].values, 9), per_rule[r])
         assert (made[i] == ran[None, :]).all()
     assert ds["run_failed"].values.sum() == made.sum()  # every run made failed here; none not made
-    assert json.loads(ds.attrs["frozen_rules"]) == ({decided_rule: 1} if decided_rule else {})
+    assert ctx.frozen_at == ({decided_rule: 1} if decided_rule else {})
     import warnings
 
     with warnings.catch_warnings():

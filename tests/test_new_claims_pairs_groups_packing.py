@@ -215,8 +215,7 @@ def test_the_new_pairs_claims_read_xi_one_only_and_quote_the_paper():
     for words in ("contact force is lower", "small or zero", "fast at first"):
         c = claim(pairs, words)
         assert quote_text(c.quote) in paper and c.where.startswith("Sec. III.A")
-        assert pairs._claims_reading(1.0).count(c.claim) == 1
-        assert c.claim not in pairs._claims_reading(0.75) + pairs._claims_reading(1.5) + pairs._claims_reading(0.0)
+        assert c.reads == (pairs.part(1.0),)  # the runs at xi = 1 only
 
 
 def _paper():
@@ -317,9 +316,16 @@ def test_spacing_claim_is_three_valued(kw, verdict):
 
 def test_the_groups_spacing_claim_reads_every_size():
     c = claim(groups, "lateral spacing").claim
+    from undulate.studies._registry import describe, part_plans, stage_plans
+
     others = {x.claim: 1 for x in groups.CLAIMS if x.claim != c}
-    assert groups.frozen_sizes(others) == {}  # the spacing claim still open: no size frozen
-    assert groups.frozen_sizes({**others, c: 2}) == {2: 2, 3: 2, 4: 2}
+    info = describe("groups")
+
+    def frozen(final):
+        return part_plans(info, stage_plans(info, False), final, {}, lambda study, claim: True).frozen_at
+
+    assert frozen(others) == {}  # the spacing claim still open: no size frozen
+    assert frozen({**others, c: 2}) == {groups.part(n): 2 for n in (2, 3, 4)}
 
 
 # ------------------------------------------------------------------ packing

@@ -7,7 +7,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from undulate.studies._explanations import EXPLANATIONS, MODULES
 from undulate.studies._explanations import groups as XG
 from undulate.studies._explanations import impulse as XI
 from undulate.studies._explanations._protocol import NOT_RUN
-from undulate.studies._registry import NO_RESULT, explain
+from undulate.studies._registry import NO_RESULT, StudyContext, describe, explain, part_plans, stage_plans
 from undulate.studies._sensitivity_design import CaseSet, pair_cases, plan, planned_cases
 
 A3 = 0.05
@@ -26,11 +25,16 @@ A3 = 0.05
 class FakeContext:
     """Records every sweep and lone swimmer asked for; answers the default lone swimmer only."""
 
+    name = "sensitivity"
+
     def __init__(self, not_needed: set[str], quick: bool = True, decided: dict | None = None):
         self.not_needed = not_needed  # explanation studies whose claims hold
         self.calls: list[tuple] = []
-        self.config = SimpleNamespace(seed=0, quick=quick)
-        self.decided_explanations = decided or {}  # (study, claim) -> the look that decided it
+        self.seed = 0
+        # the staging engine's parts at a look after ``decided`` ((study, claim) -> the look that decided it)
+        self.parts = _parts(quick, self.needs_explanation, decided or {})
+
+    plan_for = StudyContext.plan_for
 
     def needs_explanation(self, study: str, claim: str) -> bool:
         return study not in self.not_needed
@@ -51,6 +55,16 @@ class FakeContext:
         if kw:
             raise AssertionError(f"lone swimmer {kw} ran")
         return {"amplitude_m": A3}
+
+
+def _parts(quick, needs, decided=None):
+    info = describe("sensitivity")
+    return part_plans(info, stage_plans(info, quick), {}, decided or {}, needs)
+
+
+def _needed(needs, explanations=EXPLANATIONS) -> frozenset[str]:
+    """The factor groups some needed explanation reads (the parts the engine runs)."""
+    return frozenset(g for e in explanations if needs(e.study, e.claim) for g in e.reads)
 
 
 def _xi1_nan(r):
@@ -88,10 +102,11 @@ def test_the_groups_each_explanation_module_needs():
     expected = {"xi32": {"xi32"}, "links": {"links"}, "confinement": {"confinement"}, "groups": {"groups"},
                 "swimming": {"swimming"}, "impulse": {"impulse"}}
     for m in MODULES:
-        got = S.needed_groups(lambda study, claim: True, m.EXPLANATIONS)
+        got = _needed(lambda study, claim: True, m.EXPLANATIONS)
         assert got == expected[m.__name__.rsplit(".", 1)[1]], m.__name__
-    assert S.needed_groups(lambda study, claim: True) == frozenset(S.SKIPPABLE_GROUPS)
-    assert S.needed_groups(lambda study, claim: False) == frozenset()
+    assert _needed(lambda study, claim: True) == frozenset(S.SKIPPABLE_GROUPS)
+    assert _needed(lambda study, claim: False) == frozenset()
+    assert _parts(True, lambda study, claim: False).not_run == frozenset(S.SKIPPABLE_GROUPS)
     # every case the study makes, but the xi = 1 ones, belongs to a skippable group
     for quick in (True, False):
         for c in planned_cases(plan(quick)):
@@ -100,11 +115,11 @@ def test_the_groups_each_explanation_module_needs():
 
 def test_needed_groups_follow_the_claims_that_fail():
     holds = {("groups", e.claim) for e in XG.EXPLANATIONS} | {("potential", e.claim) for e in XI.EXPLANATIONS}
-    got = S.needed_groups(lambda study, claim: (study, claim) not in holds)
-    assert got == {"xi32", "links", "confinement", "swimming"}
+    got = _parts(True, lambda study, claim: (study, claim) not in holds).not_run
+    assert got == {"groups", "impulse"}
     # one of the two groups claims failing is enough to run the groups
-    one = S.needed_groups(lambda study, claim: claim == XG.EXPLANATIONS[1].claim)
-    assert one == {"groups"}
+    one = _parts(True, lambda study, claim: claim == XG.EXPLANATIONS[1].claim).not_run
+    assert one == frozenset(S.SKIPPABLE_GROUPS) - {"groups"}
 
 
 def test_skipped_groups_run_nothing_and_keep_their_cases(monkeypatch):
@@ -173,7 +188,7 @@ def test_a_skipped_group_is_not_run_even_where_its_nan_rows_would_refute():
 @pytest.mark.parametrize("group", S.SKIPPABLE_GROUPS)
 def test_each_group_marks_only_its_rows(group, monkeypatch):
     _stub_running_groups(monkeypatch)
-    not_needed = {e.study for e in EXPLANATIONS if S.needed_groups(lambda s, c: True, (e,)) == {group}}
+    not_needed = {e.study for e in EXPLANATIONS if set(e.reads) == {group}}
     ds = S.dataset(FakeContext(not_needed=not_needed), plan(True))
     assert json.loads(ds.attrs["skipped_factor_groups"]) == [group]
     import warnings
@@ -183,7 +198,7 @@ def test_each_group_marks_only_its_rows(group, monkeypatch):
         s = S.summary(ds)
     rows = explain("sensitivity", EXPLANATIONS, s)
     for e, row in zip(EXPLANATIONS, rows):
-        mine = S.needed_groups(lambda s_, c: True, (e,)) == {group}
+        mine = set(e.reads) == {group}
         assert (row["measured"] == NOT_RUN) == mine, (group, e.claim)
         if mine:
             assert row["shown"] is None
@@ -195,17 +210,22 @@ def test_frozen_groups_are_those_whose_needed_explanations_are_all_decided():
     from undulate.studies._explanations import xi32 as X32
 
     every = lambda study, claim: True  # noqa: E731
+
+    def frozen_groups(needs, decided):
+        return _parts(False, needs, decided).frozen_at
+
     links_at = {(e.study, e.claim): 1 for e in XL.EXPLANATIONS}
-    assert S.frozen_groups(every, {}) == {}
-    assert S.frozen_groups(every, links_at) == {"links": 1}
+    assert frozen_groups(every, {}) == {}
+    assert frozen_groups(every, links_at) == {"links": 1}
     # one of the two links explanations still open: the group runs on
-    assert S.frozen_groups(every, dict(list(links_at.items())[:1])) == {}
+    assert frozen_groups(every, dict(list(links_at.items())[:1])) == {}
     # decided at different looks: the latest look's plan
     later = {**links_at, (XL.EXPLANATIONS[1].study, XL.EXPLANATIONS[1].claim): 2,
              **{(e.study, e.claim): 1 for e in X32.EXPLANATIONS}}
-    assert S.frozen_groups(every, later) == {"links": 2, "xi32": 1}
+    assert frozen_groups(every, later) == {"links": 2, "xi32": 1}
     # a group no needed explanation reads is skipped, not frozen
-    assert S.frozen_groups(lambda study, claim: study != "links", links_at) == {}
+    assert frozen_groups(lambda study, claim: study != "links", links_at) == {}
+    assert _parts(False, lambda study, claim: study != "links", links_at).not_run == {"links"}
 
 
 @pytest.mark.parametrize("decided", [False, True])
@@ -233,7 +253,7 @@ def test_a_frozen_group_keeps_the_plan_of_the_look_that_decided_it(decided, monk
     assert list(ds["case_id"].values) == [str(c) for c in pair_cases(second)]
     (ran,) = seen
     np.testing.assert_array_equal(ran, first.dphi_rad if decided else second.dphi_rad)
-    assert json.loads(ds.attrs["frozen_factor_groups"]) == ({"links": 1} if decided else {})
+    assert ctx.parts.frozen_at == ({"links": 1} if decided else {})
     is_links = [S.FACTOR_GROUPS.get(CaseSet(str(c))) == "links" for c in ds["claim"].values]
     y = ds["dx_final_over_lambda"].values[is_links]
     ran_here = np.isin(ds["dphi"].values, first.dphi_rad) if decided else np.ones(ds.sizes["dphi"], bool)

@@ -10,6 +10,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import os
@@ -23,6 +24,7 @@ import pytest
 
 from undulate import stats
 from undulate.stats import Check, Estimate, decide
+from undulate.errors import UndulateError
 from undulate.studies._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, Verdict
 
 HERE = Path(__file__).parent
@@ -430,30 +432,34 @@ def test_a_decided_claim_stays_decided_while_the_study_runs_on(tmp_path, staged,
     assert all(s["undecided"] == [staged.CLAIM.claim] for s in looks)
 
 
-def test_later_looks_are_told_which_explanations_are_decided(tmp_path, staged, monkeypatch):
-    """The staged run tells each look's dataset which explanations earlier looks decided (and at which
-    look), so that a study can keep the runs only they read on the deciding look's plan (the sensitivity
-    study's frozen groups).  A toy study whose own claim stays undecided to the cap (every look runs) and
-    whose explanation of another study's claim (verdict unknown here: needed) is shown at the first."""
+def test_later_looks_hand_a_decided_part_the_plan_that_decided_it(tmp_path, staged, monkeypatch):
+    """The staging engine hands each look's dataset, for each part of the plan, the plan it follows: a
+    part whose readers earlier looks decided (an explanation, a claim) keeps the deciding look's plan (the
+    sensitivity study's frozen groups, the pairs study's frozen xi), and the study never sees the looks.
+    A toy study whose own claim stays undecided to the cap (every look runs), whose count claim holds at
+    the first look and whose explanation of another study's claim (verdict unknown here: needed) is shown
+    at the first."""
     from undulate.studies import Claim, Explanation, Study, Verdict, register, run_study
     from undulate.studies._registry import _REGISTRY
 
     told, told_claims = [], []
 
     def dataset(ctx, plan):
-        told.append(dict(ctx.decided_explanations))
-        told_claims.append(dict(ctx.decided_claims))
+        told.append(len(ctx.plan_for("explained", plan)))
+        told_claims.append(len(ctx.plan_for("counted", plan)))
+        with pytest.raises(UndulateError, match="no claim or explanation reads plan part 'nobody'"):
+            ctx.plan_for("nobody", plan)
         return staged.dataset(ctx, plan)
 
     def summary(ds):
         return {**staged.summary(ds), "n": int(ds.sizes["run"])}
 
     few = Claim("fewer than 10 runs", "toy", "count < 10",
-                lambda s: Verdict.judged(s["n"] < 10, f"{s['n']} runs", {"n": s["n"]}))
+                lambda s: Verdict.judged(s["n"] < 10, f"{s['n']} runs", {"n": s["n"]}), reads=("counted",))
 
     monkeypatch.setattr(staged, "REGION", (0.0, 5.0))  # the mean sits on its boundary: undecided to the cap
     shown_once = Explanation("elsewhere", "a claim of another study", "toy cause",
-                             lambda s: (True, "shown", None))
+                             lambda s: (True, "shown", None), reads=("explained",))
     register(Study(name="_explains", description="staged, with an explanation",
                    plan=lambda quick: staged.damping(24),
                    stages=lambda quick: tuple(staged.damping(n) for n in staged.STAGE_POINTS),
@@ -463,11 +469,25 @@ def test_later_looks_are_told_which_explanations_are_decided(tmp_path, staged, m
         run_study("_explains", tmp_path, workers=1, progress=False)
     finally:
         _REGISTRY.pop("_explains", None)
-    key = ("elsewhere", "a claim of another study")
-    assert told == [{}, {key: 1}, {key: 1}]
-    assert told_claims == [{}, {"fewer than 10 runs": 1}, {"fewer than 10 runs": 1}]  # held at the first look
-    (row,) = _doc(tmp_path, "_explains")["explanations"]
+    first = staged.STAGE_POINTS[0]
+    assert told == [first, first, first]  # shown at the first look: its runs stay the first look's
+    assert told_claims == [first, first, first]  # held at the first look
+    doc = _doc(tmp_path, "_explains")
+    (row,) = doc["explanations"]
     assert row["shown"] is True and row["decided_at"]["stage"] == 1
+    assert [s["frozen_parts"] for s in doc["stages"]] == [{}, {"counted": 1, "explained": 1},
+                                                          {"counted": 1, "explained": 1}]
+
+
+def _context_at(name, quick, final_claims):
+    """A context of study ``name`` as the staging engine makes it for a look after earlier looks made
+    ``final_claims`` (claim -> look) final (every explanation needed, none decided)."""
+    from undulate.studies._registry import StudyConfig, StudyContext, describe, part_plans, stage_plans
+
+    info = describe(name)
+    ctx = StudyContext(StudyConfig(out_dir="unused", quick=quick, workers=1), name, progress=False)
+    ctx.parts = part_plans(info, stage_plans(info, quick), final_claims, {}, lambda study, claim: True)
+    return ctx
 
 
 @pytest.mark.parametrize("decided", [{}, {"4": 3}, {"3": 4, "4": 3}])
@@ -480,12 +500,13 @@ def test_a_group_size_whose_claim_is_decided_keeps_its_looks_runs(decided):
     looks = groups.stages(False)
     claims = {c.claim.split()[2]: c.claim for c in groups.CLAIMS[:2]}
     spacing = {c.claim: 1 for c in groups.CLAIMS[2:]}  # read every size: decided at the first look here
-    got = groups.size_plans(looks[3], {**spacing, **{claims[n]: k for n, k in decided.items()}}, False)
+    ctx = _context_at("groups", False, {**spacing, **{claims[n]: k for n, k in decided.items()}})
+    got = {n: ctx.plan_for(groups.part(n), looks[3]) for n in (2, 3, 4)}
     assert got[3] == (looks[decided["3"] - 1] if "3" in decided else looks[3])
     assert got[4] == (looks[decided["4"] - 1] if "4" in decided else looks[3])
     assert got[2] == (looks[max(decided.values()) - 1] if len(decided) == 2 else looks[3])
-    frozen = groups.frozen_sizes({**spacing, **{claims[n]: k for n, k in decided.items()}})
-    assert frozen == {int(n): k for n, k in decided.items()} | ({2: max(decided.values())} if len(decided) == 2 else {})
+    want = {int(n): k for n, k in decided.items()} | ({2: max(decided.values())} if len(decided) == 2 else {})
+    assert ctx.parts.frozen_at == {groups.part(n): k for n, k in want.items()}
     if "4" in decided:
         assert got[4].draws < looks[3].draws
 
@@ -509,10 +530,12 @@ def test_a_pairs_xi_whose_claims_are_decided_keeps_its_looks_runs(decided, froze
     names = {"1": pairs.CLAIMS[0].claim, "0.75": pairs.CLAIMS[1].claim, "standing": pairs.CLAIMS[3].claim}
     asked = []
 
+    staged_ctx = _context_at("pairs", False, {**{c.claim: 1 for c in pairs.CLAIMS[4:]},  # decided at the first
+                                              **{names[k]: v for k, v in decided.items()}})
+
     class Ctx:
-        frozen_claims = {**{c.claim: 1 for c in pairs.CLAIMS[4:]},  # the other xi = 1 claims: decided at the first
-                         **{names[k]: v for k, v in decided.items()}}
-        config = SimpleNamespace(quick=False, seed=0)
+        seed = 0
+        plan_for = staged_ctx.plan_for  # the staging engine's answer
 
         def sweep(self, part, fn, grid):  # every run failed: no simulation
             asked.extend(grid.points())
@@ -527,7 +550,7 @@ def test_a_pairs_xi_whose_claims_are_decided_keeps_its_looks_runs(decided, froze
             return {"amplitude_m": 0.05}
 
     ds = pairs.dataset(Ctx(), looks[3])
-    assert json.loads(ds.attrs["frozen_xi"]) == frozen
+    assert staged_ctx.parts.frozen_at == {pairs.part(float(x)): k for x, k in frozen.items()}
     made = ds["run_made"].values
     for i, x in enumerate(ds["xi"].values):
         want = looks[frozen[f"{x:g}"] - 1].dphi_rad if f"{x:g}" in frozen else looks[3].dphi_rad
@@ -554,7 +577,7 @@ def test_a_futile_claims_runs_stay_where_it_was_found_futile(tmp_path, staged, m
     told = []
 
     def dataset(ctx, plan):
-        told.append(dict(ctx.frozen_claims))
+        told.append(len(ctx.plan_for("mean", plan)))
         return staged.dataset(ctx, plan)
 
     def summary(ds):
@@ -571,7 +594,8 @@ def test_a_futile_claims_runs_stay_where_it_was_found_futile(tmp_path, staged, m
                    plan=lambda quick: staged.damping(12),
                    stages=lambda quick: tuple(staged.damping(n) for n in staged.STAGE_POINTS),
                    dataset=dataset, summary=summary, figure=staged._figure,
-                   claims=(staged.CLAIM, Claim("at least 7 runs", "toy", "count >= 7", seven))))
+                   claims=(dataclasses.replace(staged.CLAIM, reads=("mean",)),
+                           Claim("at least 7 runs", "toy", "count >= 7", seven))))
     try:
         run_study("_futile", tmp_path, quick=True, workers=1, progress=False)
     finally:
@@ -579,7 +603,8 @@ def test_a_futile_claims_runs_stay_where_it_was_found_futile(tmp_path, staged, m
     doc = _doc(tmp_path, "_futile")
     first, second = doc["stages"]
     assert first["futile"] == [staged.CLAIM.claim] and first["undecided"] == ["at least 7 runs"]
-    assert told == [{}, {staged.CLAIM.claim: 1}]
+    assert told == [6, 6]  # frozen at the first look: the second hands its part the first look's plan
+    assert [s["frozen_parts"] for s in doc["stages"]] == [{}, {"mean": 1}]
     assert second["futile"] == [staged.CLAIM.claim] and second["undecided"] == []
     mean, seven_runs = doc["claims"]
     assert mean["verdict"] == UNDECIDED and seven_runs["verdict"] == HOLDS
@@ -603,10 +628,12 @@ def test_a_potential_sweep_whose_claims_are_final_keeps_its_looks_runs():
                                          ({harmonic: 1, falls: 3, collapse: 2, dx0: 1}, 3, 2),
                                          ({impulse: 2, harmonic: 2, falls: 2, collapse: 2, dx0: 2}, 1, 1),
                                          ({impulse: 2, harmonic: 2, falls: 2, collapse: 2, dx0: 2, release: 3}, 1, 1)]:
-        got = potential.sweep_plan(looks[3], frozen, False)
+        ctx = _context_at("potential", False, frozen)
+        got = potential.sweep_plan(looks[3], ctx.plan_for("impulse", looks[3]), ctx.plan_for("force", looks[3]))
         assert grids(got)[0] == grids(looks[want_imp])[0] and grids(got)[1] == grids(looks[want_force])[1]
         assert got.duration_s == looks[3].duration_s and got.release == looks[3].release
-        assert potential.frozen_sweeps(frozen) == {k: v + 1 for k, v in
-                                                   (("impulse", want_imp), ("force", want_force)) if v < 3}
+        assert ctx.parts.frozen_at == {k: v + 1 for k, v in (("impulse", want_imp), ("force", want_force)) if v < 3}
     quick = potential.stages(True)
-    assert grids(potential.sweep_plan(quick[1], {impulse: 1}, True)) == grids(quick[0])
+    ctx = _context_at("potential", True, {impulse: 1})
+    assert grids(potential.sweep_plan(quick[1], ctx.plan_for("impulse", quick[1]),
+                                      ctx.plan_for("force", quick[1]))) == grids(quick[0])

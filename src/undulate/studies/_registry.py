@@ -232,6 +232,14 @@ class Claim:
     """A claim whose data needs its own picture: a function of the claim's row (``claims.json``'s, with
     ``value`` and ``explanation``) returning a Figure; None (the default): the generic evidence figure of
     :func:`undulate._evidence.evidence_figure`, drawn from ``value`` and :attr:`bands`."""
+    reads: tuple[str, ...] = ()
+    """The parts of the study's plan whose runs this claim's judge reads (names the study gives them,
+    e.g. ``("xi=1",)``; asked for with :meth:`StudyContext.plan_for`).  Once every claim and needed
+    explanation reading a part is final, the staging engine keeps that part's runs on the plan of the
+    look that made them final (:func:`part_plans`).  Empty: the claim reads no part a look may freeze."""
+
+    def __post_init__(self):
+        _check_reads(self.reads, f"claim {self.claim!r}")
 
 
 @dataclass(frozen=True)
@@ -243,6 +251,12 @@ class SupersededCriterion:
     criterion: str
     judge: Callable[[dict[str, Any]], Verdict] = field(repr=False, compare=False)
     why: str = ""
+
+
+def _check_reads(reads: Any, what: str) -> None:
+    """``reads`` must be a tuple of non-empty part names."""
+    if not isinstance(reads, tuple) or not all(isinstance(r, str) and r.strip() for r in reads):
+        raise ParameterError("reads", f"a tuple of the plan parts {what} reads (non-empty texts)", reads)
 
 
 def judge(study: str, claims: tuple[Claim, ...], summary: dict[str, Any]) -> list[dict[str, Any]]:
@@ -292,6 +306,13 @@ class Explanation:
     cause: str
     check: Callable[[dict[str, Any]], tuple[bool, str, Any]] = field(repr=False, compare=False)
     finding: bool = False
+    reads: tuple[str, ...] = ()
+    """The parts of the explaining study's plan whose runs :attr:`check` reads (as :attr:`Claim.reads`).
+    A part only explanations read runs only while one of them is needed (its claim fails, or its verdict
+    is unknown: :meth:`StudyContext.needs_explanation`); else the study is handed None for it."""
+
+    def __post_init__(self):
+        _check_reads(self.reads, f"the explanation of {self.claim!r}")
 
 
 def explain(study: str, explanations: tuple[Explanation, ...], summary: dict[str, Any]) -> list[dict[str, Any]]:
@@ -439,20 +460,31 @@ class StudyContext:
         self.failures: list[str] = []
         self._local = threading.local()  # a thread of :meth:`together`: its sweeps' records, kept apart
         self._verdicts: dict[tuple[str, str], str] | None = None
-        self.decided_claims: dict[str, int] = {}
-        """``claim -> look``: this study's claims its earlier looks decided (holds or fails), which a later
-        look never reopens (:func:`_keep_decided`); set by the staged run, so a study can keep the runs
-        that feed only such claims on the plan of the look that decided them."""
-        self.frozen_claims: dict[str, int] = {}
-        """``claim -> look``: this study's claims whose runs are final, each with the look whose plan its
-        runs follow: the decided claims (as :attr:`decided_claims`) and the *futile* ones, undecided claims
-        the quick cap cannot decide (:func:`_open`), from the look that first found them so (a later look
-        may still decide one on the same runs at its own level).  A study keeps the runs that feed only
-        such claims on that look's plan (:func:`._stages.kept_plan`): more of them would buy nothing."""
-        self.decided_explanations: dict[tuple[str, str], int] = {}
-        """``(study, claim) -> look``: the explanations this study's earlier looks decided (shown or
-        refuted), which a later look never reopens (:func:`_keep_decided`); set by the staged run, so a
-        study can keep the runs that only such explanations read on the plan of the look that decided them."""
+        self.parts: PartPlans | None = None
+        """The plan each part of the study's runs follows at this look (:func:`part_plans`), set by the
+        staging engine before each call of the study's ``dataset``; None outside a staged run (every
+        part on the plan given)."""
+
+    @property
+    def seed(self) -> int:
+        """The root seed of every random draw of the study (:attr:`StudyConfig.seed`)."""
+        return self.config.seed
+
+    def plan_for(self, part: str, plan: Any) -> Any:
+        """The plan that ``part`` of the study's runs follows when ``dataset`` is handed ``plan``:
+        ``plan`` itself while a claim or needed explanation reading the part is open; the plan of the
+        look that made them all final once they are (its runs are made, and a final claim is never
+        reopened: more runs would buy nothing); None for a part that only explanations nobody needs
+        read (run nothing for it).  ``part`` is a name in some :attr:`Claim.reads` or
+        :attr:`Explanation.reads` of the study (else UndulateError)."""
+        if self.parts is None:
+            return plan
+        if part not in self.parts.declared:
+            raise UndulateError(f"study {self.name!r}: no claim or explanation reads plan part {part!r} "
+                                f"(declared: {', '.join(sorted(self.parts.declared)) or 'none'})")
+        if part in self.parts.not_run:
+            return None
+        return self.parts.plans[part] if part in self.parts.plans else plan
 
     def needs_explanation(self, study: str, claim: str) -> bool:
         """Whether an explanation of ``study``'s ``claim`` can change its verdict: True when that claim
@@ -573,6 +605,43 @@ class StudyContext:
         if bool(ds["run_failed"].any()):
             raise UndulateError(f"study {self.name!r}: the free swimmer {key} failed: {self._records()[1][-1]}")
         return ds.isel(point=0, replicate=0)
+
+
+@dataclass(frozen=True)
+class PartPlans:
+    """Where each part of a study's runs stands at a look (:func:`part_plans`)."""
+
+    declared: frozenset[str]
+    """Every part the study's claims and explanations read."""
+    plans: dict[str, Any]
+    """``part -> plan`` of the frozen parts: the plan of the look from which they are frozen."""
+    frozen_at: dict[str, int]
+    """``part -> look`` (1-based) of the frozen parts."""
+    not_run: frozenset[str]
+    """The parts only unneeded explanations read."""
+
+
+def part_plans(info: Study, plans: Sequence[Any], final_claims: dict[str, int],
+               final_explanations: dict[tuple[str, str], int],
+               needs: Callable[[str, str], bool]) -> PartPlans:
+    """Which plan each part of ``info``'s runs follows at the next look: a part every reader of which is
+    final (a claim in ``final_claims``, claim -> the look from which its runs are final; an explanation
+    that ``needs`` and that is in ``final_explanations``, ``(study, claim) -> look``) keeps the plan of
+    the latest such look (``plans``: the study's stages); a part that only explanations read none of
+    which ``needs`` is not run; every other part follows the look's own plan."""
+    at: dict[str, list[int | None]] = {}
+    for c in info.claims:
+        for part in c.reads:
+            at.setdefault(part, []).append(final_claims.get(c.claim))
+    for e in info.explanations:
+        needed = needs(e.study, e.claim)
+        for part in e.reads:
+            at.setdefault(part, [])
+            if needed:
+                at[part].append(final_explanations.get((e.study, e.claim)))
+    frozen = {part: max(k) for part, k in at.items() if k and all(x is not None for x in k)}  # type: ignore
+    return PartPlans(frozenset(at), {part: plans[k - 1] for part, k in frozen.items()}, frozen,
+                     frozenset(part for part, k in at.items() if not k))
 
 
 def _backend_suffix(execution: Execution) -> str:
@@ -724,6 +793,7 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     ctx.needs_explanation = lambda study, claim: True  # the verdicts are not known yet: every one
     t0 = time.perf_counter()
     plans = stage_plans(info, config.quick)
+    ctx.parts = part_plans(info, plans, {}, {}, ctx.needs_explanation)
     with using(config.execution):
         info.dataset(ctx, plans[-1] if _prefetching(config.execution) else plans[0])
     return {"n_runs": sum(s["n_runs"] for s in ctx.sweeps), "n_computed": sum(s["n_computed"] for s in ctx.sweeps),
@@ -744,7 +814,7 @@ def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], grow
     would need more than ``growth_left`` times the runs it rests on to be decided at the last look's level
     (:func:`undulate.stats.runs_needed`; quick mode's cap cannot decide them:
     a futility stop, which never turns a claim into ``holds`` or ``fails``) and those an earlier look
-    found futile (``futile``: their runs stay where they were, :attr:`StudyContext.frozen_claims`);
+    found futile (``futile``: their runs stay where they were, :func:`part_plans`);
     claims with ``no result`` (too few design points or runs with a result for an interval: more runs
     may give one); and explanations whose claim fails (the others are moot:
     :meth:`StudyContext.needs_explanation`)."""
@@ -886,10 +956,14 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     decided_claims: dict[Any, dict[str, Any]] = {}
     decided_explanations: dict[Any, dict[str, Any]] = {}
     futile_at: dict[str, int] = {}
+    final_claims: dict[str, int] = {}
+    final_explanations: dict[tuple[str, str], int] = {}
     with _walltime.meter() as here:  # what this process simulates (serial sweeps, direct runs)
+        ctx.parts = part_plans(info, plans, {}, {}, ctx.needs_explanation)
         prefetched = _prefetch(info, ctx, plans)
         for k, (plan, level) in enumerate(zip(plans, levels), start=1):
             first = len(ctx.sweeps)
+            ctx.parts = part_plans(info, plans, final_claims, final_explanations, ctx.needs_explanation)
             with stats.at_level(level, plan_at=levels[-1]):  # runs needed: to decide at the cap's look
                 ds = info.dataset(ctx, plan)
                 summary = info.summary(ds)
@@ -902,19 +976,22 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
                                    lambda c: c["verdict"] if c["verdict"] in (HOLDS, FAILS) else None, at)
             explanations = _keep_decided(explanations, decided_explanations, lambda e: (e["study"], e["claim"]),
                                          lambda e: e["shown"], at)
-            ctx.decided_claims = {k: c["decided_at"]["stage"] for k, c in decided_claims.items()}
-            ctx.decided_explanations = {k: e["decided_at"]["stage"] for k, e in decided_explanations.items()}
             still = _open(claims, explanations, _growth_left(len(plans), k, config.quick), futile_at)
             for c in claims:  # futile from here on: its runs stay on this look's plan
                 if c["verdict"] == UNDECIDED and c["claim"] not in still:
                     futile_at.setdefault(c["claim"], k)
-            ctx.frozen_claims = {**ctx.decided_claims, **futile_at}  # futile first: its runs stopped there
+            # final: decided, or futile (from the look that found it so: its runs stopped there)
+            final_claims = {**{key: c["decided_at"]["stage"] for key, c in decided_claims.items()}, **futile_at}
+            final_explanations = {key: e["decided_at"]["stage"] for key, e in decided_explanations.items()}
             mine = ctx.sweeps[first:]
+            parts = ctx.parts
             looks.append({**at, "n_runs": sum(s["n_runs"] for s in mine),
                           "n_computed": sum(s["n_computed"] for s in mine),
                           "verdicts": verdicts, "undecided": still,
                           "futile": [c["claim"] for c in claims
-                                     if c["verdict"] == UNDECIDED and c["claim"] not in still]})
+                                     if c["verdict"] == UNDECIDED and c["claim"] not in still],
+                          "frozen_parts": dict(sorted(parts.frozen_at.items())),
+                          "parts_not_run": sorted(parts.not_run)})
             if not still:
                 break
     claims = [c if c["decided_at"] is None else

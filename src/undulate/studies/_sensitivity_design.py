@@ -24,7 +24,7 @@ from . import _analysis as C
 from ._criteria import PAIR_CHANNEL_M
 from ._gaits import BETA_DEG  # noqa: F401 - the 3-link joint amplitude, re-exported
 
-__all__ = ["FACTORS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_cases", "pair_cases", "plan",
+__all__ = ["FACTORS", "FACTOR_GROUPS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_cases", "pair_cases", "plan",
            "planned_cases", "spaced_channel_m", "xi32_durations"]
 
 PAPER_RANGE_HIGH = 1.2
@@ -102,6 +102,16 @@ class CaseSet(str, enum.Enum):
     """dphi = 0 pairs over d/2A, the confinement criterion: the reading of d (per swimmer; whole width)."""
     IMPULSE = "impulse"
     """The two-period contact impulse over |dphi|, the potential criterion: the ground's linear drag."""
+
+
+FACTOR_GROUPS: dict[CaseSet, str] = {
+    CaseSet.XI32: "xi32", CaseSet.LINKS: "links", CaseSet.LINKS_X: "links", CaseSet.LINKS_GUIDED: "links",
+    CaseSet.LINKS_GUIDED_X: "links", CaseSet.CONFINEMENT: "confinement", CaseSet.GROUPS: "groups",
+    CaseSet.SWIM: "swimming", CaseSet.IMPULSE: "impulse"}
+"""The factor group (a part of the plan: one ``_data_*`` step of :mod:`.sensitivity`) that makes the
+cases of each case set: ``xi32``, ``links`` (the equal-A and the guided runs), ``confinement``, ``groups``,
+``swimming``, ``impulse``.  An explanation reads the groups of its cases (its ``reads``); the xi = 1 cases
+feed no explanation, only the table: they always run."""
 
 
 Level = int | float | str

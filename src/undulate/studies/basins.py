@@ -132,7 +132,7 @@ def _scan(ctx: StudyContext, part, starts, duration_s):
     from ..sweep import Grid
 
     fn = functools.partial(pair_point, duration_s=duration_s, stop=PAIR_STOP)
-    grid = Grid(axes={"dx0_over_lambda": sorted(set(round(v, 12) for v in starts))}, seed=ctx.config.seed)
+    grid = Grid(axes={"dx0_over_lambda": sorted(set(round(v, 12) for v in starts))}, seed=ctx.seed)
     return ctx.sweep(part, fn, grid)
 
 
@@ -170,7 +170,7 @@ def dataset(ctx: StudyContext, p: BasinsPlan):
     def grid():  # 8b: the (dx0, dphi) grid, independent of the scan
         fn = functools.partial(pair_point, duration_s=p.duration_s, stop=PAIR_STOP)
         axes = {"dx0_over_lambda": p.grid_dx0, "dphi_rad": p.grid_dphi}
-        return ctx.sweep("grid", fn, Grid(axes=axes, seed=ctx.config.seed)).isel(replicate=0)
+        return ctx.sweep("grid", fn, Grid(axes=axes, seed=ctx.seed)).isel(replicate=0)
 
     s0, g = ctx.together(scan, grid)
     x0 = s0["dx0_over_lambda"].values

@@ -92,7 +92,7 @@ def dataset(ctx: StudyContext, p: ConfinementPlan):
     lam = Gait().wavelength_m(geo.length_m)
     amp = float(ctx.lone_swimmer()["amplitude_m"])
     fn = functools.partial(pair_point, duration_s=p.duration_s, amplitude_m=amp, stop=PAIR_STOP)
-    grid = Grid(axes={"d_over_2A": p.d_over_2A, "dx0_over_lambda": p.dx0_over_lambda}, seed=ctx.config.seed)
+    grid = Grid(axes={"d_over_2A": p.d_over_2A, "dx0_over_lambda": p.dx0_over_lambda}, seed=ctx.seed)
     g = ctx.sweep("grid", fn, grid).isel(replicate=0)
     xf = g["dx_final_over_lambda"].values
     x0 = g["dx0_over_lambda"].values

@@ -17,7 +17,6 @@ n)``.
 
 from __future__ import annotations
 
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -30,7 +29,7 @@ from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, PAIR_CHA
 from . import _analysis as C
 from ._analysis import group_records
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import frozen_parts, kept_plan, strides, thinned
+from ._stages import strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S
 from ._shared import group_part, group_sweep
 
@@ -93,39 +92,25 @@ def plan(quick: bool) -> Plan:
                 tuple(float(p) for p in C.group_phases(False)))
 
 
-def size_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[int, Plan]:
-    """The plan each group size's runs follow at a look on plan ``p``: ``p``, or, for a frozen size
-    (:func:`frozen_sizes`), the plan of the look from which it is frozen (its runs are made, and a
-    decided claim is never reopened, nor a futile one grown)."""
-    looks, frozen = stages(quick), frozen_sizes(decided)
-    return {n: kept_plan(looks, frozen, n, p) for n in (2, *SIZES)}
-
-
-def frozen_sizes(decided: dict[str, int]) -> dict[int, int]:
-    """Group size -> the look from which its runs are frozen, for the sizes every claim reading which an
-    earlier look decided or found futile (``decided``: claim -> look,
-    :attr:`~._registry.StudyContext.frozen_claims`): three and four with their own claim, the reference
-    pairs (size 2, read by both claims) once both are final, at the latest such look."""
-    spacing = [c.claim for c in CLAIMS[len(SIZES):]]  # read every size
-    reading = {2: [c.claim for c in CLAIMS], **{n: [c.claim, *spacing] for n, c in zip(SIZES, CLAIMS)}}
-    return frozen_parts(reading, decided)
+def part(n: int) -> str:
+    """The plan part of the runs of groups of ``n`` (2: the reference pairs), what a claim ``reads``."""
+    return f"size {int(n)}"
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Groups of three and four, and pairs over the same dphi range (the scatter they are compared with);
-    a size whose claims an earlier look decided or found futile keeps that look's runs (:func:`size_plans`)."""
-    seed = ctx.config.seed
-    plans = size_plans(p, ctx.frozen_claims, bool(ctx.config.quick))
+    each size on the plan its part follows (:meth:`~._registry.StudyContext.plan_for`: the reference
+    pairs feed every claim, a size of three or four its own and the spacing claim)."""
+    seed = ctx.seed
+    plans = {n: ctx.plan_for(part(n), p) for n in (2, *SIZES)}
+
     def size(n: int) -> xr.Dataset:
         return ctx.shared_sweep(group_part(n), *group_sweep(n, plans[n].pairs if n == 2 else plans[n].dphi_rad,
                                                              plans[n].draws, seed))
 
     two, three, four, lone = ctx.together(lambda: size(2), lambda: size(3), lambda: size(4),
                                           lambda: ctx.lone_swimmer(waves_per_body=XI))
-    A = float(lone["amplitude_m"])
-    ds = groups_dataset({2: two, 3: three, 4: four}, A)
-    ds.attrs["frozen_sizes"] = json.dumps({str(n): k for n, k in frozen_sizes(ctx.frozen_claims).items()})
-    return ds
+    return groups_dataset({2: two, 3: three, 4: four}, float(lone["amplitude_m"]))
 
 
 def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Dataset:
@@ -351,7 +336,7 @@ CLAIMS = tuple(
                  r"longitudinal position was larger in the group experiments compared with the robot pair experiments "
                  r"suggesting potential collective effects present in the three and four robot experiments that were "
                  r"not captured in the pair experiments."),
-          where="Sec. III.D, Fig. 6b",
+          where="Sec. III.D, Fig. 6b", reads=(part(size), part(2)),
           bands={"slope": (1 - GROUP_SLOPE_TOL, 1 + GROUP_SLOPE_TOL), "rms_residual_over_lambda": (None, GROUP_RMS_TOL)})
     for size in SIZES) + (
     Claim("the groups' larger scatter comes mainly from the larger lateral spacing they are afforded",
@@ -366,7 +351,7 @@ CLAIMS = tuple(
           "overlap or the share's straddles", _spacing_explains,
           quote=(r"The principle influence of this variance from the compatibility prediction is the larger lateral "
                  r"spacing afforded to the larger robot groups."),
-          where="Sec. III.D, Fig. 6b",
+          where="Sec. III.D, Fig. 6b", reads=tuple(part(n) for n in (2, *SIZES)),
           bands={"unexplained_share": (None, PRINCIPAL_SHARE)}),
 )
 

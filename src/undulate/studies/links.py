@@ -40,7 +40,6 @@ from the nearest branch).
 from __future__ import annotations
 
 import functools
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -54,7 +53,7 @@ from ._criteria import LINKS_TREND_RULE, PAIR_CHANNEL_M
 from . import _analysis as C
 from . import _outliers as O
 from ._registry import Claim, Study, StudyContext, SupersededCriterion, Verdict, register
-from ._stages import kept_plan, strides, thinned
+from ._stages import strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
 
 N_LINKS = (3, 5, 7, 9)
@@ -94,29 +93,19 @@ def plan(quick: bool) -> Plan:
     return Plan(tuple(float(p) for p in (C.paper_phases() if quick else C.phase_grid(FULL_PHASES))))
 
 
-def rule_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[str, Plan]:
-    """The plan each rule's runs follow at a look on plan ``p``: ``p``, or, for a rule whose claim an
-    earlier look decided or found futile (``decided``: claim -> look,
-    :attr:`~._registry.StudyContext.frozen_claims`), that look's plan (frozen: its runs are made, and a
-    decided claim is never reopened, nor a futile one grown, so more of them would buy nothing)."""
-    looks = stages(quick)
-    return {rule: kept_plan(looks, decided, c.claim, p) for rule, c in zip(RULES, CLAIMS)}
-
-
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
+    """Pairs of every rule and N at every dphi; each rule on the plan its part (the rule's name, read by
+    its claim) follows (:meth:`~._registry.StudyContext.plan_for`)."""
     dphis = np.asarray(p.dphi_rad, float)
-    decided = ctx.frozen_claims
-    plans = rule_plans(p, decided, bool(ctx.config.quick))
+    plans = {rule: ctx.plan_for(rule, p) for rule in RULES}
     gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]
     sim_points = [{**g, "dphi_rad": float(d)} for g in gaits for d in plans[g["beta_rule"]].dphi_rad]
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
-    sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, Grid(points=sim_points, seed=ctx.config.seed)),
+    sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, Grid(points=sim_points, seed=ctx.seed)),
                               *(functools.partial(ctx.lone_swimmer, amplitude_rad=g["amplitude_rad"],
                                                   n_links=g["n_links"], waves_per_body=XI) for g in gaits))
     amp = np.array([float(ds["amplitude_m"]) for ds in lone])
-    ds = links_dataset(sim, amp, dphis, [plans[r].dphi_rad for r in RULES])
-    ds.attrs["frozen_rules"] = json.dumps({r: decided[c.claim] for r, c in zip(RULES, CLAIMS) if c.claim in decided})
-    return ds
+    return links_dataset(sim, amp, dphis, [plans[r].dphi_rad for r in RULES])
 
 
 def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray,
@@ -124,7 +113,7 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray,
     """Study dataset (dims rule, n_links, dphi, time) from the merged explicit-point sweeps.
 
     The sweep points are ordered rule, N, dphi (see :func:`dataset`), each rule over its own
-    ``rule_dphis`` (default: ``dphis``; a frozen rule's, a subset of them: :func:`rule_plans`); a
+    ``rule_dphis`` (default: ``dphis``; a frozen rule's, a subset of them); a
     (rule, N, dphi) without a run is NaN, ``run_made`` False (and not ``run_failed``).
     """
     nr, nn, nd = len(RULES), len(N_LINKS), len(dphis)
@@ -439,7 +428,7 @@ CLAIMS = tuple(
           LINKS_TREND_RULE, _trend(rule),
           quote=(r"The root mean square (RMS) error of the simulation compatibility separation and the prediction "
                  r"(Eqn.~\ref{eqn:compatibility}) decreased with increasing link number (values withheld)."),
-          where="Sec. III.C, Fig. 5",
+          where="Sec. III.C, Fig. 5", reads=(rule,),
           superseded=(SupersededCriterion(
               C.FALLS_RULE, _falls(rule),
               why="it judged a trend step by step: one noisy step (an N whose interval lies wholly above the "

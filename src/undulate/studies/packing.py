@@ -540,7 +540,7 @@ def _bisect(ctx: StudyContext, p: PackingPlan, fn, runs: _Runs) -> int:
         if not probes:
             return rounds
         rounds += 1
-        got = ctx.sweep(f"bisection-{rounds}", fn, Grid(points=_points(p, probes), seed=ctx.config.seed))
+        got = ctx.sweep(f"bisection-{rounds}", fn, Grid(points=_points(p, probes), seed=ctx.seed))
         runs.take_sweep(got.isel(replicate=0), probes)
 
 
@@ -562,7 +562,7 @@ def _rerun_brackets(ctx: StudyContext, p: PackingPlan, cont, runs: _Runs):
         # one store per set of stopped runs: a later look continues more of them (more draws), and a
         # shared store would hold one look's continuations at a time, each look discarding the other's
         got = ctx.sweep(f"brackets-{reruns}-{resume.sha256[:12]}", functools.partial(cont, resume=resume),
-                        Grid(points=points, seed=ctx.config.seed))
+                        Grid(points=points, seed=ctx.seed))
         runs.take_sweep(got.isel(replicate=0), todo)
         runs.continued += len(todo)
 

@@ -4,8 +4,9 @@ Two 3-link swimmers in a channel d = 0.13 m start straight, laterally in
 contact, at dx0 = 0; swimmer 0 (lower) has phase 0, swimmer 1 (upper) phase
 dphi.  They run 15 gait periods (30 s) at every dphi of the paper's nine
 ``{-1, -3/4, ..., 1} pi`` (quick mode: up to 33, full mode: up to 193 values
-over [-pi, pi], which contain the nine) and every xi in {0, 3/4, 1, 3/2}; at a later look an xi whose
-claims are decided or found futile keeps the runs of the look that made them final (:func:`xi_plans`).
+over [-pi, pi], which contain the nine) and every xi in {0, 3/4, 1, 3/2}; each xi is a part of the plan
+its claims read (``Claim.reads``), so once they are final the staging engine keeps that xi on the runs
+already made.
 The steady offset ``dx = x_upper - x_lower`` is compared with the compatibility branches
 ``dx = lambda (dphi / 2 pi + n)`` (paper Eq. (compatibility)).
 
@@ -16,15 +17,15 @@ for the standing wave xi = 0 (lambda = inf) the spread of dx in metres.  The con
 steady state against the same run's over its first periods (:func:`contact_summary`), and how fast dx
 changes at the start of a run against its end (:func:`approach_summary`): the paper's Sec. III.A.
 
-This module is the template of the study protocol (``_registry``):
-``plan`` -> ``dataset`` (sweeps through the context) -> ``summary`` (pure)
--> ``CLAIMS`` (pure functions of the summary) -> ``figure``; ``register``.
+This module is the template of the study protocol (docs/guide/studies.md): ``plan`` (``stages``: the
+same plan, nested) -> ``dataset`` (sweeps through the context) -> ``summary`` (pure) -> ``CLAIMS`` (pure
+functions of the summary, each naming the plan parts it reads) -> ``figure``; ``register``.  It knows
+nothing of looks, devices or workers: the registry stages it.
 """
 
 from __future__ import annotations
 
 import functools
-import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -37,7 +38,7 @@ from ..sweep import Grid
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import frozen_parts, kept_plan, strides, thinned
+from ._stages import strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, PERIOD_S, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
@@ -75,45 +76,27 @@ def plan(quick: bool) -> Plan:
     return Plan(tuple(float(p) for p in dphis))
 
 
-def _claims_reading(xi: float) -> tuple[str, ...]:
-    """The claims whose judge reads the runs at ``xi``: its own line claim; the standing-wave claim reads
-    xi = 0 and xi = 1 (its spread against xi = 1's RMS residual)."""
-    key = f"{xi:g}"
-    return tuple(c.claim for c, k in zip(CLAIMS, _CLAIM_XI) if key in k)
-
-
-def frozen_xi(xi: tuple[float, ...], decided: dict[str, int]) -> dict[float, int]:
-    """The xi every claim reading which an earlier look decided or found futile (``decided``:
-    claim -> look, :attr:`~._registry.StudyContext.frozen_claims`), each with the latest such look."""
-    return frozen_parts({float(x): _claims_reading(x) for x in xi}, decided)
-
-
-def xi_plans(p: Plan, decided: dict[str, int], quick: bool) -> dict[float, tuple[float, ...]]:
-    """The dphi each xi's runs follow at a look on plan ``p``: ``p``'s, or, for a frozen xi
-    (:func:`frozen_xi`), the plan's of the look from which it is frozen (its runs are made, and a
-    decided claim is never reopened, nor a futile one grown, so more of them would buy nothing)."""
-    looks, frozen = stages(quick), frozen_xi(p.xi, decided)
-    return {float(x): kept_plan(looks, frozen, float(x), p).dphi_rad for x in p.xi}
+def part(xi: float) -> str:
+    """The plan part of the runs at ``xi`` (what a claim ``reads``): ``"xi=1"``, ``"xi=0.75"``..."""
+    return f"xi={float(xi):g}"
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
-    """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset.  An xi whose
-    claims an earlier look decided or found futile keeps that look's runs (:func:`xi_plans`)."""
-    plans = xi_plans(p, ctx.frozen_claims, bool(ctx.config.quick))
+    """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset.  Each xi runs
+    the dphi of the plan its part follows (:meth:`~._registry.StudyContext.plan_for`)."""
+    plans = {float(x): ctx.plan_for(part(x), p).dphi_rad for x in p.xi}
     points = [{"waves_per_body": float(x), "dphi_rad": float(d)} for x in p.xi for d in plans[float(x)]]
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)
-    sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, Grid(points=points, seed=ctx.config.seed)),
+    sim, *lone = ctx.together(lambda: ctx.sweep("sim", fn, Grid(points=points, seed=ctx.seed)),
                               *(functools.partial(ctx.lone_swimmer, waves_per_body=x) for x in p.xi))
     amp = [float(ds["amplitude_m"]) for ds in lone]
-    ds = pairs_dataset(sim, np.array(amp), p.xi, p.dphi_rad, [plans[float(x)] for x in p.xi])
-    ds.attrs["frozen_xi"] = json.dumps({f"{x:g}": k for x, k in frozen_xi(p.xi, ctx.frozen_claims).items()})
-    return ds
+    return pairs_dataset(sim, np.array(amp), p.xi, p.dphi_rad, [plans[float(x)] for x in p.xi])
 
 
 def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, xi, dphis, xi_dphis=None) -> xr.Dataset:
     """The study dataset (dims xi, dphi, time) from the explicit-point sweep, its points ordered xi, dphi,
-    each ``xi`` over its own ``xi_dphis`` (default: ``dphis``; a frozen xi's, a subset of them:
-    :func:`xi_plans`), and the free swimmers' A per xi.  An (xi, dphi) without a run is NaN,
+    each ``xi`` over its own ``xi_dphis`` (default: ``dphis``; a frozen xi's, a subset of them), and the
+    free swimmers' A per xi.  An (xi, dphi) without a run is NaN,
     ``run_made`` False (and not ``run_failed``)."""
     xi, dphi = np.asarray(xi, float), np.asarray(dphis, float)
     xi_dphis = [dphi] * xi.size if xi_dphis is None else [np.asarray(d, float) for d in xi_dphis]
@@ -493,8 +476,6 @@ def _approach_slows(s: dict) -> Verdict:
                       runs=a["n_runs_used"])
 
 
-_CLAIM_XI = (("1",), ("0.75",), ("1.5",), ("0", "1"), ("1",), ("1",), ("1",))
-"""The xi (summary keys) each of :data:`CLAIMS` reads, in order (:func:`_claims_reading`)."""
 _CRITERION = (f"the 95 % interval of the slope lies within 1 +- {LINE_SLOPE_TOL} and that of the RMS residual "
               f"below {LINE_RMS_TOL} lambda (fails if either lies wholly outside; undecided if one straddles)")
 CLAIMS = tuple(
@@ -503,7 +484,7 @@ CLAIMS = tuple(
           _CRITERION, _follows_line(key),
           quote=(r"Similarly in simulation we find good agreement between the model and observation, with some "
                  r"systematic variation that is a result of the sinusoidal assumption for the three-link robot."),
-          where="Sec. III.B, Fig. 3c",
+          where="Sec. III.B, Fig. 3c", reads=(part(float(key)),),
           bands={"slope": (1 - LINE_SLOPE_TOL, 1 + LINE_SLOPE_TOL), "rms_residual_over_lambda": (None, LINE_RMS_TOL)})
     for key, label in (("1", "1"), ("0.75", "3/4"), ("1.5", "3/2"))
 ) + (
@@ -513,7 +494,7 @@ CLAIMS = tuple(
           "RMS residual at xi = 1", _standing_wave_scatter,
           quote=(r"Critically, when the undulatory body wave was stationary ($\frac{\lambda}{L} = 0$) the robots and "
                  r"simulation displayed large variance in $\Delta x$."),
-          where="Sec. III.B, Fig. 3c (right column)"),
+          where="Sec. III.B, Fig. 3c (right column)", reads=(part(0), part(1))),
     Claim("xi = 1: at equilibrium the contact force is lower than at the start",
           "the equilibrium conditions coincided with a reduction in the contact forces",
           "pairs at xi = 1 that start out of compatibility (dphi != 0, initial contact) and reach a steady state: "
@@ -522,7 +503,7 @@ CLAIMS = tuple(
           "below 1 (fails if wholly above 1; undecided if it straddles 1)", _force_reduced,
           quote=(r"Simulation also allowed us to measure the contact forces exerted between robots during experiment "
                  r"and we found that the equilibrium conditions coincided with a reduction in the contact forces."),
-          where="Sec. III.A", bands={"ratio_median": (None, 1.0)}),
+          where="Sec. III.A", bands={"ratio_median": (None, 1.0)}, reads=(part(1),)),
     Claim("xi = 1: in the steady state the contact force is small or zero for some dphi",
           "in the steady state the contact forces were small or non-existent for some configurations",
           "the same ratios as the reduction claim; 'small' is below "
@@ -532,7 +513,7 @@ CLAIMS = tuple(
           "undecided if it straddles)", _force_small_for_some,
           quote=(r"When robots were in the steady-state phase the contact forces were small or non-existent for some "
                  r"phase-displacement configurations."),
-          where="Sec. III.A", bands={"ratio_some_quantile": (None, SMALL_FORCE_FRACTION)}),
+          where="Sec. III.A", bands={"ratio_some_quantile": (None, SMALL_FORCE_FRACTION)}, reads=(part(1),)),
     Claim("xi = 1: dx changes fast at first, then slows to its steady value",
           "dx(t) shows an initial rapid rate of separation which slows until the steady value",
           f"pairs at xi = 1 with dphi != 0: per run the mean |change| of the period-averaged dx over its first "
@@ -542,7 +523,7 @@ CLAIMS = tuple(
           quote=(r"The longitudinal separation, $\Delta x$, versus time from identical simulations indicates that "
                  r"there is an initial rapid rate of separation which eventually slows until reaching what appears to "
                  r"be the steady-state value for longitudinal spacing (Fig.~\ref{fig:two_robot_experiment}b)."),
-          where="Sec. III.A, Fig. 3b", bands={"rate_drop_over_lambda_per_period": (0.0, None)}),
+          where="Sec. III.A, Fig. 3b", bands={"rate_drop_over_lambda_per_period": (0.0, None)}, reads=(part(1),)),
 )
 
 

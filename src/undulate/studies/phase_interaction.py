@@ -72,8 +72,8 @@ def stages(quick: bool) -> tuple[dict[str, Any], ...]:
 def dataset(ctx: StudyContext, p: dict[str, Any]):
     pairs, probe = ctx.together(  # independent: side by side where the study runs wide
         lambda: ctx.shared_sweep("closed-loop-pairs", *closed_loop_pairs_sweep(p["dphi0_rad"], p["duration_s"],
-                                                                              ctx.config.seed)),
-        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed)))
+                                                                              ctx.seed)),
+        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.seed)))
     ds = _label(pairs)[["dphi", "force_start", "force_end", "stopped_at_s", "run_failed"]]
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     ds["H"] = probe["H"].isel(replicate=0).rename(hold_x="probe_hold_x")

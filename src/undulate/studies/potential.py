@@ -87,7 +87,6 @@ window minus the last periods).  :func:`_sustained` judges them.
 from __future__ import annotations
 
 import functools
-import json
 import math
 import warnings
 from typing import Any
@@ -100,7 +99,7 @@ from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, R2_MIN
 from . import _analysis as C
 from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import frozen_parts, strides
+from ._stages import strides
 from ..stopping import SteadyStop
 from ._runners import pair_point
 from ._shared import impulse_sweep
@@ -273,33 +272,20 @@ def plan(quick: bool) -> PotentialPlan:
     return p
 
 
-def frozen_sweeps(frozen: dict[str, int]) -> dict[str, int]:
-    """``sweep -> look`` for the sweeps every claim reading which is final (``frozen``: claim -> look,
-    :attr:`~._registry.StudyContext.frozen_claims`), each with the latest such look: ``impulse`` feeds
-    the first claim, ``force`` the others but the release claim (its runs are the same at every look)."""
-    force = [c.claim for c in CLAIMS[1:] if c.claim != RELEASE_CLAIM]
-    return frozen_parts({"impulse": [c.claim for c in CLAIMS[:1]], "force": force}, frozen)
-
-
-def sweep_plan(p: PotentialPlan, frozen: dict[str, int], quick: bool) -> PotentialPlan:
-    """The plan a look on ``p`` runs: ``p``, with a frozen sweep's grids (:func:`frozen_sweeps`) those of
-    the look that froze it (its runs are made; its claims are decided, never reopened, or futile, never
-    grown)."""
-    looks, at = stages(quick), frozen_sweeps(frozen)
-    imp = looks[at["impulse"] - 1] if "impulse" in at else p
-    force = looks[at["force"] - 1] if "force" in at else p
-    return PotentialPlan(imp.impulse_dphi, force.betas_deg, force.d_over_2A, force.forces_N, p.duration_s,
-                         impulse_phi0=imp.impulse_phi0, release=p.release)
+def sweep_plan(p: PotentialPlan, impulse: PotentialPlan, force: PotentialPlan) -> PotentialPlan:
+    """``p`` with the impulse sweep's grids ``impulse``'s and the force sweep's ``force``'s (the plans the
+    parts ``"impulse"`` and ``"force"`` follow; the release runs are the same in every plan)."""
+    return PotentialPlan(impulse.impulse_dphi, force.betas_deg, force.d_over_2A, force.forces_N, p.duration_s,
+                         impulse_phi0=impulse.impulse_phi0, release=p.release)
 
 
 def dataset(ctx: StudyContext, p: PotentialPlan):
-    """Run the potential study on plan ``p``: the impulse sweep, free swimmers per beta, the force sweep;
-    a sweep whose claims an earlier look decided or found futile keeps that look's runs
-    (:func:`sweep_plan`)."""
+    """Run the potential study on plan ``p``: the impulse sweep, free swimmers per beta, the force sweep,
+    each sweep on the plan its part follows (:meth:`~._registry.StudyContext.plan_for`: ``impulse`` feeds
+    the first claim, ``force`` the others but the release claim, whose runs are the same at every look)."""
     import xarray as xr
 
-    frozen = ctx.frozen_claims
-    p = sweep_plan(p, frozen, bool(ctx.config.quick))
+    p = sweep_plan(p, ctx.plan_for("impulse", p), ctx.plan_for("force", p))
     geo = SwimmerGeometry()
     lam = Gait().wavelength_m(geo.length_m)
     (imp_all, impulse, fit_a), (amps, g), rel = ctx.together(lambda: _impulse_part(ctx, p), lambda: _force_sweep(ctx, p),
@@ -334,7 +320,6 @@ def dataset(ctx: StudyContext, p: PotentialPlan):
             "impulse_fit_abs": list(fit_a),
             "wavelength_m": lam,
             "interval_level": float(stats.level()),
-            "frozen_sweeps": json.dumps(frozen_sweeps(frozen)),
             "release_force_onset_s": SETTLE_S,
             "release_force_offset_s": SETTLE_S + RELEASE_HOLD_S,
         },
@@ -359,7 +344,7 @@ def _release_sweep(ctx: StudyContext, p: PotentialPlan) -> dict[str, np.ndarray]
     points = [{"amplitude_rad": math.radians(b), "amplitude_m": a, "d_over_2A": r, "force_N": f} for b, a, r, f in rows]
     fn = functools.partial(pair_point, duration_s=SETTLE_S + RELEASE_HOLD_S + RELEASE_AFTER_S,
                            force_onset_s=SETTLE_S, force_offset_s=SETTLE_S + RELEASE_HOLD_S)
-    g = ctx.sweep("release", fn, Grid(points=points, seed=ctx.config.seed)).isel(replicate=0)
+    g = ctx.sweep("release", fn, Grid(points=points, seed=ctx.seed)).isel(replicate=0)
     return {**out, "dx_period": g["dx_period_over_lambda"].values.reshape(len(rows), -1),
             "period_time": g["period_time"].values, "failed": g["run_failed"].values.astype(bool).ravel()}
 
@@ -447,7 +432,7 @@ def release_response(dx_period, period_time, onset_s: float, offset_s: float,
 def _impulse_part(ctx: StudyContext, p: PotentialPlan):
     """(a) contact impulse over the first two periods against dphi, for several common phases:
     every run ``(dphi, phi0)``, their mean over phi0 and its ``|dphi|`` fit."""
-    imp_all = ctx.shared_sweep("impulse", *impulse_sweep(p.impulse_dphi, p.impulse_phi0, ctx.config.seed)
+    imp_all = ctx.shared_sweep("impulse", *impulse_sweep(p.impulse_dphi, p.impulse_phi0, ctx.seed)
                                ).isel(replicate=0)["impulse_2T_Ns"].values  # (dphi, phi0)
     impulse = np.nanmean(imp_all, axis=1)
     return imp_all, impulse, fit_abs_linear(np.asarray(p.impulse_dphi), impulse)
@@ -463,7 +448,7 @@ def _force_sweep(ctx: StudyContext, p: PotentialPlan):
     points = [{"amplitude_rad": beta, "amplitude_m": float(amp), "d_over_2A": r, "force_N": f}
               for beta, amp in zip(betas, amps) for r in p.d_over_2A for f in p.forces_N]
     fn = functools.partial(pair_point, duration_s=p.duration_s, force_onset_s=SETTLE_S, stop=FORCE_STOP)
-    return amps, ctx.sweep("force", fn, Grid(points=points, seed=ctx.config.seed)).isel(replicate=0)
+    return amps, ctx.sweep("force", fn, Grid(points=points, seed=ctx.seed)).isel(replicate=0)
 
 
 def _last_periods(pm: np.ndarray, n: int) -> np.ndarray:
@@ -912,7 +897,8 @@ CLAIMS = (
           quote=(r"The cumulative contact forces over the first two periods of oscillation are linearly dependent "
                  r"on the detuning phase difference, $\Delta \phi$, between the two swimmers "
                  r"(Fig.~\ref{fig:potential}a)."),
-          where="Sec. III.G, Fig. 10a", bands={"r2": (R2_MIN, None), "slope_Ns_per_rad": (0.0, None)}),
+          where="Sec. III.G, Fig. 10a", bands={"r2": (R2_MIN, None), "slope_Ns_per_rad": (0.0, None)},
+          reads=("impulse",)),
     Claim("dF against dx is linear (a harmonic well around compatibility)",
           "a linear relationship between the applied force and the steady separation",
           f"the median over (beta, d/2A) of the lower 95 % bound of R^2 of dF = k (dx - dx0) is >= {R2_MIN} "
@@ -920,7 +906,7 @@ CLAIMS = (
           quote=(r"We observed a linear relationship between the applied force and the steady state separation "
                  r"suggesting that compatible configurations act like a simple harmonic potential "
                  r"(Fig.~\ref{fig:potential}c)."),
-          where="Sec. III.G, Fig. 10c", bands={"median_r2": (R2_MIN, None)}),
+          where="Sec. III.G, Fig. 10c", bands={"median_r2": (R2_MIN, None)}, reads=("force",)),
     Claim("the cohesion stiffness k falls as the channel widens",
           "stiffness decreases with increasing wall width",
           "the bootstrap 95 % interval of Spearman's rho of k with d lies below 0 for every beta (fails if one "
@@ -928,14 +914,14 @@ CLAIMS = (
           quote=(r"We found that the cohesion stiffness of the compatible state decreases with increasing wall "
                  r"width and becomes increasingly large as the confining wall spacing decreases "
                  r"(Fig.~\ref{fig:potential}d)."),
-          where="Sec. III.G, Fig. 10d", bands={"*": (None, 0.0)}),
+          where="Sec. III.G, Fig. 10d", bands={"*": (None, 0.0)}, reads=("force",)),
     Claim("stiffness curves for different amplitudes collapse when d is scaled by 2A",
           "when we normalise the wall width by gait amplitude the stiffness curves follow a similar trend",
           "the bootstrap 95 % interval of the scatter of log10 k about one quadratic against d/2A lies wholly "
           "below that against d (fails if wholly above; undecided if they overlap)", _collapse,
           quote=(r"However, when we normalize the wall width by gait amplitude the stiffness curves follow a "
                  r"similar trend (Fig.~\ref{fig:potential}d)."),
-          where="Sec. III.G, Fig. 10d"),
+          where="Sec. III.G, Fig. 10d", reads=("force",)),
     Claim(DX0_CLAIM,
           "the neutral region dx0 likely lies below the compatibility model's prediction (three-link geometry)",
           "each (beta, d/2A) fit's dx0 is below the sinusoid model's (its bootstrap interval wholly below), above "
@@ -945,7 +931,8 @@ CLAIMS = (
           "cause the paper offers (the three-link geometry) is not judged", _dx0_below,
           quote=(r"The neutral region, $\delta x_0$, likely lies below the prediction from the compatibility model "
                  r"due to the three-link geometry of the swimmers."),
-          where="Sec. III.G, Fig. 10d", bands={"share_below": (0.5, None), "share_not_above": (0.5, None)}),
+          where="Sec. III.G, Fig. 10d", bands={"share_below": (0.5, None), "share_not_above": (0.5, None)},
+          reads=("force",)),
     Claim(RELEASE_CLAIM,
           "the swimmers separate by dx under dF, and for small dF the position is sustained until the force "
           "is removed",

@@ -84,19 +84,17 @@ the dataset is assembled one factor group at a time (the ``_data_*`` steps)
 and summarised the same way (the ``_summary_*`` steps and
 :func:`_groups_summary`).
 
-A factor group that feeds explanations runs only when one of them is needed
-(:func:`needed_groups`: the claim it explains fails in the output folder, or
-its verdict is unknown there: :meth:`~._registry.StudyContext.needs_explanation`);
-a claim that holds, is undecided or has no result cannot be ``explained``.  A
-skipped group keeps its variables and cases, filled with NaN, and runs nothing;
-the dataset's ``skipped_factor_groups`` attribute (a JSON list) names it, the
-summary's ``skipped_factor_groups`` and ``skipped_cases`` carry it on, its table
-rows read ``no result`` (:data:`NOT_RUN`) and its explanations are not judged
-(shown None, :data:`~._explanations._protocol.NOT_RUN`).  A group every needed
-explanation of which an earlier look decided is *frozen* (:func:`frozen_groups`): a later look keeps
-it on the plan of the look that decided them (its runs reused, NaN at the dphi that look did not run),
-since a decided explanation is never reopened; the attribute ``frozen_factor_groups`` (JSON, group ->
-look) names it.  The two xi = 1 groups feed the table only and always run, on their own pair phases
+Each factor group is a part of the plan that the explanations reading its cases read
+(:data:`~._sensitivity_design.FACTOR_GROUPS`, ``Explanation.reads``), and the staging engine hands the
+study, for each, the plan it follows (:meth:`~._registry.StudyContext.plan_for`): None when no needed
+explanation reads it (the claim each explains holds, is undecided or has no result in the output folder,
+so it cannot be ``explained``).  A skipped group keeps its variables and cases, filled with NaN, and runs
+nothing; the dataset's ``skipped_factor_groups`` attribute (a JSON list) names it, the summary's
+``skipped_factor_groups`` and ``skipped_cases`` carry it on, its table rows read ``no result``
+(:data:`NOT_RUN`) and its explanations are not judged (shown None,
+:data:`~._explanations._protocol.NOT_RUN`).  A group every needed explanation of which an earlier look
+decided is handed that look's plan: its runs are reused, NaN at the dphi that look did not run.  The two
+xi = 1 groups feed the table only and always run, on their own pair phases
 (:attr:`~._sensitivity_design.Plan.xi1_dphi_rad`: full mode's third look keeps them on the 17 of the
 second while the other groups still open run the cap's 33; NaN at the rest).
 """
@@ -127,7 +125,7 @@ from ._gaits import equal_amplitude_beta
 from ._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, Study, StudyContext, register
 from ._runners import BODY_LENGTH_M, PAIR_STOP, PERIOD_S, RECORD_HZ, group_point, pair_point
 from ._sensitivity_design import (  # noqa: F401 - the study's constants, re-exported
-    BETA_DEG, CONFINEMENT_S, DEFAULT_BODY_M, DEFAULT_S, DURATIONS_S, FLUID_DENSITIES, IMPULSE_DRAG_DEFAULT,
+    FACTOR_GROUPS, BETA_DEG, CONFINEMENT_S, DEFAULT_BODY_M, DEFAULT_S, DURATIONS_S, FLUID_DENSITIES, IMPULSE_DRAG_DEFAULT,
     IMPULSE_DRAGS_N_S_PER_M, LEFT_OUT, LONG_S, MODEL_DEFAULTS, MODEL_LEVELS, PAIR_SPACING_M, PAPER_RANGE_HIGH,
     SWIM_DRAG_N_S_PER_M, SWIM_MIN_SPEED_M_S, D_READING_SCALE, D_READINGS, PER_SWIMMER, WHOLE_WIDTH, WINDOWS,
     CaseId, CaseSet, Plan, confinement_case,
@@ -135,44 +133,11 @@ from ._sensitivity_design import (  # noqa: F401 - the study's constants, re-exp
 from ._shared import group_part, group_sweep, impulse_sweep
 
 
-FACTOR_GROUPS: dict[CaseSet, str] = {
-    CaseSet.XI32: "xi32", CaseSet.LINKS: "links", CaseSet.LINKS_X: "links", CaseSet.LINKS_GUIDED: "links",
-    CaseSet.LINKS_GUIDED_X: "links", CaseSet.CONFINEMENT: "confinement", CaseSet.GROUPS: "groups",
-    CaseSet.SWIM: "swimming", CaseSet.IMPULSE: "impulse"}
-"""The factor group (the ``_data_*`` step) that makes the cases of each case set: ``xi32``
-(:func:`_data_xi32`), ``links`` (:func:`_data_links_equal_a` and :func:`_data_links_guided`),
-``confinement``, ``groups``, ``swimming``, ``impulse``.  The xi = 1 cases (:func:`_data_xi1_model`,
-:func:`_data_xi1_windows`) feed no explanation, only the table: they always run."""
-
 SKIPPABLE_GROUPS: tuple[str, ...] = tuple(dict.fromkeys(FACTOR_GROUPS.values()))
 """The factor groups that run only for a needed explanation, in the order the dataset makes them."""
 
 NOT_RUN = "not run (the claim it would explain does not fail)"
 """The table's reason for the rows of a skipped factor group (verdict ``no result``)."""
-
-
-def needed_groups(needs: Callable[[str, str], bool], explanations: Iterable = EXPLANATIONS) -> frozenset[str]:
-    """The factor groups to run: those that make a case some needed explanation reads (``needs(study,
-    claim)``, e.g. :meth:`~._registry.StudyContext.needs_explanation`).  An explanation reads only the
-    cases it declares (:class:`~._explanations.CaseExplanation`), so its declared cases name its groups."""
-    return frozenset(FACTOR_GROUPS[c.case_set] for e in explanations if needs(e.study, e.claim)
-                     for c in e.cases if c.case_set in FACTOR_GROUPS)
-
-
-def frozen_groups(needs: Callable[[str, str], bool], decided: dict[tuple[str, str], int],
-                  explanations: Iterable = EXPLANATIONS) -> dict[str, int]:
-    """The factor groups every needed explanation of which was decided at an earlier look, each with the
-    latest such look (``decided``: ``(study, claim) -> look``, :attr:`~._registry.StudyContext.decided_explanations`).
-    A later look, run for what is still open, keeps such a group on that look's plan: its runs are the ones
-    already made (reused from the stores), and the decided explanations are never reopened
-    (:func:`~._registry._keep_decided`), so running it on a larger plan would buy nothing."""
-    looks: dict[str, list[int | None]] = {}
-    for e in explanations:
-        if needs(e.study, e.claim):
-            for c in e.cases:
-                if c.case_set in FACTOR_GROUPS:
-                    looks.setdefault(FACTOR_GROUPS[c.case_set], []).append(decided.get((e.study, e.claim)))
-    return {g: max(v) for g, v in looks.items() if v and all(k is not None for k in v)}
 
 
 def _timestep(n_links: int) -> float:
@@ -233,14 +198,15 @@ class _Runs:
     dphis: np.ndarray
     A3: float
     skipped: frozenset[str] = frozenset()
-    """The factor groups not run (:func:`needed_groups`): their cases are NaN rows, made without a run."""
+    """The factor groups not run (no needed explanation reads them): their cases are NaN rows, made
+    without a run."""
 
     @property
     def seed(self) -> int:
-        return self.ctx.config.seed
+        return self.ctx.seed
 
     def on_plan(self, p: Plan) -> _Runs:
-        """These runs on another look's plan ``p`` (a frozen group: :func:`frozen_groups`)."""
+        """These runs on another look's plan ``p`` (a frozen group's)."""
         return dataclasses.replace(self, p=p, dphis=np.asarray(p.dphi_rad, float))
 
     def on_axis(self, values: np.ndarray, dphis: np.ndarray) -> np.ndarray:
@@ -626,14 +592,13 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     :meth:`StudyContext.together`), as one dataset; the pair cases along ``case`` in the order of
     :func:`~._sensitivity_design.pair_cases` (checked)."""
     dphis = np.asarray(p.dphi_rad, float)
-    skipped = frozenset(SKIPPABLE_GROUPS) - needed_groups(ctx.needs_explanation)
+    group_plans = {g: ctx.plan_for(g, p) for g in SKIPPABLE_GROUPS}  # None: not run
+    skipped = frozenset(g for g, q in group_plans.items() if q is None)
     r = _Runs(ctx, p, dphis, float(ctx.lone_swimmer()["amplitude_m"]), skipped)
-    frozen = {g: k for g, k in frozen_groups(ctx.needs_explanation, ctx.decided_explanations).items()
-              if g not in skipped}
-    looks = stages(ctx.config.quick) if frozen else ()
 
     def on(group: str) -> _Runs:
-        return r.on_plan(looks[frozen[group] - 1]) if group in frozen else r
+        q = group_plans[group]
+        return r if q is None or q is p else r.on_plan(q)
 
     xi32, links, conf, groups, swim, imp = (on(g) for g in ("xi32", "links", "confinement", "groups", "swimming",
                                                            "impulse"))
@@ -662,8 +627,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
         attrs={"title": "model sensitivity: claims against the model choices the paper leaves open",
                "channel_width_m": PAIR_CHANNEL_M, "n_dphi": len(dphis), "steady_rule": C.STEADY_RULE,
                "slope_method": C.SLOPE_METHOD,
-               "skipped_factor_groups": json.dumps([g for g in SKIPPABLE_GROUPS if g in skipped]),
-               "frozen_factor_groups": json.dumps({g: frozen[g] for g in SKIPPABLE_GROUPS if g in frozen})},
+               "skipped_factor_groups": json.dumps([g for g in SKIPPABLE_GROUPS if g in skipped])},
     )
 
 
@@ -961,8 +925,8 @@ def summary(ds: xr.Dataset) -> dict:
     """Pure: per case the verdict by its claim's criterion and the key numbers (the ``_summary_*`` steps,
     every per-case entry with its ``case_id``); the table (``no result``, :data:`NOT_RUN`, for the rows
     of a skipped factor group); ``skipped_factor_groups`` and the ids of their cases, ``skipped_cases``
-    (whose explanations are then not judged: :data:`~._explanations._protocol.NOT_RUN`);
-    ``frozen_factor_groups`` (group -> the look whose plan it kept: :func:`frozen_groups`)."""
+    (whose explanations are then not judged: :data:`~._explanations._protocol.NOT_RUN`).  Which look's
+    plan each group kept is the study JSON's (``stages``: ``frozen_parts``)."""
     skipped = skipped_groups(ds)
     cases, table = _summary_cases(ds, skipped)
     link_sets, link_rows = _summary_link_sets(cases)
@@ -978,7 +942,6 @@ def summary(ds: xr.Dataset) -> dict:
             "confinement": conf, "impulse": pot,
             "groups": groups,
             "skipped_factor_groups": [g for g in SKIPPABLE_GROUPS if g in skipped],
-            "frozen_factor_groups": json.loads(ds.attrs.get("frozen_factor_groups") or "{}"),
             "skipped_cases": skipped_cases,
             "swim_drag_pair_speed_m_s": _finite_mean(ds["swim_drag_pair_speed"].values),
             "impulse_Ns": ds["impulse"].values,
@@ -1003,7 +966,7 @@ def stages(quick: bool) -> tuple[Plan, ...]:
     Quick mode's 5 and 9 (the xi = 1 cases' 5 and 5), not one look of 5: a slope on
     5 mirrored dphi rests on 2 mirror pairs (:func:`undulate.stats.mirrored_line_fit`, 1 degree of
     freedom), too few to show an explanation's "follows the line"; the second look runs only the factor
-    groups of the explanations still undecided (:func:`frozen_groups`)."""
+    groups of the explanations still undecided (the others' parts keep the first look's plan)."""
     from ._sensitivity_design import thinned_plan
     from ._stages import strides
 

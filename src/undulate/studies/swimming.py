@@ -99,7 +99,7 @@ def dataset(ctx: StudyContext, p: SwimmingPlan):
     from ..sweep import Grid
 
     fn = functools.partial(pair_point, duration_s=p.duration_s, stop=PAIR_STOP)
-    grid = Grid(axes={"ground": list(MODES), "dphi_rad": p.dphi}, seed=ctx.config.seed)
+    grid = Grid(axes={"ground": list(MODES), "dphi_rad": p.dphi}, seed=ctx.seed)
     lone, lone_v, g = ctx.together(lambda: ctx.lone_swimmer(ground="resistive"),
                                    lambda: ctx.lone_swimmer(ground="viscous"),
                                    lambda: ctx.sweep("pairs", fn, grid).isel(replicate=0))

@@ -334,7 +334,7 @@ def pair_summary(ds) -> dict[str, Any]:
 
 def pair_dataset(ctx: StudyContext, p: dict[str, Any]):
     ds = _label(ctx.shared_sweep("closed-loop-pairs", *closed_loop_pairs_sweep(p["dphi0_rad"], p["duration_s"],
-                                                                               ctx.config.seed)))
+                                                                               ctx.seed)))
     ds["dphi0_rad"].attrs.update(units="rad", long_name="initial phase difference phi_1 - phi_0")
     ds.attrs.update(title="closed-loop pairs: phase locking", channel_width_m=PAIR_CHANNEL_M,
                     duration_s=p["duration_s"], phase_oscillator_coupling=PAIR_COUPLING)
@@ -345,12 +345,12 @@ def group_dataset(ctx: StudyContext, p: dict[str, Any]):
     from ..sweep import Grid
 
     grid = Grid(axes={"controller": list(CONTROLLERS), "n_swimmers": p["n_swimmers"], "spacing_m": p["spacing_m"]},
-                replicates=p["replicates"], seed=ctx.config.seed)
+                replicates=p["replicates"], seed=ctx.seed)
     runs, free, probe = ctx.together(  # independent: side by side where the study runs wide
         lambda: ctx.sweep("runs", functools.partial(group_runs, duration_s=p["duration_s"], stop=GROUP_SYNC_STOP),
                           grid),
-        lambda: ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.config.seed)),
-        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.config.seed)))
+        lambda: ctx.sweep("free", free_frequency, Grid(axes={"controller": list(CONTROLLERS)}, seed=ctx.seed)),
+        lambda: ctx.shared_sweep("h-probe", *h_probe_sweep(p["dphi_rad"], ctx.seed)))
     ds = _label(runs)
     ds["free_frequency"] = ("controller", free["frequency"].isel(replicate=0).values,
                             {"units": "Hz", "long_name": "gait frequency of a lone swimmer, last TAIL_S"})

@@ -25,7 +25,7 @@ without it) reads as None, and the judge reports the cause as not shown
 
 A declared case among the summary's ``skipped_cases`` (its factor group was not
 run because the claim it explains does not fail:
-:func:`undulate.studies.sensitivity.needed_groups`) is no evidence either way:
+the staging engine hands the study None for a part no needed explanation reads) is no evidence either way:
 the check then returns ``(None, NOT_RUN, None)`` without calling ``judge``.
 
 **One change.**  An explanation a referee accepts is one change to the model,
@@ -50,7 +50,7 @@ from typing import Any
 from ... import stats
 from ...errors import UndulateError
 from .._registry import Explanation
-from .._sensitivity_design import CaseId, CaseSet, UnknownCaseError, known_cases
+from .._sensitivity_design import FACTOR_GROUPS, CaseId, CaseSet, UnknownCaseError, known_cases
 
 __all__ = ["CaseExplanation", "CaseFinding", "CaseResults", "MultipleChangesError", "NOT_RUN", "Shown",
            "results_by_case", "all_of", "negate", "number", "state_word"]
@@ -154,7 +154,8 @@ class CaseExplanation(Explanation):
     study makes in quick or full mode (:func:`~undulate.studies._sensitivity_design.planned_cases`).
     ``changes``: the model changes against the default that the cause rests on, each in words (e.g.
     ``("N = 3 -> 8 links",)``): exactly one, or :class:`MultipleChangesError` (a :class:`CaseFinding`
-    may name several)."""
+    may name several).  Its ``reads`` are made here too: the factor groups its cases come from
+    (:data:`~undulate.studies._sensitivity_design.FACTOR_GROUPS`)."""
 
     check: Callable[[dict[str, Any]], Shown] | None = field(default=None, repr=False, compare=False)
     cases: tuple[CaseId, ...] = ()
@@ -181,6 +182,9 @@ class CaseExplanation(Explanation):
                 f"({'; '.join(self.changes) or 'none'}): an explanation is one change that recovers the claim "
                 "under its unchanged criterion; record several together as a CaseFinding (the claim stays fails)")
         object.__setattr__(self, "check", functools.partial(_check, self.judge, tuple(self.cases)))
+        # the plan parts its cases come from (the sensitivity study's factor groups): run while it is needed
+        object.__setattr__(self, "reads", tuple(dict.fromkeys(FACTOR_GROUPS[c.case_set] for c in self.cases
+                                                              if c.case_set in FACTOR_GROUPS)))
 
 
 @dataclass(frozen=True)
