@@ -12,6 +12,10 @@ the default.  The steady offset ``dx_steady / lambda`` at each c is compared wit
 c: the difference (wrapped to [-1/2, 1/2) lambda, the branches' period) should vanish if the
 compatible state is set by geometry (contact), not by drag.  Its claims count with the paper's
 (``Study.reference`` "paper", the default) in a reproduction run from a script that imports it.
+
+It is its five parts and nothing else: ``plan``, ``dataset``, ``summary``, ``CLAIMS``, ``figure``.  The
+registry stages it (the looks grow the plan's ``staged()`` grid while a claim is undecided) and decides
+where and how its runs are executed.
 """
 
 from __future__ import annotations
@@ -24,11 +28,10 @@ import xarray as xr
 
 from undulate import stats
 from undulate.sweep import Grid
-from undulate.studies import _analysis as C
+from undulate.studies import Claim, Study, StudyContext, Verdict, register, run_study, staged
+from undulate.studies import _analysis as analysis
 from undulate.studies._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
-from undulate.studies import Claim, Study, StudyContext, Verdict, register, run_study
 from undulate.studies._runners import BODY_LENGTH_M, PAIR_STOP, group_point
-from undulate.studies._stages import strides, thinned
 
 QUICK_DURATION_S = 12.0
 """Quick runs: 6 gait periods (the steady rule's window is 3), s."""
@@ -38,9 +41,10 @@ FULL_DURATION_S = 30.0
 
 @dataclass(frozen=True)
 class Plan:
-    """``dphi_rad`` (rad) at every ``drag_N_s_per_m`` (N s/m per link) for ``duration_s`` (s)."""
+    """``dphi_rad`` (rad) at every ``drag_N_s_per_m`` (N s/m per link) for ``duration_s`` (s); the looks
+    grow ``dphi_rad`` (quick 3, 5; full 5, 9, 17)."""
 
-    dphi_rad: tuple[float, ...]
+    dphi_rad: tuple[float, ...] = staged()
     drag_N_s_per_m: tuple[float, ...]
     duration_s: float
 
@@ -51,19 +55,13 @@ def plan(quick: bool) -> Plan:
     its first look's 2 would give the RMS no interval."""
     if quick:
         return Plan(tuple(float(p) for p in np.linspace(0.0, np.pi / 2, 5)), (1.0, 4.0), QUICK_DURATION_S)
-    return Plan(tuple(float(p) for p in C.phase_grid(17)), (0.5, 1.0, 2.0, 4.0, 8.0), FULL_DURATION_S)
-
-
-def stages(quick: bool) -> tuple[Plan, ...]:
-    """The plan in nested looks: the dphi grid thinned by index (:mod:`._stages`)."""
-    p = plan(quick)
-    return tuple(Plan(d, p.drag_N_s_per_m, p.duration_s) for d in thinned(p.dphi_rad, strides(quick)))
+    return Plan(tuple(float(p) for p in analysis.phase_grid(17)), (0.5, 1.0, 2.0, 4.0, 8.0), FULL_DURATION_S)
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Run (or resume) the pair sweep over (drag, dphi); steady offsets per run (dims drag, dphi)."""
     grid = Grid(axes={"drag_N_s_per_m": list(p.drag_N_s_per_m), "dphi_rad": list(p.dphi_rad)},
-                seed=ctx.config.seed)
+                seed=ctx.seed)
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP,
                            duration_s=p.duration_s)
     sim = ctx.sweep("sim", fn, grid)
@@ -72,7 +70,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     dphi = sim["dphi_rad"].values.astype(float)
     failed = sim["run_failed"].isel(replicate=0).values.astype(bool)
     dims = ("drag", "dphi")
-    variables, _ = C.collect_pairs(
+    variables, _ = analysis.collect_pairs(
         lambda idx: sim.isel(drag_N_s_per_m=idx[0], dphi_rad=idx[1], replicate=0),
         failed, dphi[None, :], BODY_LENGTH_M, amp, dims)
     return xr.Dataset(
@@ -82,7 +80,7 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
             "dphi": ("dphi", dphi, {"units": "rad", "long_name": "phase difference phi_1 - phi_0"}),
         },
         attrs={"title": "pair steady offset against the drag coefficient", "channel_width_m": PAIR_CHANNEL_M,
-               "duration_s": p.duration_s, "waves_per_body": 1.0, "steady_rule": C.STEADY_RULE},
+               "duration_s": p.duration_s, "waves_per_body": 1.0, "steady_rule": analysis.STEADY_RULE},
     )
 
 
@@ -97,13 +95,13 @@ def summary(ds: xr.Dataset) -> dict:
     dphi = ds["dphi"].values
     per_drag = {}
     for i, c in enumerate(ds["drag"].values):
-        fit = C.compatibility_fit(y[i], dphi, unwrap=True)
+        fit = analysis.compatibility_fit(y[i], dphi, unwrap=True)
         per_drag[f"{c:g}"] = {"drag_N_s_per_m": float(c), "slope": fit.slope.to_dict(),
                               "n_steady": int(np.nansum(ds["steady"].values[i]))}
     diff = _wrapped(y[1:] - y[:1])
     # a design point is a drag and a |dphi|: the pair at -dphi is the one at +dphi mirrored, so the two are
     # resampled together (a cluster bootstrap), not counted as two independent points
-    point = [f"{i} {k!r}" for i in range(diff.shape[0]) for k in C.abs_dphi_keys(dphi)]  # diff.ravel()'s order
+    point = [f"{i} {k!r}" for i in range(diff.shape[0]) for k in analysis.abs_dphi_keys(dphi)]  # diff.ravel()'s order
     return {
         "per_drag": per_drag,
         "rms_shift_over_lambda": stats.rms(diff.ravel(), clusters=point).to_dict(),
@@ -160,7 +158,7 @@ def figure(ds: xr.Dataset):
 
 
 register(Study(
-    name="drag", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    name="drag", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
     description="Pairs of 3-link swimmers (xi = 1) at several linear drag coefficients: steady dx/lambda vs dphi "
                 "per drag, and its shift with drag."))
 

@@ -526,7 +526,9 @@ def test_a_pairs_xi_whose_claims_are_decided_keeps_its_looks_runs(decided, froze
 
     from undulate.studies import pairs
 
-    looks = pairs.stages(False)
+    from undulate.studies._registry import describe, stage_plans
+
+    looks = stage_plans(describe("pairs"), False)
     names = {"1": pairs.CLAIMS[0].claim, "0.75": pairs.CLAIMS[1].claim, "standing": pairs.CLAIMS[3].claim}
     asked = []
 

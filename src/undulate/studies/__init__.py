@@ -7,9 +7,10 @@
 PosixPath('results/pairs.nc')
 
 A new study: copy the shape of ``pairs.py`` (``plan``, ``dataset``,
-``summary``, ``CLAIMS``, ``figure``, then ``register(Study(...))``) in a new
+``summary``, ``CLAIMS``, ``figure``, then ``register(Study(...))``; docs/guide/studies.md) in a new
 module here; the registry imports every public module of this package, so there
-is no list to edit (README: "Add a study").  ``Study.order`` places it among the
+is no list to edit (README: "Add a study").  The registry stages it: a study never sees looks,
+devices or workers.  ``Study.order`` places it among the
 others (default: its paper figure number).
 """
 
@@ -19,7 +20,6 @@ from ._registry import (
     Study,
     StudyConfig,
     StudyContext,
-    StudyInfo,
     SupersededCriterion,
     Verdict,
     describe,
@@ -29,6 +29,7 @@ from ._registry import (
     register,
     run_ahead,
     run_study,
+    staged,
 )
 
 __all__ = [
@@ -37,7 +38,6 @@ __all__ = [
     "Study",
     "StudyConfig",
     "StudyContext",
-    "StudyInfo",
     "SupersededCriterion",
     "Verdict",
     "describe",
@@ -47,4 +47,5 @@ __all__ = [
     "register",
     "run_ahead",
     "run_study",
+    "staged",
 ]

@@ -83,6 +83,7 @@ __all__ = [
     "VERDICTS",
     "Explanation",
     "explain",
+    "staged",
 ]
 
 HOLDS, FAILS, UNDECIDED, NO_RESULT = "holds", "fails", "undecided", "no result"
@@ -352,7 +353,8 @@ class Study:
     """``stages(quick)``: the mode's plan in stages, each containing the one before (its grids'
     points a superset, so a stage reuses every run made before it), the last equal to
     ``plan(quick)``.  The registry runs a stage only while one of the study's claims or
-    explanations is undecided (:func:`run_study`).  None: one stage, ``plan(quick)``."""
+    explanations is undecided (:func:`run_study`).  None (the default, and all a new study needs): the
+    looks of its plan's :func:`staged` fields (:func:`plan_looks`), or one stage, ``plan(quick)``."""
     order: float | None = None
     """Where the study comes in ``undulate studies``, the reproduction and the report
     (ascending; ties keep the order of registration: modules by name, then the order
@@ -367,8 +369,6 @@ class Study:
         tags.append("simulation" if self.needs_simulation else "theory only")
         return f"{self.description} [{'; '.join(tags)}]"
 
-
-StudyInfo = Study  # the name the CLI and older code use
 
 _REGISTRY: dict[str, Study] = {}
 _REGISTERED: dict[str, int] = {}  # name -> its place among its module's register calls
@@ -800,9 +800,43 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
             "wall_s": time.perf_counter() - t0}
 
 
+STAGED = "undulate.staged"
+"""The field metadata key of a plan's staged grid (:func:`staged`)."""
+
+
+def staged(refine: int = 1) -> Any:
+    """A field of a plan (a frozen dataclass) whose grid the study's looks grow: each look runs the grid
+    thinned by index by the mode's strides (:data:`._stages.QUICK_STRIDES`, :data:`._stages.FULL_STRIDES`;
+    every look's values a subset of the next's, so runs are reused), the last look all of it.
+    ``refine`` > 1: a grid refined that many times from a coarser one (:func:`._analysis.refined`): its
+    looks are the coarse grid's looks (strides times ``refine``), then the whole refined grid, one look
+    more.  Every staged field of a plan has the same number of looks; a plan without one runs in one look."""
+    if isinstance(refine, bool) or not isinstance(refine, int) or refine < 1:
+        raise ParameterError("refine", "an integer >= 1", refine)
+    return field(metadata={STAGED: refine})
+
+
+def plan_looks(plan: Any, quick: bool) -> tuple[Any, ...]:
+    """The looks of ``plan`` (:func:`staged`): ``plan`` with each staged field thinned, one plan a look,
+    the last ``plan`` itself; ``(plan,)`` for a plan with no staged field."""
+    from ._stages import strides, thinned
+
+    fields = ([(f.name, f.metadata[STAGED]) for f in dataclasses.fields(plan) if STAGED in f.metadata]
+              if dataclasses.is_dataclass(plan) and not isinstance(plan, type) else [])
+    if not fields:
+        return (plan,)
+    steps = {name: tuple(r * s for s in strides(quick)) + ((1,) if r > 1 else ()) for name, r in fields}
+    if len({len(v) for v in steps.values()}) != 1:
+        raise UndulateError(f"the staged fields of {type(plan).__name__} have different numbers of looks: {steps}")
+    grids = {name: thinned(getattr(plan, name), steps[name]) for name, _ in fields}
+    n = len(next(iter(steps.values())))
+    return tuple(dataclasses.replace(plan, **{name: g[k] for name, g in grids.items()}) for k in range(n))
+
+
 def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
-    """The plans of ``info``'s stages in this mode (one, ``plan(quick)``, unless it declares stages)."""
-    plans = tuple(info.stages(quick)) if info.stages is not None else (info.plan(quick),)
+    """The plans of ``info``'s looks in this mode: its declared :attr:`Study.stages`, else those of its
+    plan's staged fields (:func:`plan_looks`; one, ``plan(quick)``, if none)."""
+    plans = tuple(info.stages(quick)) if info.stages is not None else plan_looks(info.plan(quick), quick)
     if not plans:
         raise UndulateError(f"study {info.name!r} declares no stages")
     return plans

@@ -37,43 +37,38 @@ from .. import stats
 from ..sweep import Grid
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as C
-from ._registry import Claim, Study, StudyContext, Verdict, register
-from ._stages import strides, thinned
+from ._registry import Claim, Study, StudyContext, Verdict, register, staged
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, PERIOD_S, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
 FULL_PHASES = 49  # step pi/24; contains the paper's nine values
-FULL_REFINE = 4
-"""Full mode's cap: every step of the :data:`FULL_PHASES` grid cut into this many (193 dphi, step pi/96),
-its fourth look (:func:`stages`).  Sized by the runs the xi = 3/4 claim's RMS interval
-needed at the third look once +dphi and -dphi were resampled together (~102 dphi at 97 %, more at a
-fourth look's 97.5 %): the next nested grid above, 193 (``explorations/pairs_cap.py``)."""
+REFINE = 4
+"""Each mode's cap: every step of its grid (quick: the paper's nine dphi; full: the :data:`FULL_PHASES`
+grid) cut into this many, one look after the grid's own (quick 33 dphi, step pi/16, its third look; full
+193, step pi/96, its fourth).  Quick: sized by the runs the quick claims undecided on the nine needed at
+the second look (96 %): xi = 3/4 (slope 0.955 [0.771, 1.14], RMS residual 0.065 [0.020, 0.118] lambda)
+and the standing wave (std of dx at xi = 0 [0.002, 0.318] m against 3 x xi = 1's RMS residual [0.029,
+0.079] m) each ~21 dphi; the next nested grid above, 33.  Full: sized by the runs the xi = 3/4 claim's
+RMS interval needed at the third look once +dphi and -dphi were resampled together (~102 dphi at 97 %,
+more at a fourth look's 97.5 %): the next nested grid above, 193 (``explorations/pairs_cap.py``).  A pair
+run costs ~0.1 physics core-s."""
 
 
 @dataclass(frozen=True)
 class Plan:
-    """The grid: every ``dphi_rad`` (rad) at every ``xi`` (waves per body)."""
+    """The grid: every ``dphi_rad`` (rad) at every ``xi`` (waves per body).  The looks grow ``dphi_rad``
+    (:func:`~._registry.staged`): quick 5, 9, 33 dphi (every 8th, 4th, all); full 13, 25, 49, 193 (every
+    16th, 8th, 4th, all)."""
 
-    dphi_rad: tuple[float, ...]
+    dphi_rad: tuple[float, ...] = staged(refine=REFINE)
     xi: tuple[float, ...] = XI_VALUES
 
 
-QUICK_REFINE = 4
-"""Quick mode's cap: every step of the paper's nine dphi cut into this many (33 dphi, step pi/16), its
-third look (:func:`stages`).  Sized by the runs the quick claims undecided on the nine needed at
-the second look (96 %): xi = 3/4 (slope 0.955 [0.771, 1.14], RMS residual 0.065 [0.020,
-0.118] lambda) and the standing wave (std of dx at xi = 0 [0.002, 0.318] m against 3 x xi = 1's RMS
-residual [0.029, 0.079] m) each ~21 dphi; the next nested grid above, 33.  A pair run costs ~0.1
-physics core-s."""
-
-
 def plan(quick: bool) -> Plan:
-    """Quick: 33 over [-pi, pi] (step pi/16; the paper's nine bitwise every fourth:
-    :data:`QUICK_REFINE`); full: 193 (step pi/96, containing the nine; the 49 of step pi/24 bitwise every
-    fourth: :data:`FULL_REFINE`)."""
-    dphis = (C.refined(C.paper_phases(), QUICK_REFINE) if quick
-             else C.refined(C.phase_grid(FULL_PHASES), FULL_REFINE))
-    return Plan(tuple(float(p) for p in dphis))
+    """Quick: 33 over [-pi, pi] (step pi/16; the paper's nine bitwise every fourth: :data:`REFINE`); full:
+    193 (step pi/96, containing the nine; the 49 of step pi/24 bitwise every fourth)."""
+    grid = C.paper_phases() if quick else C.phase_grid(FULL_PHASES)
+    return Plan(tuple(float(p) for p in C.refined(grid, REFINE)))
 
 
 def part(xi: float) -> str:
@@ -533,17 +528,8 @@ def figure(ds: xr.Dataset):
     return plot_pairs(ds)
 
 
-def stages(quick: bool) -> tuple[Plan, ...]:
-    """The plan in looks (:mod:`._stages`): the mode's looks on its grid and one more on the cap refined
-    from it: quick 5, 9, 33 dphi (every 8th, 4th, all: :data:`QUICK_REFINE`); full 13, 25, 49, 193 (every
-    16th, 8th, 4th, all: :data:`FULL_REFINE`)."""
-    refine = QUICK_REFINE if quick else FULL_REFINE
-    steps = tuple(refine * s for s in strides(quick)) + (1,)
-    return tuple(Plan(d) for d in thinned(plan(quick).dphi_rad, steps))
-
-
 register(Study(
-    name="pairs", paper_figure="3", plan=plan, stages=stages, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
+    name="pairs", paper_figure="3", plan=plan, dataset=dataset, summary=summary, claims=CLAIMS, figure=figure,
     description="Pairs of 3-link swimmers (d = 0.13 m, 30 s) at the paper's nine phase differences (quick: up "
                 "to 33, full: up to 193) "
                 "and xi in {0, 3/4, 1, 3/2}: dx(t), steady dx vs dphi with the compatibility lines, "
