@@ -143,6 +143,7 @@ def test_every_setting_has_a_field_and_one_variable():
     assert [s.name for s in SETTINGS] == fields
     assert len({s.env for s in SETTINGS}) == len(SETTINGS)
     assert all(s.env.startswith("UNDULATE_") for s in SETTINGS)
+    assert all(f"``{s.env}``" in execution.__doc__ for s in SETTINGS)  # the one place that reads them names them
 
 
 def test_a_bad_variable_is_refused_naming_it():

@@ -401,6 +401,7 @@ def test_a_warp_sweep_on_dask_steps_on_warp_whatever_the_workers_were_started_wi
     distributed = pytest.importorskip("distributed")
     from undulate.studies._runners import group_point
     from undulate.sweep import Grid, run_sweep
+    from undulate.execution import Execution
     from undulate.sweep._worker import Chunk, run_chunk
 
     fn = functools.partial(group_point, duration_s=0.5)
@@ -421,7 +422,8 @@ def test_a_warp_sweep_on_dask_steps_on_warp_whatever_the_workers_were_started_wi
     # a task for a device this worker lacks (CUDA, on a machine without): each run recorded as failed, why
     runs_dir = tmp_path / "nocuda"
     runs_dir.mkdir()
-    out = run_chunk(Chunk(fn, str(runs_dir), tuple(grid.runs()), grid.names, backend=("warp", "cuda")))
+    out = run_chunk(Chunk(fn, str(runs_dir), tuple(grid.runs()), grid.names,
+                          execution=Execution(backend="warp", device="cuda")))
     assert [o.status for o in out] == ["failed"] and "ParameterError" in out[0].error
     assert "device" in json.loads(next(runs_dir.glob("*.failed.json")).read_text())["error"]
 

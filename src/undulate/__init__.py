@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from . import _source
 from .errors import DivergenceError, ParameterError, UndulateError
+from .execution import Execution
 from .params import Channel, ContactModel, Gait, Ground, Scene, Servo, SimOptions, SwimmerGeometry
 
 _source.snapshot()  # the code this process runs: a result is never labelled with files edited later
@@ -28,6 +29,7 @@ __all__ = [
     "ContactModel",
     "Scene",
     "SimOptions",
+    "Execution",
     # errors
     "UndulateError",
     "ParameterError",

@@ -10,27 +10,25 @@ pool's, Dask's) receive the settings with each task and step under them (:func:`
 Settings left out come from the environment, which this module alone reads
 (:meth:`Execution.from_environment`).  Every variable it reads:
 
-==========================  ==================================  ==============  ===================================
-Python name                 environment variable                CLI option      meaning
-==========================  ==================================  ==============  ===================================
-``backend``                 ``UNDULATE_BACKEND``                ``--backend``   engine: ``mujoco`` or ``warp``
-``device``                  ``UNDULATE_DEVICE``                 ``--device``    Warp's device: ``cuda`` or ``cpu``
-``workers``                 ``UNDULATE_WORKERS``                ``--workers``   local worker processes
-``scheduler``               ``UNDULATE_SCHEDULER``              ``--scheduler`` Dask scheduler address or file
-``warp_processes``          ``UNDULATE_WARP_PROCESSES``         --              processes a Warp sweep splits over
-``lone_swimmers``           ``UNDULATE_WARP_LONE_SWIMMERS``     --              engine of one-swimmer scenes on Warp
-``cores_up_to``             ``UNDULATE_WARP_CORES_UP_TO``       --              largest Warp batch stepped on cores
-``prefetch``                ``UNDULATE_WARP_PREFETCH``          --              last stage's runs before the first look
-``reduce_on_device``        ``UNDULATE_WARP_REDUCE``            --              open-loop chunks reduced on the device
-``deterministic``           ``UNDULATE_WARP_DETERMINISTIC``     --              MuJoCo Warp's determinism
-``steps_per_graph``         ``UNDULATE_WARP_STEPS_PER_GRAPH``   --              steps in one captured graph
-``compile_workers``         ``UNDULATE_WARP_COMPILE_WORKERS``   --              threads compiling Warp kernels
-``streams``                 ``UNDULATE_WARP_STREAMS``           --              a CUDA stream per Warp model
-``timeline``                ``UNDULATE_WARP_TIMELINE``          --              file of each Warp model's chunks
-``stats_file``              ``UNDULATE_WARP_STATS``             --              file of each Warp model's first step
-==========================  ==================================  ==============  ===================================
+| Python name          | environment variable              | CLI option      |
+|----------------------|-----------------------------------|-----------------|
+| ``backend``          | ``UNDULATE_BACKEND``              | ``--backend``   |
+| ``device``           | ``UNDULATE_DEVICE``               | ``--device``    |
+| ``workers``          | ``UNDULATE_WORKERS``              | ``--workers``   |
+| ``scheduler``        | ``UNDULATE_SCHEDULER``            | ``--scheduler`` |
+| ``warp_processes``   | ``UNDULATE_WARP_PROCESSES``       | -               |
+| ``lone_swimmers``    | ``UNDULATE_WARP_LONE_SWIMMERS``   | -               |
+| ``cores_up_to``      | ``UNDULATE_WARP_CORES_UP_TO``     | -               |
+| ``prefetch``         | ``UNDULATE_WARP_PREFETCH``        | -               |
+| ``reduce_on_device`` | ``UNDULATE_WARP_REDUCE``          | -               |
+| ``deterministic``    | ``UNDULATE_WARP_DETERMINISTIC``   | -               |
+| ``steps_per_graph``  | ``UNDULATE_WARP_STEPS_PER_GRAPH`` | -               |
+| ``compile_workers``  | ``UNDULATE_WARP_COMPILE_WORKERS`` | -               |
+| ``streams``          | ``UNDULATE_WARP_STREAMS``         | -               |
+| ``timeline``         | ``UNDULATE_WARP_TIMELINE``        | -               |
+| ``stats_file``       | ``UNDULATE_WARP_STATS``           | -               |
 
-(:data:`SETTINGS` holds the same table; docs/guide/execution.md explains each.)  Integers are
+(:data:`SETTINGS` holds each one's meaning; docs/guide/execution.md explains them.)  Integers are
 decimal, switches ``1`` or ``0``; an empty variable is unset; a bad value is a
 :class:`~undulate.errors.ParameterError` naming the variable.  None in a field means "by the policy
 below" (most Warp defaults depend on the device).  Process setup that is not a setting also lives
