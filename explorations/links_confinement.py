@@ -20,7 +20,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from undulate.studies import _analysis as C
-from undulate.studies import sensitivity as S
+from undulate.studies import _sensitivity_runs as SR
 from undulate.studies._runners import BODY_LENGTH_M, group_point
 
 BETA_DEG = {3: 45.0, 5: 30.9, 7: 22.7, 9: 17.8}
@@ -30,10 +30,10 @@ A_M = 0.05226  # the free 3-link swimmer's A (the equal-A target)
 
 def one(args):
     n, width, dphi = args
-    point = {"n_links": n, "amplitude_rad": math.radians(BETA_DEG[n]), "timestep_s": S._timestep(n),
+    point = {"n_links": n, "amplitude_rad": math.radians(BETA_DEG[n]), "timestep_s": SR._timestep(n),
              "waves_per_body": 1.0, "dphi_rad": dphi}
     run = group_point(point, 0, n_swimmers=2, channel_width_m=width, duration_s=30.0)
-    dx, res, _ = S._pair_rows(run, dphi, BODY_LENGTH_M, A_M)[C.STEADY_WINDOW]
+    dx, res, _ = SR._pair_rows(run, dphi, BODY_LENGTH_M, A_M)[C.STEADY_WINDOW]
     dy = float(np.mean(np.abs(run["y"].values[-50:, 1] - run["y"].values[-50:, 0])))
     return dx, res, dy
 

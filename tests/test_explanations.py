@@ -14,6 +14,7 @@ from undulate.params import Ground, Servo
 from undulate.report import write_report
 from undulate.studies import describe, names
 from undulate.studies import sensitivity as S
+from undulate.studies import _sensitivity_summary as SS
 from undulate.studies._explanations import groups, impulse, links, swimming, xi32
 from undulate.studies._sensitivity_design import CaseId, CaseSet
 
@@ -112,9 +113,9 @@ def test_xi_three_halves_explanation_needs_n3_failing_and_n8_holding(n3, n8, sho
 def test_central_state_width_and_broadening():
     assert S.central_width([0.0, 0.04, -0.05, 0.9]) == pytest.approx(0.09)  # 0.9: another branch
     assert math.isnan(S.central_width([0.8, -0.9]))
-    assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.1, 0.2]) is True
-    assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.0, 0.2]) is False  # opens only beyond 1.2
-    assert S._broadens([0.9, 1.2, 1.4], [0.0, 0.1, 0.05]) is False  # shrinks
+    assert SS._broadens([0.9, 1.2, 1.4], [0.0, 0.1, 0.2]) is True
+    assert SS._broadens([0.9, 1.2, 1.4], [0.0, 0.0, 0.2]) is False  # opens only beyond 1.2
+    assert SS._broadens([0.9, 1.2, 1.4], [0.0, 0.1, 0.05]) is False  # shrinks
 
 
 def _group_ds(cases):
@@ -155,7 +156,7 @@ def test_groups_explanation_needs_default_failing_and_the_pairs_spacing_meeting_
         spaced_gain, spaced_scatter, shown):
     ds = _group_ds([(2, 0.13, True, 1.0, 0.01, 0.032), (3, 0.19, True, 0.6, 0.02, 0.040),
                     (3, S.spaced_channel_m(3), False, spaced_gain, spaced_scatter, 0.031)])
-    g = S._groups_summary(ds)
+    g = SS._groups_summary(ds)
     assert g["3 in 0.19 m"]["follows_line_more_scatter"] is False
     assert g["3 in 0.19 m"]["fraction_short_of_line"] > 0.5
     three, four = groups.EXPLANATIONS

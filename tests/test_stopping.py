@@ -287,7 +287,7 @@ def test_xi32_eight_link_pairs_stop_as_the_sensitivity_study_reads_them():
     """The sensitivity study's N = 8, xi = 3/2 pairs run up to 60 s under PAIR_STOP and are cut at 30 s for
     the explanation's 30 s case: both cases give the whole 60 s run's answers (cut at 30 s and whole) within
     the steady tolerance, and the stopped run is that run's bitwise prefix."""
-    from undulate.studies.sensitivity import _cut, _pair_rows, _timestep
+    from undulate.studies._sensitivity_runs import _cut, _pair_rows, _timestep
 
     dphi = -math.pi / 2
     point = {"dphi_rad": dphi, "waves_per_body": 1.5, "n_links": 8, "timestep_s": _timestep(8)}

@@ -13,6 +13,7 @@ import xarray as xr
 from undulate import stats
 from undulate.studies import phase_interaction as P
 from undulate.studies import sensitivity as S
+from undulate.studies import _sensitivity_summary as SS
 from undulate.studies import synchronization as Y
 from undulate.studies._explanations import impulse, links, swimming, xi32
 from undulate.studies._explanations._protocol import all_of, negate
@@ -157,11 +158,11 @@ def test_the_sensitivity_line_criterion_is_three_valued():
 def test_the_impulse_linearity_criterion_is_three_valued():
     x = np.abs(np.linspace(-np.pi, np.pi, 9))
     rng = np.random.default_rng(0)
-    _, ok, verdict = S._linear(x, 0.3 * x + 0.001 * rng.standard_normal(x.size))
+    _, ok, verdict = SS._linear(x, 0.3 * x + 0.001 * rng.standard_normal(x.size))
     assert (ok, verdict) == (True, "holds")
-    _, ok, verdict = S._linear(x, rng.standard_normal(x.size))
+    _, ok, verdict = SS._linear(x, rng.standard_normal(x.size))
     assert ok is not True and verdict in ("fails", "undecided")
-    _, ok, verdict = S._linear(x[:2], x[:2])
+    _, ok, verdict = SS._linear(x[:2], x[:2])
     assert (ok, verdict) == (None, "no result")
 
 

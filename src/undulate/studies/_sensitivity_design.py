@@ -24,7 +24,7 @@ from . import _analysis as C
 from ._criteria import PAIR_CHANNEL_M
 from ._gaits import BETA_DEG  # noqa: F401 - the 3-link joint amplitude, re-exported
 
-__all__ = ["FACTORS", "FACTOR_GROUPS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_cases", "pair_cases", "plan",
+__all__ = ["FACTORS", "FACTOR_GROUPS", "SKIPPABLE_GROUPS", "CaseId", "CaseSet", "Plan", "UnknownCaseError", "known_cases", "pair_cases", "plan",
            "planned_cases", "spaced_channel_m", "xi32_durations"]
 
 PAPER_RANGE_HIGH = 1.2
@@ -112,6 +112,9 @@ FACTOR_GROUPS: dict[CaseSet, str] = {
 cases of each case set: ``xi32``, ``links`` (the equal-A and the guided runs), ``confinement``, ``groups``,
 ``swimming``, ``impulse``.  An explanation reads the groups of its cases (its ``reads``); the xi = 1 cases
 feed no explanation, only the table: they always run."""
+
+SKIPPABLE_GROUPS: tuple[str, ...] = tuple(dict.fromkeys(FACTOR_GROUPS.values()))
+"""The factor groups that run only for a needed explanation, in the order the dataset makes them."""
 
 
 Level = int | float | str
