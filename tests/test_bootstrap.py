@@ -16,6 +16,7 @@ def test_vectorized_bootstrap_equals_one_call_per_resample():
     from scipy import stats as st
 
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     rng = np.random.default_rng(5)
     for n in (4, 9, 30, 120):
@@ -24,9 +25,9 @@ def test_vectorized_bootstrap_equals_one_call_per_resample():
         y[: max(1, n // 10)] = y[0]
         pairs = [
             (lambda a, b: float(np.corrcoef(a, b)[0, 1] ** 2) if np.ptp(a) and np.ptp(b) else np.nan,
-             lambda a, b, axis=-1: stats._pearson_rows(a, b, axis) ** 2, (x, y)),
+             lambda a, b, axis=-1: _fits._pearson_rows(a, b, axis) ** 2, (x, y)),
             (lambda a, b: float(st.spearmanr(a, b).statistic) if np.ptp(a) and np.ptp(b) else np.nan,
-             lambda a, b, axis=-1: stats._pearson_rows(st.rankdata(a, axis=axis), st.rankdata(b, axis=axis), axis),
+             lambda a, b, axis=-1: _fits._pearson_rows(st.rankdata(a, axis=axis), st.rankdata(b, axis=axis), axis),
              (x, y)),
             (lambda a: float(np.sqrt(np.mean(a * a))), lambda a, axis=-1: np.sqrt(np.mean(a * a, axis=axis)), (y,)),
             (lambda a: float(np.std(a)), lambda a, axis=-1: np.std(a, axis=axis), (y,)),
@@ -43,6 +44,7 @@ def _scipy_bca(rows, *samples, seed):
     from scipy import stats as st
 
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -57,6 +59,7 @@ def test_bca_interval_is_scipys_where_every_resample_is_defined():
     for one and two paired samples,
     vectorized or not, and at another level; the percentile one is the distribution's percentiles."""
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     rng = np.random.default_rng(3)
     for n in (5, 12, 40):
@@ -64,7 +67,7 @@ def test_bca_interval_is_scipys_where_every_resample_is_defined():
         y = 0.8 * x + 0.6 * rng.normal(size=n)
         z = rng.lognormal(size=n)
         cases = [
-            (lambda a, b, axis=-1: stats._pearson_rows(a, b, axis) ** 2,
+            (lambda a, b, axis=-1: _fits._pearson_rows(a, b, axis) ** 2,
              lambda a, b: float(np.corrcoef(a, b)[0, 1] ** 2), (x, y)),
             (lambda a, axis=-1: np.sqrt(np.mean(a * a, axis=axis)), lambda a: float(np.sqrt(np.mean(a * a))), (z,)),
             (lambda a, axis=-1: np.mean(a, axis=axis), lambda a: float(np.mean(a)), (z,)),
@@ -89,12 +92,13 @@ def test_bca_interval_leaves_undefined_resamples_out():
     interval is then NaN; the package's leaves those resamples out (and says NaN only when over half
     are undefined or the sample's own statistic is)."""
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     x = np.array([0.0, 1.0, 2.0, 3.0, 4.0])
     y = np.array([0.1, 0.9, 2.3, 2.8, 4.2])
 
     def r2(a, b, axis=-1):
-        return stats._pearson_rows(a, b, axis) ** 2
+        return _fits._pearson_rows(a, b, axis) ** 2
 
     assert np.isnan(_scipy_bca(r2, x, y, seed=11)[1])
     se, lo, hi = stats.bootstrap(r2, x, y, vectorized=True)
@@ -108,6 +112,7 @@ def test_bca_interval_leaves_undefined_resamples_out():
 
 def test_bootstrap_refuses_an_unknown_method():
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     with pytest.raises(ValueError, match="invalid method: must be one of BCa, percentile"):
         stats.bootstrap(np.mean, np.arange(5.0), method="basic")
@@ -120,6 +125,7 @@ def test_rms_and_std_are_the_expanded_bca_and_clusters_resample_design_points_to
     values are one design point seen mirrored, the interval is that of the design points (each
     resampled whole), wider than the one that counts every value apart, and the value is unchanged."""
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     rng = np.random.default_rng(8)
     x = rng.normal(0.3, 1.0, 15)
@@ -154,6 +160,7 @@ def test_expanded_levels_are_hesterbergs():
     from scipy import stats as st
 
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     assert stats.expanded_z(0.95, 9) == pytest.approx(np.sqrt(9 / 8) * st.t.ppf(0.975, 8))
     assert stats.expanded_z(0.95, 5) == pytest.approx(3.1042, abs=1e-4)
@@ -174,8 +181,8 @@ def test_expanded_levels_are_hesterbergs():
     assert lo < lo0 < hi0 < hi
     dist = np.linspace(0.0, 1.0, 101)
     jack = np.array([0.0, 0.0, 0.0, 0.0, 3.0])  # a skewed jackknife: acceleration a ~ -0.11
-    assert stats._bca_levels(dist, 0.5, jack, 30.0) == (0.0, pytest.approx(1.0, abs=1e-9))
-    assert stats._bca_levels(dist, 0.5, -jack, 30.0) == (pytest.approx(0.0, abs=1e-9), 1.0)
+    assert _bootstrap._bca_levels(dist, 0.5, jack, 30.0) == (0.0, pytest.approx(1.0, abs=1e-9))
+    assert _bootstrap._bca_levels(dist, 0.5, -jack, 30.0) == (pytest.approx(0.0, abs=1e-9), 1.0)
 
 
 @pytest.mark.parametrize("n, level, has_interval", [(3, 0.95, False), (4, 0.95, False), (5, 0.95, True),
@@ -185,6 +192,7 @@ def test_a_rank_correlation_has_an_interval_only_where_a_ranking_could_decide(n,
     no data could exclude rho = 0, and every resample of a monotone sample gives rho = -1; so no
     interval there (the value and its bootstrap spread only), the bootstrap's interval from that n on."""
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     x = np.arange(float(n))
     with stats.at_level(level):
@@ -203,6 +211,7 @@ def test_the_potential_claim_says_why_a_rank_correlation_has_no_interval():
     """Quick mode's 3 channel widths: the text gives each rho without the bootstrap's spread (-1.00 +- 0.00
     read as a certain result) and says from how many widths an interval exists."""
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
     from undulate.studies import potential
 
     d = np.array([0.6, 0.9, 1.2])
@@ -223,6 +232,7 @@ def test_ties_in_x_count_as_fewer_orderings():
     spreads of one draw (4! = 24 orderings) give no 99 % interval; four of two draws (8! / 2!^4 = 2520)
     do, and a falling sample's holds."""
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
 
     phi = np.repeat([0.0, 1.5, 3.1, 6.2], 2)
     thr = np.array([5.1, 5.0, 4.2, 4.4, 3.0, 3.3, 2.1, 2.0])
@@ -251,6 +261,7 @@ def test_the_fits_refuse_what_they_cannot_fit_naming_the_argument(call, message)
     one ParameterError naming the argument (numpy's broadcast error, a bare ValueError or NumPy's
     SeedSequence TypeError came before, and a confidence of 2 gave levels above 1)."""
     from undulate import stats
+    from undulate.stats import _bootstrap, _fits
     from undulate.errors import ParameterError
 
     with pytest.raises(ParameterError) as err:
