@@ -277,7 +277,7 @@ def _links_set(claim, values, intervals):
     return {"label": S.LINK_SETS[claim], "n_links": [3, 5, 7, 9], "amplitude_m": [0.0522] * 4,
             "wavelength_over_L": [0.93] * 4,
             "rms_residual_over_lambda": [E(v, lo, hi).to_dict() for v, (lo, hi) in zip(values, intervals)],
-            "falls": S.C.falls_with_links([E(v, lo, hi) for v, (lo, hi) in zip(values, intervals)])}
+            "falls": S.analysis.falls_with_links([E(v, lo, hi) for v, (lo, hi) in zip(values, intervals)])}
 
 
 FLAT = ([0.03, 0.035, 0.03, 0.035], [(0.02, 0.04)] * 4)  # overlapping intervals: the trend is undecided
@@ -328,7 +328,7 @@ def test_links_contrast_is_a_log_ratio_test_at_the_looks_level():
 
 
 def test_the_link_number_criterion_is_judged_on_the_intervals():
-    f = S.C.falls_with_links
+    f = S.analysis.falls_with_links
     assert f([E(*v) for v in ((0.009, 0.007, 0.011), (0.003, 0.002, 0.004), (0.0007, 0.0004, 0.0009),
                               (0.001, 0.0008, 0.0012))]) is True  # the last step: a point rise inside the intervals
     assert f([E(*v) for v in ((0.009, 0.007, 0.011), (0.003, 0.002, 0.004), (0.0007, 0.0004, 0.0009),

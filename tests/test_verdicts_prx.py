@@ -229,7 +229,7 @@ _RMS = {True: ([0.009, 0.003, 0.0007, 0.001], [(0.007, 0.011), (0.002, 0.004), (
 def _links_set(claim, falls):
     values, intervals = _RMS[falls]
     rms = [stats.Estimate(v, math.nan, lo, hi) for v, (lo, hi) in zip(values, intervals)]
-    assert S.C.falls_with_links(rms) is falls
+    assert S.analysis.falls_with_links(rms) is falls
     return {"label": S.LINK_SETS[claim], "n_links": [3, 5, 7, 9], "amplitude_m": [0.05] * 4,
             "wavelength_over_L": [0.93] * 4, "rms_residual_over_lambda": [e.to_dict() for e in rms], "falls": falls}
 

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 from ..errors import UndulateError
 from ..params import SwimmerGeometry
-from . import _analysis as C
+from . import _analysis as analysis
 from ._criteria import PAIR_CHANNEL_M
 from ._gaits import BETA_DEG  # noqa: F401 - the 3-link joint amplitude, re-exported
 
@@ -195,7 +195,7 @@ class CaseId:
 # ------------------------------------------------------------------ plan
 def _impulse_grid(quick: bool) -> tuple[tuple[float, ...], tuple[float, ...]]:
     """The potential study's impulse grid (:func:`._analysis.impulse_design`) as ``(dphi, phi0)`` tuples."""
-    return tuple(tuple(float(v) for v in a) for a in C.impulse_design(quick))
+    return tuple(tuple(float(v) for v in a) for a in analysis.impulse_design(quick))
 
 
 _IMPULSE_QUICK = _impulse_grid(True)
@@ -208,8 +208,8 @@ class Plan:
     links: tuple[int, ...] = (3, 5, 7, 9)
     confinement_starts: tuple[float, ...] = (-0.15, 0.0, 0.15)
     confinement_d_over_2A: tuple[float, ...] = (0.9, 1.2)
-    group_dphi_rad: tuple[float, ...] = tuple(float(p) for p in C.group_phases(True))
-    group_draws: int = C.GROUP_DRAWS[True]
+    group_dphi_rad: tuple[float, ...] = tuple(float(p) for p in analysis.group_phases(True))
+    group_draws: int = analysis.GROUP_DRAWS[True]
     impulse_dphi_rad: tuple[float, ...] = _IMPULSE_QUICK[0]
     impulse_phi0_rad: tuple[float, ...] = _IMPULSE_QUICK[1]
     xi1_dphi_rad: tuple[float, ...] | None = None
@@ -262,13 +262,14 @@ def plan(quick: bool) -> Plan:
     :data:`._analysis.GROUP_DRAWS`: quick the nine dphi and 8 draws of four swimmers, thinned to 5 and 4;
     full 33 dphi and 40 draws), so that only the channel differs."""
     if quick:
-        nine = tuple(float(p) for p in C.paper_phases())
+        nine = tuple(float(p) for p in analysis.paper_phases())
         return Plan(nine, links=(3, 9), xi1_dphi_rad=nine[::2])
     impulse_dphi, impulse_phi0 = _impulse_grid(False)
-    dphi = tuple(float(p) for p in C.refined(C.phase_grid(17), FULL_PAIR_REFINE))
+    dphi = tuple(float(p) for p in analysis.refined(analysis.phase_grid(17), FULL_PAIR_REFINE))
     return Plan(dphi, xi1_dphi_rad=dphi[::FULL_PAIR_REFINE], xi32_links=(3, 4, 6, 8),
                 confinement_starts=(-0.3, -0.15, 0.0, 0.15, 0.3),
-                group_dphi_rad=tuple(float(p) for p in C.group_phases(False)), group_draws=C.GROUP_DRAWS[False],
+                group_dphi_rad=tuple(float(p) for p in analysis.group_phases(False)),
+                group_draws=analysis.GROUP_DRAWS[False],
                 impulse_dphi_rad=impulse_dphi, impulse_phi0_rad=impulse_phi0)
 
 
@@ -282,7 +283,7 @@ def pair_cases(p: Plan) -> tuple[CaseId, ...]:
     """The ids of the dataset's ``case`` dimension, in its order (the pair cases judged against the line)."""
     ids = [CaseId.of(CaseSet.XI1, **over) for _, _, over in MODEL_LEVELS]
     ids += [CaseId.of(CaseSet.XI1, duration_s=D) for D in DURATIONS_S]
-    ids += [CaseId.of(CaseSet.XI1, steady_window_periods=w) for w in WINDOWS if w != C.STEADY_WINDOW]
+    ids += [CaseId.of(CaseSet.XI1, steady_window_periods=w) for w in WINDOWS if w != analysis.STEADY_WINDOW]
     ids.append(CaseId.of(CaseSet.XI1, dphi_pi=LEFT_OUT))
     ids += [CaseId.of(CaseSet.XI32, n_links=n, duration_s=D) for n in p.xi32_links for D in xi32_durations(n)]
     for free, along_x in ((CaseSet.LINKS, CaseSet.LINKS_X), (CaseSet.LINKS_GUIDED, CaseSet.LINKS_GUIDED_X)):
@@ -301,7 +302,7 @@ def group_cases() -> tuple[tuple[int, float, bool], ...]:
     reference pairs in 0.13 m, then three and four swimmers in the groups study's and the spaced channel."""
     out = [(2, PAIR_CHANNEL_M, True)]
     for n in (3, 4):
-        out += [(n, C.GROUP_CHANNEL_M[n], True), (n, spaced_channel_m(n), False)]
+        out += [(n, analysis.GROUP_CHANNEL_M[n], True), (n, spaced_channel_m(n), False)]
     return tuple(out)
 
 

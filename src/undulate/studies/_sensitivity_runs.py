@@ -21,7 +21,7 @@ from .. import theory
 from ..observables import steady_state
 from ..params import SwimmerGeometry
 from ..sweep import Grid
-from . import _analysis as C
+from . import _analysis as analysis
 from ._criteria import PAIR_CHANNEL_M
 from ._gaits import equal_amplitude_beta
 from ._registry import StudyContext
@@ -47,14 +47,14 @@ def _cut(run: xr.Dataset, duration_s: float) -> xr.Dataset:
 
 def _pair_rows(run: xr.Dataset, dphi: float, lam: float, amp: float, windows=(3,)) -> dict[int, tuple]:
     """Final dx/lambda, residual/lambda and steady flag of one pair run per steady window."""
-    rec, series = C.pair_record(run, dphi, lam, amp)
+    rec, series = analysis.pair_record(run, dphi, lam, amp)
     out = {}
     for w in windows:
-        if w == C.STEADY_WINDOW:
+        if w == analysis.STEADY_WINDOW:
             out[w] = (rec["dx_steady"] / lam, rec["residual"] / lam, rec["steady"])
             continue
         da = xr.DataArray(series / lam, coords={"time": run["time"].values}, dims="time")
-        st = steady_state(da, PERIOD_S, tol=C.STEADY_TOL, window=w)
+        st = steady_state(da, PERIOD_S, tol=analysis.STEADY_TOL, window=w)
         v = float(st["value"])
         out[w] = (v, float(theory.compatibility_residual(v, dphi, 1.0)), float(bool(st["steady"])))
     return out
@@ -107,7 +107,7 @@ class _Runs:
         """``values`` (first axis: ``dphis``, a look's subset of this plan's dphi) on this plan's dphi axis,
         NaN at the dphi that look did not run."""
         out = np.full((len(self.dphis),) + np.shape(values)[1:], np.nan)
-        out[C.positions(self.dphis, dphis)] = values
+        out[analysis.positions(self.dphis, dphis)] = values
         return out
 
     def cases_on_axis(self, cases: list[_Case], sub: _Runs) -> list[_Case]:
@@ -186,7 +186,7 @@ def _data_xi1_windows(r: _Runs) -> list[_Case]:
            for D in DURATIONS_S]
     out += [r.case(CaseId.of(CaseSet.XI1, steady_window_periods=w), "steady-state rule",
                    f"final = mean of last {w} period(s) (default 3)", per_win[w])
-            for w in WINDOWS if w != C.STEADY_WINDOW]
+            for w in WINDOWS if w != analysis.STEADY_WINDOW]
     out.append(r.case(CaseId.of(CaseSet.XI1, dphi_pi=LEFT_OUT), "dphi = +-pi", "left out (default: nearest branch)",
                       [row if abs(d) < np.pi - 1e-9 else (math.nan,) * 3
                        for row, d in zip(per_dur[DEFAULT_S], r.dphis)]))
@@ -349,14 +349,14 @@ def _data_groups(r: _Runs) -> tuple[dict, dict]:
         if not r.runs("groups"):
             return []
         fn, grid = group_sweep(n, gdphis, r.p.group_draws, r.seed, channel_width_m=w)
-        shared = w == {2: PAIR_CHANNEL_M, **C.GROUP_CHANNEL_M}[n]  # the groups study's own runs
+        shared = w == {2: PAIR_CHANNEL_M, **analysis.GROUP_CHANNEL_M}[n]  # the groups study's own runs
         sw = (r.ctx.shared_sweep if shared else r.ctx.sweep)(group_part(n, w), fn, grid)
-        return [run for run in C.sweep_runs(sw) if run is not None]
+        return [run for run in analysis.sweep_runs(sw) if run is not None]
 
     cases = group_cases()  # the groups study's grid: the same per-run seeds, hence the same phase draws
     runs = r.ctx.together(*(functools.partial(group_runs, n, w) for n, w, _ in cases))
     recs = [[{**rec, "run": i} for i, run in enumerate(rs)
-             for rec in C.group_records(C.trajectory(run, BODY_LENGTH_M), r.A3)] for rs in runs]
+             for rec in analysis.group_records(analysis.trajectory(run, BODY_LENGTH_M), r.A3)] for rs in runs]
     n_nb = max(1, max(len(x) for x in recs))
     if not r.runs("groups"):  # not run: as many neighbour pairs as the runs would give (n - 1 per run)
         n_nb = max((n - 1) * group_sweep(n, gdphis, r.p.group_draws, r.seed, channel_width_m=w)[1].n_runs

@@ -15,7 +15,7 @@ import numpy as np
 import xarray as xr
 
 from .. import stats, theory
-from . import _analysis as C
+from . import _analysis as analysis
 from ._criteria import CENTRAL, LINE_RMS_TOL, LINE_SLOPE_TOL, R2_MIN, WIDTH_TOL
 from ._explanations import results_by_case
 from ._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED
@@ -31,15 +31,15 @@ NOT_RUN = "not run (the claim it would explain does not fail)"
 
 
 def _line(y, dphi) -> dict[str, Any]:
-    fit = C.compatibility_fit(y, dphi)
+    fit = analysis.compatibility_fit(y, dphi)
     res = theory.compatibility_residual(np.asarray(y, float), np.asarray(dphi, float), 1.0)
-    return {"slope": fit.slope, "rms": C.rms(res, dphi)}
+    return {"slope": fit.slope, "rms": analysis.rms(res, dphi)}
 
 
 def line_checks(slope: stats.Estimate, rms: stats.Estimate) -> list[stats.Check]:
     """The pairs study's criterion as :class:`~undulate.stats.Check` s: the slope's interval within
     1 +- LINE_SLOPE_TOL, the RMS residual's below LINE_RMS_TOL lambda."""
-    return C.line_checks(slope, rms)
+    return analysis.line_checks(slope, rms)
 
 
 def follows_line(slope: stats.Estimate, rms: stats.Estimate) -> bool | None:
@@ -115,7 +115,7 @@ def _summary_cases(ds: xr.Dataset, skipped: frozenset[str] = frozenset()) -> tup
                  "amplitude_m": float(c["amplitude"]), "wavelength_m": float(c["wavelength"]),
                  "slope": fit["slope"].to_dict(),
                  "rms_residual_over_lambda": fit["rms"].to_dict(),
-                 "rms_residual_over_lambda_open_interval": C.rms(c["residual_over_lambda"].values[open_],
+                 "rms_residual_over_lambda_open_interval": analysis.rms(c["residual_over_lambda"].values[open_],
                                                                  dphi[open_]).to_dict(),
                  "n_runs": int(np.isfinite(y).sum()), "n_steady": int(c["steady"].values.sum()),
                  "follows_line": follows_line(fit["slope"], fit["rms"]),
@@ -159,7 +159,7 @@ def _summary_link_sets(cases: dict[str, dict]) -> tuple[dict[str, dict], list[di
                "wavelength_over_L": [e["wavelength_m"] / BODY_LENGTH_M for e in links],
                "rms_residual_over_lambda": [r.to_dict() for r in rms],
                "rms_residual_over_lambda_open_interval": [r.to_dict() for r in rms_open],
-               "falls": C.falls_with_links(rms), "falls_open_interval": C.falls_with_links(rms_open)}
+               "falls": analysis.falls_with_links(rms), "falls_open_interval": analysis.falls_with_links(rms_open)}
         out["falls_verdict"] = _verdict(out["falls"], missing=_no_trend(rms))
         out["falls_open_interval_verdict"] = _verdict(out["falls_open_interval"], missing=_no_trend(rms_open))
         link_sets[claim] = out
@@ -185,8 +185,8 @@ def _linear(idphi, impulse) -> tuple[stats.LineFit, bool | None, str]:
     """The potential study's criterion: the impulse's line fit against |dphi|, whether it is linear (the
     R^2 interval above R2_MIN and the slope's above 0: True, False when one lies wholly outside, None when
     one straddles or has no interval) and the verdict (``no result`` only without the intervals)."""
-    u, pooled = C.by_abs_dphi(idphi, impulse)  # +-dphi: one design point (C.by_abs_dphi)
-    f = stats.line_fit(u, C.row_means(pooled))
+    u, pooled = analysis.by_abs_dphi(idphi, impulse)  # +-dphi: one design point (analysis.by_abs_dphi)
+    f = stats.line_fit(u, analysis.row_means(pooled))
     missing = not (f.r2.has_interval and f.slope.has_interval)
     ok = None if missing else stats.decide([f.r2.above(R2_MIN, "R^2"), f.slope.above(0.0, "slope")])
     return f, ok, _verdict(ok, missing)
@@ -212,7 +212,7 @@ def _summary_impulse(ds: xr.Dataset) -> tuple[dict[str, Any], list[dict]]:
             allv = ds["impulse_drag_all"].values[k]
             with np.errstate(invalid="ignore", divide="ignore"), warnings.catch_warnings():
                 warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows: failed or not run (NaN)
-                f, ok, verdict = _linear(idphi, C.row_means(allv))
+                f, ok, verdict = _linear(idphi, analysis.row_means(allv))
                 spread = float(np.nanmedian((np.nanmax(allv, 1) / np.nanmin(allv, 1))[big]))
                 esc = float(np.nanmean(ds["impulse_drag_escape"].values[k][big]))
             pot_drag.append({"case_id": str(impulse_case(float(c))), "drag_N_s_per_m": float(c),
@@ -287,8 +287,8 @@ def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
         dphi, dx = c["group_dphi"].values, c["group_dx_over_lambda"].values
         ok = np.isfinite(dphi) & np.isfinite(dx)
         dphi, dx, run_of = dphi[ok], dx[ok], c["group_run"].values[ok]
-        fit = C.compatibility_fit(dx, dphi, runs=run_of)  # a run's neighbour pairs: one cluster
-        rms = C.rms(c["group_residual_over_lambda"].values[ok], dphi, run_of)
+        fit = analysis.compatibility_fit(dx, dphi, runs=run_of)  # a run's neighbour pairs: one cluster
+        rms = analysis.rms(c["group_residual_over_lambda"].values[ok], dphi, run_of)
         if size == 2:
             ref_rms = rms
         entry = {"case_id": str(group_case(size, w)), "group_size": size, "channel_width_m": w,
@@ -300,7 +300,7 @@ def _groups_summary(ds: xr.Dataset) -> dict[str, dict[str, Any]]:
                  "fraction_short_of_line": float(np.mean(np.abs(dx) < np.abs(dphi) / (2 * np.pi))) if ok.any() else math.nan,
                  "follows_line_more_scatter": None, "follows_line_more_scatter_verdict": NO_RESULT}
         if size > 2 and ref_rms is not None:
-            entry["follows_line_more_scatter"] = ok = C.group_follows_line(fit.slope, rms, ref_rms)
+            entry["follows_line_more_scatter"] = ok = analysis.group_follows_line(fit.slope, rms, ref_rms)
             entry["follows_line_more_scatter_verdict"] = _verdict(ok, missing=not (
                 fit.slope.has_interval and rms.has_interval and ref_rms.has_interval))
         out[f"{size} in {w:g} m"] = entry

@@ -26,7 +26,7 @@ import xarray as xr
 
 from .. import stats
 from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, PAIR_CHANNEL_M
-from . import _analysis as C
+from . import _analysis as analysis
 from ._analysis import group_records
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._stages import strides, thinned
@@ -77,7 +77,7 @@ class Plan:
 
 FULL_STRIDES = (48, 12, 3, 1)
 """Full mode's looks over :func:`._analysis.group_cap_phases` (385 dphi): 9, 33, 129 and 385 dphi."""
-FULL_DRAWS = (10, 40, 80, C.GROUP_CAP_DRAWS)
+FULL_DRAWS = (10, 40, 80, analysis.GROUP_CAP_DRAWS)
 """Full mode's draws of four at each look."""
 
 
@@ -87,9 +87,9 @@ def plan(quick: bool) -> Plan:
     residual only, and their 33 decide that comparison by a wide margin (0.035 [0.026, 0.044] lambda
     against the groups' 0.12-0.14)."""
     if quick:
-        return Plan(tuple(float(p) for p in C.group_phases(True)), C.GROUP_DRAWS[True])
-    return Plan(tuple(float(p) for p in C.group_cap_phases()), C.GROUP_CAP_DRAWS,
-                tuple(float(p) for p in C.group_phases(False)))
+        return Plan(tuple(float(p) for p in analysis.group_phases(True)), analysis.GROUP_DRAWS[True])
+    return Plan(tuple(float(p) for p in analysis.group_cap_phases()), analysis.GROUP_CAP_DRAWS,
+                tuple(float(p) for p in analysis.group_phases(False)))
 
 
 def part(n: int) -> str:
@@ -121,7 +121,7 @@ def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Data
     time = next(iter(sweeps.values()))["time"].values
     nmax = max(sweeps)
     for n, sweep in sweeps.items():
-        for r in C.sweep_runs(sweep):
+        for r in analysis.sweep_runs(sweep):
             k = len(run_size)
             run_size.append(n)
             run_failed.append(r is None)
@@ -130,7 +130,7 @@ def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Data
             if r is not None:
                 x[:, :n], y[:, :n] = r["x"].values, r["y"].values
                 ph[:n] = r["phase"].values
-                traj = C.trajectory(r, lam)
+                traj = analysis.trajectory(r, lam)
                 for rec in group_records(traj, amplitude_m):
                     rows.append({"group_size": n, "run_index": k, **rec})
             xs.append(x)
@@ -176,8 +176,8 @@ def groups_dataset(sweeps: dict[int, xr.Dataset], amplitude_m: float) -> xr.Data
             "phases_3": "(0, dphi, 2 dphi) bottom to top",
             "phases_4": "each uniform in [0, 2 pi), numpy default_rng(run seed)",
             "duration_s": DURATION_S,
-            "steady_rule": C.STEADY_RULE,
-            "slope_method": C.SLOPE_METHOD,
+            "steady_rule": analysis.STEADY_RULE,
+            "slope_method": analysis.SLOPE_METHOD,
         },
     )
 
@@ -192,7 +192,7 @@ def summary(ds: xr.Dataset) -> dict:
         res = ds["residual_over_lambda"].values[sel]
         dphi = ds["dphi"].values[sel]  # +dphi and -dphi: one design point mirrored (resampled together)
         run_of = ds["run_index"].values[sel]  # a run's neighbour pairs share their errors: one cluster
-        fit = C.compatibility_fit(ds["dx_steady_over_lambda"].values[sel], dphi, runs=run_of)
+        fit = analysis.compatibility_fit(ds["dx_steady_over_lambda"].values[sel], dphi, runs=run_of)
         changed = [bool(ds["order_changed"].values[sel][run_of == r][0]) for r in np.unique(run_of)]
         per[str(n)] = {
             "group_size": n,
@@ -204,10 +204,10 @@ def summary(ds: xr.Dataset) -> dict:
             "n_runs_lateral_order_changed": int(np.sum(changed)),
             "slope": fit.slope.to_dict(),
             "intercept": fit.intercept.to_dict(),
-            "rms_residual_over_lambda": C.rms(res, dphi, run_of).to_dict(),
-            "rms_residual_m": C.rms(ds["residual"].values[sel], dphi, run_of).to_dict(),
+            "rms_residual_over_lambda": analysis.rms(res, dphi, run_of).to_dict(),
+            "rms_residual_m": analysis.rms(ds["residual"].values[sel], dphi, run_of).to_dict(),
             "max_abs_residual_over_lambda": float(np.max(np.abs(res))) if res.size else None,
-            "rms_band_excess_over_lambda": C.rms(ds["band_excess"].values[sel] / ds.attrs["wavelength_m"],
+            "rms_band_excess_over_lambda": analysis.rms(ds["band_excess"].values[sel] / ds.attrs["wavelength_m"],
                                                  dphi, run_of).to_dict(),
             "mean_dy_steady_over_2A": float(np.mean(ds["dy_steady"].values[sel]) / (2 * ds.attrs["amplitude_m"]))
             if sel.any() else None,
@@ -219,8 +219,8 @@ def summary(ds: xr.Dataset) -> dict:
         "n_steady": int(ds["steady"].values.sum()),
         "neighbours": "by lateral order: mean y over the steady-state window at the end of the run",
         "residual": "RMS of theory.compatibility_residual / lambda over nearest-neighbour pairs",
-        "steady_rule": C.STEADY_RULE,
-        "slope_method": C.SLOPE_METHOD,
+        "steady_rule": analysis.STEADY_RULE,
+        "slope_method": analysis.SLOPE_METHOD,
     }
 
 
@@ -274,7 +274,7 @@ def spacing_summary(ds: xr.Dataset) -> dict:
     line left outside the band their measured spacing allows (:func:`unexplained_share`)."""
     two_a = 2 * float(ds.attrs["amplitude_m"])
     size = ds["group_size"].values
-    keys = C.run_clusters(ds["run_index"].values, ds["dphi"].values)
+    keys = analysis.run_clusters(ds["run_index"].values, ds["dphi"].values)
     dy = ds["dy_steady"].values / two_a
     out = {"mean_dy_over_2A": {str(n): _cluster_mean(dy[size == n], keys[size == n]).to_dict() for n in (2, *SIZES)}}
     big = size > 2
@@ -318,7 +318,7 @@ def _group_follows(size: str) -> Callable[[dict], Verdict]:
                  "pairs_rms_residual_over_lambda": pair["rms_residual_over_lambda"]}
         if not (slope.has_interval and rms.has_interval and rms2.has_interval):
             return Verdict.none("a slope or RMS without an interval (too few neighbour pairs)", measured, value)
-        return Verdict.of(C.group_follows_line_checks(slope, rms, rms2), measured, value,
+        return Verdict.of(analysis.group_follows_line_checks(slope, rms, rms2), measured, value,
                           runs=g["n_runs"] - g["n_failed"])  # "runs" in runs, not neighbour pairs
     return judge
 

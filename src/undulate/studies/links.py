@@ -23,7 +23,7 @@ how many runs were steady; per rule the trend of the error over N
 (:func:`error_trend`: the slope of every run's squared residual against N,
 with its cluster-jackknife interval over the design points), which the
 claim judges (:data:`~._criteria.LINKS_TREND_RULE`).  The claim's earlier
-criterion, step by step on the per-N RMS intervals (``C.FALLS_RULE``), is
+criterion, step by step on the per-N RMS intervals (``analysis.FALLS_RULE``), is
 judged beside it (:attr:`~._registry.Claim.superseded`).
 
 Outliers are findings (:mod:`undulate.studies._outliers`): where one N's RMS
@@ -50,7 +50,7 @@ import xarray as xr
 from .. import stats
 from ..sweep import Grid
 from ._criteria import LINKS_TREND_RULE, PAIR_CHANNEL_M
-from . import _analysis as C
+from . import _analysis as analysis
 from . import _outliers as O
 from ._registry import Claim, Study, StudyContext, SupersededCriterion, Verdict, register
 from ._stages import strides, thinned
@@ -90,7 +90,7 @@ class Plan:
 
 def plan(quick: bool) -> Plan:
     """Quick: the paper's nine dphi; full: 33 over [-pi, pi] (step pi/16)."""
-    return Plan(tuple(float(p) for p in (C.paper_phases() if quick else C.phase_grid(FULL_PHASES))))
+    return Plan(tuple(float(p) for p in (analysis.paper_phases() if quick else analysis.phase_grid(FULL_PHASES))))
 
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
@@ -120,7 +120,7 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray,
     lam = BODY_LENGTH_M / XI
     A = np.asarray(amplitude_m, float).reshape(nr, nn)
     rule_dphis = [dphis] * nr if rule_dphis is None else [np.asarray(d, float) for d in rule_dphis]
-    index = C.point_index(dphis, [rule_dphis[r] for r in range(nr) for _ in range(nn)]).reshape(nr, nn, nd)
+    index = analysis.point_index(dphis, [rule_dphis[r] for r in range(nr) for _ in range(nn)]).reshape(nr, nn, nd)
     made = index >= 0
     point_failed = sim["run_failed"].isel(replicate=0).values.astype(bool)
     failed = made & point_failed[np.where(made, index, 0)]
@@ -129,7 +129,7 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray,
     def runs(idx):
         return sim.isel(point=int(index[idx]), replicate=0)
 
-    variables, dx_t = C.collect_pairs(runs, failed | ~made, dphis[None, None, :], lam, A[:, :, None], dims)
+    variables, dx_t = analysis.collect_pairs(runs, failed | ~made, dphis[None, None, :], lam, A[:, :, None], dims)
     variables["run_failed"] = xr.Variable(dims, failed, variables["run_failed"].attrs)
     variables["run_made"] = xr.Variable(dims, made, {"long_name": "a run was made (False: a frozen rule's "
                                                                   "dphi its look did not run; NaN values)"})
@@ -169,8 +169,8 @@ def links_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, dphis: np.ndarray,
             "channel_width_m": PAIR_CHANNEL_M,
             "body_length_m": BODY_LENGTH_M,
             "duration_s": DURATION_S,
-            "steady_rule": C.STEADY_RULE,
-            "slope_method": C.SLOPE_METHOD,
+            "steady_rule": analysis.STEADY_RULE,
+            "slope_method": analysis.SLOPE_METHOD,
         },
     )
 
@@ -188,7 +188,7 @@ def error_trend(residual_over_lambda, n_links, dphi) -> stats.Estimate:
     if res.shape != (n.size, np.size(dphi)):
         raise ValueError(f"residual_over_lambda has shape {res.shape}, not (N, dphi) = ({n.size}, {np.size(dphi)})")
     x = np.repeat(n, res.shape[1])
-    keys = np.tile(C.abs_dphi_keys(dphi), n.size)
+    keys = np.tile(analysis.abs_dphi_keys(dphi), n.size)
     return stats.clustered_line_fit(x, res.ravel() ** 2, keys).slope
 
 
@@ -205,28 +205,28 @@ def summary(ds: xr.Dataset) -> dict:
         rows = {}
         for n in ds["n_links"].values:
             d = ds.sel(rule=rule, n_links=n)
-            made = C.runs_made(d)
+            made = analysis.runs_made(d)
             ok = made & ~d["run_failed"].values
             res = d["residual_over_lambda"].values
-            fit = C.compatibility_fit(d["dx_steady_over_lambda"].values, dphi)
+            fit = analysis.compatibility_fit(d["dx_steady_over_lambda"].values, dphi)
             rows[str(int(n))] = {
                 "n_links": int(n),
                 "joint_amplitude_deg": math.degrees(float(d["joint_amplitude"])),
                 "amplitude_m": float(d["amplitude"]),
                 "timestep_s": float(d["timestep"]),
-                "rms_residual_over_lambda": C.rms(res, dphi).to_dict(),
-                "rms_residual_over_lambda_open_interval": C.rms(res[open_], dphi[open_]).to_dict(),
+                "rms_residual_over_lambda": analysis.rms(res, dphi).to_dict(),
+                "rms_residual_over_lambda_open_interval": analysis.rms(res[open_], dphi[open_]).to_dict(),
                 "max_abs_residual_over_lambda": float(np.nanmax(np.abs(res))) if ok.any() else None,
                 "slope": fit.slope.to_dict(),
                 "intercept": fit.intercept.to_dict(),
-                "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam, dphi).to_dict(),
+                "rms_band_excess_over_lambda": analysis.rms(d["band_excess"].values / lam, dphi).to_dict(),
                 "n_runs": int(made.sum()),
                 "n_failed": int((made & ~ok).sum()),
                 "n_steady": int(d["steady"].values[ok].sum()),
                 "max_penetration_m": float(np.nanmax(d["penetration_max"].values)) if ok.any() else None,
             }
         note = _find_outliers(ds.sel(rule=rule), rows)
-        falls = C.falls_with_links([E(rows[k]["rms_residual_over_lambda"]) for k in sorted(rows, key=int)])
+        falls = analysis.falls_with_links([E(rows[k]["rms_residual_over_lambda"]) for k in sorted(rows, key=int)])
         dr = ds.sel(rule=rule)
         trend = error_trend(dr["residual_over_lambda"].transpose("n_links", "dphi").values, dr["n_links"].values,
                             dphi)
@@ -234,11 +234,11 @@ def summary(ds: xr.Dataset) -> dict:
             "per_n": rows,
             # the claim's criterion (LINKS_TREND_RULE), lambda^2 per link
             "squared_residual_slope_per_link": trend.to_dict(),
-            # the superseded step-by-step criterion (C.FALLS_RULE): True holds, False fails, None undecided
+            # the superseded step-by-step criterion (analysis.FALLS_RULE): True holds, False fails, None undecided
             "rms_falls_with_n": falls,
             "outlier_note": note,  # None when no N's interval is wide
         }
-    made = C.runs_made(ds)
+    made = analysis.runs_made(ds)
     ok = made & ~ds["run_failed"].values
     return {
         "per_rule": per_rule,
@@ -251,8 +251,8 @@ def summary(ds: xr.Dataset) -> dict:
         "residual": "RMS over dphi of theory.compatibility_residual / lambda (nearest branch); "
                     "'open_interval' leaves out dphi = +-pi (one physical state, the unstable "
                     "point between branches)",
-        "steady_rule": C.STEADY_RULE,
-        "slope_method": C.SLOPE_METHOD,
+        "steady_rule": analysis.STEADY_RULE,
+        "slope_method": analysis.SLOPE_METHOD,
         "outlier_rule": OUTLIER_RULE,
     }
 
@@ -268,7 +268,7 @@ IN_BAND_OVER_LAMBDA = 1e-3
 OUTLIER_RULE = (
     f"an N's RMS interval is wide when its width exceeds {O.WIDTH_FACTOR:g} x the median width of the "
     f"other N's; its outlying runs have |residual| above the N's median + {O.MAD_K:g} x {O.MAD_SCALE} MAD; "
-    f"each is 'still drifting' (not steady, or settled only within the last {C.STEADY_WINDOW + 1} periods "
+    f"each is 'still drifting' (not steady, or settled only within the last {analysis.STEADY_WINDOW + 1} periods "
     "of its run), 'another compatible branch' (steady, nearest a branch other than the one(s) nearest "
     "the start dx0 = 0) or 'another steady state' (steady, off every branch: end to end when "
     f"|dx| >= {END_TO_END:g} x the body's extent, else side by side inside or outside the full "
@@ -307,7 +307,7 @@ def _outlier_runs(d: xr.Dataset, lam: float) -> tuple[list[dict], float]:
         r = d.isel(dphi=j)
         steady, settle = bool(r["steady"]), float(r["settle_time"])
         end = _run_end_s(r["dx"].values, time)
-        drifting = not steady or not (settle <= end - (C.STEADY_WINDOW + 1) * C.PERIOD_S)
+        drifting = not steady or not (settle <= end - (analysis.STEADY_WINDOW + 1) * analysis.PERIOD_S)
         cls = O.classify(drifting, bool(other[j]))
         arr, text = _arrangement(float(r["dx_steady"]), float(r["dy_steady"]), float(r["extent_x"]),
                                  float(r["band_excess"]) / lam, float(r["contact_force_mean"]))
@@ -408,7 +408,7 @@ def _trend(rule: str) -> Callable[[dict], Verdict]:
 
 
 def _falls(rule: str) -> Callable[[dict], Verdict]:
-    """The superseded judge: ``C.FALLS_RULE``, step by step on the per-N RMS intervals."""
+    """The superseded judge: ``analysis.FALLS_RULE``, step by step on the per-N RMS intervals."""
     def judge(s: dict) -> Verdict:
         per_n = s["per_rule"][rule]["per_n"]
         ns = sorted(per_n, key=int)
@@ -418,7 +418,7 @@ def _falls(rule: str) -> Callable[[dict], Verdict]:
         if not all(r.has_interval for r in rms):
             return Verdict.none("an RMS residual without an interval (too few runs with a result)", measured, value)
         measured += _brief_outliers(per_n)  # a finding, not part of the criterion
-        return Verdict.of(C.falls_with_links_checks(rms, [int(n) for n in ns]), measured, value)
+        return Verdict.of(analysis.falls_with_links_checks(rms, [int(n) for n in ns]), measured, value)
     return judge
 
 
@@ -430,7 +430,7 @@ CLAIMS = tuple(
                  r"(Eqn.~\ref{eqn:compatibility}) decreased with increasing link number (values withheld)."),
           where="Sec. III.C, Fig. 5", reads=(rule,),
           superseded=(SupersededCriterion(
-              C.FALLS_RULE, _falls(rule),
+              analysis.FALLS_RULE, _falls(rule),
               why="it judged a trend step by step: one noisy step (an N whose interval lies wholly above the "
                   "previous one's) decided it, whatever the other steps and the whole range showed; the "
                   "paper's words are a trend over the range"),))

@@ -36,7 +36,7 @@ import xarray as xr
 from .. import stats
 from ..sweep import Grid
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
-from . import _analysis as C
+from . import _analysis as analysis
 from ._registry import Claim, Study, StudyContext, Verdict, register, staged
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, PERIOD_S, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
@@ -67,8 +67,8 @@ class Plan:
 def plan(quick: bool) -> Plan:
     """Quick: 33 over [-pi, pi] (step pi/16; the paper's nine bitwise every fourth: :data:`REFINE`); full:
     193 (step pi/96, containing the nine; the 49 of step pi/24 bitwise every fourth)."""
-    grid = C.paper_phases() if quick else C.phase_grid(FULL_PHASES)
-    return Plan(tuple(float(p) for p in C.refined(grid, REFINE)))
+    grid = analysis.paper_phases() if quick else analysis.phase_grid(FULL_PHASES)
+    return Plan(tuple(float(p) for p in analysis.refined(grid, REFINE)))
 
 
 def part(xi: float) -> str:
@@ -97,11 +97,11 @@ def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, xi, dphis, xi_dphis=
     xi_dphis = [dphi] * xi.size if xi_dphis is None else [np.asarray(d, float) for d in xi_dphis]
     lam = np.array([BODY_LENGTH_M / x if x > 0 else math.inf for x in xi])
     A = np.asarray(amplitude_m, float)
-    index = C.point_index(dphi, xi_dphis)
+    index = analysis.point_index(dphi, xi_dphis)
     made = index >= 0
     failed = made & sim["run_failed"].isel(replicate=0).values.astype(bool)[np.where(made, index, 0)]
     dims = ("xi", "dphi")
-    variables, dx_t = C.collect_pairs(lambda idx: sim.isel(point=int(index[idx]), replicate=0),
+    variables, dx_t = analysis.collect_pairs(lambda idx: sim.isel(point=int(index[idx]), replicate=0),
                                       failed | ~made, dphi[None, :], lam[:, None], A[:, None], dims)
     variables["run_failed"] = xr.Variable(dims, failed, variables["run_failed"].attrs)
     variables["run_made"] = xr.Variable(dims, made, {"long_name": "a run was made (False: a frozen xi's dphi "
@@ -146,8 +146,8 @@ def pairs_dataset(sim: xr.Dataset, amplitude_m: np.ndarray, xi, dphis, xi_dphis=
             "duration_s": DURATION_S,
             "timestep_s": TIMESTEP_S,
             "sample_rate_hz": SAMPLE_RATE_HZ,
-            "steady_rule": C.STEADY_RULE,
-            "slope_method": C.SLOPE_METHOD,
+            "steady_rule": analysis.STEADY_RULE,
+            "slope_method": analysis.SLOPE_METHOD,
         },
     )
     return ds
@@ -240,7 +240,7 @@ def contact_summary(d: xr.Dataset) -> dict:
     (``contact_force_early > 0``).  Per run the ratio steady / initial force; the runs at +dphi and
     -dphi (one configuration mirrored) are averaged into one value per configuration.  Over the
     configurations: the median ratio and its :data:`SOME_SHARE` quantile (:func:`quantile_estimate`)."""
-    made = C.runs_made(d)
+    made = analysis.runs_made(d)
     ok = made & ~d["run_failed"].values
     dphi = d["dphi"].values
     steady = d["steady"].values.astype(bool)
@@ -251,7 +251,7 @@ def contact_summary(d: xr.Dataset) -> dict:
     use = ok & steady & moved & touching & np.isfinite(late)
     with np.errstate(invalid="ignore", divide="ignore"):
         ratio = late / early
-    per = _cluster_means(ratio[use], C.abs_dphi_keys(dphi[use])) if use.any() else np.array([])
+    per = _cluster_means(ratio[use], analysis.abs_dphi_keys(dphi[use])) if use.any() else np.array([])
     return {
         "early_periods": EARLY_PERIODS,
         "n_runs_used": int(use.sum()),
@@ -278,7 +278,7 @@ def approach_summary(d: xr.Dataset) -> dict:
     settles counts against the claim).  Per run the initial minus the late rate
     (:func:`separation_rates`, wavelengths per period); one value per |dphi| (the mean of +dphi and
     -dphi); over the configurations its mean with a t interval."""
-    made = C.runs_made(d)
+    made = analysis.runs_made(d)
     ok = made & ~d["run_failed"].values
     dphi = d["dphi"].values
     lam = float(d["wavelength"])
@@ -287,7 +287,7 @@ def approach_summary(d: xr.Dataset) -> dict:
     for j in np.flatnonzero(ok & (np.abs(dphi) > 1e-9)):
         rates[j] = separation_rates(d["dx"].values[j], time, lam)
     use = np.isfinite(rates).all(axis=1)
-    keys = C.abs_dphi_keys(dphi[use])
+    keys = analysis.abs_dphi_keys(dphi[use])
     diff = _cluster_means(rates[use, 0] - rates[use, 1], keys) if use.any() else np.array([])
     first = _cluster_means(rates[use, 0], keys) if use.any() else np.array([])
     last = _cluster_means(rates[use, 1], keys) if use.any() else np.array([])
@@ -305,14 +305,14 @@ def approach_summary(d: xr.Dataset) -> dict:
 
 
 def _on_paper_phases(dphi: np.ndarray) -> np.ndarray:
-    return np.isclose(dphi[:, None], C.paper_phases()[None, :], atol=1e-9).any(axis=1)
+    return np.isclose(dphi[:, None], analysis.paper_phases()[None, :], atol=1e-9).any(axis=1)
 
 
 def xi_summary(ds: xr.Dataset, xi: float) -> dict:
     """Summary numbers of one xi (see the module docstring)."""
     d = ds.sel(xi=xi)
     dphi = d["dphi"].values
-    made = C.runs_made(d)
+    made = analysis.runs_made(d)
     ok = made & ~d["run_failed"].values
     lam = float(d["wavelength"])
     out = {
@@ -331,9 +331,9 @@ def xi_summary(ds: xr.Dataset, xi: float) -> dict:
     }
     if math.isfinite(lam):
         y = d["dx_steady_over_lambda"].values
-        fit = C.compatibility_fit(y, dphi, unwrap=True)
+        fit = analysis.compatibility_fit(y, dphi, unwrap=True)
         open_ = np.abs(dphi) < np.pi - 1e-9
-        fit_open = C.compatibility_fit(y[open_], dphi[open_], unwrap=False)
+        fit_open = analysis.compatibility_fit(y[open_], dphi[open_], unwrap=False)
         res = d["residual_over_lambda"].values
         paper = _on_paper_phases(dphi)
         out.update({
@@ -341,24 +341,24 @@ def xi_summary(ds: xr.Dataset, xi: float) -> dict:
             "intercept": fit.intercept.to_dict(),
             "r2": fit.r2.to_dict(),
             "slope_open_interval": fit_open.slope.to_dict(),
-            "rms_residual_over_lambda": C.rms(res, dphi).to_dict(),
-            "rms_residual_m": C.rms(d["residual"].values, dphi).to_dict(),
+            "rms_residual_over_lambda": analysis.rms(res, dphi).to_dict(),
+            "rms_residual_m": analysis.rms(d["residual"].values, dphi).to_dict(),
             "max_abs_residual_over_lambda": float(np.nanmax(np.abs(res))) if ok.any() else None,
-            "rms_residual_over_lambda_paper_phases": C.rms(res[paper], dphi[paper]).to_dict(),
-            "rms_band_excess_over_lambda": C.rms(d["band_excess"].values / lam, dphi).to_dict(),
+            "rms_residual_over_lambda_paper_phases": analysis.rms(res[paper], dphi[paper]).to_dict(),
+            "rms_band_excess_over_lambda": analysis.rms(d["band_excess"].values / lam, dphi).to_dict(),
             "approach": approach_summary(d),
         })
     else:
         out.update({"slope": None, "intercept": None, "slope_open_interval": None,
                     "rms_residual_over_lambda": None, "rms_residual_m": None,
-                    "dx_std": stats.std(d["dx_steady"].values, clusters=C.abs_dphi_keys(dphi)).to_dict(),
+                    "dx_std": stats.std(d["dx_steady"].values, clusters=analysis.abs_dphi_keys(dphi)).to_dict(),
                     "note": "standing wave: lambda = inf, no compatible dx; dx in metres only"})
     return out
 
 
 def summary(ds: xr.Dataset) -> dict:
     """Pure: the numbers of the study, per xi, with uncertainties (module docstring)."""
-    made = C.runs_made(ds)
+    made = analysis.runs_made(ds)
     ok = made & ~ds["run_failed"].values
     return {
         "per_xi": {f"{x:g}": xi_summary(ds, float(x)) for x in ds["xi"].values},
@@ -366,8 +366,8 @@ def summary(ds: xr.Dataset) -> dict:
         "n_failed": int((made & ~ok).sum()),
         "n_steady": int(ds["steady"].values[ok].sum()),
         "n_dphi": int(ds.sizes["dphi"]),
-        "steady_rule": C.STEADY_RULE,
-        "slope_method": C.SLOPE_METHOD,
+        "steady_rule": analysis.STEADY_RULE,
+        "slope_method": analysis.SLOPE_METHOD,
         "residual": "RMS over runs of theory.compatibility_residual (distance from the nearest branch "
                     "lambda (dphi/2pi + n)), in units of lambda and in m",
         "band_excess": "distance outside the full compatibility band |psi| <= 2 arcsin(dy/2A) at the "
@@ -395,7 +395,7 @@ def _follows_line(key: str) -> Callable[[dict], Verdict]:
         if not (slope.has_interval and rms.has_interval):
             return Verdict.none(f"no interval for the slope or the RMS at xi = {key} "
                                 f"({v['n_runs'] - v['n_failed']} runs with a result)", value=value)
-        return Verdict.of(C.line_checks(slope, rms), measured, value)
+        return Verdict.of(analysis.line_checks(slope, rms), measured, value)
     return judge
 
 

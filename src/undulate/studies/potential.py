@@ -97,7 +97,7 @@ from .. import stats, theory
 from ..errors import ParameterError
 from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, R2_MIN
-from . import _analysis as C
+from . import _analysis as analysis
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._stages import strides
 from ..stopping import SteadyStop
@@ -261,11 +261,11 @@ def plan(quick: bool) -> PotentialPlan:
     phases; 3 x 3 x 4 = 36 force runs.  Release runs (:data:`RELEASE_FORCE_N` at the quick grid's 3 d/2A): 1
     beta in quick (3 runs), 3 in full (9 runs).  The third full look's impulse grid (37 x 8) is
     :func:`._analysis.impulse_design`, shared with the studies that rerun these runs (``sensitivity``)."""
-    dphi, phi0 = C.impulse_design(quick)
+    dphi, phi0 = analysis.impulse_design(quick)
     if quick:
         p = PotentialPlan(dphi, [30, 45, 60], D_OVER_2A_QUICK, FORCES_N_QUICK, impulse_phi0=phi0)
     else:
-        p = PotentialPlan(C.refined(dphi, 2), [30, 45, 60], D_OVER_2A_FULL, FORCES_N_FULL, impulse_phi0=phi0)
+        p = PotentialPlan(analysis.refined(dphi, 2), [30, 45, 60], D_OVER_2A_FULL, FORCES_N_FULL, impulse_phi0=phi0)
     # release runs: the quick grid's d/2A at the default beta (quick) or every beta (full), dF = RELEASE_FORCE_N
     widths = p.d_over_2A if quick else plan(True).d_over_2A
     p.release = ((45.0,) if quick else tuple(p.betas_deg), tuple(widths), (RELEASE_FORCE_N,))
@@ -608,7 +608,7 @@ def _split_half_means(dphi, impulse_all) -> tuple[np.ndarray, np.ndarray, np.nda
     mean over them is far more exact than var(phi0) / n says; two interpenetrating systematic halves
     estimate the error of their mean without that assumption (Mahalanobis's interpenetrating
     subsamples; one run a half will do).  A |dphi| with a half whose runs all failed is left out."""
-    keys = C.abs_dphi_keys(dphi)
+    keys = analysis.abs_dphi_keys(dphi)
     a = np.asarray(impulse_all, float).reshape(keys.size, -1)
     out = []
     with warnings.catch_warnings():
@@ -649,7 +649,7 @@ def summary(ds) -> dict[str, Any]:
     dphi = ds["dphi"].values
     impulse = ds["impulse"].values
     # the line on |dphi|: +-dphi are one design point (mirror images), so their runs are pooled
-    abs_dphi, pooled = C.by_abs_dphi(dphi, ds["impulse_all"].values)
+    abs_dphi, pooled = analysis.by_abs_dphi(dphi, ds["impulse_all"].values)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN row: every run there failed
         pooled_mean = np.nanmean(pooled, axis=1)

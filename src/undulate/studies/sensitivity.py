@@ -108,7 +108,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import UndulateError
-from . import _analysis as C
+from . import _analysis as analysis
 from ._criteria import PAIR_CHANNEL_M
 from ._explanations import EXPLANATIONS
 from ._registry import Study, StudyContext, register
@@ -164,8 +164,8 @@ def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
         coords={**case_coords, **{k: v for k, v in conf_coords.items() if k != "time"}, **imp_coords,
                 "time": conf_coords["time"], **group_coords},
         attrs={"title": "model sensitivity: claims against the model choices the paper leaves open",
-               "channel_width_m": PAIR_CHANNEL_M, "n_dphi": len(dphis), "steady_rule": C.STEADY_RULE,
-               "slope_method": C.SLOPE_METHOD,
+               "channel_width_m": PAIR_CHANNEL_M, "n_dphi": len(dphis), "steady_rule": analysis.STEADY_RULE,
+               "slope_method": analysis.SLOPE_METHOD,
                "skipped_factor_groups": json.dumps([g for g in SKIPPABLE_GROUPS if g in skipped])},
     )
 
