@@ -174,10 +174,10 @@ def test_the_h_probes_batch_steps_on_warp_as_one_model_and_agrees_with_mujoco(mo
     batch, the whole chunk one Warp call): three held phase differences, positions held and free, give
     the MuJoCo backend's H(dphi) within 0.01 rad/s (|H| up to ~0.5 rad/s here), from two Warp models."""
     from undulate.simulation import _warp
-    from undulate.studies import _phase
+    from undulate.studies import _phase_probe
 
     pts = [{"dphi_rad": d, "hold_x": h} for d, h in ((-2.0, True), (0.5, False), (1.5, True))]
-    ref = _phase.probe_runs(pts, [0] * 3, duration_s=6.0)
+    ref = _phase_probe.probe_runs(pts, [0] * 3, duration_s=6.0)
     models = []
     real = _warp.WarpRollout.__init__
 
@@ -188,7 +188,7 @@ def test_the_h_probes_batch_steps_on_warp_as_one_model_and_agrees_with_mujoco(mo
     monkeypatch.setattr(_warp.WarpRollout, "__init__", counted)
     monkeypatch.setenv("UNDULATE_BACKEND", "warp")
     monkeypatch.setenv("UNDULATE_DEVICE", "cpu")
-    got = _phase.probe_runs(pts, [0] * 3, duration_s=6.0)
+    got = _phase_probe.probe_runs(pts, [0] * 3, duration_s=6.0)
     assert len(models) == 2  # one per hold_x
     assert max(abs(float(r["H"].max())) for r in ref) > 0.3  # contact: a real interaction to agree on
     for a, b in zip(ref, got):

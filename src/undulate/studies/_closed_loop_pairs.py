@@ -3,7 +3,7 @@
 through :meth:`~._registry.StudyContext.shared_sweep`, so both studies read one set of runs).
 
 Two swimmers in the paper's ``d = 0.13 m`` channel, one closed-loop controller of
-:data:`._phase.CONTROLLERS`, longitudinal positions held (``Scene.hold_x``) or free, from an initial
+:data:`._phase_probe.CONTROLLERS`, longitudinal positions held (``Scene.hold_x``) or free, from an initial
 phase difference ``dphi0``; run for :data:`PAIR_DURATION_S` or until :data:`PAIR_SYNC_STOP` finds
 the lock decided.
 """
@@ -20,7 +20,7 @@ from ..params import Channel, Scene, SimOptions
 from ..stopping import PhaseStop
 from ..sweep import Grid, batched_sweep_function
 from ._criteria import PAIR_CHANNEL_M
-from ._phase import CONTROLLERS
+from ._phase_probe import CONTROLLERS
 from ._points import SyncPoint
 from ._runners import _in_batches, _padded, _simulate_stopped_batch, _stop_vars
 

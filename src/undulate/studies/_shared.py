@@ -75,9 +75,9 @@ def h_probe_phases(quick: bool) -> list[float]:
 
 def h_probe_sweep(dphi_rad: Sequence[float], seed: int) -> tuple[Callable, Grid]:
     """``(fn, grid)`` of the closed-loop pairs' H(dphi) probe (``fn`` a batched sweep function,
-    :func:`._phase.probe_runs`), positions held and free, at each held phase difference of ``dphi_rad``
+    :func:`._phase_probe.probe_runs`), positions held and free, at each held phase difference of ``dphi_rad``
     (rad)."""
-    from ._phase import probe_runs
+    from ._phase_probe import probe_runs
 
     return probe_runs, Grid(axes={"hold_x": [True, False], "dphi_rad": [float(d) for d in dphi_rad]}, seed=seed)
 

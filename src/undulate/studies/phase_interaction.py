@@ -11,7 +11,7 @@ Method (phase reduction; why not the direct measurement from closed-loop
 runs is in ``docs/controllers.md``): the pair runs the open-loop gait with its
 phase difference held at each ``dphi`` of a grid (positions held, or free);
 at every control update each closed-loop law is evaluated on what the servos
-sensed (``Controller.phase_velocity``, :func:`._phase.probe_run`), and ``H =
+sensed (``Controller.phase_velocity``, :func:`._phase_probe.probe_run`), and ``H =
 -(<dpsi_1/dt> - <dpsi_0/dt>)`` is averaged per gait period after the first;
 each grid point's mean carries the t 95 % interval over its periods.  The
 probe is shared with ``synchronization-groups`` (:func:`._shared.h_probe_sweep`).
@@ -42,7 +42,7 @@ from ._closed_loop_pairs import _tail_circmean, closed_loop_pairs_sweep, pair_pl
 from ._shared import h_probe_phases, h_probe_sweep
 from ._registry import Claim, Study, StudyContext, Verdict, register
 from ._criteria import PAIR_CHANNEL_M
-from ._phase import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
+from ._phase_probe import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
                      _sign, predicted, probe_run, probe_runs, stable_zeros)
 
 __all__ = ["probe_run", "probe_runs", "plan", "dataset", "summary", "stable_zeros", "predicted", "CLAIMS"]

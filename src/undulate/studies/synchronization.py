@@ -50,7 +50,7 @@ from ..params import Channel, Scene, SimOptions
 from ..stopping import PhaseStop
 from ..sweep import batched_sweep_function
 from ._criteria import PAIR_CHANNEL_M
-from ._phase import CONTROLLERS, PAIR_COUPLING, _label
+from ._phase_probe import CONTROLLERS, PAIR_COUPLING, _label
 from ._closed_loop_pairs import (LOCK_TOL_RAD, PAIR_DURATION_S, PAIR_SYNC_STOP, RECORD, TAIL_S,  # noqa: F401
                                  _tail_circmean, closed_loop_pairs_sweep, pair_plan, pair_run, pair_runs, pair_stages)
 from ._shared import h_probe_phases, h_probe_sweep
@@ -386,7 +386,7 @@ def _landscapes(v, h) -> dict[str, Any]:
     """Pure: where the neighbour pairs end in the (dphi, dx) plane against the two measured landscapes:
     the cohesion potential (compatible branch dx = lambda dphi / 2 pi + n lambda) and H(dphi) with
     positions free and held (stable zeros or neutral bands: :func:`.phase_interaction.predicted`)."""
-    from ._phase import _neutral, predicted, stable_zeros
+    from ._phase_probe import _neutral, predicted, stable_zeros
 
     dx, dp = v["dx_final"].values.ravel(), v["dphi_final"].values.ravel()
     ok = np.isfinite(dx) & np.isfinite(dp)

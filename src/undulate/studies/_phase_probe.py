@@ -1,4 +1,6 @@
-"""Shared by the closed-loop studies: the controllers they compare, and the phase-interaction probe.
+"""The closed-loop studies' controllers and their phase-interaction probe, H(dphi).
+
+Not the phase observables of a trajectory: those are :mod:`undulate.phases`.
 
 :func:`probe_run` (:func:`probe_runs` in batches) measures ``H(dphi)`` by phase reduction (see
 :mod:`undulate.studies.phase_interaction`); :func:`stable_zeros`,
