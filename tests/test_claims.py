@@ -134,7 +134,7 @@ def test_claims_json_counts_each_reference_apart_and_old_rows_are_the_papers(tmp
 def test_a_claim_decided_at_an_earlier_look_says_so_in_claims_json_and_on_its_page(tmp_path):
     import json
 
-    from undulate._report_claims import claim_section
+    from undulate._report_claim_sections import claim_section
     from undulate.claims import collect, write_claims_json
 
     at = {"stage": 1, "of": 4, "confidence_level": 0.995, "measured_at_stage": 1,

@@ -228,7 +228,7 @@ def _paper():
 
 
 def test_xi_three_halves_verdict_says_the_papers_setup_cannot_give_it():
-    from undulate._report_claims import first_sentence
+    from undulate._report_claim_sections import first_sentence
     from undulate.studies._explanations import xi32
 
     assert first_sentence(xi32.CAUSE).startswith("The paper's stated setup cannot give this claim")

@@ -13,7 +13,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from undulate._report_claims import claim_anchor, first_sentence
+from undulate._report_claim_sections import claim_anchor, first_sentence
 from undulate.claims import collect, write_claims_json
 from undulate.report import write_report
 from undulate.reproduce import reproduce
@@ -503,7 +503,7 @@ def test_the_generic_evidence_figure_draws_each_estimate_group_its_region_and_th
 
 
 def test_quotes_show_their_math_as_text_on_the_page():
-    from undulate._report_claims import readable_math
+    from undulate._report_claim_sections import readable_math
 
     assert readable_math(r"when $\frac{d}{2A} > 1$ swimmers") == "when d/2A > 1 swimmers"
     assert readable_math(r"$\Delta x_{i,i+1}$ versus $\Delta \phi_{i,i+1}$") == "Δx_(i,i+1) versus Δφ_(i,i+1)"

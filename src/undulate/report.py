@@ -10,7 +10,7 @@ boundary its interval straddles: see :mod:`undulate.claims`) with every
 claim's own section below them (the paper's own sentence quoted with where it
 stands, the criterion and the verdicts of the criteria it replaced, the whole
 explanation, and the claim's own evidence figure, ``evidence/*.png``:
-:mod:`undulate._report_claims`, :mod:`undulate._evidence`), every
+:mod:`undulate._report_claim_sections`, :mod:`undulate._evidence`), every
 study's figure, the stages it ran, provenance, wall times, animations and
 links to every data file.  A failed study is shown as failed, with its error.
 """
@@ -25,7 +25,7 @@ from pathlib import Path
 from typing import Any
 
 from ._io import atomic_output
-from ._report_claims import claims_part
+from ._report_claim_sections import claims_part
 from .provenance import provenance
 from .stats import Estimate
 
