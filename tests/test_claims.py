@@ -9,7 +9,7 @@ import pytest
 
 from undulate import stats
 from undulate.studies import Verdict, describe
-from undulate.studies._registry import judge
+from undulate.studies._protocol import judge
 
 
 def est(value, low, high):

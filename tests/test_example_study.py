@@ -30,7 +30,7 @@ def drag_study():
 
 def test_the_example_study_registers_nests_and_runs_to_judged_claims(tmp_path, drag_study):
     from undulate import studies
-    from undulate.studies._registry import stage_plans
+    from undulate.studies._staging import stage_plans
 
     info = studies.describe("drag")
     assert "drag" in studies.names() and info.reference == "paper" and len(info.claims) == 2

@@ -299,7 +299,7 @@ def test_a_run_sent_to_another_engine_says_so_in_its_dataset():
 
 def test_a_study_says_once_which_runs_step_on_another_engine(capsys):
     pytest.importorskip("mujoco_warp")
-    from undulate.studies._registry import _engine_note
+    from undulate.studies._staging import _engine_note
 
     note = _engine_note("toy", Execution(backend="warp", device="cpu", cores_up_to=4), progress=True)
     assert "batches of up to 4 scenes step on mujoco" in note

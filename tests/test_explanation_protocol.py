@@ -15,7 +15,7 @@ from undulate.studies import _explanations as X
 from undulate.studies import describe
 from undulate.studies import sensitivity as S
 from undulate.studies._explanations import CaseExplanation, CaseResults, results_by_case
-from undulate.studies._registry import Explanation
+from undulate.studies._protocol import Explanation
 from undulate.studies._sensitivity_design import (
     CaseId,
     CaseSet,
@@ -177,7 +177,7 @@ def test_every_explanation_names_one_change_and_links_is_a_finding():
     assert len(links) == 2 and all(isinstance(e, X.CaseFinding) and e.finding for e in links)
     assert all(len(e.changes) >= 2 and e.cause.startswith("Finding, not an explanation") for e in links)
     assert [e for e in X.EXPLANATIONS if not e.finding]  # the one-change explanations stay explanations
-    from undulate.studies._registry import explain
+    from undulate.studies._protocol import explain
 
     skipped = [str(c) for e in X.EXPLANATIONS for c in e.cases]  # not run: the checks return at once
     rows = explain("sensitivity", X.EXPLANATIONS, {"cases": {}, "skipped_cases": skipped})

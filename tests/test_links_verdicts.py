@@ -19,7 +19,7 @@ from undulate.studies import _analysis as C
 from undulate.studies import _criteria as C_
 from undulate.studies import _outliers as O
 from undulate.studies import describe, links
-from undulate.studies._registry import judge
+from undulate.studies._protocol import judge
 
 LAM = 0.54
 
@@ -255,7 +255,9 @@ class _RecordingContext:
     """A context whose sweep records the points asked for and answers with failed runs (no simulation)."""
 
     def __init__(self, decided):
-        from undulate.studies._registry import StudyConfig, StudyContext, describe, part_plans, stage_plans
+        from undulate.studies._context import StudyConfig, StudyContext
+        from undulate.studies._registry import describe
+        from undulate.studies._staging import part_plans, stage_plans
 
         info = describe("links")
         staged = StudyContext(StudyConfig(out_dir="unused", workers=1), "links", progress=False)

@@ -15,7 +15,7 @@ import xarray as xr
 
 from undulate import stats, theory
 from undulate.studies import groups, packing, pairs
-from undulate.studies._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, judge
+from undulate.studies._protocol import FAILS, HOLDS, NO_RESULT, UNDECIDED, judge
 
 T = pairs.PERIOD_S
 LAM = 0.3
@@ -316,7 +316,8 @@ def test_spacing_claim_is_three_valued(kw, verdict):
 
 def test_the_groups_spacing_claim_reads_every_size():
     c = claim(groups, "lateral spacing").claim
-    from undulate.studies._registry import describe, part_plans, stage_plans
+    from undulate.studies._registry import describe
+    from undulate.studies._staging import part_plans, stage_plans
 
     others = {x.claim: 1 for x in groups.CLAIMS if x.claim != c}
     info = describe("groups")

@@ -115,7 +115,7 @@ def test_claims_json_rows_carry_the_quote_where_and_superseded_verdicts(tmp_path
 
     from undulate.claims import collect
     from undulate.studies import Claim, SupersededCriterion, Verdict
-    from undulate.studies._registry import judge
+    from undulate.studies._protocol import judge
 
     claim = Claim("k falls", "k decreases", "rho < 0", lambda s: Verdict.judged(s["rho"] < 0, f"rho {s['rho']}"),
                   quote="We found that k decreases.", where="Sec. III.G, Fig. 10d",

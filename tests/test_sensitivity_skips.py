@@ -16,7 +16,10 @@ from undulate.studies._explanations import EXPLANATIONS, MODULES
 from undulate.studies._explanations import groups as XG
 from undulate.studies._explanations import impulse as XI
 from undulate.studies._explanations._protocol import NOT_RUN
-from undulate.studies._registry import NO_RESULT, StudyContext, describe, explain, part_plans, stage_plans
+from undulate.studies._context import StudyContext
+from undulate.studies._protocol import NO_RESULT, explain
+from undulate.studies._registry import describe
+from undulate.studies._staging import part_plans, stage_plans
 from undulate.studies._sensitivity_design import CaseSet, pair_cases, plan, planned_cases
 
 A3 = 0.05

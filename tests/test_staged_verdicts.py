@@ -25,7 +25,7 @@ import pytest
 from undulate import stats
 from undulate.stats import Check, Estimate, decide
 from undulate.errors import UndulateError
-from undulate.studies._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, Verdict
+from undulate.studies._protocol import FAILS, HOLDS, NO_RESULT, UNDECIDED, Verdict
 
 HERE = Path(__file__).parent
 sys.path.insert(0, str(HERE))
@@ -284,7 +284,8 @@ def _fields(p):
 @pytest.mark.parametrize("quick", [True, False])
 def test_every_studys_stages_nest_and_end_at_its_plan(quick):
     from undulate import studies
-    from undulate.studies._registry import describe, stage_plans
+    from undulate.studies._registry import describe
+    from undulate.studies._staging import stage_plans
 
     for name in studies.names():
         info = describe(name)
@@ -337,11 +338,11 @@ def test_prefetching_the_last_stage_keeps_the_staged_looks(tmp_path, staged, mon
     """The Warp backend on a GPU steps the last stage's runs first (a stage costs a GPU about the same
     at any number of worlds); the looks then read them from the stores and must be the staged plan's own:
     the same stages, levels, runs and verdicts, with nothing computed at the looks."""
-    from undulate.studies import _registry, run_study
+    from undulate.studies import _staging, run_study
 
     monkeypatch.setattr(staged, "REGION", (-1.0, 5.0))  # undecided at the first look: stages are added
     run_study("_staged", tmp_path / "staged", workers=1, progress=False)
-    monkeypatch.setattr(_registry, "_prefetching", lambda execution: True)
+    monkeypatch.setattr(_staging, "_prefetching", lambda execution: True)
     run_study("_staged", tmp_path / "prefetched", workers=1, progress=False)
     plain, pre = _doc(tmp_path / "staged", "_staged"), _doc(tmp_path / "prefetched", "_staged")
     assert plain["prefetched"] is None
@@ -367,7 +368,7 @@ def test_studies_step_their_last_stage_first_on_a_gpu_only(monkeypatch, backend,
     """The prefetch rule (:func:`undulate.execution.prefetch`): by device, unless
     ``UNDULATE_WARP_PREFETCH`` says; a study on the Warp backend still runs wide on either device."""
     from undulate.execution import current, runs_wide
-    from undulate.studies import _registry
+    from undulate.studies import _staging
 
     monkeypatch.setenv("UNDULATE_BACKEND", backend)
     for var, value in (("UNDULATE_DEVICE", device), ("UNDULATE_WARP_PREFETCH", env)):
@@ -375,7 +376,7 @@ def test_studies_step_their_last_stage_first_on_a_gpu_only(monkeypatch, backend,
             monkeypatch.delenv(var, raising=False)
         else:
             monkeypatch.setenv(var, value)
-    assert _registry._prefetching(current()) is expected
+    assert _staging._prefetching(current()) is expected
     assert runs_wide(current().replace(workers=1)) is (backend == "warp")
 
 
@@ -482,7 +483,9 @@ def test_later_looks_hand_a_decided_part_the_plan_that_decided_it(tmp_path, stag
 def _context_at(name, quick, final_claims):
     """A context of study ``name`` as the staging engine makes it for a look after earlier looks made
     ``final_claims`` (claim -> look) final (every explanation needed, none decided)."""
-    from undulate.studies._registry import StudyConfig, StudyContext, describe, part_plans, stage_plans
+    from undulate.studies._context import StudyConfig, StudyContext
+    from undulate.studies._registry import describe
+    from undulate.studies._staging import part_plans, stage_plans
 
     info = describe(name)
     ctx = StudyContext(StudyConfig(out_dir="unused", quick=quick, workers=1), name, progress=False)
@@ -526,7 +529,8 @@ def test_a_pairs_xi_whose_claims_are_decided_keeps_its_looks_runs(decided, froze
 
     from undulate.studies import pairs
 
-    from undulate.studies._registry import describe, stage_plans
+    from undulate.studies._registry import describe
+    from undulate.studies._staging import stage_plans
 
     looks = stage_plans(describe("pairs"), False)
     names = {"1": pairs.CLAIMS[0].claim, "0.75": pairs.CLAIMS[1].claim, "standing": pairs.CLAIMS[3].claim}

@@ -19,7 +19,7 @@ import xarray as xr
 
 from undulate import studies
 from undulate.studies import _runners, basins, confinement, packing, potential, swimming
-from undulate.studies._registry import _check_units  # what the registry checks before it writes a file
+from undulate.studies._staging import _check_units  # what the registry checks before it writes a file
 
 pytestmark = pytest.mark.usefixtures("whole_plans", "warm_pool")  # the physics of the whole quick plan, in one look
 

@@ -108,7 +108,7 @@ def test_links_reduced(tmp_path):
     design points (+dphi and -dphi would be one: the RMS residual resamples them together)."""
     from undulate import studies
     from undulate.studies import links
-    from undulate.studies._registry import _check_units
+    from undulate.studies._staging import _check_units
 
     ctx = studies.StudyContext(studies.StudyConfig(out_dir=tmp_path, quick=True, seed=0), "links", progress=False)
     ds = links.dataset(ctx, links.Plan((0.0, math.pi / 4, math.pi / 2)))

@@ -10,7 +10,7 @@ import xarray as xr
 
 from undulate import studies
 from undulate.errors import ParameterError, UndulateError
-from undulate.studies import _registry
+from undulate.studies import _registry, _staging
 
 
 def test_compatibility_is_registered_theory_only():
@@ -176,11 +176,11 @@ def test_a_study_in_another_mode_or_seed_is_not_current(tmp_path):
 
 
 def test_summary_numbers_become_plain_json():
-    doc = _registry._jsonable({"a": np.float32(0.5), "b": np.arange(3), "c": float("nan"),
+    doc = _staging._jsonable({"a": np.float32(0.5), "b": np.arange(3), "c": float("nan"),
                                "d": (np.int64(2), True)})
     assert json.dumps(doc, allow_nan=False) == '{"a": 0.5, "b": [0, 1, 2], "c": null, "d": [2, true]}'
     with pytest.raises(UndulateError):
-        _registry._jsonable({"x": object()})
+        _staging._jsonable({"x": object()})
 
 
 def test_the_order_does_not_depend_on_which_study_module_was_imported_first():

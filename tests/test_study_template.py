@@ -103,7 +103,8 @@ def template_study():
 @pytest.mark.parametrize("quick, looks", [(True, (3, 5)), (False, (3, 5, 9))])
 def test_a_study_of_five_parts_runs_staged_to_its_verdicts(tmp_path, template_study, quick, looks):
     from undulate.studies import describe
-    from undulate.studies._registry import VERDICTS, stage_plans
+    from undulate.studies._protocol import VERDICTS
+    from undulate.studies._staging import stage_plans
 
     info = describe(NAME)
     assert info.stages is None  # five parts only: the looks come from the plan's staged() grid

@@ -12,7 +12,7 @@ import xarray as xr
 
 from undulate import _walltime, studies
 from undulate import execution
-from undulate.studies import _registry
+from undulate.studies import _context, _registry
 from undulate.sweep import Grid
 
 
@@ -48,7 +48,7 @@ def test_on_the_warp_backend_the_calls_run_side_by_side_and_record_in_their_orde
     """Two calls that each wait for the other (one after another they would time out), the first
     finishing last: their results, sweeps and failures come back in the calls' order, and the study's
     physics meter counts what both simulated; a nested ``together`` keeps its calls' order too."""
-    monkeypatch.setattr(_registry, "runs_wide", lambda execution: True)  # as on the Warp backend
+    monkeypatch.setattr(_context, "runs_wide", lambda execution: True)  # as on the Warp backend
     ctx = _ctx(tmp_path)
     both = threading.Barrier(2, timeout=30)
 
@@ -72,7 +72,7 @@ def test_on_the_warp_backend_the_calls_run_side_by_side_and_record_in_their_orde
 
 
 def test_the_first_failing_call_raises_once_all_have_ended(tmp_path, monkeypatch):
-    monkeypatch.setattr(_registry, "runs_wide", lambda execution: True)  # as on the Warp backend
+    monkeypatch.setattr(_context, "runs_wide", lambda execution: True)  # as on the Warp backend
     ctx = _ctx(tmp_path)
     ended = []
 
@@ -96,7 +96,7 @@ def test_a_study_on_threads_gives_the_same_dataset(tmp_path, monkeypatch):
 
     plan = swimming.SwimmingPlan(dphi=[0.0, np.pi / 2], duration_s=4.0)
     seq = swimming.dataset(_ctx(tmp_path / "seq"), plan)
-    monkeypatch.setattr(_registry, "runs_wide", lambda execution: True)  # as on the Warp backend
+    monkeypatch.setattr(_context, "runs_wide", lambda execution: True)  # as on the Warp backend
     ctx = _ctx(tmp_path / "threads")
     par = swimming.dataset(ctx, plan)
     xr.testing.assert_equal(seq, par)

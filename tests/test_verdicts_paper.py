@@ -14,7 +14,7 @@ import pytest
 from undulate import stats
 from undulate.studies import describe
 from undulate.studies import _analysis as C
-from undulate.studies._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED, judge
+from undulate.studies._protocol import FAILS, HOLDS, NO_RESULT, UNDECIDED, judge
 
 
 def est(value, low, high, n=9):

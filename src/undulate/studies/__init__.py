@@ -14,23 +14,10 @@ devices or workers.  ``Study.order`` places it among the
 others (default: its paper figure number).
 """
 
-from ._registry import (
-    Claim,
-    Explanation,
-    Study,
-    StudyConfig,
-    StudyContext,
-    SupersededCriterion,
-    Verdict,
-    describe,
-    identity,
-    is_current,
-    names,
-    register,
-    run_ahead,
-    run_study,
-    staged,
-)
+from ._context import StudyConfig, StudyContext
+from ._protocol import Claim, Explanation, Study, SupersededCriterion, Verdict, staged
+from ._registry import describe, identity, is_current, names, register
+from ._staging import run_ahead, run_study
 
 __all__ = [
     "Claim",

@@ -1,6 +1,6 @@
 """The closed-loop pairs, defined once: ``synchronization-pairs`` judges the PRX claims on them and
 ``phase-interaction`` whether H(dphi) predicts where they end (:func:`closed_loop_pairs_sweep`, run
-through :meth:`~._registry.StudyContext.shared_sweep`, so both studies read one set of runs).
+through :meth:`~._context.StudyContext.shared_sweep`, so both studies read one set of runs).
 
 Two swimmers in the paper's ``d = 0.13 m`` channel, one closed-loop controller of
 :data:`._phase_probe.CONTROLLERS`, longitudinal positions held (``Scene.hold_x``) or free, from an initial

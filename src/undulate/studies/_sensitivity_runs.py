@@ -24,13 +24,13 @@ from ..sweep import Grid
 from . import _analysis as analysis
 from ._criteria import PAIR_CHANNEL_M
 from ._gaits import equal_amplitude_beta
-from ._registry import StudyContext
+from ._context import StudyContext
 from ._runners import BODY_LENGTH_M, PAIR_STOP, PERIOD_S, RECORD_HZ, group_point, pair_point
 from ._sensitivity_design import (
     BETA_DEG, CONFINEMENT_S, DEFAULT_BODY_M, DEFAULT_S, DURATIONS_S, FLUID_DENSITIES,
     IMPULSE_DRAG_DEFAULT, IMPULSE_DRAGS_N_S_PER_M, LEFT_OUT, LONG_S, MODEL_DEFAULTS, MODEL_LEVELS,
     PAPER_RANGE_HIGH, SWIM_DRAG_N_S_PER_M, D_READING_SCALE, D_READINGS, PER_SWIMMER, WINDOWS, CaseId,
-    CaseSet, Plan, group_case, group_cases, impulse_drags, plan, xi32_durations)
+    CaseSet, Plan, group_cases, impulse_drags, xi32_durations)
 from ._shared import group_part, group_sweep, impulse_sweep
 
 

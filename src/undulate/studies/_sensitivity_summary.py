@@ -18,12 +18,12 @@ from .. import stats, theory
 from . import _analysis as analysis
 from ._criteria import CENTRAL, LINE_RMS_TOL, LINE_SLOPE_TOL, R2_MIN, WIDTH_TOL
 from ._explanations import results_by_case
-from ._registry import FAILS, HOLDS, NO_RESULT, UNDECIDED
+from ._protocol import FAILS, HOLDS, NO_RESULT, UNDECIDED
 from ._runners import BODY_LENGTH_M
 from ._sensitivity_design import (
     FACTOR_GROUPS, SKIPPABLE_GROUPS, DEFAULT_BODY_M, IMPULSE_DRAG_DEFAULT, PAPER_RANGE_HIGH,
-    D_READING_SCALE, D_READINGS, PER_SWIMMER, WHOLE_WIDTH, CaseId, confinement_case, group_case,
-    impulse_case, plan)
+    D_READING_SCALE, PER_SWIMMER, WHOLE_WIDTH, CaseId, confinement_case, group_case,
+    impulse_case)
 
 
 NOT_RUN = "not run (the claim it would explain does not fail)"

@@ -8,7 +8,7 @@ pairs' H(dphi) probe is run by both ``phase-interaction`` and
 :mod:`._closed_loop_pairs`).  Both studies
 build them here, with the same function, the same bound arguments and the
 same grid, and request them through
-:meth:`~._registry.StudyContext.shared_sweep`: in one output folder they are
+:meth:`~._context.StudyContext.shared_sweep`: in one output folder they are
 computed once, by whichever study runs first, and reused by the other only
 while their identity (bound call, grid, code hash, package version) is the
 same.  Whatever is bound here (a duration, a stopping rule) is bound for

@@ -1,4 +1,4 @@
-"""Staged plans: the nested grids a study's stages run (:attr:`._registry.Study.stages`).
+"""Staged plans: the nested grids a study's stages run (:attr:`._protocol.Study.stages`).
 
 A stage's grid is the next stage's thinned, so every run of an earlier stage is a run of the later
 one (the sweep stores key runs by content and reuse them).  Thinning by index, not by recomputing a

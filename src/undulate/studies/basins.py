@@ -47,7 +47,7 @@ bodies one body length apart) never touch: each run ends where it began, so ever
 pair in such a row is a "tread" without any interaction, and its offsets sit ``|dphi| / 2 pi`` from the
 line for the same reason.  A tread is therefore counted only between two runs that both touched, the
 line distance only over runs that touched, and the sinusoidal map's share on the same pairs.  The first
-criterion counted every start; it is kept beside the claim (:attr:`~._registry.Claim.superseded`) with
+criterion counted every start; it is kept beside the claim (:attr:`~._protocol.Claim.superseded`) with
 its verdict.
 """
 
@@ -63,7 +63,9 @@ from .. import stats, theory
 from ..errors import ParameterError
 from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, RETURN_TOL
-from ._registry import Claim, Study, StudyContext, SupersededCriterion, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, SupersededCriterion, Verdict
+from ._registry import register
 from ._stages import strides, thinned
 from ._runners import PAIR_DURATION_S, PAIR_STOP, pair_point
 

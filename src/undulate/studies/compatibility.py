@@ -13,7 +13,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from .. import theory
-from ._registry import Study, StudyContext, register
+from ._context import StudyContext
+from ._protocol import Study
+from ._registry import register
 
 if TYPE_CHECKING:
     import xarray as xr

@@ -36,7 +36,9 @@ from ..params import Gait, SwimmerGeometry
 from ..stats import Check
 from ..theory import channel_width_m, neutral_offset_m
 from ._criteria import CENTRAL, WIDTH_TOL
-from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, Verdict
+from ._registry import register
 from ._stages import strides, thinned
 from ._runners import PAIR_STOP, pair_point
 

@@ -28,7 +28,9 @@ from .. import stats
 from ._criteria import GROUP_CHANNEL_M, GROUP_RMS_TOL, GROUP_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as analysis
 from ._analysis import group_records
-from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, Verdict
+from ._registry import register
 from ._stages import strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S
 from ._shared import group_part, group_sweep
@@ -99,7 +101,7 @@ def part(n: int) -> str:
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Groups of three and four, and pairs over the same dphi range (the scatter they are compared with);
-    each size on the plan its part follows (:meth:`~._registry.StudyContext.plan_for`: the reference
+    each size on the plan its part follows (:meth:`~._context.StudyContext.plan_for`: the reference
     pairs feed every claim, a size of three or four its own and the spacing claim)."""
     seed = ctx.seed
     plans = {n: ctx.plan_for(part(n), p) for n in (2, *SIZES)}

@@ -24,7 +24,7 @@ how many runs were steady; per rule the trend of the error over N
 with its cluster-jackknife interval over the design points), which the
 claim judges (:data:`~._criteria.LINKS_TREND_RULE`).  The claim's earlier
 criterion, step by step on the per-N RMS intervals (``analysis.FALLS_RULE``), is
-judged beside it (:attr:`~._registry.Claim.superseded`).
+judged beside it (:attr:`~._protocol.Claim.superseded`).
 
 Outliers are findings (:mod:`undulate.studies._outliers`): where one N's RMS
 interval is more than :data:`~undulate.studies._outliers.WIDTH_FACTOR` times
@@ -52,7 +52,9 @@ from ..sweep import Grid
 from ._criteria import LINKS_TREND_RULE, PAIR_CHANNEL_M
 from . import _analysis as analysis
 from . import _outliers as O
-from ._registry import Claim, Study, StudyContext, SupersededCriterion, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, SupersededCriterion, Verdict
+from ._registry import register
 from ._stages import strides, thinned
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, group_point
 
@@ -95,7 +97,7 @@ def plan(quick: bool) -> Plan:
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Pairs of every rule and N at every dphi; each rule on the plan its part (the rule's name, read by
-    its claim) follows (:meth:`~._registry.StudyContext.plan_for`)."""
+    its claim) follows (:meth:`~._context.StudyContext.plan_for`)."""
     dphis = np.asarray(p.dphi_rad, float)
     plans = {rule: ctx.plan_for(rule, p) for rule in RULES}
     gaits = [_gait_point(r, n) for r in RULES for n in N_LINKS]

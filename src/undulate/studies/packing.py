@@ -53,7 +53,9 @@ from .. import stats, theory
 from ..params import Channel, Scene, SimOptions, SwimmerGeometry
 from ..stopping import ExcessStop
 from ._points import PackingPoint
-from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, Verdict
+from ._registry import register
 
 
 __all__ = [

@@ -37,7 +37,9 @@ from .. import stats
 from ..sweep import Grid
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from . import _analysis as analysis
-from ._registry import Claim, Study, StudyContext, Verdict, register, staged
+from ._context import StudyContext
+from ._protocol import Claim, Study, Verdict, staged
+from ._registry import register
 from ._runners import BODY_LENGTH_M, DURATION_S, PAIR_STOP, PERIOD_S, SAMPLE_RATE_HZ, TIMESTEP_S, group_point
 
 XI_VALUES = (0.0, 0.75, 1.0, 1.5)
@@ -57,7 +59,7 @@ run costs ~0.1 physics core-s."""
 @dataclass(frozen=True)
 class Plan:
     """The grid: every ``dphi_rad`` (rad) at every ``xi`` (waves per body).  The looks grow ``dphi_rad``
-    (:func:`~._registry.staged`): quick 5, 9, 33 dphi (every 8th, 4th, all); full 13, 25, 49, 193 (every
+    (:func:`~._protocol.staged`): quick 5, 9, 33 dphi (every 8th, 4th, all); full 13, 25, 49, 193 (every
     16th, 8th, 4th, all)."""
 
     dphi_rad: tuple[float, ...] = staged(refine=REFINE)
@@ -78,7 +80,7 @@ def part(xi: float) -> str:
 
 def dataset(ctx: StudyContext, p: Plan) -> xr.Dataset:
     """Run (or resume) the pair sweep and the free swimmers; assemble the study dataset.  Each xi runs
-    the dphi of the plan its part follows (:meth:`~._registry.StudyContext.plan_for`)."""
+    the dphi of the plan its part follows (:meth:`~._context.StudyContext.plan_for`)."""
     plans = {float(x): ctx.plan_for(part(x), p).dphi_rad for x in p.xi}
     points = [{"waves_per_body": float(x), "dphi_rad": float(d)} for x in p.xi for d in plans[float(x)]]
     fn = functools.partial(group_point, n_swimmers=2, channel_width_m=PAIR_CHANNEL_M, stop=PAIR_STOP)

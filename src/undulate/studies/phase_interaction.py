@@ -40,7 +40,9 @@ import numpy as np
 from .. import stats
 from ._closed_loop_pairs import _tail_circmean, closed_loop_pairs_sweep, pair_plan, pair_stages
 from ._shared import h_probe_phases, h_probe_sweep
-from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, Verdict
+from ._registry import register
 from ._criteria import PAIR_CHANNEL_M
 from ._phase_probe import (CONTROLLERS, MATCH_TOL_RAD, NEUTRAL_RATE_RAD_S, PROBE_S, _label, _neutral,  # noqa: F401
                      _sign, predicted, probe_run, probe_runs, stable_zeros)

@@ -98,7 +98,9 @@ from ..errors import ParameterError
 from ..params import Gait, SwimmerGeometry
 from ._criteria import PAIR_CHANNEL_M, R2_MIN
 from . import _analysis as analysis
-from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, Verdict
+from ._registry import register
 from ._stages import strides
 from ..stopping import SteadyStop
 from ._runners import pair_point
@@ -281,7 +283,7 @@ def sweep_plan(p: PotentialPlan, impulse: PotentialPlan, force: PotentialPlan) -
 
 def dataset(ctx: StudyContext, p: PotentialPlan):
     """Run the potential study on plan ``p``: the impulse sweep, free swimmers per beta, the force sweep,
-    each sweep on the plan its part follows (:meth:`~._registry.StudyContext.plan_for`: ``impulse`` feeds
+    each sweep on the plan its part follows (:meth:`~._context.StudyContext.plan_for`: ``impulse`` feeds
     the first claim, ``force`` the others but the release claim, whose runs are the same at every look)."""
     import xarray as xr
 

@@ -73,7 +73,7 @@ by that claim's own criterion and its key number with the 95 % interval
 ``undecided`` when one straddles a bound, ``no result`` only where a number
 is missing; each entry's ``*_verdict`` beside its True / False / None).
 ``EXPLANATIONS`` state the causes of failing claims that these runs
-demonstrate (:class:`~._registry.Explanation`; :mod:`undulate.claims`
+demonstrate (:class:`~._protocol.Explanation`; :mod:`undulate.claims`
 marks such a claim ``explained`` only when the check is true; None when a
 condition it rests on is undecided): one module
 per cause in :mod:`._explanations`, each reading the summary's results by
@@ -86,7 +86,7 @@ of :mod:`._sensitivity_summary`).
 
 Each factor group is a part of the plan that the explanations reading its cases read
 (:data:`~._sensitivity_design.FACTOR_GROUPS`, ``Explanation.reads``), and the staging engine hands the
-study, for each, the plan it follows (:meth:`~._registry.StudyContext.plan_for`): None when no needed
+study, for each, the plan it follows (:meth:`~._context.StudyContext.plan_for`): None when no needed
 explanation reads it (the claim each explains holds, is undecided or has no result in the output folder,
 so it cannot be ``explained``).  A skipped group keeps its variables and cases, filled with NaN, and runs
 nothing; the dataset's ``skipped_factor_groups`` attribute (a JSON list) names it, the summary's
@@ -111,7 +111,9 @@ from ..errors import UndulateError
 from . import _analysis as analysis
 from ._criteria import PAIR_CHANNEL_M
 from ._explanations import EXPLANATIONS
-from ._registry import Study, StudyContext, register
+from ._context import StudyContext
+from ._protocol import Study
+from ._registry import register
 from ._sensitivity_design import (  # noqa: F401 - the study's constants, re-exported
     BETA_DEG, CONFINEMENT_S, D_READING_SCALE, D_READINGS, DEFAULT_BODY_M, DEFAULT_S, DURATIONS_S, FACTOR_GROUPS,
     FLUID_DENSITIES, IMPULSE_DRAG_DEFAULT, IMPULSE_DRAGS_N_S_PER_M, LEFT_OUT, LONG_S, MODEL_DEFAULTS, MODEL_LEVELS,

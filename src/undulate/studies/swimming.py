@@ -39,7 +39,9 @@ from .. import stats, theory
 from ..params import Gait, Ground, SwimmerGeometry
 from ._criteria import LINE_RMS_TOL, LINE_SLOPE_TOL, PAIR_CHANNEL_M
 from ._analysis import SLOPE_METHOD, compatibility_fit, line_checks, rms
-from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, Verdict
+from ._registry import register
 from ._stages import strides, thinned
 from ._runners import PAIR_STOP, pair_point
 

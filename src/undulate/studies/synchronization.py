@@ -56,7 +56,9 @@ from ._closed_loop_pairs import (LOCK_TOL_RAD, PAIR_DURATION_S, PAIR_SYNC_STOP, 
 from ._shared import h_probe_phases, h_probe_sweep
 from ._points import SyncPoint
 from ._runners import _in_batches, _padded, _simulate_stopped_batch, _stop_vars
-from ._registry import Claim, Study, StudyContext, Verdict, register
+from ._context import StudyContext
+from ._protocol import Claim, Study, Verdict
+from ._registry import register
 
 __all__ = ["pair_run", "pair_runs", "group_run", "group_runs", "free_frequency", "pair_plan", "group_plan", "PAIR_CLAIMS", "GROUP_CLAIMS",
            "CONTROLLERS", "PAIR_COUPLING"]

@@ -49,7 +49,7 @@ from typing import Any
 
 from ... import stats
 from ...errors import UndulateError
-from .._registry import Explanation
+from .._protocol import Explanation
 from .._sensitivity_design import FACTOR_GROUPS, CaseId, CaseSet, UnknownCaseError, known_cases
 
 __all__ = ["CaseExplanation", "CaseFinding", "CaseResults", "MultipleChangesError", "NOT_RUN", "Shown",
