@@ -26,7 +26,7 @@ import os
 import sys
 import time
 from collections.abc import Callable, Collection, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -341,6 +341,48 @@ def _keep_decided(rows: list[dict[str, Any]], decided: dict[Any, dict[str, Any]]
     return out
 
 
+@dataclass
+class _Decisions:
+    """What a study's looks so far decided (claims that hold or fail, explanations shown or refuted: each
+    row as :func:`_keep_decided` keeps it) and found futile (claim -> the look that found it so)."""
+
+    claims: dict[Any, dict[str, Any]] = field(default_factory=dict)
+    explanations: dict[Any, dict[str, Any]] = field(default_factory=dict)
+    futile_at: dict[str, int] = field(default_factory=dict)
+
+    def keep(self, claims: list[dict[str, Any]], explanations: list[dict[str, Any]],
+             at: dict[str, Any]) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+        """This look's rows with every earlier decision kept (:func:`_keep_decided`)."""
+        claims = _keep_decided(claims, self.claims, lambda c: c["claim"],
+                               lambda c: c["verdict"] if c["verdict"] in (HOLDS, FAILS) else None, at)
+        explanations = _keep_decided(explanations, self.explanations, lambda e: (e["study"], e["claim"]),
+                                     lambda e: e["shown"], at)
+        return claims, explanations
+
+    def mark_futile(self, claims: list[dict[str, Any]], still: list[str], look: int) -> None:
+        """Undecided claims no longer open at ``look`` are futile from the first look that found them so."""
+        for c in claims:
+            if c["verdict"] == UNDECIDED and c["claim"] not in still:
+                self.futile_at.setdefault(c["claim"], look)
+
+    def parts(self, info: Study, plans: Sequence[Any], needs: Callable[[str, str], bool]) -> PartPlans:
+        """The plan of each part at the next look (:func:`part_plans`): a claim is final once decided, or
+        futile (from the look that found it so: its runs stopped there); an explanation once decided."""
+        final_claims = {**{k: c["decided_at"]["stage"] for k, c in self.claims.items()}, **self.futile_at}
+        final_explanations = {k: e["decided_at"]["stage"] for k, e in self.explanations.items()}
+        return part_plans(info, plans, final_claims, final_explanations, needs)
+
+
+def _look_row(at: dict[str, Any], sweeps: list[dict[str, Any]], verdicts: dict[str, str], still: list[str],
+              claims: list[dict[str, Any]], parts: PartPlans) -> dict[str, Any]:
+    """One look's row of the study JSON's ``stages``: its runs, its own verdicts, what stayed open, what
+    was futile, and which plan parts it kept frozen or did not run."""
+    return {**at, "n_runs": sum(s["n_runs"] for s in sweeps), "n_computed": sum(s["n_computed"] for s in sweeps),
+            "verdicts": verdicts, "undecided": still,
+            "futile": [c["claim"] for c in claims if c["verdict"] == UNDECIDED and c["claim"] not in still],
+            "frozen_parts": dict(sorted(parts.frozen_at.items())), "parts_not_run": sorted(parts.not_run)}
+
+
 def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress: bool) -> Path:
     """Run the study's stages until nothing it judges is undecided (or the last stage ran).
 
@@ -360,17 +402,13 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     plans = stage_plans(info, config.quick)
     levels = stats.look_levels(len(plans))
     looks: list[dict[str, Any]] = []
-    decided_claims: dict[Any, dict[str, Any]] = {}
-    decided_explanations: dict[Any, dict[str, Any]] = {}
-    futile_at: dict[str, int] = {}
-    final_claims: dict[str, int] = {}
-    final_explanations: dict[tuple[str, str], int] = {}
+    decisions = _Decisions()
     with _walltime.meter() as here:  # what this process simulates (serial sweeps, direct runs)
-        ctx.parts = part_plans(info, plans, {}, {}, ctx.needs_explanation)
+        ctx.parts = decisions.parts(info, plans, ctx.needs_explanation)
         prefetched = _prefetch(info, ctx, plans)
         for k, (plan, level) in enumerate(zip(plans, levels), start=1):
             first = len(ctx.sweeps)
-            ctx.parts = part_plans(info, plans, final_claims, final_explanations, ctx.needs_explanation)
+            ctx.parts = decisions.parts(info, plans, ctx.needs_explanation)
             with stats.at_level(level, plan_at=levels[-1]):  # runs needed: to decide at the cap's look
                 ds = info.dataset(ctx, plan)
                 summary = info.summary(ds)
@@ -379,26 +417,10 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
                                 for e in explain(name, info.explanations, summary)]
             verdicts = {c["claim"]: c["verdict"] for c in claims}  # this look's own
             at = {"stage": k, "of": len(plans), "confidence_level": level}
-            claims = _keep_decided(claims, decided_claims, lambda c: c["claim"],
-                                   lambda c: c["verdict"] if c["verdict"] in (HOLDS, FAILS) else None, at)
-            explanations = _keep_decided(explanations, decided_explanations, lambda e: (e["study"], e["claim"]),
-                                         lambda e: e["shown"], at)
-            still = _open(claims, explanations, _growth_left(len(plans), k, config.quick), futile_at)
-            for c in claims:  # futile from here on: its runs stay on this look's plan
-                if c["verdict"] == UNDECIDED and c["claim"] not in still:
-                    futile_at.setdefault(c["claim"], k)
-            # final: decided, or futile (from the look that found it so: its runs stopped there)
-            final_claims = {**{key: c["decided_at"]["stage"] for key, c in decided_claims.items()}, **futile_at}
-            final_explanations = {key: e["decided_at"]["stage"] for key, e in decided_explanations.items()}
-            mine = ctx.sweeps[first:]
-            parts = ctx.parts
-            looks.append({**at, "n_runs": sum(s["n_runs"] for s in mine),
-                          "n_computed": sum(s["n_computed"] for s in mine),
-                          "verdicts": verdicts, "undecided": still,
-                          "futile": [c["claim"] for c in claims
-                                     if c["verdict"] == UNDECIDED and c["claim"] not in still],
-                          "frozen_parts": dict(sorted(parts.frozen_at.items())),
-                          "parts_not_run": sorted(parts.not_run)})
+            claims, explanations = decisions.keep(claims, explanations, at)
+            still = _open(claims, explanations, _growth_left(len(plans), k, config.quick), decisions.futile_at)
+            decisions.mark_futile(claims, still, k)
+            looks.append(_look_row(at, ctx.sweeps[first:], verdicts, still, claims, ctx.parts))
             if not still:
                 break
     claims = [c if c["decided_at"] is None else
