@@ -306,9 +306,9 @@ class ExcessStop:
     min_batches: int = 3
 
     def __post_init__(self):
-        from .stats import _confidence
+        from .stats import check_confidence
 
-        _confidence(self.confidence)
+        check_confidence(self.confidence)
         _positive("batch_s", self.batch_s, "s")
         _count("min_batches", self.min_batches, 1)
 

@@ -52,7 +52,7 @@ from __future__ import annotations
 
 from ._levels import (  # noqa: F401
     CONFIDENCE, LOOK_SHARES, at_level, interval_note, level, look_levels, plan_level)
-from ._levels import _confidence  # noqa: F401 - undulate.stopping validates its confidence with it
+from ._levels import _confidence as check_confidence  # noqa: F401 - undulate.stopping validates its level with it
 from ._estimate import (  # noqa: F401
     Check, Estimate, NAN, all_of, decide, half_width_at, runs_needed)
 from ._bootstrap import (  # noqa: F401
@@ -67,4 +67,4 @@ __all__ = ["Estimate", "LineFit", "line_fit", "mirrored_line_fit", "clustered_li
            "is_mirror_design", "rank_correlation", "rms",
            "std", "mean", "bootstrap", "expanded_z", "BOOTSTRAP_SEED", "N_RESAMPLES", "CONFIDENCE", "level", "at_level",
            "look_levels", "plan_level", "interval_note", "Check", "decide", "all_of", "runs_needed",
-           "half_width_at", "DOMAINS", "domain_of", "domain_violations", "check_domains"]
+           "half_width_at", "DOMAINS", "domain_of", "domain_violations", "check_domains", "check_confidence"]
