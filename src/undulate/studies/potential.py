@@ -720,6 +720,9 @@ def summary(ds) -> dict[str, Any]:
         "n_points_broken": int(ds["broken"].values.sum()),
         "n_points": int(ds["broken"].size),
         "n_failed": int(ds["run_failed"].values.sum()),
+        "k_by_amplitude_at_width": stiffness_by_amplitude(
+            ds["beta"].values, ds["amplitude"].values, x_metres, k, ds["stiffness_stderr"].values,
+            ds["fit_n"].values),
         "dx0_vs_model": dx0_against_model(ds["dx0"].values, ds["dx0_ci95"].values, ds["model_dx0_thin"].values),
         "release": _release_summary(ds),
         "rules": f"dx: mean of last 3 periods minus the period before onset ({SETTLE_S} s); broken: "
@@ -757,6 +760,75 @@ def dx0_against_model(dx0, dx0_ci, model) -> dict[str, Any]:
             "share_below": _share(below, n).to_dict(), "share_not_above": _share(n - above, n).to_dict(),
             "mean_difference_over_lambda": stats.mean(x[ok] - mm).to_dict(),
             "model": "compatibility model for sinusoids (model_dx0_thin), the paper's dashed line"}
+
+
+def stiffness_by_amplitude(betas_deg, amplitudes_m, widths_m, k, k_stderr, k_points) -> dict[str, Any]:
+    """k at a fixed channel width, larger amplitude against smaller, for each pair of betas.
+
+    ``betas_deg`` (n_b,), ``amplitudes_m`` (n_b,): each beta's free-swimmer amplitude ``A``, m;
+    ``widths_m`` (n_b, n_d): the channel width ``W`` of each (beta, d/2A), m (each beta's own, as its
+    d/2A is normalised by its own ``A``); ``k``, ``k_stderr`` (n_b, n_d): the stiffness fits, N/m, and
+    their standard errors (``linregress``); ``k_points``: the points in each fit.  A fit is used where
+    ``k > 0`` with a finite standard error and at least 3 points.
+
+    For each pair of betas (ordered by amplitude: ``hi`` the larger ``A``), ``ln k`` of each is
+    interpolated linearly in ``W`` between its fitted widths, at every fitted width of either beta that
+    lies within both betas' fitted ranges; ``log_k_ratio`` is the mean over those widths of
+    ``ln k_hi(W) - ln k_lo(W)``.  Its standard error is propagated from the fits' own: ``se(ln k) =
+    se(k) / k`` (delta method), the mean a linear combination of the fits' ``ln k``, fits independent
+    (separate runs); its t interval at :func:`undulate.stats.level` uses the Welch-Satterthwaite degrees
+    of freedom over the fits' ``points - 2``.  No common width (or a single fit per beta): NaN, ``n = 0``.
+    """
+    from scipy import stats as st
+
+    b = np.asarray(betas_deg, float).ravel()
+    amp = np.asarray(amplitudes_m, float).ravel()
+    W, kk, se = (np.asarray(a, float) for a in (widths_m, k, k_stderr))
+    npts = np.asarray(k_points, float)
+    if not (W.ndim == 2 and W.shape[0] == b.size and W.shape == kk.shape == se.shape == npts.shape
+            and amp.shape == b.shape):
+        raise ParameterError("k", f"widths, k, stderr and points shaped (beta, d/2A) = ({b.size}, n)", kk.shape)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ok = np.isfinite(W) & np.isfinite(kk) & (kk > 0) & np.isfinite(se) & (npts >= 3)
+        lnk, lse = np.log(np.where(ok, kk, np.nan)), se / kk
+    order = np.argsort(amp)
+    pairs = {}
+    for a_i in range(order.size):
+        for a_j in range(a_i + 1, order.size):
+            lo_b, hi_b = order[a_i], order[a_j]
+            key = f"{b[lo_b]:g}-{b[hi_b]:g}"
+            xs = [np.sort(W[i][ok[i]]) for i in (lo_b, hi_b)]
+            entry = {"beta_low_deg": float(b[lo_b]), "beta_high_deg": float(b[hi_b]),
+                     "amplitude_low_m": float(amp[lo_b]), "amplitude_high_m": float(amp[hi_b]),
+                     "at_channel_widths_m": []}
+            if min(x.size for x in xs) < 2 or max(x[0] for x in xs) > min(x[-1] for x in xs):
+                entry["log_k_ratio"] = stats.Estimate(math.nan, n=0, method="no common width").to_dict()
+                pairs[key] = entry
+                continue
+            w_lo, w_hi = max(x[0] for x in xs), min(x[-1] for x in xs)
+            at = np.unique(np.concatenate(xs))
+            at = at[(at >= w_lo - 1e-12) & (at <= w_hi + 1e-12)]
+            # coefficients of the mean difference on each fit's ln k: +interp weights for hi, - for lo
+            coef = np.zeros_like(kk)
+            for i, sign in ((hi_b, 1.0), (lo_b, -1.0)):
+                idx = np.flatnonzero(ok[i])
+                idx = idx[np.argsort(W[i, idx])]
+                for w in at:
+                    eye = np.eye(idx.size)
+                    coef[i, idx] += sign * np.array([np.interp(w, W[i, idx], eye[m]) for m in range(idx.size)]) / at.size
+            use = coef != 0
+            value = float(np.sum(coef[use] * lnk[use]))
+            var_terms = (coef[use] * lse[use]) ** 2
+            var = float(var_terms.sum())
+            dof = float(var ** 2 / np.sum(var_terms ** 2 / (npts[use] - 2))) if np.all(npts[use] > 2) else math.nan
+            q = float(st.t.ppf((1 + stats.level()) / 2, dof)) if math.isfinite(dof) and dof > 0 else math.nan
+            sd = math.sqrt(var)
+            entry["log_k_ratio"] = stats.Estimate(value, sd, value - q * sd, value + q * sd, int(use.sum()),
+                                                  "delta method on the fits' stderr, Welch-Satterthwaite t",
+                                                  stats.level(), int(use.sum()), dof).to_dict()
+            entry["at_channel_widths_m"] = [float(w) for w in at]
+            pairs[key] = entry
+    return pairs
 
 
 def _release_summary(ds) -> dict[str, Any]:
@@ -887,6 +959,27 @@ def _sustained(s: dict) -> Verdict:
     return Verdict.of(checks, measured, value)
 
 
+def _k_grows_with_amplitude(s: dict) -> Verdict:
+    pairs = s["k_by_amplitude_at_width"]
+    ratios = {key: E(p["log_k_ratio"]) for key, p in pairs.items()}
+    note = stats.interval_note(next(iter(ratios.values())).level if ratios else None)
+    parts = []
+    for key, p in pairs.items():
+        r = ratios[key]
+        ws = p["at_channel_widths_m"]
+        span = (f"over W {1e3 * min(ws):.0f}-{1e3 * max(ws):.0f} mm ({len(ws)} widths)" if ws
+                else "no common width")
+        parts.append(f"beta {p['beta_high_deg']:g} vs {p['beta_low_deg']:g} deg: mean ln(k_hi / k_lo) = {r:+.2f} {span}")
+    measured = f"k at a fixed channel width W, larger amplitude against smaller ({note}): " + "; ".join(parts)
+    value = {key: r.to_dict() for key, r in ratios.items()}
+    compared = {key: r for key, r in ratios.items() if r.finite}
+    if not compared:
+        return Verdict.none("no pair of betas has fitted stiffnesses at a common channel width", measured, value)
+    return Verdict.of([r.above(0.0, f"mean ln(k_hi / k_lo), betas {key} deg") for key, r in compared.items()],
+                      measured, value)
+
+
+AMPLITUDE_CLAIM = "at a fixed channel width the cohesion stiffness k grows with the gait amplitude"
 DX0_CLAIM = "the neutral offset dx0 lies below the compatibility model's"
 RELEASE_CLAIM = "under a small dF the pair holds a separation, and goes back once the force is removed"
 
@@ -924,6 +1017,18 @@ CLAIMS = (
           quote=(r"However, when we normalize the wall width by gait amplitude the stiffness curves follow a "
                  r"similar trend (Fig.~\ref{fig:potential}d)."),
           where="Sec. III.G, Fig. 10d", reads=("force",)),
+    Claim(AMPLITUDE_CLAIM,
+          "larger amplitudes increase the stiffness of separation for a fixed wall width",
+          "for each pair of betas (each its own amplitude A, so one d/2A is a different channel width W per "
+          "beta), ln k of each is interpolated linearly in W between its fitted widths, at the fitted widths "
+          "of either that lie within both betas' fitted ranges; the mean over them of ln(k of the larger A) - "
+          "ln(k of the smaller A) has a 95 % t interval from the fits' own standard errors (delta method, "
+          "Welch-Satterthwaite degrees of freedom).  Holds if that interval lies above 0 for every pair with a "
+          "common width; fails if one lies wholly below 0; undecided if one straddles 0; no result if no "
+          "pair shares a width (pairs without one are listed, not judged).  Only fits enter: a width where no "
+          "rung held (k = 0, no cohesion) or with under 3 held rungs is skipped", _k_grows_with_amplitude,
+          quote=r"Thus, larger amplitudes increase the stiffness of separation for a fixed wall width.",
+          where="Sec. III.G, Fig. 10d", bands={"*": (0.0, None)}, reads=("force",)),
     Claim(DX0_CLAIM,
           "the neutral region dx0 likely lies below the compatibility model's prediction (three-link geometry)",
           "each (beta, d/2A) fit's dx0 is below the sinusoid model's (its bootstrap interval wholly below), above "
