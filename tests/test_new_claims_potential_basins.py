@@ -284,3 +284,68 @@ def test_the_force_design_spans_the_touching_channels_and_the_release_follows_it
         assert f[0] <= 0.005 and p.release[1] == tuple(P.plan(True).d_over_2A)
         assert p.release[2] == (P.RELEASE_FORCE_N,) == (float(f[0]),)
     assert P.plan(False).d_over_2A[-1] == pytest.approx(0.9)  # the first width of the scan with no contact
+
+
+# ------------------------------------------------------------------ k against amplitude at a fixed channel width
+AMPS = np.array([0.037, 0.052, 0.066])  # free swimmers' A at beta 30, 45, 60 deg, m (each its own channels)
+R_GRID = np.array([0.5, 0.6, 0.7, 0.8, 0.9])
+
+
+def _k_at(offsets, slope_per_m=20.0):
+    """Stiffness ln k = offset_beta - slope W, exactly linear in W: interpolation in W is then exact and the
+    mean ln(k_hi / k_lo) at any common width is the difference of the offsets."""
+    W = P.channel_width_m(R_GRID[None, :], AMPS[:, None], 2)
+    return W, np.exp(np.asarray(offsets, float)[:, None] - slope_per_m * W)
+
+
+def _amplitude_summary(offsets, rel_se=0.02, points=5, drop=()):
+    W, k = _k_at(offsets)
+    k = k.copy()
+    for i, j in drop:
+        k[i, j] = np.nan
+    return {"k_by_amplitude_at_width": P.stiffness_by_amplitude(
+        [30, 45, 60], AMPS, W, k, rel_se * k, np.full(k.shape, points))}
+
+
+def _amplitude_claim():
+    (c,) = [c for c in P.CLAIMS if c.claim == P.AMPLITUDE_CLAIM]
+    return c
+
+
+def test_stiffness_by_amplitude_compares_k_at_common_channel_widths():
+    pairs = _amplitude_summary([0.0, 0.5, 1.2])["k_by_amplitude_at_width"]
+    assert set(pairs) == {"30-45", "30-60", "45-60"}
+    W, _ = _k_at([0, 0, 0])
+    for key, (lo, hi), want in (("30-45", (0, 1), 0.5), ("30-60", (0, 2), 1.2), ("45-60", (1, 2), 0.7)):
+        p = pairs[key]
+        r = p["log_k_ratio"]
+        assert r["value"] == pytest.approx(want, abs=1e-12)  # log-linear k: interpolation is exact
+        assert r["ci95"][0] < want < r["ci95"][1]
+        ws = np.array(p["at_channel_widths_m"])
+        assert ws.size >= 1 and ws.min() >= max(W[lo].min(), W[hi].min()) - 1e-12
+        assert ws.max() <= min(W[lo].max(), W[hi].max()) + 1e-12  # only where both betas have fits
+    # the 30 deg channels stop below most of the 60 deg ones: fewer common widths than 30-45 has
+    assert len(pairs["30-60"]["at_channel_widths_m"]) < len(pairs["30-45"]["at_channel_widths_m"])
+    # the interval is the fits' own: ten times their standard errors, ten times its half width
+    wide = _amplitude_summary([0.0, 0.5, 1.2], rel_se=0.2)["k_by_amplitude_at_width"]["45-60"]["log_k_ratio"]
+    narrow = pairs["45-60"]["log_k_ratio"]
+    assert (wide["ci95"][1] - wide["value"]) / (narrow["ci95"][1] - narrow["value"]) == pytest.approx(10, rel=1e-6)
+    # a missing fit is skipped, the neighbours' interpolation stands in (exact here)
+    gap = _amplitude_summary([0.0, 0.5, 1.2], drop=[(1, 2)])["k_by_amplitude_at_width"]["45-60"]["log_k_ratio"]
+    assert gap["value"] == pytest.approx(0.7, abs=1e-12)
+    with pytest.raises(ParameterError, match="k"):
+        P.stiffness_by_amplitude([30, 45], AMPS, *(np.ones((3, 5)),) * 3, np.full((3, 5), 5))
+
+
+def test_amplitude_claim_holds_fails_and_is_undecided():
+    judge = _amplitude_claim().judge
+    assert judge(_amplitude_summary([0.0, 0.5, 1.0])).verdict == "holds"  # larger A, stiffer at every W
+    assert judge(_amplitude_summary([1.0, 0.5, 0.0])).verdict == "fails"  # larger A, softer
+    # one pair the same stiffness within the fits' errors: its interval straddles 0
+    assert judge(_amplitude_summary([0.0, 0.5, 0.5], rel_se=0.2)).verdict == "undecided"
+    # a pair that fails decides it even when another straddles
+    assert judge(_amplitude_summary([0.0, 0.5, 0.4], rel_se=0.01)).verdict == "fails"
+    # no beta has two fits: no common width anywhere
+    one_fit = [(i, j) for i in range(3) for j in range(1, 5)]
+    v = judge(_amplitude_summary([0.0, 0.5, 1.0], drop=one_fit))
+    assert v.verdict == "no result"

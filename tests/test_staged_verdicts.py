@@ -618,22 +618,24 @@ def test_a_futile_claims_runs_stay_where_it_was_found_futile(tmp_path, staged, m
 
 def test_a_potential_sweep_whose_claims_are_final_keeps_its_looks_runs():
     """The potential study's impulse sweep feeds the impulse claim only, its force sweep the harmonic, k,
-    collapse and dx0 claims (frozen once all four are, at the latest such look); the release claim's runs
+    collapse, amplitude and dx0 claims (frozen once all five are, at the latest such look); the release claim's runs
     are the same at every look and hold no sweep back.  Quick mode's impulse claim found futile at the
     first look leaves the second look nothing to run: its force grid is the first look's already."""
     from undulate.studies import potential
 
     looks = potential.stages(False)
-    impulse, harmonic, falls, collapse, dx0, release = (c.claim for c in potential.CLAIMS)
+    impulse, harmonic, falls, collapse, amp, dx0, release = (c.claim for c in potential.CLAIMS)
 
     def grids(p):
         return (p.impulse_dphi, p.impulse_phi0), (p.betas_deg, p.d_over_2A, p.forces_N)
 
     for frozen, want_imp, want_force in [({}, 3, 3), ({impulse: 1}, 0, 3), ({harmonic: 1, falls: 2}, 3, 3),
                                          ({harmonic: 1, falls: 3, collapse: 2}, 3, 3),
-                                         ({harmonic: 1, falls: 3, collapse: 2, dx0: 1}, 3, 2),
-                                         ({impulse: 2, harmonic: 2, falls: 2, collapse: 2, dx0: 2}, 1, 1),
-                                         ({impulse: 2, harmonic: 2, falls: 2, collapse: 2, dx0: 2, release: 3}, 1, 1)]:
+                                         ({harmonic: 1, falls: 3, collapse: 2, dx0: 1}, 3, 3),  # amp not final
+                                         ({harmonic: 1, falls: 3, collapse: 2, amp: 1, dx0: 1}, 3, 2),
+                                         ({impulse: 2, harmonic: 2, falls: 2, collapse: 2, amp: 2, dx0: 2}, 1, 1),
+                                         ({impulse: 2, harmonic: 2, falls: 2, collapse: 2, amp: 2, dx0: 2,
+                                           release: 3}, 1, 1)]:
         ctx = _context_at("potential", False, frozen)
         got = potential.sweep_plan(looks[3], ctx.plan_for("impulse", looks[3]), ctx.plan_for("force", looks[3]))
         assert grids(got)[0] == grids(looks[want_imp])[0] and grids(got)[1] == grids(looks[want_force])[1]

@@ -140,12 +140,17 @@ def test_confinement_is_exact():
 
 # ------------------------------------------------------------------ potential
 def potential_summary(r2=(0.95, 0.92, 0.99), a=(4.0, 2.5, 5.5), fit_r2=(0.99, 0.978, 1.0),
-                      rho=((-1.0, -1.0, -1.0),) * 3, collapse=((0.2, 0.1, 0.3), (0.6, 0.45, 0.75))):
+                      rho=((-1.0, -1.0, -1.0),) * 3, collapse=((0.2, 0.1, 0.3), (0.6, 0.45, 0.75)),
+                      amp_ratio=((0.5, 0.2, 0.8),) * 3):
     return {"impulse_fit": {"slope_Ns_per_rad": est(*a), "r2": est(*r2), "r2_without_phase_scatter": est(*r2)},
             "median_fit_r2": fit_r2[0], "fit_r2_ci95_low_median": fit_r2[1], "fit_r2_ci95_high_median": fit_r2[2],
             "n_fits": 9, "n_fit_points": 45, "fit_r2_level": stats.CONFIDENCE,
             "per_beta": {b: {"spearman_k_vs_d": est(*r, n=3)} for b, r in zip(("30", "45", "60"), rho)},
             "collapse_rms_log10k_vs_d_over_2A": est(*collapse[0]), "collapse_rms_log10k_vs_d_m": est(*collapse[1]),
+            "k_by_amplitude_at_width": {
+                key: {"beta_low_deg": float(key.split("-")[0]), "beta_high_deg": float(key.split("-")[1]),
+                      "at_channel_widths_m": [0.13, 0.14], "log_k_ratio": est(*r, n=4)}
+                for key, r in zip(("30-45", "30-60", "45-60"), amp_ratio)},
             # the dx0 and release claims hold here (their own tests: tests/test_new_claims_potential_basins.py)
             "dx0_vs_model": {"n_fits": 9, "n_below": 9, "n_above": 0, "n_unresolved": 0,
                              "share_below": est(1.0, 0.66, 1.0), "share_not_above": est(1.0, 0.66, 1.0),
@@ -157,7 +162,7 @@ def potential_summary(r2=(0.95, 0.92, 0.99), a=(4.0, 2.5, 5.5), fit_r2=(0.99, 0.
 
 
 def test_potential_holds():
-    assert verdicts("potential", potential_summary()) == [HOLDS] * 6
+    assert verdicts("potential", potential_summary()) == [HOLDS] * 7
 
 
 @pytest.mark.parametrize("kw, index, verdict", [
@@ -171,6 +176,8 @@ def test_potential_holds():
     ({"rho": ((-0.5, -1.0, 1.0),) + ((-1.0, -1.0, -1.0),) * 2}, 2, UNDECIDED),  # 3 widths: straddles 0
     ({"collapse": ((0.6, 0.45, 0.75), (0.2, 0.1, 0.3))}, 3, FAILS),   # wholly larger against d/2A
     ({"collapse": ((0.37, 0.02, 0.46), (0.6, 0.14, 0.74))}, 3, UNDECIDED),  # intervals overlap
+    ({"amp_ratio": ((0.5, 0.2, 0.8), (-0.4, -0.7, -0.1), (0.5, 0.2, 0.8))}, 4, FAILS),  # larger A softer
+    ({"amp_ratio": ((0.5, 0.2, 0.8), (0.1, -0.2, 0.4), (0.5, 0.2, 0.8))}, 4, UNDECIDED),  # straddles 0
 ])
 def test_potential(kw, index, verdict):
     r = rows("potential", potential_summary(**kw))
@@ -206,7 +213,7 @@ def test_potential_missing_numbers_are_no_result():
     s["impulse_fit"]["r2"] = stats.Estimate(math.nan).to_dict()
     s["per_beta"]["30"]["spearman_k_vs_d"] = stats.Estimate(math.nan).to_dict()
     s["collapse_rms_log10k_vs_d_m"] = stats.Estimate(math.nan).to_dict()
-    assert verdicts("potential", s) == [NO_RESULT, HOLDS, NO_RESULT, NO_RESULT, HOLDS, HOLDS]
+    assert verdicts("potential", s) == [NO_RESULT, HOLDS, NO_RESULT, NO_RESULT, HOLDS, HOLDS, HOLDS]
 
 
 # ------------------------------------------------------------------ packing
