@@ -573,26 +573,26 @@ def dataset(ctx: StudyContext, p: PackingPlan):
     """Run the packing study on plan ``p``: the free swimmer, then every (phi_max, rho~, draw)."""
     from ..sweep import Grid
 
-    config = ctx.config
+    seed = ctx.seed
     lone = ctx.lone_swimmer()
     amp = float(lone["amplitude_m"])
     base_err = float(lone["mean_joint_error_rad"])
 
-    full = functools.partial(packing_point, amplitude_m=amp, base_seed=int(config.seed),
+    full = functools.partial(packing_point, amplitude_m=amp, base_seed=int(seed),
                              n_swimmers=p.n_swimmers, duration_s=p.duration_s)
     fn = full if PACKING_STOP is None else functools.partial(full, stop=PACKING_STOP, lone_error_rad=base_err)
     # the heatmap: every phi_max at the heatmap densities, the first heatmap_draws draws (the
     # whole threshold grid by default, then this is the only sweep)
     grid = Grid(axes={"phi_max_rad": p.phi_max_rad, "rho_tilde": p.heatmap_rho,
-                      "draw": list(range(p.heatmap_draws))}, seed=config.seed)
+                      "draw": list(range(p.heatmap_draws))}, seed=seed)
     heat = ctx.sweep("groups", fn, grid).isel(replicate=0)
     runs = _Runs(p, base_err)
     _take_heatmap(runs, p, heat)
     rounds = _bisect(ctx, p, fn, runs)
-    cont = functools.partial(packing_continue, amplitude_m=amp, base_seed=int(config.seed),
+    cont = functools.partial(packing_continue, amplitude_m=amp, base_seed=int(seed),
                              n_swimmers=p.n_swimmers, duration_s=p.duration_s)
     reruns, thresholds = _rerun_brackets(ctx, p, cont, runs)
-    return _assemble(p, runs, heat, thresholds, amp, int(config.seed), rounds, reruns)
+    return _assemble(p, runs, heat, thresholds, amp, int(seed), rounds, reruns)
 
 
 def _assemble(p: PackingPlan, runs: _Runs, heat, thresholds, amp: float, seed: int, rounds: int, reruns: int):
