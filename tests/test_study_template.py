@@ -11,9 +11,12 @@ few |dphi|, and the paper's claim that the contact impulse over the first two pe
 from __future__ import annotations
 
 import functools
+import importlib.util
 import json
+import re
 import sys
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -122,3 +125,34 @@ def test_a_study_of_five_parts_runs_staged_to_its_verdicts(tmp_path, template_st
     if claim["verdict"] in ("holds", "fails"):
         assert claim["decided_at"]["stage"] == len(ran)
     assert doc["summary"]["n_runs"] == looks[len(ran) - 1]
+
+
+GUIDE = Path(__file__).resolve().parents[1] / "docs" / "guide" / "studies.md"
+
+
+def test_the_guides_own_study_runs_staged_as_written(tmp_path):
+    """The study printed in docs/guide/studies.md ("Adding a study"), copied into a file as a reader
+    would, registers on import and runs staged in quick mode to its verdict."""
+    from undulate.studies import _registry, describe
+    from undulate.studies._protocol import VERDICTS
+    from undulate.studies._staging import stage_plans
+
+    section = GUIDE.read_text(encoding="utf-8").split("## Adding a study", 1)[1]
+    code = re.search(r"^```python\n(.*?)^```", section, re.S | re.M).group(1)
+    path = tmp_path / "guide_study.py"
+    path.write_text(code)
+    _registry._load()
+    spec = importlib.util.spec_from_file_location("guide_study", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["guide_study"] = module
+    try:
+        spec.loader.exec_module(module)  # registers "impulse"
+        info = describe("impulse")
+        assert info.stages is None and [len(p.dphi_rad) for p in stage_plans(info, True)] == [3, 5]
+        run_study("impulse", tmp_path / "out", quick=True, workers=1, progress=False)
+        doc = json.loads((tmp_path / "out" / "impulse.json").read_text())
+        assert doc["claims"][0]["verdict"] in VERDICTS and doc["n_failed"] == 0
+        assert [s["n_runs"] for s in doc["stages"]] == [3, 5][:len(doc["stages"])]
+    finally:
+        _registry._REGISTRY.pop("impulse", None)
+        sys.modules.pop("guide_study", None)
