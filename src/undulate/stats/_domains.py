@@ -101,7 +101,7 @@ def check_domains(obj: Any, where: str) -> None:
     clipped."""
     bad = domain_violations(obj)
     if bad:
-        from .errors import UndulateError
+        from ..errors import UndulateError
 
         raise UndulateError(f"{where}: {len(bad)} number(s) outside their physical domain: " + "; ".join(bad[:10])
                             + (f"; and {len(bad) - 10} more" if len(bad) > 10 else ""))

@@ -645,27 +645,9 @@ def impulse_r2_without_phase_scatter(dphi, impulse_all) -> stats.Estimate:
                           int(x.size) - 1)
 
 
-def summary(ds) -> dict[str, Any]:
-    """Pure: the impulse fit (line on |dphi|, standard errors), per beta k, dx0, R^2 with intervals and
-    the rank correlation of k with d; the collapse of log10 k against d/2A and against d."""
-    dphi = ds["dphi"].values
-    impulse = ds["impulse"].values
-    # the line on |dphi|: +-dphi are one design point (mirror images), so their runs are pooled
-    abs_dphi, pooled = analysis.by_abs_dphi(dphi, ds["impulse_all"].values)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN row: every run there failed
-        pooled_mean = np.nanmean(pooled, axis=1)
-    fit_a = stats.line_fit(abs_dphi, pooled_mean)
-    fit_pos = stats.line_fit(np.abs(dphi[dphi >= 0]), impulse[dphi >= 0])
-    fit_neg = stats.line_fit(np.abs(dphi[dphi <= 0]), impulse[dphi <= 0])
-    k = ds["stiffness"].values
-    R = ds["d_over_2A"].values
-    with np.errstate(invalid="ignore", divide="ignore"):
-        logk = np.where(k > 0, np.log10(k), np.nan)
-    x_scaled = np.broadcast_to(R, k.shape)
-    x_metres = ds["channel_width"].values
-    sliding = x_scaled >= SLIDING_FROM - 1e-9
-    fit_level = float(ds.attrs.get("interval_level", stats.CONFIDENCE))
+def _per_beta_summary(ds, R, k, fit_level: float) -> dict[str, Any]:
+    """Per beta: its A, the fits (k, dx0, R^2 with intervals), the rank correlation of k with d, the
+    model's dx0 and the cohesion of each width."""
     per_beta = {}
     for i, b in enumerate(ds["beta"].values):
         ok = np.isfinite(k[i])
@@ -690,6 +672,31 @@ def summary(ds) -> dict[str, Any]:
         }
         per_beta[f"{b:g}"]["no_cohesion_d_over_2A"] = [c["d_over_2A"] for c in per_beta[f"{b:g}"]["cohesion"]
                                                        if not c["cohesive"]]
+    return per_beta
+
+
+def summary(ds) -> dict[str, Any]:
+    """Pure: the impulse fit (line on |dphi|, standard errors), per beta k, dx0, R^2 with intervals and
+    the rank correlation of k with d; the collapse of log10 k against d/2A and against d."""
+    dphi = ds["dphi"].values
+    impulse = ds["impulse"].values
+    # the line on |dphi|: +-dphi are one design point (mirror images), so their runs are pooled
+    abs_dphi, pooled = analysis.by_abs_dphi(dphi, ds["impulse_all"].values)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # an all-NaN row: every run there failed
+        pooled_mean = np.nanmean(pooled, axis=1)
+    fit_a = stats.line_fit(abs_dphi, pooled_mean)
+    fit_pos = stats.line_fit(np.abs(dphi[dphi >= 0]), impulse[dphi >= 0])
+    fit_neg = stats.line_fit(np.abs(dphi[dphi <= 0]), impulse[dphi <= 0])
+    k = ds["stiffness"].values
+    R = ds["d_over_2A"].values
+    with np.errstate(invalid="ignore", divide="ignore"):
+        logk = np.where(k > 0, np.log10(k), np.nan)
+    x_scaled = np.broadcast_to(R, k.shape)
+    x_metres = ds["channel_width"].values
+    sliding = x_scaled >= SLIDING_FROM - 1e-9
+    fit_level = float(ds.attrs.get("interval_level", stats.CONFIDENCE))
+    per_beta = _per_beta_summary(ds, R, k, fit_level)
     r2_all = ds["fit_r2"].values
     return {
         "impulse_fit": {"slope_Ns_per_rad": fit_a.slope.to_dict(), "intercept_Ns": fit_a.intercept.to_dict(),
