@@ -124,21 +124,29 @@ def test_basins_is_exact():
     assert verdicts("basins", basins_summary(negative=None))[0] == FAILS  # not bracketed on one side
 
 
-# ------------------------------------------------------------------ confinement (no interval: exact)
-def confinement_summary(widths=(0.0, 0.02, 0.05, 0.18), never_shrinks=True):
-    d = [0.6, 0.9, 1.2, 1.5]
+# ------------------------------------------------------------------ confinement (a trend: test_confinement_trend.py)
+def confinement_summary(widths=(0.0, 0.02, 0.05, 0.08, 0.18), never_shrinks=True):
+    from undulate.studies import confinement
+
+    d = [0.6, 0.8, 1.0, 1.2, 1.5]
+    fit = confinement.broadening_trend(d, widths)
     inside = max(w for a, w in zip(d, widths) if a <= 1.2)
     return {"d_over_2A": d, "central_width_over_lambda": list(widths), "max_width_in_paper_range": inside,
-            "width_never_shrinks_with_d": never_shrinks}
+            "width_never_shrinks_with_d": never_shrinks, "broadening_slope_per_d_over_2A": fit.slope.to_dict(),
+            "broadening_intercept_over_lambda": fit.intercept.to_dict(), "n_runs_in_broadening_fit": 11 * fit.n}
 
 
-def test_confinement_is_exact():
-    assert verdicts("confinement", confinement_summary()) == [HOLDS]
-    assert verdicts("confinement", confinement_summary((0.0, 0.0, 0.0, 0.18))) == [FAILS]  # opens only beyond 1.2
-    assert verdicts("confinement", confinement_summary(never_shrinks=False)) == [FAILS]
+def test_confinement_is_a_trend_with_its_step_by_step_criterion_beside_it():
+    def both(s):
+        (r,) = rows("confinement", s)
+        return r["verdict"], r["superseded"][0]["verdict"]
+
+    assert both(confinement_summary()) == (HOLDS, HOLDS)
+    assert both(confinement_summary((0.0, 0.0, 0.0, 0.0, 0.18))) == (FAILS, FAILS)  # opens only beyond 1.2
+    assert both(confinement_summary(never_shrinks=False)) == (HOLDS, FAILS)
     s = confinement_summary()
     s["max_width_in_paper_range"] = None
-    assert verdicts("confinement", s) == [NO_RESULT]
+    assert both(s) == (HOLDS, NO_RESULT)
 
 
 # ------------------------------------------------------------------ potential

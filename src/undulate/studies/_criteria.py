@@ -22,6 +22,7 @@ __all__ = [
     "CENTRAL",
     "RETURN_TOL",
     "LINKS_TREND_RULE",
+    "CONFINEMENT_TREND_RULE",
 ]
 
 PAIR_CHANNEL_M = 0.13
@@ -70,3 +71,18 @@ values, whose rank correlation can never exclude 0 at 95 % (4! = 24 orderings; a
 interval: a |dphi| has its own error at every N (the paired design), and the runs at +dphi and -dphi
 are one pair mirrored.  Quick mode: 4 N x 9 dphi = 36 runs in 5 design points (t on 4), its first
 look 3 (t on 2); full mode 17 (t on 16)."""
+
+CONFINEMENT_TREND_RULE = (
+    "the least-squares slope of the central state's width (lambda) against d/2A over the paper's range "
+    "0.6-1.2 (every confinement there with a central state; at least 3), with its 95 % Student-t interval "
+    "(the slope's standard error from linregress, n - 2 degrees of freedom): lower end above 0: holds; upper "
+    "end at or below 0: fails; otherwise undecided (fewer than 3 widths: no result).  The paper gives no size "
+    "of the broadening, so no band of no change is fixed from its words: a flat trend stays undecided, and a "
+    "state closed throughout the range (slope 0 [0, 0]) fails")
+"""The confinement claim ("increasing the confinement wall distance increased the range of final
+longitudinal spacing ... the central compatibility state broadened") judged as a trend over the range the
+paper states it on, d/2A in [0.6, 1.2], not step by step: no single narrower step decides it, and the
+wider channels run beyond the range (where the walls stop holding the pair) do not enter it.  Each width
+is a range of final offsets with no interval of its own; the scatter of the widths about the line is the
+slope's uncertainty.  Quick mode: d/2A 0.6, 0.8, 1.0, 1.2 in the range (t on 2); full mode 0.6 to 1.2 in
+0.1 (7 widths, t on 5), its first look 0.6, 0.8, 1.0, 1.2."""

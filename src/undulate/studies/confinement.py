@@ -23,26 +23,41 @@ leave in the channel ``W``, :func:`undulate.theory.neutral_offset_m`): the model
 stored beside the measured ones.  The width is a range of final offsets,
 not a fitted number: its resolution is set by the time the runs settle,
 not by sampling, so it carries no interval.
+
+The claim ("the central compatibility state broadened" as the wall distance
+grew) is judged as a trend over the paper's range 0.6-1.2
+(:data:`~._criteria.CONFINEMENT_TREND_RULE`): the least-squares slope of
+the widths against ``d/2A`` there, with its Student-t interval
+(:func:`broadening_trend`).  The quick plan has four confinements in the
+range (0.6, 0.8, 1.0, 1.2) so that the slope has an interval on 2 degrees
+of freedom, and 1.5 beyond it; the full plan seven.  The claim's earlier
+criterion, step by step (no width narrower than the one before by more
+than :data:`~._criteria.WIDTH_TOL`, over every confinement run), is judged
+beside it (:attr:`~._protocol.Claim.superseded`).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 from typing import Any
 
 import numpy as np
 
+from .. import stats
+from ..errors import ParameterError
 from ..params import Gait, SwimmerGeometry
 from ..stats import Check
 from ..theory import channel_width_m, neutral_offset_m
-from ._criteria import CENTRAL, WIDTH_TOL
+from ._criteria import CENTRAL, CONFINEMENT_TREND_RULE, WIDTH_TOL
 from ._context import StudyContext
-from ._protocol import Claim, Study, Verdict
+from ._protocol import Claim, Study, SupersededCriterion, Verdict
 from ._registry import register
 from ._stages import strides, thinned
 from ._runners import PAIR_STOP, pair_point
 
-__all__ = ["ConfinementPlan", "plan", "central_state", "dataset", "summary", "CLAIMS", "PAPER_RANGE"]
+__all__ = ["ConfinementPlan", "plan", "central_state", "broadening_trend", "dataset", "summary", "CLAIMS",
+           "PAPER_RANGE"]
 
 DURATION_S = 40.0
 """20 gait periods, s: long enough for the widest channels' central state to settle."""
@@ -59,9 +74,12 @@ class ConfinementPlan:
 
 
 def plan(quick: bool) -> ConfinementPlan:
-    """Full: d/2A 0.6 to 1.6 in 0.1 (11) x 41 starts = 451 runs; quick: 4 x 11 = 44."""
+    """Full: d/2A 0.6 to 1.6 in 0.1 (11) x 41 starts = 451 runs; quick: d/2A 0.6, 0.8, 1.0, 1.2, 1.5 x 11
+    starts = 55.  Quick's four confinements in the paper's range give the claim's slope an interval on 2
+    degrees of freedom (three would leave 1: a t quantile of 12.7); 1.5 shows where the walls stop holding
+    the pair together."""
     if quick:
-        return ConfinementPlan([0.6, 0.9, 1.2, 1.5], np.linspace(-1, 1, 11))
+        return ConfinementPlan([0.6, 0.8, 1.0, 1.2, 1.5], np.linspace(-1, 1, 11))
     return ConfinementPlan(np.round(np.arange(0.6, 1.61, 0.1), 10), np.linspace(-1, 1, 41))
 
 
@@ -81,6 +99,35 @@ def central_state(dx0, dx_final) -> dict[str, float]:
         return {"width": nan, "lo": nan, "hi": nan, "basin_lo": nan, "basin_hi": nan, "n": 0}
     return {"width": float(xf[c].max() - xf[c].min()), "lo": float(xf[c].min()), "hi": float(xf[c].max()),
             "basin_lo": float(x0[c].min()), "basin_hi": float(x0[c].max()), "n": int(c.sum())}
+
+
+def _in_paper_range(d_over_2A) -> np.ndarray:
+    r = np.asarray(d_over_2A, float)
+    return (r >= PAPER_RANGE[0] - 1e-9) & (r <= PAPER_RANGE[1] + 1e-9)
+
+
+def broadening_trend(d_over_2A, width_over_lambda) -> stats.LineFit:
+    """The claim's trend (:data:`~._criteria.CONFINEMENT_TREND_RULE`): the least-squares line of the
+    central state's width (lambda) on ``d/2A`` over the paper's range :data:`PAPER_RANGE`, the
+    confinements with a central state only (finite widths), by :func:`undulate.stats.line_fit`
+    (``scipy.stats.linregress``; Student-t intervals on ``n - 2`` degrees of freedom at the look's
+    level).  Its slope is in lambda per unit ``d/2A``; no interval with fewer than 3 widths in the range.
+
+    Equal widths (a state closed, width 0, throughout the range) lie exactly on a flat line: slope 0 with
+    standard error 0 and interval [0, 0], where ``linregress`` gives a NaN standard error (its correlation
+    is undefined without spread in the widths)."""
+    r = np.asarray(d_over_2A, float)
+    w = np.asarray(width_over_lambda, float)
+    if r.ndim != 1 or r.shape != w.shape:
+        raise ParameterError("width_over_lambda", f"one width per d/2A ({r.size} values, 1-D)", w.shape)
+    keep = _in_paper_range(r) & np.isfinite(w)
+    fit = stats.line_fit(r[keep], w[keep])
+    if fit.n >= 3 and np.ptp(w[keep]) == 0 and np.ptp(r[keep]) > 0:
+        def exact(e: stats.Estimate) -> stats.Estimate:
+            return dataclasses.replace(e, stderr=0.0, low=e.value, high=e.value)
+
+        fit = dataclasses.replace(fit, slope=exact(fit.slope), intercept=exact(fit.intercept))
+    return fit
 
 
 def dataset(ctx: StudyContext, p: ConfinementPlan):
@@ -141,10 +188,13 @@ def dataset(ctx: StudyContext, p: ConfinementPlan):
 
 
 def summary(ds) -> dict[str, Any]:
-    """Pure: the central state's width per confinement, the model's, and whether it grows."""
+    """Pure: the central state's width per confinement, the model's, its trend over the paper's range
+    (:func:`broadening_trend`: ``broadening_slope_per_d_over_2A``, the claim's) and whether it ever
+    shrinks from one confinement to the next (``width_never_shrinks_with_d``, the superseded criterion's)."""
     r = ds["d_over_2A"].values
     w = ds["central_width"].values
-    in_paper = (r >= PAPER_RANGE[0] - 1e-9) & (r <= PAPER_RANGE[1] + 1e-9)
+    in_paper = _in_paper_range(r)
+    trend = broadening_trend(r, w)
     ok = np.isfinite(w)
     grows = bool(np.all(np.diff(w[ok]) >= -WIDTH_TOL)) if ok.sum() > 1 else None
     broad = r[ok & (w > WIDTH_TOL)]
@@ -157,6 +207,11 @@ def summary(ds) -> dict[str, Any]:
         "basin_of_central_state_dx0_over_lambda": np.stack([ds["basin_lo"].values, ds["basin_hi"].values], axis=-1),
         "model_width_thin_over_lambda": ds["model_width_thin"].values,
         "model_width_bodies_over_lambda": ds["model_width_bodies"].values,
+        # the claim's criterion (CONFINEMENT_TREND_RULE): lambda per unit d/2A, over the paper's range
+        "broadening_slope_per_d_over_2A": trend.slope.to_dict(),
+        "broadening_intercept_over_lambda": trend.intercept.to_dict(),
+        "n_runs_in_broadening_fit": int(trend.n * ds.sizes["dx0"]),
+        # the superseded step-by-step criterion's: True, False, or None with fewer than 2 widths
         "width_never_shrinks_with_d": grows,
         "smallest_d_over_2A_with_width_above_0.01": float(broad.min()) if broad.size else None,
         "max_width_in_paper_range": float(np.nanmax(w[in_paper])) if np.any(in_paper & ok) else None,
@@ -167,13 +222,53 @@ def summary(ds) -> dict[str, Any]:
     }
 
 
+def _widths_text(d, w) -> str:
+    return ("width of the central state / lambda at d/2A = "
+            + ", ".join(f"{a:.2f}: {'n/a' if x is None or not np.isfinite(x) else format(x, '.3f')}"
+                        for a, x in zip(d, w)))
+
+
+def _numbers(xs) -> list[float | None]:
+    """Plain floats for ``claims.json`` (None where there is no width)."""
+    return [float(x) if x is not None and np.isfinite(x) else None for x in xs]
+
+
+def _slope_check(slope: stats.Estimate, what: str) -> Check:
+    """:data:`~._criteria.CONFINEMENT_TREND_RULE` on the slope's interval: its lower end above 0 holds;
+    its upper end at or below 0 fails (a state closed throughout the range, 0 [0, 0], too: it never
+    broadened); else undecided, with about how many confinements would decide it."""
+    if slope.low > 0:
+        return Check(True, f"{what} {slope:.3g}: lower end above 0")
+    if slope.high <= 0:
+        return Check(False, f"{what} {slope:.3g}: upper end at or below 0")
+    n = stats.runs_needed(slope, 0.0)
+    return Check(None, f"{what} {slope:.3g} straddles 0", n, None if n is None else n / slope.n)
+
+
 def _broadens(s: dict) -> Verdict:
+    """The claim's judge: :data:`~._criteria.CONFINEMENT_TREND_RULE` on ``broadening_slope_per_d_over_2A``."""
+    d, w = s["d_over_2A"], s["central_width_over_lambda"]
+    slope = stats.Estimate.from_dict(s["broadening_slope_per_d_over_2A"])
+    lo, hi = PAPER_RANGE
+    measured = (f"slope of the central state's width against d/2A over {lo:g}-{hi:g}: {slope:.3g} lambda per unit "
+                f"d/2A from {slope.n} confinements ({stats.interval_note(slope.level)}); " + _widths_text(d, w))
+    value = {"broadening_slope_per_d_over_2A": s["broadening_slope_per_d_over_2A"],
+             "broadening_intercept_over_lambda": s["broadening_intercept_over_lambda"],
+             "d_over_2A": _numbers(d), "central_width_over_lambda": _numbers(w),
+             "paper_range_d_over_2A": list(PAPER_RANGE)}
+    if not slope.has_interval:
+        return Verdict.none(f"no interval for the slope: {slope.n} confinements with a central state within the "
+                            f"paper's range {lo:g}-{hi:g} (at least 3 needed)", measured, value)
+    return Verdict.of([_slope_check(slope, "slope of the width against d/2A (lambda per unit d/2A)")], measured,
+                      value, runs=s["n_runs_in_broadening_fit"])
+
+
+def _never_shrinks(s: dict) -> Verdict:
+    """The superseded judge: step by step over every confinement run, and open within the paper's range."""
     d, w = s["d_over_2A"], s["central_width_over_lambda"]
     inside = s["max_width_in_paper_range"]
-    measured = ("width of the central state / lambda at d/2A = "
-                + ", ".join(f"{a:.2f}: {'n/a' if x is None or not np.isfinite(x) else format(x, '.3f')}"
-                            for a, x in zip(d, w)))
-    value = {"d_over_2A": list(d), "central_width_over_lambda": list(w)}
+    measured = _widths_text(d, w)
+    value = {"d_over_2A": _numbers(d), "central_width_over_lambda": _numbers(w)}
     if inside is None or s["width_never_shrinks_with_d"] is None:
         return Verdict.none("no start ended in the central state within the paper's range", measured, value)
     # the width is a range of final offsets, with no interval (module docstring): exact, never undecided
@@ -184,17 +279,31 @@ def _broadens(s: dict) -> Verdict:
                       measured, value)
 
 
+def _evidence(row: dict):
+    """The claim's evidence figure (:attr:`~._protocol.Claim.evidence`):
+    :func:`undulate.plotting.confinement.plot_broadening_evidence` of its ``claims.json`` row."""
+    from ..plotting.confinement import plot_broadening_evidence
+
+    return plot_broadening_evidence(row)
+
+
 CLAIMS = (
     Claim("the central (dx = 0) state broadens as the confinement d/2A grows (over 0.6-1.2)",
           "increasing the wall distance increased the range of final spacings; the central state broadened",
-          f"the width never shrinks by more than {WIDTH_TOL} lambda from one d/2A to the next and exceeds "
-          f"{WIDTH_TOL} lambda within d/2A <= 1.2 (the width is a range of final offsets with no interval: "
-          "holds or fails, never undecided)", _broadens,
+          CONFINEMENT_TREND_RULE, _broadens,
+          superseded=(SupersededCriterion(
+              f"the width never shrinks by more than {WIDTH_TOL} lambda from one d/2A to the next and exceeds "
+              f"{WIDTH_TOL} lambda within d/2A <= 1.2 (the width is a range of final offsets with no interval: "
+              "holds or fails, never undecided)", _never_shrinks,
+              why="it judged a trend step by step: one step narrower by more than 0.01 lambda decided it, "
+                  "whatever the whole range showed, and it read the confinements beyond the paper's range "
+                  "(d/2A above 1.2) too; the paper's words are a trend over 0.6-1.2"),),
+          evidence=_evidence,
           quote=(r"Increasing the confinement wall distance increased the range of final longitudinal spacing "
                  r"observed between two swimmers (Fig.~\ref{fig:spacing_basins}). The central compatibility state "
                  r"broadened indicating that swimmers could compatibly move within a range of longitudinal "
                  r"separations without contact."),
-          where="Sec. III.F, Fig. 9", bands={"central_width_over_lambda": (WIDTH_TOL, None)}),
+          where="Sec. III.F, Fig. 9", bands={"broadening_slope_per_d_over_2A": (0.0, None)}),
 )
 
 
