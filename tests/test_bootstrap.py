@@ -217,13 +217,16 @@ def test_the_potential_claim_says_why_a_rank_correlation_has_no_interval():
     d = np.array([0.6, 0.9, 1.2])
     with stats.at_level(0.96):
         rho = {"30": stats.rank_correlation(d, [3.0, 1.0, 2.0]), "45": stats.rank_correlation(d, -d)}
-    v = potential._k_falls({"per_beta": {b: {"spearman_k_vs_d": r.to_dict()} for b, r in rho.items()}})
+    k = [stats.Estimate(v).to_dict() for v in (3.0, 1.0, 2.0)]  # the figure's curves (the judge reads rho)
+    v = potential._k_falls({"d_over_2A": d, "per_beta": {b: {"spearman_k_vs_d": r.to_dict(), "stiffness_N_per_m": k}
+                                                         for b, r in rho.items()}})
     assert v.verdict == "undecided"
     assert "30 deg: -0.50 (no interval on 3 widths), 45 deg: -1.00 (no interval on 3 widths)" in v.measured
     assert "±" not in v.measured and "an interval from 5 widths at this level" in v.measured
     with stats.at_level(0.96):
         five = stats.rank_correlation(np.arange(5.0), -np.arange(5.0))
-    v = potential._k_falls({"per_beta": {"45": {"spearman_k_vs_d": five.to_dict()}}})
+    v = potential._k_falls({"d_over_2A": np.arange(5.0), "per_beta": {"45": {
+        "spearman_k_vs_d": five.to_dict(), "stiffness_N_per_m": [stats.Estimate(5.0 - x).to_dict() for x in range(5)]}}})
     assert v.verdict == "holds" and "no interval" not in v.measured and "[-1.00, -1.00]" in v.measured
 
 

@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from undulate import stats
 from undulate.errors import ParameterError
 from undulate.params import Scene, SimOptions
 from undulate.simulation import compile_scene, resolve_options
@@ -304,7 +305,10 @@ def _amplitude_summary(offsets, rel_se=0.02, points=5, drop=()):
     for i, j in drop:
         k[i, j] = np.nan
     return {"k_by_amplitude_at_width": P.stiffness_by_amplitude(
-        [30, 45, 60], AMPS, W, k, rel_se * k, np.full(k.shape, points))}
+        [30, 45, 60], AMPS, W, k, rel_se * k, np.full(k.shape, points)),
+            "per_beta": {f"{b:g}": {"channel_width_m": W[i], "stiffness_N_per_m": [
+                stats.Estimate(v, rel_se * v, (1 - 2 * rel_se) * v, (1 + 2 * rel_se) * v).to_dict() for v in k[i]]}
+                for i, b in enumerate((30, 45, 60))}}  # the evidence figure's curves
 
 
 def _amplitude_claim():

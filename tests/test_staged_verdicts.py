@@ -617,31 +617,41 @@ def test_a_futile_claims_runs_stay_where_it_was_found_futile(tmp_path, staged, m
 
 
 def test_a_potential_sweep_whose_claims_are_final_keeps_its_looks_runs():
-    """The potential study's impulse sweep feeds the impulse claim only, its force sweep the harmonic, k,
-    collapse, amplitude and dx0 claims (frozen once all five are, at the latest such look); the release claim's runs
-    are the same at every look and hold no sweep back.  Quick mode's impulse claim found futile at the
-    first look leaves the second look nothing to run: its force grid is the first look's already."""
+    """The potential study's impulse sweep feeds the impulse claim and the impulse-by-amplitude claim (its
+    runs at the default beta; the runs at the other betas are that claim's own part), its force sweep the
+    harmonic, k, collapse, amplitude and dx0 claims (each part frozen once all its readers are, at the latest
+    such look); the release claim's runs are the same at every look and hold no sweep back.  Quick mode's
+    impulse claims found futile or final at the first look leave the second look nothing to run: its force
+    grid is the first look's already."""
     from undulate.studies import potential
 
     looks = potential.stages(False)
-    impulse, harmonic, falls, collapse, amp, dx0, release = (c.claim for c in potential.CLAIMS)
+    impulse, harmonic, falls, collapse, amp, dx0, release, amp_impulse = (c.claim for c in potential.CLAIMS)
+    both = {impulse: 2, amp_impulse: 2}
 
     def grids(p):
-        return (p.impulse_dphi, p.impulse_phi0), (p.betas_deg, p.d_over_2A, p.forces_N)
+        return ((p.impulse_dphi, p.impulse_phi0), (p.betas_deg, p.d_over_2A, p.forces_N),
+                (p.amplitude_betas_deg, p.amplitude_dphi, p.amplitude_phi0))
 
-    for frozen, want_imp, want_force in [({}, 3, 3), ({impulse: 1}, 0, 3), ({harmonic: 1, falls: 2}, 3, 3),
-                                         ({harmonic: 1, falls: 3, collapse: 2}, 3, 3),
-                                         ({harmonic: 1, falls: 3, collapse: 2, dx0: 1}, 3, 3),  # amp not final
-                                         ({harmonic: 1, falls: 3, collapse: 2, amp: 1, dx0: 1}, 3, 2),
-                                         ({impulse: 2, harmonic: 2, falls: 2, collapse: 2, amp: 2, dx0: 2}, 1, 1),
-                                         ({impulse: 2, harmonic: 2, falls: 2, collapse: 2, amp: 2, dx0: 2,
-                                           release: 3}, 1, 1)]:
+    for frozen, want_imp, want_force, want_amp in [
+            ({}, 3, 3, 3), ({impulse: 1}, 3, 3, 3),  # the amplitude claim still open: the 45 deg runs go on
+            ({impulse: 1, amp_impulse: 1}, 0, 3, 0), ({impulse: 1, amp_impulse: 2}, 1, 3, 1),
+            ({amp_impulse: 1}, 3, 3, 0),  # its own runs stop; the impulse claim keeps the shared ones going
+            ({harmonic: 1, falls: 2}, 3, 3, 3), ({harmonic: 1, falls: 3, collapse: 2}, 3, 3, 3),
+            ({harmonic: 1, falls: 3, collapse: 2, dx0: 1}, 3, 3, 3),  # amp not final
+            ({harmonic: 1, falls: 3, collapse: 2, amp: 1, dx0: 1}, 3, 2, 3),
+            ({**both, harmonic: 2, falls: 2, collapse: 2, amp: 2, dx0: 2}, 1, 1, 1),
+            ({**both, harmonic: 2, falls: 2, collapse: 2, amp: 2, dx0: 2, release: 3}, 1, 1, 1)]:
         ctx = _context_at("potential", False, frozen)
-        got = potential.sweep_plan(looks[3], ctx.plan_for("impulse", looks[3]), ctx.plan_for("force", looks[3]))
-        assert grids(got)[0] == grids(looks[want_imp])[0] and grids(got)[1] == grids(looks[want_force])[1]
+        got = potential.sweep_plan(looks[3], ctx.plan_for("impulse", looks[3]), ctx.plan_for("force", looks[3]),
+                                   ctx.plan_for(potential.AMPLITUDE_PART, looks[3]))
+        assert grids(got) == (grids(looks[want_imp])[0], grids(looks[want_force])[1], grids(looks[want_amp])[2])
         assert got.duration_s == looks[3].duration_s and got.release == looks[3].release
-        assert ctx.parts.frozen_at == {k: v + 1 for k, v in (("impulse", want_imp), ("force", want_force)) if v < 3}
+        assert ctx.parts.frozen_at == {k: v + 1 for k, v in (("impulse", want_imp), ("force", want_force),
+                                                             (potential.AMPLITUDE_PART, want_amp)) if v < 3}
     quick = potential.stages(True)
-    ctx = _context_at("potential", True, {impulse: 1})
-    assert grids(potential.sweep_plan(quick[1], ctx.plan_for("impulse", quick[1]),
-                                      ctx.plan_for("force", quick[1]))) == grids(quick[0])
+    ctx = _context_at("potential", True, {impulse: 1, amp_impulse: 1})
+    assert grids(potential.sweep_plan(quick[1], ctx.plan_for("impulse", quick[1]), ctx.plan_for("force", quick[1]),
+                                      ctx.plan_for(potential.AMPLITUDE_PART, quick[1]))) == grids(quick[0])
+    for p in (*looks, *quick):  # the default beta's runs at the other betas' starts are in the impulse grid
+        assert set(p.amplitude_dphi) <= set(p.impulse_dphi) and set(p.amplitude_phi0) <= set(p.impulse_phi0)

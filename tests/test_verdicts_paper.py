@@ -152,11 +152,17 @@ def test_confinement_is_a_trend_with_its_step_by_step_criterion_beside_it():
 # ------------------------------------------------------------------ potential
 def potential_summary(r2=(0.95, 0.92, 0.99), a=(4.0, 2.5, 5.5), fit_r2=(0.99, 0.978, 1.0),
                       rho=((-1.0, -1.0, -1.0),) * 3, collapse=((0.2, 0.1, 0.3), (0.6, 0.45, 0.75)),
-                      amp_ratio=((0.5, 0.2, 0.8),) * 3):
+                      amp_ratio=((0.5, 0.2, 0.8),) * 3, impulse_steps=((0.01, 0.005, 0.015),) * 2):
     return {"impulse_fit": {"slope_Ns_per_rad": est(*a), "r2": est(*r2), "r2_without_phase_scatter": est(*r2)},
             "median_fit_r2": fit_r2[0], "fit_r2_ci95_low_median": fit_r2[1], "fit_r2_ci95_high_median": fit_r2[2],
-            "n_fits": 9, "n_fit_points": 45, "fit_r2_level": stats.CONFIDENCE,
-            "per_beta": {b: {"spearman_k_vs_d": est(*r, n=3)} for b, r in zip(("30", "45", "60"), rho)},
+            "n_fits": 9, "n_fit_points": 45, "fit_r2_level": stats.CONFIDENCE, "d_over_2A": [0.5, 0.6, 0.7],
+            "per_beta": {b: {"spearman_k_vs_d": est(*r, n=3), "channel_width_m": [0.1, 0.12, 0.14],
+                             "stiffness_N_per_m": [est(3.0, 2.0, 4.0), est(2.0, 1.5, 2.5), est(1.0, 0.5, 1.5)]}
+                         for b, r in zip(("30", "45", "60"), rho)},
+            "impulse_by_amplitude": {"n_starts": 32, "mean_impulse_Ns": {b: est(0.02 * (i + 1), 0.01, 0.07, n=32)
+                                                                         for i, b in enumerate(("30", "45", "60"))},
+                                     "steps": {k: {"increase_Ns": est(*e, n=32)} for k, e in
+                                               zip(("30-45", "45-60"), impulse_steps)}},
             "collapse_rms_log10k_vs_d_over_2A": est(*collapse[0]), "collapse_rms_log10k_vs_d_m": est(*collapse[1]),
             "k_by_amplitude_at_width": {
                 key: {"beta_low_deg": float(key.split("-")[0]), "beta_high_deg": float(key.split("-")[1]),
@@ -173,7 +179,7 @@ def potential_summary(r2=(0.95, 0.92, 0.99), a=(4.0, 2.5, 5.5), fit_r2=(0.99, 0.
 
 
 def test_potential_holds():
-    assert verdicts("potential", potential_summary()) == [HOLDS] * 7
+    assert verdicts("potential", potential_summary()) == [HOLDS] * 8
 
 
 @pytest.mark.parametrize("kw, index, verdict", [
@@ -189,6 +195,8 @@ def test_potential_holds():
     ({"collapse": ((0.37, 0.02, 0.46), (0.6, 0.14, 0.74))}, 3, UNDECIDED),  # intervals overlap
     ({"amp_ratio": ((0.5, 0.2, 0.8), (-0.4, -0.7, -0.1), (0.5, 0.2, 0.8))}, 4, FAILS),  # larger A softer
     ({"amp_ratio": ((0.5, 0.2, 0.8), (0.1, -0.2, 0.4), (0.5, 0.2, 0.8))}, 4, UNDECIDED),  # straddles 0
+    ({"impulse_steps": ((0.01, 0.005, 0.015), (-0.01, -0.015, -0.005))}, 7, FAILS),  # the larger beta less
+    ({"impulse_steps": ((0.01, -0.005, 0.025), (0.01, 0.005, 0.015))}, 7, UNDECIDED),  # straddles 0
 ])
 def test_potential(kw, index, verdict):
     r = rows("potential", potential_summary(**kw))
@@ -224,7 +232,8 @@ def test_potential_missing_numbers_are_no_result():
     s["impulse_fit"]["r2"] = stats.Estimate(math.nan).to_dict()
     s["per_beta"]["30"]["spearman_k_vs_d"] = stats.Estimate(math.nan).to_dict()
     s["collapse_rms_log10k_vs_d_m"] = stats.Estimate(math.nan).to_dict()
-    assert verdicts("potential", s) == [NO_RESULT, HOLDS, NO_RESULT, NO_RESULT, HOLDS, HOLDS, HOLDS]
+    s["impulse_by_amplitude"]["steps"]["45-60"]["increase_Ns"] = stats.Estimate(math.nan).to_dict()
+    assert verdicts("potential", s) == [NO_RESULT, HOLDS, NO_RESULT, NO_RESULT, HOLDS, HOLDS, HOLDS, NO_RESULT]
 
 
 # ------------------------------------------------------------------ packing
