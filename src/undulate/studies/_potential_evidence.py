@@ -90,7 +90,7 @@ def _criterion_panel(ax, points: list[tuple[str, float, float, float]], band: tu
     ax.set_ylim(lo_ - pad, hi_ + pad)
     a, b = ax.get_ylim()
     ax.axhspan(band[0] if band[0] is not None else a - 1e6, band[1] if band[1] is not None else b + 1e6,
-               color=_OK, alpha=0.13, lw=0, zorder=0)
+               color=_OK, alpha=0.14, lw=0, zorder=0)
     for edge in band:
         if edge is not None:
             ax.axhline(edge, color=_OK, lw=1.2, ls="--", zorder=1)
