@@ -182,15 +182,17 @@ def impulse_by_amplitude(row: dict[str, Any]):
         f"verdict: {row.get('verdict', 'n/a')}"])
     pts = sorted((_f(b), *_estimate(e)) for b, e in means.items())
     pts = [p for p in pts if math.isfinite(p[0]) and math.isfinite(p[1])]
+    scale, unit = (1e3, "mN s") if pts and max(abs(p[1]) for p in pts) < 0.1 else (1.0, "N s")
     if pts:
         lo = [p[1] - p[2] if math.isfinite(p[2]) else 0.0 for p in pts]
         hi = [p[3] - p[1] if math.isfinite(p[3]) else 0.0 for p in pts]
-        main.errorbar([p[0] for p in pts], [1e3 * p[1] for p in pts], yerr=[[1e3 * v for v in lo], [1e3 * v for v in hi]],
-                      fmt="o-", color="#1f4e99", ms=6, lw=1.4, capsize=4)
+        main.errorbar([p[0] for p in pts], [scale * p[1] for p in pts],
+                      yerr=[[scale * v for v in lo], [scale * v for v in hi]], fmt="o-", color="#1f4e99", ms=6,
+                      lw=1.4, capsize=4)
         main.set_xticks([p[0] for p in pts], [f"{p[0]:g}" for p in pts])
     main.set_xlabel("joint amplitude β (degrees)", fontsize=FONT_PT)
-    main.set_ylabel("contact impulse, 2 periods (mN s)", fontsize=FONT_PT)
+    main.set_ylabel(f"contact impulse, 2 periods ({unit})", fontsize=FONT_PT)
     main.set_title("mean over the detuned starts (bars: interval)", fontsize=FONT_PT)
-    _criterion_panel(crit, [(k, *(1e3 * v for v in _estimate(v_["increase_Ns"] if isinstance(v_, dict) else None)))
-                            for k, v_ in steps.items()], (0.0, None), "increase a step\nup in β (mN s)")
+    _criterion_panel(crit, [(k, *(scale * v for v in _estimate(v_["increase_Ns"] if isinstance(v_, dict) else None)))
+                            for k, v_ in steps.items()], (0.0, None), f"increase a step\nup in β ({unit})")
     return fig
