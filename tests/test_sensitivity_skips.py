@@ -296,3 +296,24 @@ def test_the_xi1_cases_stay_on_their_phases_while_an_open_group_runs_the_cap(mon
     y = ds["dx_final_over_lambda"].values[is_xi1]
     on17 = np.isin(ds["dphi"].values, second.dphi_rad)
     assert on17.sum() == 17 and (y[:, on17] == 1.0).all() and np.isnan(y[:, ~on17]).all()
+
+
+@pytest.mark.parametrize("quick", [True, False])
+def test_findings_run_in_full_mode_only(tmp_path, quick):
+    """A claim that only findings read (links: its several-change account) needs no runs in quick mode, which
+    runs what decides verdicts: a finding never changes one.  Full mode runs it when the claim fails (here
+    its verdict is unknown: the study alone); an explanation proper (xi = 3/2) is needed in both modes."""
+    from undulate.studies import StudyConfig
+
+    ctx = StudyContext(StudyConfig(out_dir=tmp_path, quick=quick), "sensitivity", progress=False)
+    findings = [e for e in EXPLANATIONS if getattr(e, "finding", False)]
+    proper = [e for e in EXPLANATIONS if not getattr(e, "finding", False)]
+    assert findings and proper
+    only_findings = {(e.study, e.claim) for e in findings} - {(e.study, e.claim) for e in proper}
+    assert only_findings
+    for study, claim in only_findings:
+        assert ctx.needs_explanation(study, claim) is (not quick)
+    for e in proper:
+        assert ctx.needs_explanation(e.study, e.claim) is True
+    parts = _parts(quick, ctx.needs_explanation)
+    assert ("links" in parts.not_run) is quick  # the links factor group: read by findings only

@@ -145,11 +145,26 @@ class StudyContext:
         fails in this output folder (``OUT/STUDY.json``), or when its verdict is not known there (the
         explaining study run on its own).  A claim that holds, is undecided or has no result cannot be
         ``explained`` (:mod:`undulate.claims`), so its explanation is moot: an explaining study need not
-        run for it, and it never keeps a study's stages going."""
+        run for it, and it never keeps a study's stages going.  In quick mode only an explanation can be
+        needed, not a finding (:class:`~._explanations.CaseFinding`): a finding never changes a verdict, so
+        quick mode, which runs what decides the verdicts, leaves the runs that only findings read to full
+        mode (their rows read "not run")."""
+        if self.config.quick and not self._explained_here(study, claim):
+            return False
         if self._verdicts is None:  # read once: the other studies' files do not change during this one
             self._verdicts = _claim_verdicts(Path(self.config.out_dir), self.config)
         verdict = self._verdicts.get((study, claim))
         return verdict is None or verdict == FAILS
+
+    def _explained_here(self, study: str, claim: str) -> bool:
+        """Whether this study has an explanation of ``study``'s ``claim`` that is not a finding (True for a
+        study not in the registry: a test's ad hoc context, which decides for itself)."""
+        from ._registry import describe, names
+
+        if self.name not in names():
+            return True
+        return any((e.study, e.claim) == (study, claim) and not getattr(e, "finding", False)
+                   for e in describe(self.name).explanations)
 
     def sweep_dir(self, part: str, folder: str | None = None) -> Path:
         """The store of sweep ``part``: ``OUT/.sweeps/FOLDER/PART-{quick|full}-seedS`` (``FOLDER``: the

@@ -26,7 +26,7 @@ from ._sensitivity_design import (
     impulse_case)
 
 
-NOT_RUN = "not run (the claim it would explain does not fail)"
+NOT_RUN = "not run (the claim it would explain does not fail, or in quick mode only findings read it)"
 """The table's reason for the rows of a skipped factor group (verdict ``no result``)."""
 
 

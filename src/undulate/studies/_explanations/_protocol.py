@@ -55,7 +55,8 @@ from .._sensitivity_design import FACTOR_GROUPS, CaseId, CaseSet, UnknownCaseErr
 __all__ = ["CaseExplanation", "CaseFinding", "CaseResults", "MultipleChangesError", "NOT_RUN", "Shown",
            "results_by_case", "all_of", "negate", "number", "state_word"]
 
-NOT_RUN = "not run: the claim it explains does not fail in this reproduction"
+NOT_RUN = ("not run: the claim it explains does not fail in this reproduction (or, in quick mode, only "
+           "findings read these runs: full mode runs them)")
 """The measured text of an explanation whose cases the sensitivity study did not run (``skipped_cases``)."""
 
 Shown = tuple[bool | None, str, Any]
