@@ -120,6 +120,18 @@ def plot_broadening_evidence(row):
     else:
         title = f"no slope: fewer than 3 widths in {lo:g}-{hi:g} ({verdict})"
     ax.set_title(title, fontsize=FONT_PT)
+    _broadening_limits(ax, d, w, slope, icpt, lo, hi)
+    ax.set_xlabel("d/2A (d per swimmer: channel W = 2d)", fontsize=FONT_PT)
+    ax.set_ylabel("width / \u03bb", fontsize=FONT_PT)
+    ax.tick_params(labelsize=FONT_PT)
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=FONT_PT, ncol=2, frameon=False, loc="lower left",
+               bbox_to_anchor=(0.0, foot_in / height), borderaxespad=0.2)
+    return fig
+
+
+def _broadening_limits(ax, d, w, slope, icpt, lo: float, hi: float) -> None:
+    """Axis limits of :func:`plot_broadening_evidence`: every width, 0 and the fitted line's ends, padded;
+    every confinement and the paper's range."""
     ys = [u for u in w[np.isfinite(w)]] + [0.0]
     if slope.finite and icpt.finite:
         ys += [icpt.value + slope.value * x for x in (lo, hi)]
@@ -128,9 +140,3 @@ def plot_broadening_evidence(row):
     ax.set_ylim(bottom - pad, top + pad)
     xs_all = [u for u in d[np.isfinite(d)]] + [lo, hi]
     ax.set_xlim(min(xs_all) - 0.05, max(xs_all) + 0.05)
-    ax.set_xlabel("d/2A (d per swimmer: channel W = 2d)", fontsize=FONT_PT)
-    ax.set_ylabel("width / \u03bb", fontsize=FONT_PT)
-    ax.tick_params(labelsize=FONT_PT)
-    fig.legend(*ax.get_legend_handles_labels(), fontsize=FONT_PT, ncol=2, frameon=False, loc="lower left",
-               bbox_to_anchor=(0.0, foot_in / height), borderaxespad=0.2)
-    return fig

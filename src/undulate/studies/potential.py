@@ -660,11 +660,32 @@ def cohesion(forces_N, broken) -> dict[str, Any]:
 def _collapse_rms_value(x, logk) -> float:
     x, logk = np.asarray(x, float).ravel(), np.asarray(logk, float).ravel()
     ok = np.isfinite(x) & np.isfinite(logk)
-    if ok.sum() < 4 or np.unique(x[ok]).size < 3:
+    if ok.sum() < 4:
         return float("nan")
-    u = (x[ok] - x[ok].mean()) / x[ok].std()  # centred and scaled: a well-conditioned fit
-    c = np.polyfit(u, logk[ok], 2)
-    return float(np.sqrt(np.mean((logk[ok] - np.polyval(c, u)) ** 2)))
+    return float(_collapse_rms_rows(x[ok], logk[ok]))
+
+
+def _collapse_rms_rows(x, logk, axis: int = -1) -> np.ndarray:
+    """:func:`_collapse_rms_value` of each row of 2-D ``x``, ``logk`` (finite values; the bootstrap's
+    resamples at once): the least-squares quadratic in the centred and scaled ``x`` (a well-conditioned
+    fit) by its normal equations, NaN for a row with fewer than 3 distinct ``x``."""
+    x, logk = np.moveaxis(np.asarray(x, float), axis, -1), np.moveaxis(np.asarray(logk, float), axis, -1)
+    shape = x.shape[:-1]  # a 1-D pair gives a scalar
+    x, logk = x.reshape(-1, x.shape[-1]), logk.reshape(-1, logk.shape[-1])
+    if x.shape[-1] < 4:
+        return np.full(shape, np.nan)
+    std = x.std(axis=-1, keepdims=True)
+    u = (x - x.mean(axis=-1, keepdims=True)) / np.where(std > 0, std, 1.0)
+    design = np.stack([u * u, u, np.ones_like(u)], axis=-1)  # rows x points x 3
+    gram = np.einsum("rpi,rpj->rij", design, design)
+    rhs = np.einsum("rpi,rp->ri", design, logk)
+    distinct = 1 + np.count_nonzero(np.diff(np.sort(x, axis=-1), axis=-1) > 0, axis=-1)
+    good = distinct >= 3
+    coef = np.full(rhs.shape, np.nan)
+    if good.any():
+        coef[good] = np.linalg.solve(gram[good], rhs[good][..., None])[..., 0]
+    resid = logk - np.einsum("rpi,ri->rp", design, coef)
+    return np.where(good, np.sqrt(np.mean(resid ** 2, axis=-1)), np.nan).reshape(shape)
 
 
 def _collapse_rms(x, logk) -> stats.Estimate:
@@ -672,7 +693,7 @@ def _collapse_rms(x, logk) -> stats.Estimate:
     x, logk = np.asarray(x, float).ravel(), np.asarray(logk, float).ravel()
     ok = np.isfinite(x) & np.isfinite(logk)
     v = _collapse_rms_value(x, logk)
-    se, lo, hi = stats.bootstrap(_collapse_rms_value, x[ok], logk[ok])
+    se, lo, hi = stats.bootstrap(_collapse_rms_rows, x[ok], logk[ok], vectorized=True)
     return stats.Estimate(v, se, lo, hi, int(ok.sum()), "bootstrap BCa", stats.level(), int(ok.sum()),
                           int(ok.sum()) - 1)
 
