@@ -502,6 +502,36 @@ def test_the_generic_evidence_figure_draws_each_estimate_group_its_region_and_th
     assert write_evidence({**row, "value": {"slope": e(0.9, 0.85, 0.95)}}, tmp_path, "claim-a") != first
 
 
+def test_a_claims_own_evidence_figure_is_drawn_again_when_its_hooks_module_changes(tmp_path, monkeypatch):
+    """The figure's key covers the source of the module that defines the claim's evidence hook, not only
+    undulate._evidence: a changed hook never leaves an old picture on the page."""
+    import sys
+    import textwrap
+
+    from undulate._evidence import write_evidence
+
+    def hook_module(body: str):
+        path = tmp_path / "hookmod.py"
+        path.write_text(textwrap.dedent(f"""
+            def own(row):
+                from matplotlib.figure import Figure
+                fig = Figure(figsize=(2, 1))
+                fig.text(0.1, 0.5, {body!r})
+                return fig
+            """))
+        monkeypatch.syspath_prepend(str(tmp_path))
+        sys.modules.pop("hookmod", None)
+        import hookmod
+
+        return hookmod.own
+
+    row = {"study": "s", "claim": "c", "paper": "p", "verdict": "holds", "value": {"n_runs": 3}}
+    out = tmp_path / "out"
+    first = write_evidence(row, out, "c", evidence=hook_module("one"))
+    assert write_evidence(row, out, "c", evidence=hook_module("one")) == first
+    assert write_evidence(row, out, "c", evidence=hook_module("two")) != first
+
+
 def test_quotes_show_their_math_as_text_on_the_page():
     from undulate._report_claim_sections import readable_math
 

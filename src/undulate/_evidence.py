@@ -305,6 +305,19 @@ def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
     return fig
 
 
+def _module_hash(fn: Callable | None) -> str | None:
+    """sha1 of the source file of the module defining ``fn`` (a claim's own evidence hook), so that its
+    figure is drawn again when the hook's code changes; None without a hook or a file."""
+    import inspect
+
+    if fn is None:
+        return None
+    try:
+        return hashlib.sha1(Path(inspect.getfile(fn)).read_bytes()).hexdigest()
+    except (TypeError, OSError):
+        return None
+
+
 def write_evidence(row: dict[str, Any], out_dir: Path, stem: str, bands: dict[str, Any] | None = None,
                    evidence: Callable[[dict[str, Any]], Any] | None = None) -> str:
     """Write ``out_dir/evidence/STEM-HASH.png`` (HASH: of what the figure is drawn from, so an unchanged
@@ -314,7 +327,8 @@ def write_evidence(row: dict[str, Any], out_dir: Path, stem: str, bands: dict[st
     key = json.dumps({"row": {k: row.get(k) for k in ("claim", "paper", "value", "verdict", "explanation",
                                                       "findings", "explanations_not_shown")},
                       "bands": bands or {}, "hook": getattr(evidence, "__qualname__", None),
-                      "code": hashlib.sha1(Path(__file__).read_bytes()).hexdigest()},
+                      "code": hashlib.sha1(Path(__file__).read_bytes()).hexdigest(),
+                      "hook_code": _module_hash(evidence)},
                      sort_keys=True, default=str)
     rel = f"evidence/{stem}-{hashlib.sha1(key.encode()).hexdigest()[:8]}.png"
     path = Path(out_dir) / rel
