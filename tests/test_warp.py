@@ -91,6 +91,87 @@ def test_the_control_table_is_bitwise_the_gathered_one(heading_guide, shuffled):
     assert heading_guide == bool((servos.act < 0).any())  # the heading guide's pid has no slew state
 
 
+def test_the_device_model_is_the_affine_scene_derived_without_compiling_again(monkeypatch):
+    """The Warp model derived from the host's compiled ``pid`` model
+    (:func:`undulate.simulation._warp_servo.device_model`) is the scene compiled with
+    ``servo="affine"`` in every field MuJoCo Warp carries, but for what compilation fixes: the host's
+    control layout (``nu``; the table's columns are :func:`device_inputs`) and its slew states
+    (``na``, read by no actuator).  CPU MuJoCo steps the two bitwise alike under the same control
+    table (slew limit acting at the start, heading guide, pushes, servo-torque sensors, resistive
+    drag's inputs); deriving it compiles nothing and leaves the host's model as it was."""
+    import mujoco
+
+    from undulate.params import Ground
+    from undulate.simulation._warp_private import private_api
+    from undulate.simulation._warp_servo import AffineServoTable, device_inputs, device_model
+
+    scenes = [Scene(phases_rad=(0.0, 1.57), heading_guide=True),
+              Scene(phases_rad=(0.0, 1.0, 2.0), ground=Ground(mode="resistive"), forces_N=(0.05, 0.0, -0.05))]
+    ctrl_rows = {"actuator_ctrllimited", "actuator_ctrlrange"}  # one row per control input
+    sizes = {"nu", "na", "actuator_ctrladr", "key_act", "key_ctrl"}  # what the control layout fixes
+    for sc in scenes:
+        dt = resolve_options(sc, SimOptions(duration_s=1)).timestep_s
+        pid, aff = build(sc, dt, push=True, loads=True), build(sc, dt, push=True, loads=True, servo="affine")
+        host_before = {n: getattr(pid.model, n).copy() for n in ("actuator_gaintype", "actuator_ctrlnum")}
+        compiles = []
+        monkeypatch.setattr(mujoco.MjSpec, "compile", lambda *a, **k: compiles.append(a))
+        dev = device_model(pid.model)
+        monkeypatch.undo()
+        assert not compiles
+        for n, v in host_before.items():
+            assert np.array_equal(getattr(pid.model, n), v), n
+        cols = device_inputs(dev)
+        assert len(cols) == aff.model.nu < dev.nu == pid.model.nu and dev.na == pid.model.na > 0 == aff.model.na
+        assert np.array_equal(np.searchsorted(cols, dev.actuator_ctrladr), aff.model.actuator_ctrladr)
+        compared = 0
+        for n in sorted(private_api().model_fields - sizes):
+            want = getattr(aff.model, n, None)
+            if not isinstance(want, np.ndarray):
+                continue
+            got = getattr(dev, n)[cols] if n in ctrl_rows else getattr(dev, n)
+            assert got.shape == want.shape and got.tobytes() == want.tobytes(), n
+            compared += 1
+        assert compared > 100
+        k = 400
+        u = pid.controls(np.arange(k) * dt)
+        u[:, pid.index.ctrl_push.ravel()] = 0.02
+        servos = AffineServoTable(pid.model, dev, dt, [pid.model])
+        act0 = np.zeros((1, len(servos.act)))
+        table, _ = servos.table(u[None], act0)
+        want_table, _ = AffineServoTable(pid.model, aff.model, dt, [pid.model]).table(u[None], act0)
+        assert np.array_equal(table, want_table)
+        da, db = mujoco.MjData(aff.model), mujoco.MjData(dev)
+        for i in range(k):
+            da.ctrl[:] = table[i, 0]
+            db.ctrl[cols] = table[i, 0]
+            mujoco.mj_step(aff.model, da)
+            mujoco.mj_step(dev, db)
+        assert np.abs(da.qpos).max() > 0 and np.array_equal(da.qpos, db.qpos) and np.array_equal(da.qvel, db.qvel)
+        assert np.array_equal(da.sensordata, db.sensordata)
+
+
+def test_preparing_a_warp_batch_compiles_no_scene(monkeypatch):
+    """:meth:`WarpBackend.prepare` takes the batch as the host compiled it (two distinct pair scenes)
+    and compiles none of them again: its Warp models are derived from those models."""
+    import mujoco
+
+    from undulate.params import Channel
+    from undulate.simulation import backend
+
+    eng = backend("warp")
+    scenes = [Scene(phases_rad=(0.0, 1.0), channel=Channel(width_m=w)) for w in (0.13, 0.14)]
+    opts = [resolve_options(sc, SimOptions(duration_s=0.1, **WARP)) for sc in scenes]
+    compiled = [eng.compile(sc, o, push=False, loads=False) for sc, o in zip(scenes, opts)]
+    compiles = []
+    real = mujoco.MjSpec.compile
+    monkeypatch.setattr(mujoco.MjSpec, "compile", lambda spec, *a, **k: (compiles.append(1), real(spec, *a, **k))[1])
+    runner = eng.prepare(compiled, opts[0])
+    try:
+        assert compiles == [] and len(runner.groups) == 1 and runner.groups[0].nu == compiled[0].model.nu // 2
+    finally:
+        runner.close()
+
+
 def test_the_slew_rule_without_a_python_step_per_step_is_bitwise_the_step_by_step_rule():
     """:func:`undulate.simulation._warp_servo.slew` copies the steps where the state stays on its command;
     against MuJoCo's rule applied step by step: ramps from far off, jumps mid-chunk, plateaus, sign
@@ -244,8 +325,10 @@ def test_a_batch_of_different_channels_is_one_warp_model_with_per_world_fields()
     ref = [simulate(sc, opts) for sc in scenes]
     from undulate.simulation import compile_scene
 
-    aff = [compile_scene(sc, resolve_options(sc, opts), servo="affine") for sc in scenes]
-    groups = _warp_worlds.plan_worlds([a.model for a in aff])
+    from undulate.simulation._warp_servo import device_model
+
+    groups = _warp_worlds.plan_worlds([device_model(compile_scene(sc, resolve_options(sc, opts)).model)
+                                       for sc in scenes])
     assert len(groups) == 1 and {"geom_pos", "opt.viscosity", "actuator_gainprm",
                                  "geom_solref"} <= set(groups[0][1])
     got = simulate_batch(scenes, SimOptions(duration_s=0.5, **WARP))
@@ -260,10 +343,11 @@ def test_scenes_that_differ_in_their_start_offset_are_one_warp_model():
     per world but reads only for island sleeping, which our models leave off: they are one Warp model
     (until 2026-11-30 ~5, stepped one after another), and each world is its scene's run alone."""
     from undulate.simulation import _warp_worlds, compile_scene
+    from undulate.simulation._warp_servo import device_model
 
     scenes = [Scene(phases_rad=(0.0, 1.0), dx0_m=x) for x in (-0.27, -0.09, 0.0, 0.18)]
     opts = SimOptions(duration_s=0.3, **WARP)
-    models = [compile_scene(sc, resolve_options(sc, opts), servo="affine").model for sc in scenes]
+    models = [device_model(compile_scene(sc, resolve_options(sc, opts)).model) for sc in scenes]
     assert len({m.dof_length.tobytes() for m in models}) > 1  # what used to split them
     assert [len(idx) for idx, _ in _warp_worlds.plan_worlds(models)] == [4]
     got = simulate_batch(scenes, opts)
@@ -685,9 +769,9 @@ def test_runs_going_on_from_checkpoints_of_one_time_are_gathered_into_one_batch(
 @pytest.mark.parametrize("cached", [True, False])
 def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(monkeypatch, cached):
     """Grouping a gathered batch compiles each call's scene to learn its structure; the batch's plan
-    takes those models rather than compiling them again (without the model cache: one MuJoCo model
-    and one Warp model a scene; with it, scenes that differ only in their phases compile once in
-    all), and the runs are bitwise those of the same batch not gathered."""
+    takes those models rather than compiling them again, and the Warp models are derived from them
+    (without the model cache: one compile a scene; with it, scenes that differ only in their phases
+    compile once in all), and the runs are bitwise those of the same batch not gathered."""
     from undulate.simulation import _compile
 
     opts = SimOptions(duration_s=0.2, **WARP)
@@ -702,7 +786,7 @@ def test_a_gathered_batch_compiles_each_scene_once_for_grouping_and_planning(mon
     gather, got = _gathered(scenes, opts)
     assert gather.batches == [3]
     n = 1 if cached else 3
-    assert sorted(builds) == ["affine"] * n + ["pid"] * n
+    assert builds == ["pid"] * n
     for i in range(len(scenes)):
         for v in ("x", "y", "joint_error"):
             np.testing.assert_array_equal(got[i][v].values, alone[i][v].values)
@@ -735,10 +819,11 @@ def test_the_traced_step_names_every_kernel_the_first_step_loads_and_leaves_the_
     import warp as wp
 
     from undulate.simulation import _warp, _warp_group, compile_scene
+    from undulate.simulation._warp_servo import device_model
     from warp._src.context import _normalize_launch_dim, _resolve_launch_block_dim
 
     sc = Scene(phases_rad=(0.0, 1.57))
-    aff = compile_scene(sc, resolve_options(sc, SimOptions(duration_s=0.1)), servo="affine").model
+    aff = device_model(compile_scene(sc, resolve_options(sc, SimOptions(duration_s=0.1))).model)
     aff.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
     group = _warp._Group(aff, np.arange(3), {}, "cpu", [aff] * 3)
     fields = {n: v.numpy().copy() for n, v in vars(group.d).items() if isinstance(v, wp.array)}
@@ -774,9 +859,10 @@ def test_warp_determinism_is_on_for_the_cpu_device_and_off_on_a_gpu_unless_told_
     from mujoco_warp._src.types import DeterminismType
 
     from undulate.simulation import _warp, compile_scene
+    from undulate.simulation._warp_servo import device_model
 
     sc = Scene(phases_rad=(0.0, 1.57))
-    aff = compile_scene(sc, resolve_options(sc, SimOptions(duration_s=0.1)), servo="affine").model
+    aff = device_model(compile_scene(sc, resolve_options(sc, SimOptions(duration_s=0.1))).model)
     aff.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
     monkeypatch.delenv("UNDULATE_WARP_DETERMINISTIC", raising=False)
     assert _warp._Group(aff, np.arange(1), {}, "cpu").m.opt.deterministic == DeterminismType.ALL

@@ -4,9 +4,9 @@ A backend is looked up once by name (:func:`backend`, ``SimOptions.backend``) an
 (:class:`undulate.simulation._stepper._Stepper`) only calls its methods: it compiles each scene once
 for the host (:meth:`Backend.compile`: the layout the controls, the recorder and the checkpoints
 read), then prepares the compiled batch once (:meth:`Backend.prepare`: the engine's own models --
-MuJoCo steps the host's, Warp builds its affine-servo device models there) and gets a
-:class:`Rollout`, which steps every scene of the batch from FULLPHYSICS states under per-step
-controls.  The recorder, the stopping rules, the divergence checks
+MuJoCo steps the host's, Warp derives its affine-servo device models from them without compiling
+again) and gets a :class:`Rollout`, which steps every scene of the batch from FULLPHYSICS states
+under per-step controls.  The recorder, the stopping rules, the divergence checks
 and the checkpoints are the stepper's, shared by every engine.
 
 As in MuJoCo Warp's ``put_model`` / ``put_data`` / ``step``, the caller says what runs where: the host

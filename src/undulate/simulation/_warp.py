@@ -15,8 +15,9 @@ What differs from the MuJoCo (CPU) backend, and why the results still agree
 (tests/test_warp.py, docs/gpu.md):
 
 * **Servos.**  MuJoCo Warp 4.0 has no ``pid`` actuator.  The Warp model expresses each servo as
-  an affine position servo (:data:`undulate.scene.SERVO_MODELS`), and the set-point slew limit
-  that MuJoCo's ``pid`` applies inside the step (``Servo.max_speed_rad_s``) is applied here to the
+  an affine position servo (:data:`undulate.scene.SERVO_MODELS`; derived from the scene's host
+  model as compiled, :func:`._warp_servo.device_model`, so each scene is compiled once), and the
+  set-point slew limit that MuJoCo's ``pid`` applies inside the step (``Servo.max_speed_rad_s``) is applied here to the
   set-point stream, step by step, with the same rule: the slew state moves toward the command by
   at most ``slewmax dt`` per step.  On the CPU the two expressions agree to 1e-16 m over 3000
   steps; the slew state is carried in the FULLPHYSICS ``act`` slots as MuJoCo's is.
@@ -50,7 +51,7 @@ from ._warp_device import (_DEVICE_LOCK, DEVICES, PRECISION, STEPS_PER_GRAPH, Ca
                            compile_workers, determinism, device_name, require, resolve_device, steps_per_graph,
                            versions)
 from ._warp_group import _Group, _Reduction
-from ._warp_servo import AffineServoTable, _cols, _idle_controls
+from ._warp_servo import AffineServoTable, _cols, _idle_controls, device_model
 from ._warp_worlds import plan_worlds
 
 __all__ = ["WarpBackend", "WarpRollout", "available", "require", "resolve_device", "device_name", "versions",
@@ -68,9 +69,11 @@ class WarpRollout:
     (:class:`undulate.simulation._engines.SampledRollout`: ``rollout``, ``rollout_samples``, ``warm``,
     ``close``)."""
 
-    def __init__(self, compiled, affine, options, device: str, reduce: "_Reduction | None" = None):
-        """``reduce``: reduce each chunk on the device (:meth:`rollout_samples`) instead of recording
-        every step (:meth:`rollout`)."""
+    def __init__(self, compiled, options, device: str, reduce: "_Reduction | None" = None):
+        """``compiled``: the batch's scenes as the host compiled them (each one's Warp model is derived
+        from its model, :func:`undulate.simulation._warp_servo.device_model`: no scene is compiled
+        again); ``reduce``: reduce each chunk on the device (:meth:`rollout_samples`) instead of
+        recording every step (:meth:`rollout`)."""
         require()
         self.device = device
         self.reduce = reduce
@@ -80,12 +83,12 @@ class WarpRollout:
         if nstate != 1 + cpu0.nq + cpu0.nv + cpu0.na:
             raise ParameterError("backend", "'mujoco' for this scene (its state has parts the Warp backend "
                                  "does not carry)", "warp")
-        self.servos = AffineServoTable(cpu0, affine[0].model, options.timestep_s, [c.model for c in compiled])
         models = []
-        for a in affine:
-            mjm = a.model
+        for c in compiled:
+            mjm = device_model(c.model)
             mjm.opt.enableflags &= ~int(mujoco.mjtEnableBit.mjENBL_DIAGEXACT)
             models.append(mjm)
+        self.servos = AffineServoTable(cpu0, models[0], options.timestep_s, [c.model for c in compiled])
         with _DEVICE_LOCK:
             self.groups = [_Group(models[idx[0]], idx, per_world, device, [models[i] for i in idx], reduce)
                            for idx, per_world in plan_worlds(models)]
@@ -222,11 +225,10 @@ class WarpBackend:
         return not closed_loop and current().reduce_on_device
 
     def prepare(self, compiled, options, *, nthread: int = 0, reduce=None) -> WarpRollout:
-        """The device models (each scene's with affine servos, :data:`undulate.scene.SERVO_MODELS`), their
-        worlds grouped (:func:`undulate.simulation._warp_worlds.plan_worlds`) and put on ``options.device``.
+        """The device models (each scene's host model with affine servos, derived without compiling it
+        again: :func:`undulate.simulation._warp_servo.device_model`), their worlds grouped
+        (:func:`undulate.simulation._warp_worlds.plan_worlds`) and put on ``options.device``.
         ``nthread`` is the CPU engine's: the device steps every world at once."""
-        affine = [compiled_model(c.scene, options, push=c.index.ctrl_push.size > 0,
-                                 loads=c.index.sens_load.size > 0, servo="affine") for c in compiled]
         red = None if reduce is None else _Reduction(reduce.steps_per_sample, reduce.pair_adr, reduce.wall_adr,
                                                      reduce.mindist_adr, list(reduce.max_penetration_m))
-        return WarpRollout(compiled, affine, options, options.device, reduce=red)
+        return WarpRollout(compiled, options, options.device, reduce=red)

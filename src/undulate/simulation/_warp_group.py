@@ -16,6 +16,7 @@ from ..execution import current
 from ._warp_device import (_DEVICE_LOCK, CapacityError, capacities, compile_workers, determinism, require,
                            steps_per_graph)
 from ._warp_private import private_api
+from ._warp_servo import device_inputs
 from ._warp_timeline import Timeline
 
 class _Group:
@@ -49,6 +50,10 @@ class _Group:
             self.d = self._new_data()
             self.m = m
             self.k = wp.zeros(1, dtype=int)
+            # the control table's columns: the inputs the model's actuators read (a servo's velocity
+            # input, kept in a model derived from the host's, is not one: _warp_servo.device_model)
+            self.inputs = device_inputs(mjm)
+            self.cols = wp.array(self.inputs.astype(np.int32), dtype=int)
             # its own stream on a GPU: the groups of threads running side by side (studies, gathered
             # sweeps) overlap on the device instead of queueing on its default stream
             # (UNDULATE_WARP_STREAMS=0: every group on the device's current stream, one thread at a time)
@@ -57,7 +62,7 @@ class _Group:
         self.graphs: list = []  # (steps, captured graph), the longest first; none until captured
         self.bufs = None
         self.stepped = False  # its kernels compiled (a first step taken)
-        self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, mjm.nu
+        self.nq, self.nv, self.ns, self.nu = mjm.nq, mjm.nv, mjm.nsensordata, len(self.inputs)
         self.timeline = Timeline((mjm.nq, mjm.nv, mjm.nu, mjm.na, mjm.nsensordata, mjm.ngeom,
                                    float(mjm.opt.timestep)), nw, device)
 
@@ -118,7 +123,7 @@ class _Group:
         table, out = self.bufs[0], self.bufs[1:]
         nw = len(self.idx)
         if table.shape[2]:
-            wp.launch(kernels.set_ctrl, dim=(nw, table.shape[2]), inputs=[table, self.k, self.d.ctrl])
+            wp.launch(kernels.set_ctrl, dim=(nw, table.shape[2]), inputs=[table, self.k, self.cols, self.d.ctrl])
         mjw.step(self.m, self.d)
         r = self.reduce
         if r is None:

@@ -6,10 +6,12 @@ import warp as wp
 
 
 @wp.kernel
-def set_ctrl(table: wp.array3d(dtype=float), k: wp.array(dtype=int), ctrl: wp.array2d(dtype=float)):
-    """ctrl[w, :] = the control table's row of step k (table: step, world, input)."""
+def set_ctrl(table: wp.array3d(dtype=float), k: wp.array(dtype=int), cols: wp.array(dtype=int),
+             ctrl: wp.array2d(dtype=float)):
+    """ctrl[w, cols] = the control table's row of step k (table: step, world, input j of the model's
+    inputs ``cols``, the ones its actuators read; the others stay as they are)."""
     w, j = wp.tid()
-    ctrl[w, j] = table[k[0], w, j]
+    ctrl[w, cols[j]] = table[k[0], w, j]
 
 
 @wp.func

@@ -1,9 +1,11 @@
-"""The CPU model's ``pid`` servos as the Warp model's affine servos: the set-point slew limit that
-MuJoCo's ``pid`` applies inside the step (``Servo.max_speed_rad_s``) applied to the control stream,
-step by step, with the same rule (:class:`AffineServoTable`, :func:`slew`)."""
+"""The CPU model's ``pid`` servos as the Warp model's affine servos: the Warp model derived from the
+host's compiled model (:func:`device_model`: each scene is compiled once), and the set-point slew
+limit that MuJoCo's ``pid`` applies inside the step (``Servo.max_speed_rad_s``) applied to the
+control stream, step by step, with the same rule (:class:`AffineServoTable`, :func:`slew`)."""
 
 from __future__ import annotations
 
+import copy
 from collections.abc import Sequence
 
 import mujoco
@@ -11,7 +13,58 @@ import numpy as np
 
 from ..errors import ParameterError
 
-__all__ = ["AffineServoTable", "slew"]
+__all__ = ["AffineServoTable", "device_model", "device_inputs", "slew"]
+
+
+def _pid_servos(cpu: mujoco.MjModel) -> np.ndarray:
+    """The ``pid`` actuators of ``cpu`` (ids), refused where one has an integral term (MuJoCo Warp has
+    no ``pid`` actuator, and an affine servo has no integral state)."""
+    pid = np.flatnonzero(cpu.actuator_gaintype == mujoco.mjtGain.mjGAIN_PID)
+    for i in pid:
+        if cpu.actuator_actnum[i] > 1 or float(cpu.actuator_dynprm[i, 0]) > 0:
+            raise ParameterError("servo", "without an integral term (ki <= 0) on the 'warp' backend "
+                                 "(MuJoCo Warp has no pid actuator)",
+                                 mujoco.mj_id2name(cpu, mujoco.mjtObj.mjOBJ_ACTUATOR, int(i)))
+    return pid
+
+
+def device_model(cpu: mujoco.MjModel) -> mujoco.MjModel:
+    """The Warp model of a scene, from its host model as compiled (``servo="pid"``), without compiling
+    the scene again: a copy whose ``pid`` servos are the affine position servos
+    (:data:`undulate.scene.SERVO_MODELS`, force ``kp u - kp q - kv qdot``).
+
+    A ``pid`` servo without an integral term carries its gains as the affine servo does
+    (``biasprm = (0, -kp, -kv)``) and differs in its gain (``kp``, from ``biasprm[1]``, fixed), its
+    dynamics (none: the slew limit is applied on the host, :class:`AffineServoTable`) and its inputs
+    (its first, the position set-point, alone).  Every field MuJoCo Warp reads is then the one the
+    compiled ``"affine"`` scene has, but for the sizes fixed by compilation: the model keeps the
+    host's control layout (``nu``: the servos' velocity inputs stay, never read and left at zero;
+    :func:`device_inputs` names those the device fills) and its ``na`` slew states, which no
+    actuator reads (tests/test_warp.py compares the two models field by field)."""
+    pid = _pid_servos(cpu)
+    m = copy.copy(cpu)  # mj_copyModel: the host's model is left as it is
+    if pid.size:
+        kp = -m.actuator_biasprm[pid, 1]
+        m.actuator_gaintype[pid] = mujoco.mjtGain.mjGAIN_FIXED
+        m.actuator_gainprm[pid] = 0.0
+        m.actuator_gainprm[pid, 0] = kp
+        m.actuator_dyntype[pid] = mujoco.mjtDyn.mjDYN_NONE
+        m.actuator_dynprm[pid] = 0.0
+        m.actuator_dynprm[pid, 0] = 1.0  # MuJoCo's default time constant (read only by filter dynamics)
+        m.actuator_actadr[pid] = -1
+        m.actuator_actnum[pid] = 0
+        m.actuator_ctrlnum[pid] = 1
+        m.actuator_ctrlspec[pid] = int(mujoco.mjtCtrlInput.mjINPUT_POS)
+    return m
+
+
+def device_inputs(m: mujoco.MjModel) -> np.ndarray:
+    """The control inputs of ``m`` its actuators read (ctrl indices, in actuator order): the columns of
+    the Warp model's control table (all of them for a compiled ``"affine"`` scene; for a
+    :func:`device_model`, each servo's position input and every other actuator's inputs)."""
+    parts = [m.actuator_ctrladr[i] + np.arange(m.actuator_ctrlnum[i]) for i in range(m.nactuator)]
+    return np.concatenate(parts).astype(int) if parts else np.zeros(0, int)
+
 
 class AffineServoTable:
     """The CPU model's ``pid`` servos expressed as the Warp model's affine servos, and the set-point
@@ -19,18 +72,16 @@ class AffineServoTable:
     Warp model's control table of a chunk (:meth:`table`)."""
 
     def __init__(self, cpu: mujoco.MjModel, aff: mujoco.MjModel, dt: float, models: Sequence[mujoco.MjModel]):
-        """``cpu``: the first scene's model (the layout); ``models``: every scene's (gains and slew
-        rates may differ per scene: ``ratio`` and ``rate`` have one row per scene)."""
-        pid = [i for i in range(cpu.nactuator) if cpu.actuator_gaintype[i] == mujoco.mjtGain.mjGAIN_PID]
-        other = [i for i in range(cpu.nactuator) if i not in pid]
-        for i in pid:
-            if cpu.actuator_actnum[i] > 1 or float(cpu.actuator_dynprm[i, 0]) > 0:
-                raise ParameterError("servo", "without an integral term (ki <= 0) on the 'warp' backend "
-                                     "(MuJoCo Warp has no pid actuator)",
-                                     mujoco.mj_id2name(cpu, mujoco.mjtObj.mjOBJ_ACTUATOR, i))
+        """``cpu``: the first scene's model (the layout); ``aff``: its Warp model (:func:`device_model`, or
+        the scene compiled with ``servo="affine"``), whose table columns are :func:`device_inputs`;
+        ``models``: every scene's (gains and slew rates may differ per scene: ``ratio`` and ``rate``
+        have one row per scene)."""
+        pid = _pid_servos(cpu).tolist()
+        other = [i for i in range(cpu.nactuator) if i not in pid and cpu.actuator_ctrlnum[i] > 0]
+        column = {int(c): j for j, c in enumerate(device_inputs(aff))}
 
-        def dst(i: int) -> int:  # the Warp model's input of CPU actuator i (same name)
-            return int(aff.actuator_ctrladr[aff.actuator(cpu.actuator(i).name).id])
+        def dst(i: int) -> int:  # the table column of CPU actuator i's input in the Warp model (same name)
+            return column[int(aff.actuator_ctrladr[aff.actuator(cpu.actuator(i).name).id])]
 
         adr = cpu.actuator_ctrladr
         self.src_pos = np.array([adr[i] for i in pid], int)
@@ -38,7 +89,7 @@ class AffineServoTable:
         self.dst = np.array([dst(i) for i in pid], int)
         self.act = np.array([cpu.actuator_actadr[i] if cpu.actuator_actnum[i] == 1 else -1 for i in pid], int)
         self.copy_src, self.copy_dst = np.array([adr[i] for i in other], int), np.array([dst(i) for i in other], int)
-        self.nu = aff.nu
+        self.nu = len(column)
         pid = np.array(pid, int)
         self.ratio = np.stack([m.actuator_biasprm[pid, 2] / m.actuator_biasprm[pid, 1] for m in models])  # kv / kp
         self.rate = np.stack([np.where((m.actuator_dynprm[pid, 1] > 0) & (m.actuator_actnum[pid] == 1),
