@@ -164,7 +164,6 @@ def throughput(which: str, budget: float) -> None:
         opts = resolve_options(sc, SimOptions(duration_s=1.0, backend="warp", device=DEVICE,
                                               record=("x", "y", "penetration") if name == "pack" else None))
         cs = compile_scene(sc, opts)
-        aff = compile_scene(sc, opts, servo="affine")
         s0, _ = _initial_state(cs.model)
         u1 = cs.controls(np.arange(k) * opts.timestep_s)
         for nw in worlds:
@@ -172,7 +171,7 @@ def throughput(which: str, budget: float) -> None:
                 say(f"{name}.worlds_{nw}", "skipped: budget")
                 continue
             try:
-                r = WarpRollout([cs] * nw, [aff] * nw, opts, DEVICE)
+                r = WarpRollout([cs] * nw, opts, DEVICE)
                 cur = np.tile(s0, (nw, 1))
                 u = np.broadcast_to(u1, (nw, k, u1.shape[1]))
                 st = np.empty((nw, k, s0.size))
@@ -187,7 +186,7 @@ def throughput(which: str, budget: float) -> None:
                 ix = cs.index
                 red = _Reduction(SPS, ix.sens_pair, ix.sens_wall, ix.sens_mindist,
                                  [sc.contact.max_penetration_m] * nw)
-                r = WarpRollout([cs] * nw, [aff] * nw, opts, DEVICE, reduce=red)
+                r = WarpRollout([cs] * nw, opts, DEVICE, reduce=red)
                 r.rollout_samples(cur, u, k)  # graph capture
                 t = time.perf_counter()
                 r.rollout_samples(cur, u, k)
@@ -239,10 +238,10 @@ def determinism(budget: float) -> None:
                 fig["pack_error"] = f"{type(e).__name__}: {e}"[:500]
             try:
                 opts = resolve_options(pair, SimOptions(duration_s=1.0, backend="warp", device=DEVICE))
-                cs, aff = compile_scene(pair, opts), compile_scene(pair, opts, servo="affine")
+                cs = compile_scene(pair, opts)
                 s0, _ = _initial_state(cs.model)
                 u = np.broadcast_to(cs.controls(np.arange(k) * opts.timestep_s), (nw, k, cs.model.nu))
-                r = WarpRollout([cs] * nw, [aff] * nw, opts, DEVICE)
+                r = WarpRollout([cs] * nw, opts, DEVICE)
                 st, sd = np.empty((nw, k, s0.size)), np.empty((nw, k, cs.model.nsensordata))
                 r.rollout(np.tile(s0, (nw, 1)), u, st, sd, k)  # compilation, graph capture
                 dev = _device_seconds(r.groups[0], k)

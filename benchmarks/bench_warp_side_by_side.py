@@ -48,7 +48,7 @@ def _maker(steps: int, device: str):
 
     sc = Scene(phases_rad=(0.0, math.pi / 2))
     opts = resolve_options(sc, SimOptions(duration_s=1.0, backend="warp", device=device))
-    cs, aff = compile_scene(sc, opts), compile_scene(sc, opts, servo="affine")
+    cs = compile_scene(sc, opts)  # the Warp model is derived from it (no second compile)
     s0, _ = _initial_state(cs.model)
     u1 = cs.controls(np.arange(steps) * opts.timestep_s)
     sps = 10
@@ -56,7 +56,7 @@ def _maker(steps: int, device: str):
 
     def make(nw: int):
         red = _Reduction(sps, ix.sens_pair, ix.sens_wall, ix.sens_mindist, [sc.contact.max_penetration_m] * nw)
-        r = WarpRollout([cs] * nw, [aff] * nw, opts, device, reduce=red)
+        r = WarpRollout([cs] * nw, opts, device, reduce=red)
         cur = np.tile(s0, (nw, 1))
         u = np.ascontiguousarray(np.broadcast_to(u1, (nw, steps, u1.shape[1])))
         r.rollout_samples(cur, u, steps)  # compiled (or loaded), graphs captured
