@@ -1059,3 +1059,19 @@ def test_warp_on_a_machine_without_cuda_says_one_line(tmp_path):
     lines = [ln for ln in r.stderr.splitlines() if ln.strip()]
     assert r.returncode == 2 and len(lines) == 1 and "--device" in lines[0] and "no CUDA device" in lines[0], r.stderr
     assert not out.exists()
+
+
+def test_a_scene_with_tendons_has_no_derived_device_model():
+    """The derived Warp model keeps the host's control layout, which MuJoCo Warp's tendon actuation would
+    misread (it launches over nu as if nu were the actuators): a model with a tendon is refused."""
+    import mujoco
+
+    from undulate.errors import UndulateError
+    from undulate.simulation._warp_servo import device_model
+
+    m = mujoco.MjModel.from_xml_string("""<mujoco><worldbody><body><joint name="a" type="hinge"/>
+        <geom size="0.1" mass="1"/></body></worldbody><tendon><fixed name="t"><joint joint="a" coef="1"/>
+        </fixed></tendon></mujoco>""")
+    with pytest.raises(UndulateError, match="tendons"):
+        device_model(m)
+

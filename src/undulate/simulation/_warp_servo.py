@@ -11,7 +11,7 @@ from collections.abc import Sequence
 import mujoco
 import numpy as np
 
-from ..errors import ParameterError
+from ..errors import ParameterError, UndulateError
 
 __all__ = ["AffineServoTable", "device_model", "device_inputs", "slew"]
 
@@ -41,6 +41,10 @@ def device_model(cpu: mujoco.MjModel) -> mujoco.MjModel:
     host's control layout (``nu``: the servos' velocity inputs stay, never read and left at zero;
     :func:`device_inputs` names those the device fills) and its ``na`` slew states, which no
     actuator reads (tests/test_warp.py compares the two models field by field)."""
+    if cpu.ntendon:  # MuJoCo Warp's tendon actuation launches over nu as if nu were the actuators: the
+        # kept velocity inputs would make it read past them (our scenes have no tendons)
+        raise UndulateError(f"the Warp model of a scene with tendons ({cpu.ntendon}) cannot keep the host's "
+                            "control layout; compile it with servo='affine'")
     pid = _pid_servos(cpu)
     m = copy.copy(cpu)  # mj_copyModel: the host's model is left as it is
     if pid.size:
