@@ -113,7 +113,7 @@ def test_one_process_may_hold_a_folder_from_several_threads_and_depths(tmp_path)
 
 
 def test_a_reproduction_leaves_no_lock_behind(tmp_path):
-    r = _cli("reproduce", "--quick", "--only", "compatibility", "--out", str(tmp_path / "r"))
+    r = _cli("reproduce", "--quick", "--only", "compatibility", "--animation-s", "0.3", "--out", str(tmp_path / "r"))
     assert r.returncode == 0, r.stderr
     assert not (tmp_path / "r" / LOCK_NAME).exists() and (tmp_path / "r" / "index.html").exists()
 

@@ -296,6 +296,7 @@ def test_a_group_of_4_agrees_with_mujoco_within_its_own_sensitivity(monkeypatch)
     assert float(w["penetration"].max()) < 1e-3
 
 
+@pytest.mark.slow  # ~30 s on Warp's CPU device; MuJoCo's own pack check is in the default run (test_timestep_contact)
 def test_a_jammed_pack_keeps_the_1_mm_rule():
     """A jammed 50-swimmer pack (rho~ = 3, the packing study's densest) for 2 s: no contact deeper
     than 1 mm, no capacity overflow (undulate.simulation._warp.capacities), and the pack stays in the channel."""
