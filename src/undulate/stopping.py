@@ -35,7 +35,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats as _st
+from scipy import special as _special  # stdtrit: what scipy.stats.t.ppf evaluates, without importing scipy.stats
 
 from .errors import ParameterError
 from .params import _count, _nonneg, _positive
@@ -327,7 +327,7 @@ class ExcessStop:
         n = len(e)
         if n < max(2, self.min_batches):
             return 0
-        half = _st.t.ppf(self.confidence, n - 1) * e.std(ddof=1) / math.sqrt(n)
+        half = _special.stdtrit(n - 1, self.confidence) * e.std(ddof=1) / math.sqrt(n)
         return 1 if e.mean() - half > 0 else (-1 if e.mean() + half < 0 else 0)
 
 
