@@ -148,7 +148,7 @@ def test_the_plans_give_the_slope_degrees_of_freedom():
 
     quick, full = confinement.plan(True), confinement.plan(False)
     assert len(in_range(quick.d_over_2A)) == 4 and max(quick.d_over_2A) > 1.2
-    assert len(in_range(full.d_over_2A)) == 7
+    assert len(in_range(full.d_over_2A)) == 13 and len(full.dx0_over_lambda) == 21  # the slope needs confinements
     for mode in (True, False):
         looks = confinement.stages(mode)
         assert looks[-1].d_over_2A == confinement.plan(mode).d_over_2A

@@ -30,7 +30,9 @@ grew) is judged as a trend over the paper's range 0.6-1.2
 the widths against ``d/2A`` there, with its Student-t interval
 (:func:`broadening_trend`).  The quick plan has four confinements in the
 range (0.6, 0.8, 1.0, 1.2) so that the slope has an interval on 2 degrees
-of freedom, and 1.5 beyond it; the full plan seven.  The claim's earlier
+of freedom, and 1.5 beyond it; the full plan thirteen (steps of 0.05: the
+slope's interval narrows with confinements in the range, not with starts;
+:func:`plan`).  The claim's earlier
 criterion, step by step (no width narrower than the one before by more
 than :data:`~._criteria.WIDTH_TOL`, over every confinement run), is judged
 beside it (:attr:`~._protocol.Claim.superseded`).
@@ -74,13 +76,20 @@ class ConfinementPlan:
 
 
 def plan(quick: bool) -> ConfinementPlan:
-    """Full: d/2A 0.6 to 1.6 in 0.1 (11) x 41 starts = 451 runs; quick: d/2A 0.6, 0.8, 1.0, 1.2, 1.5 x 11
-    starts = 55.  Quick's four confinements in the paper's range give the claim's slope an interval on 2
-    degrees of freedom (three would leave 1: a t quantile of 12.7); 1.5 shows where the walls stop holding
-    the pair together."""
+    """Full: d/2A 0.6 to 1.2 in steps of 0.05 (13, the paper's range) and 1.3 to 1.6 in 0.1 (4) x 21
+    starts = 357 runs; quick: d/2A 0.6, 0.8, 1.0, 1.2, 1.5 x 11 starts = 55.
+
+    The claim is a slope over the paper's range, and its interval is set by the number of confinements in
+    that range, not by the starts: the width at one confinement is a range of final offsets, with no
+    replicate noise, so its scatter about the line is the trend's own shape, which no number of starts
+    averages away.  Hence 13 confinements in the range (11 degrees of freedom; the 0.1 grid's 7 left 5, and
+    its 41 starts a look bought nothing toward deciding it) and 21 starts (0.1 lambda apart).  Quick's four
+    confinements in the range give the slope an interval on 2 degrees of freedom (three would leave 1: a
+    t quantile of 12.7); 1.5 shows where the walls stop holding the pair together."""
     if quick:
         return ConfinementPlan([0.6, 0.8, 1.0, 1.2, 1.5], np.linspace(-1, 1, 11))
-    return ConfinementPlan(np.round(np.arange(0.6, 1.61, 0.1), 10), np.linspace(-1, 1, 41))
+    d = np.round(np.r_[np.arange(0.6, 1.2001, 0.05), np.arange(1.3, 1.6001, 0.1)], 10)
+    return ConfinementPlan(d, np.linspace(-1, 1, 21))
 
 
 def central_state(dx0, dx_final) -> dict[str, float]:
@@ -314,8 +323,8 @@ def figure(ds):
 
 
 def stages(quick: bool) -> tuple[ConfinementPlan, ...]:
-    """The plan in looks (:mod:`._stages`): the starts thinned (quick 6, 11 of 11; full 11, 21, 41), and
-    in full mode the confinements too (6, 11, 11)."""
+    """The plan in looks (:mod:`._stages`): the starts thinned (quick 6, 11 of 11; full 6, 11, 21), and
+    in full mode the confinements too (9: 0.6 to 1.2 in 0.1, 1.4 and 1.6; then all 17, twice)."""
     p, s = plan(quick), strides(quick)
     return tuple(ConfinementPlan(p.d_over_2A if quick else p.d_over_2A[::max(1, k // 2)], x0, p.duration_s)
                  for k, x0 in zip(s, thinned(p.dx0_over_lambda, s)))
