@@ -153,6 +153,8 @@ def test_the_plans_give_the_slope_degrees_of_freedom():
         looks = confinement.stages(mode)
         assert looks[-1].d_over_2A == confinement.plan(mode).d_over_2A
         assert all(len(in_range(p.d_over_2A)) >= 4 for p in looks)  # every look can give an interval
+        # every look measures the same width: the starts (its resolution) are the plan's at every look
+        assert all(p.dx0_over_lambda == confinement.plan(mode).dx0_over_lambda for p in looks)
 
 
 # ------------------------------------------------------------------ the evidence figure

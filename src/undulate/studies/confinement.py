@@ -55,7 +55,7 @@ from ._criteria import CENTRAL, CONFINEMENT_TREND_RULE, WIDTH_TOL
 from ._context import StudyContext
 from ._protocol import Claim, Study, SupersededCriterion, Verdict
 from ._registry import register
-from ._stages import strides, thinned
+from ._stages import strides
 from ._runners import PAIR_STOP, pair_point
 
 __all__ = ["ConfinementPlan", "plan", "central_state", "broadening_trend", "dataset", "summary", "CLAIMS",
@@ -323,11 +323,18 @@ def figure(ds):
 
 
 def stages(quick: bool) -> tuple[ConfinementPlan, ...]:
-    """The plan in looks (:mod:`._stages`): the starts thinned (quick 6, 11 of 11; full 6, 11, 21), and
-    in full mode the confinements too (9: 0.6 to 1.2 in 0.1, 1.4 and 1.6; then all 17, twice)."""
-    p, s = plan(quick), strides(quick)
-    return tuple(ConfinementPlan(p.d_over_2A if quick else p.d_over_2A[::max(1, k // 2)], x0, p.duration_s)
-                 for k, x0 in zip(s, thinned(p.dx0_over_lambda, s)))
+    """The plan in looks (:mod:`._stages`): in full mode the confinements thinned (5: 0.6, 0.8, 1.0, 1.2
+    and 1.6; 9: 0.6 to 1.2 in 0.1, 1.4 and 1.6; all 17), every look on all 21 starts; quick mode one look,
+    its whole plan (its four confinements in the range are the fewest that give the slope an interval).
+
+    The starts are not thinned: they set the width's resolution (a pair that never touches keeps its
+    start, so the width is then the spread of the starts within the central band), so a look on fewer
+    starts would measure another quantity, not the same one less precisely; the confinements in the range
+    are what narrows the slope's interval (:func:`plan`)."""
+    p = plan(quick)
+    if quick:
+        return (p,)
+    return tuple(ConfinementPlan(p.d_over_2A[::k], p.dx0_over_lambda, p.duration_s) for k in strides(False))
 
 
 register(Study(
