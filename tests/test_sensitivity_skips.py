@@ -305,7 +305,8 @@ def test_findings_run_in_full_mode_only(tmp_path, quick):
     its verdict is unknown: the study alone); an explanation proper (xi = 3/2) is needed in both modes."""
     from undulate.studies import StudyConfig
 
-    ctx = StudyContext(StudyConfig(out_dir=tmp_path, quick=quick), "sensitivity", progress=False)
+    ctx = StudyContext(StudyConfig(out_dir=tmp_path, quick=quick), "sensitivity", progress=False,
+                       explanations=describe("sensitivity").explanations)
     findings = [e for e in EXPLANATIONS if getattr(e, "finding", False)]
     proper = [e for e in EXPLANATIONS if not getattr(e, "finding", False)]
     assert findings and proper

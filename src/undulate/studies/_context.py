@@ -106,8 +106,12 @@ class StudyContext:
     failures, wall time) for the study's JSON.
     """
 
-    def __init__(self, config: StudyConfig, name: str, progress: bool = True):
+    def __init__(self, config: StudyConfig, name: str, progress: bool = True,
+                 explanations: tuple | None = None):
         self.config = config
+        self.explanations = explanations
+        """The study's :attr:`~._protocol.Study.explanations` (the staging engine passes them): which of them
+        are findings (:meth:`needs_explanation`); None: every explanation counts as one proper."""
         self.name = name
         self.progress = progress
         self.sweeps: list[dict[str, Any]] = []
@@ -157,14 +161,12 @@ class StudyContext:
         return verdict is None or verdict == FAILS
 
     def _explained_here(self, study: str, claim: str) -> bool:
-        """Whether this study has an explanation of ``study``'s ``claim`` that is not a finding (True for a
-        study not in the registry: a test's ad hoc context, which decides for itself)."""
-        from ._registry import describe, names
-
-        if self.name not in names():
+        """Whether this study has an explanation of ``study``'s ``claim`` that is not a finding (True when
+        its explanations were not given: an ad hoc context decides for itself)."""
+        if self.explanations is None:
             return True
         return any((e.study, e.claim) == (study, claim) and not getattr(e, "finding", False)
-                   for e in describe(self.name).explanations)
+                   for e in self.explanations)
 
     def sweep_dir(self, part: str, folder: str | None = None) -> Path:
         """The store of sweep ``part``: ``OUT/.sweeps/FOLDER/PART-{quick|full}-seedS`` (``FOLDER``: the

@@ -196,8 +196,9 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     config = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed,
                          workers=workers, execution=execution)
     config.out_dir.mkdir(parents=True, exist_ok=True)
-    ctx = StudyContext(config, name, progress=False)
-    ctx.needs_explanation = lambda study, claim: True  # the verdicts are not known yet: every one
+    ctx = StudyContext(config, name, progress=False, explanations=info.explanations)
+    # the verdicts are not known yet: every explanation (in quick mode, every one that is not a finding)
+    ctx.needs_explanation = lambda study, claim: not config.quick or ctx._explained_here(study, claim)
     t0 = time.perf_counter()
     plans = stage_plans(info, config.quick)
     ctx.parts = part_plans(info, plans, {}, {}, ctx.needs_explanation)
@@ -397,7 +398,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     from .. import _walltime
 
     t0, cpu0 = time.perf_counter(), time.thread_time()
-    ctx = StudyContext(config, name, progress=progress)
+    ctx = StudyContext(config, name, progress=progress, explanations=info.explanations)
     engines = _engine_note(name, config.execution, progress)
     plans = stage_plans(info, config.quick)
     levels = stats.look_levels(len(plans))
