@@ -19,7 +19,7 @@ def test_vectorized_bootstrap_equals_one_call_per_resample():
     from undulate.stats import _bootstrap, _fits
 
     rng = np.random.default_rng(5)
-    for n in (4, 9, 30, 120):
+    for n in (4, 9, 30):
         x = rng.normal(size=n)
         y = np.round(2 * x + rng.normal(size=n))  # ties
         y[: max(1, n // 10)] = y[0]
@@ -33,8 +33,10 @@ def test_vectorized_bootstrap_equals_one_call_per_resample():
             (lambda a: float(np.std(a)), lambda a, axis=-1: np.std(a, axis=axis), (y,)),
         ]
         for (one, rows, samples), method in itertools.product(pairs, stats.BOOTSTRAP_METHODS):
-            ref = stats.bootstrap(one, *samples, seed=11, method=method)
-            vec = stats.bootstrap(rows, *samples, seed=11, vectorized=True, method=method)
+            # 500 resamples: the same draws either way, which is what is compared (the default 9999 only
+            # made this test slow: the reference evaluates each resample in its own Python call)
+            ref = stats.bootstrap(one, *samples, seed=11, method=method, n_resamples=500)
+            vec = stats.bootstrap(rows, *samples, seed=11, vectorized=True, method=method, n_resamples=500)
             np.testing.assert_allclose(vec, ref, rtol=1e-12, atol=1e-14, equal_nan=True)
 
 

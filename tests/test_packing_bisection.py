@@ -53,6 +53,7 @@ def test_bisection_finds_the_whole_columns_threshold():
     assert set(_search(col, known=(0, 1, 2))) == set(range(5))
 
 
+@pytest.mark.slow  # ~27 s; the continued brackets' equality stays in the default run
 def test_packing_threshold_by_bisection_equals_the_whole_grid(tmp_path):
     """Real runs (10 swimmers, 2 s): the thresholds found by bisection with a coarse heatmap are
     the whole grid's, from fewer runs."""

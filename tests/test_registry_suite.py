@@ -93,6 +93,7 @@ def test_another_seed_into_the_same_folder_and_a_second_run_that_computes_nothin
     assert json.loads(ds.attrs["study_sweeps"])[0]["code"] == other["sweeps"][0]["code"]
 
 
+@pytest.mark.slow  # ~17 s; another seed into the same folder stays in the default run
 def test_reproduce_with_another_seed_recomputes_the_study(tmp_path, pendulum_study):
     logs: list[str] = []
     reproduce(tmp_path, quick=True, seed=0, studies=["_pendulum"], log=logs.append, animation_s=0.5)

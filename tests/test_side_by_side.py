@@ -188,6 +188,7 @@ def test_side_by_side_gives_the_results_of_one_at_a_time(tmp_path, swing_studies
     assert claims["counts"]["holds"] == 3
 
 
+@pytest.mark.slow  # ~20 s; runs ahead on MuJoCo: test_on_many_workers_every_study_runs_at_once_with_its_runs_ahead (default run)
 def test_on_the_warp_backend_an_explaining_study_makes_its_runs_ahead(tmp_path, swing_studies, monkeypatch):
     """With runs ahead (the Warp backend's way), the explaining study's runs are made beside the studies
     it explains (:func:`undulate.studies.run_ahead`: every explanation taken as needed); the study itself
@@ -260,6 +261,7 @@ def test_the_page_says_which_studies_beyond_the_paper_were_not_run(tmp_path):
     assert "Not run here, beyond the paper" in text and "synchronization-groups" in text and "--beyond-paper" in text
 
 
+@pytest.mark.slow  # ~70 s; Ctrl-C of one study and its workers: test_termination (default run)
 def test_ctrl_c_stops_studies_running_side_by_side_promptly_and_the_rerun_resumes(tmp_path):
     """SIGINT while two studies run, after a third has finished: the sweeps in flight stop at their next
     chunk, the command exits 130 within seconds, no worker process is left, the state file says which

@@ -81,6 +81,7 @@ def test_pairs_quick(pairs_run):
     assert np.isnan(ds["dx_steady_over_lambda"].sel(xi=0.0)).all()
 
 
+@pytest.mark.slow  # ~15 s; a killed sweep's resume stays in the default run (test_sweep)
 def test_pairs_resume(pairs_run):
     """A second call reuses every stored run and gives the same numbers."""
     out, _ = pairs_run

@@ -443,6 +443,7 @@ def test_a_warp_sweep_steps_its_runs_together_and_never_serves_mujoco_runs(tmp_p
         assert np.abs(gpu.dataset["x"].isel(point=i, replicate=0).values - alone).max() < 1e-9
 
 
+@pytest.mark.slow  # ~20 s on Warp's CPU device; the rollout contract of both engines stays in the default run
 def test_a_warp_sweep_split_over_processes_gives_the_runs_of_one_and_leaves_the_pool_on_mujoco(tmp_path,
                                                                                               monkeypatch):
     """UNDULATE_WARP_PROCESSES=2: a Warp sweep's runs go to two processes of the local pool (given
@@ -476,6 +477,7 @@ def test_a_warp_sweep_split_over_processes_gives_the_runs_of_one_and_leaves_the_
     assert not np.array_equal(pooled.dataset["x"].values, two.dataset["x"].values)  # float32 Warp differs
 
 
+@pytest.mark.slow  # ~17 s on Warp's CPU device; Dask against serial on MuJoCo stays in the default run (test_sweep)
 def test_a_warp_sweep_on_dask_steps_on_warp_whatever_the_workers_were_started_with(tmp_path, monkeypatch):
     """A Dask worker has the environment it was started with, not the sweep's: each task names its
     backend, so a Warp sweep on workers started on the MuJoCo backend steps on Warp (float32: not the
