@@ -250,15 +250,37 @@ def _draw_explanation(ax, explanation: dict[str, Any], kind: str) -> None:
                  fontsize=FONT_PT)
 
 
+LINE_IN = 1.25 * FONT_PT / 72
+"""A line of text in an evidence figure, inches."""
+
+
+def framed_figure(header: str, footer: str, body_in: float):
+    """An evidence figure's frame, laid out by hand (not by constrained layout: three times faster, and a
+    reproduction draws one per claim): :data:`WIDTH_IN` wide at :data:`DPI`, ``header`` (wrapped text: the
+    paper's statement) at its top, ``footer`` (wrapped; "" for none) at its bottom, ``body_in`` inches
+    between them for the panels, their titles, labels and legend.  Returns ``(fig, height_in, head_in,
+    foot_in)``: the heights of the whole figure, the header's band and the footer's band, inches (from
+    which the caller places its panels)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    head_in = 0.1 + LINE_IN * (header.count("\n") + 1)
+    foot_in = (0.1 + LINE_IN * (footer.count("\n") + 1)) if footer else 0.05
+    height = head_in + foot_in + body_in
+    fig = Figure(figsize=(WIDTH_IN, height), dpi=DPI)
+    FigureCanvasAgg(fig)
+    fig.text(0.01, 1 - 0.05 / height, header, fontsize=FONT_PT, ha="left", va="top", color="#333")
+    if footer:
+        fig.text(0.01, 0.05 / height, footer, fontsize=FONT_PT, ha="left", va="bottom")
+    return fig, height, head_in, foot_in
+
+
 def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
                     evidence: Callable[[dict[str, Any]], Any] | None = None):
     """The evidence figure of one claim row (``claims.json``'s): ``evidence`` (the claim's own hook)
     when given, else the generic figure drawn from ``row["value"]`` with ``bands`` shaded."""
     if evidence is not None:
         return evidence(row)
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     panels, text = _panels(row.get("value"), bands or {})
     kind, ex = next(((k, e) for k, e in (("explanation", row.get("explanation")),
                                          ("finding", next(iter(row.get("findings") or []), None)),
@@ -271,17 +293,8 @@ def evidence_figure(row: dict[str, Any], bands: dict[str, Any] | None = None,
         nrows = max(1, len(panels))
     header = textwrap.fill(f"Paper: {row.get('paper') or ''}", 72)
     footer = textwrap.fill("; ".join(text), 80) if text else ("" if n else "no number to draw: see the measured text")
-    line = 1.25 * FONT_PT / 72  # a text line, inches
-    head_in = 0.1 + line * (header.count("\n") + 1)
-    foot_in = (0.1 + line * (footer.count("\n") + 1)) if footer else 0.05
-    title_in, ticks_in, panel_in = 2.2 * line + 0.05, 2.6 * line, 1.45  # a panel's title, its x labels, its box
-    height = head_in + foot_in + nrows * (title_in + panel_in + ticks_in)
-    # laid out by hand, not by constrained layout: three times faster, and a reproduction draws one per claim
-    fig = Figure(figsize=(WIDTH_IN, height))
-    FigureCanvasAgg(fig)
-    fig.text(0.01, 1 - 0.05 / height, header, fontsize=FONT_PT, ha="left", va="top", color="#333")
-    if footer:
-        fig.text(0.01, 0.05 / height, footer, fontsize=FONT_PT, ha="left", va="bottom")
+    title_in, ticks_in, panel_in = 2.2 * LINE_IN + 0.05, 2.6 * LINE_IN, 1.45  # a panel's title, x labels, box
+    fig, height, head_in, foot_in = framed_figure(header, footer, nrows * (title_in + panel_in + ticks_in))
     if n:
         labels = [min(len(k), 16) for q in panels if q["kind"] == "counts" for k, _ in q["bars"]]
         left_in = max(0.72, 0.2 + 0.085 * max(labels, default=0))  # a count's name fits left of its bar

@@ -65,10 +65,7 @@ def plot_broadening_evidence(row):
     hand, as the generic evidence figure (:mod:`undulate._evidence`)."""
     import textwrap
 
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
-    from .._evidence import FONT_PT, WIDTH_IN, _NO, _OK, _UN
+    from .._evidence import FONT_PT, LINE_IN, WIDTH_IN, _NO, _OK, _UN, framed_figure
     from ..claims import quote_text
     from ..stats import Estimate
 
@@ -88,15 +85,8 @@ def plot_broadening_evidence(row):
     footer = textwrap.fill(f"verdict: {verdict}. Holds when the slope's interval lies above 0, fails when its "
                            "upper end is at or below 0; hollow points lie beyond the paper's range and are "
                            "not fitted.", 76)
-    line = 1.25 * FONT_PT / 72  # a text line, inches
-    head_in = 0.1 + line * (header.count("\n") + 1)
-    foot_in = 0.1 + line * (footer.count("\n") + 1)
-    title_in, ticks_in, panel_in, legend_in = 1.4 * line + 0.05, 2.6 * line + 0.05, 2.3, 3 * line + 0.15
-    height = head_in + title_in + panel_in + ticks_in + legend_in + foot_in
-    fig = Figure(figsize=(WIDTH_IN, height))
-    FigureCanvasAgg(fig)
-    fig.text(0.01, 1 - 0.05 / height, header, fontsize=FONT_PT, ha="left", va="top", color="#333")
-    fig.text(0.01, 0.05 / height, footer, fontsize=FONT_PT, ha="left", va="bottom")
+    title_in, ticks_in, panel_in, legend_in = 1.4 * LINE_IN + 0.05, 2.6 * LINE_IN + 0.05, 2.3, 3 * LINE_IN + 0.15
+    fig, height, head_in, foot_in = framed_figure(header, footer, title_in + panel_in + ticks_in + legend_in)
     fig.subplots_adjust(left=0.8 / WIDTH_IN, right=1 - 0.12 / WIDTH_IN, top=1 - (head_in + title_in) / height,
                         bottom=(foot_in + legend_in + ticks_in) / height)
     ax = fig.add_subplot(1, 1, 1)

@@ -14,13 +14,11 @@ import math
 import textwrap
 from typing import Any
 
-from .._evidence import DPI, FONT_PT, WIDTH_IN
+from .._evidence import _OK, FONT_PT, LINE_IN, WIDTH_IN, framed_figure
 
 __all__ = ["stiffness_against_confinement", "stiffness_at_fixed_width", "impulse_by_amplitude"]
 
 _COLOURS = ("tab:blue", "tab:orange", "tab:green", "tab:red", "tab:purple", "tab:brown")
-_OK = "#2e8b57"
-_LINE_IN = 1.25 * FONT_PT / 72  # a line of text, inches
 
 
 def _f(v: Any) -> float:
@@ -49,21 +47,11 @@ def _layout(row: dict[str, Any], legend: int, footer: list[str]):
     """``(fig, main axes, criterion axes, legend bottom in figure units)``: the paper's statement on top,
     two panels side by side (the data, 2/3; the criterion's number, 1/3), ``legend`` lines of legend under
     them and ``footer`` below it."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     header = textwrap.fill(f"Paper: {row.get('paper') or ''}", 72)
     foot = textwrap.fill("; ".join(footer), 80) if footer else ""
-    head_in = 0.1 + _LINE_IN * (header.count("\n") + 1)
-    foot_in = (0.1 + _LINE_IN * (foot.count("\n") + 1)) if foot else 0.05
-    legend_in = (0.1 + _LINE_IN * legend) if legend else 0.0
+    legend_in = (0.1 + LINE_IN * legend) if legend else 0.0
     panel_in, title_in, ticks_in = 2.2, 0.3, 0.6
-    height = head_in + title_in + panel_in + ticks_in + legend_in + foot_in
-    fig = Figure(figsize=(WIDTH_IN, height), dpi=DPI)
-    FigureCanvasAgg(fig)
-    fig.text(0.01, 1 - 0.05 / height, header, fontsize=FONT_PT, ha="left", va="top", color="#333")
-    if foot:
-        fig.text(0.01, 0.05 / height, foot, fontsize=FONT_PT, ha="left", va="bottom")
+    fig, height, head_in, foot_in = framed_figure(header, foot, title_in + panel_in + ticks_in + legend_in)
     grid = fig.add_gridspec(1, 2, width_ratios=(2.0, 1.0), left=0.8 / WIDTH_IN, right=1 - 0.1 / WIDTH_IN,
                             top=1 - (head_in + title_in) / height,
                             bottom=(foot_in + legend_in + ticks_in) / height, wspace=0.55)
