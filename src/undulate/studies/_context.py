@@ -153,17 +153,18 @@ class StudyContext:
         needed, not a finding (:class:`~._explanations.CaseFinding`): a finding never changes a verdict, so
         quick mode, which runs what decides the verdicts, leaves the runs that only findings read to full
         mode (their rows read "not run")."""
-        if self.config.quick and not self._explained_here(study, claim):
+        if not self.may_run_for(study, claim):
             return False
         if self._verdicts is None:  # read once: the other studies' files do not change during this one
             self._verdicts = _claim_verdicts(Path(self.config.out_dir), self.config)
         verdict = self._verdicts.get((study, claim))
         return verdict is None or verdict == FAILS
 
-    def _explained_here(self, study: str, claim: str) -> bool:
-        """Whether this study has an explanation of ``study``'s ``claim`` that is not a finding (True when
+    def may_run_for(self, study: str, claim: str) -> bool:
+        """Whether this mode runs anything for ``study``'s ``claim`` whatever its verdict: in full mode
+        always, in quick mode when this study has an explanation of it that is not a finding (always when
         its explanations were not given: an ad hoc context decides for itself)."""
-        if self.explanations is None:
+        if not self.config.quick or self.explanations is None:
             return True
         return any((e.study, e.claim) == (study, claim) and not getattr(e, "finding", False)
                    for e in self.explanations)

@@ -198,7 +198,7 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     config.out_dir.mkdir(parents=True, exist_ok=True)
     ctx = StudyContext(config, name, progress=False, explanations=info.explanations)
     # the verdicts are not known yet: every explanation (in quick mode, every one that is not a finding)
-    ctx.needs_explanation = lambda study, claim: not config.quick or ctx._explained_here(study, claim)
+    ctx.needs_explanation = ctx.may_run_for
     t0 = time.perf_counter()
     plans = stage_plans(info, config.quick)
     ctx.parts = part_plans(info, plans, {}, {}, ctx.needs_explanation)
