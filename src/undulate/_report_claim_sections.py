@@ -24,7 +24,7 @@ import re
 from pathlib import Path
 from typing import Any
 
-from .claims import REFERENCES, VERDICTS, counts, quote_text, reference_of
+from .claims import REFERENCES, counts, quote_text, reference_of
 
 #: The longest cause sentence the table shows, and the longest measured text, in words.
 CAUSE_WORDS = 25

@@ -42,7 +42,6 @@ from ._checkpoint import Checkpoint
 from ._compile import controls
 from ._engines import Backend, Rollout, SampledRollout, backend
 from ._gather import Gather
-from ._mujoco import _initial_state
 from ._mujoco import _state_layout as state_layout
 from ._record import RECORDABLE
 from ._resolve import RK4_DAMPING_STEP, compile_scene, resolve_options

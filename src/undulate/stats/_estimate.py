@@ -8,7 +8,7 @@ from dataclasses import dataclass
 from typing import Any
 
 
-from ._levels import CONFIDENCE, level, plan_level
+from ._levels import CONFIDENCE, plan_level
 
 
 def _f(v: Any) -> float:

@@ -26,7 +26,7 @@ import numpy as np
 import xarray as xr
 
 from ..errors import ParameterError
-from ..params import Channel, Ground, Scene, SimOptions, SwimmerGeometry
+from ..params import Channel, Scene, SimOptions, SwimmerGeometry
 from ..stopping import PhaseStop, SteadyStop
 from .. import theory
 from ._criteria import PAIR_CHANNEL_M, STEADY_TOL, STEADY_WINDOW
