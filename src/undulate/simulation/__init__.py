@@ -41,6 +41,7 @@ from ._backend import backend_attrs, check_backend, default_backend, use_backend
 from ._checkpoint import Checkpoint
 from ._compile import controls
 from ._engines import Backend, Rollout, SampledRollout, backend
+from ._mujoco import _initial_state  # noqa: F401 - the benchmarks (bench_gpu_check, bench_warp_side_by_side) read it here
 from ._gather import Gather
 from ._mujoco import _state_layout as state_layout
 from ._record import RECORDABLE
