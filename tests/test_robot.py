@@ -8,6 +8,7 @@ itself cross-checked against the SDK's packet handlers first.
 from __future__ import annotations
 
 import math
+import os
 import signal
 import subprocess
 import sys
@@ -167,28 +168,51 @@ def test_unit_conversion_in_one_place():
 # --- runs on the emulated bus ------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("protocol", [1, 2])
-def test_run_follows_the_gait_and_logs_the_servos(protocol, tmp_path):
-    """4 robots x 2 joints: every tick's goals arrive within the tick, equal the gait one tick ahead, the log
-    holds what the servos reported, observables apply, torque is off at the end.
-
-    Real time on a shared machine: the emulator's thread shares the interpreter with whatever earlier tests
-    left running, and in the full suite it was delayed now and then (a third of the reads a tick late, once
-    in several runs; never alone; once, twice in a row for both protocols, right after the report's
-    browser tests on the same worker).  So each run starts once the cores are quiet (what is left of earlier
-    tests' processes has ended: :func:`_quiet_cores`), and one failed run is repeated once; two in a row
-    fail the test."""
+# A real-time run on the emulated bus, once per protocol, shared by the two tests below: what the run must do on
+# any machine (the data path, and joints that follow the gait) and what it does when the machine keeps real time.
+@pytest.fixture(scope="module", params=[1, 2], ids=["protocol1", "protocol2"])
+def gait_run(request, tmp_path_factory):
+    """4 robots x 2 joints at 50 Hz for 1.2 s (one gait period) on the emulated bus, with a measure of what else
+    the machine did meanwhile: the CPU other processes used (all cores' busy and stolen time from /proc/stat,
+    less this process's own), in cores on average over the run."""
+    protocol = request.param
+    _quiet_cores(within_s=20.0)
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(1e-4)  # as _fast_thread_switch (a module fixture runs outside it)
+    busy0, own0, wall0 = _busy_cpu_s(), _own_cpu_s(), time.monotonic()
     try:
-        _quiet_cores()
-        _check_run_follows_the_gait(protocol, tmp_path / "first")
-    except AssertionError:
-        _quiet_cores()
-        _check_run_follows_the_gait(protocol, tmp_path / "second")
+        bus = ServoBus(protocol, {i: MODEL[protocol] for i in IDS8})
+        with bus:
+            cfg = _cfg(bus, duration=1.2, scene=_scene(frequency=1.0))
+            out = tmp_path_factory.mktemp(f"gait{protocol}") / "run.nc"
+            ds = run_robot(cfg, out, log=lambda m: None)
+            torque = [bus.torque(i) for i in IDS8]
+    finally:
+        sys.setswitchinterval(old)
+    busy, own, wall = _busy_cpu_s() - busy0, _own_cpu_s() - own0, time.monotonic() - wall0
+    return {"protocol": protocol, "bus": bus, "cfg": cfg, "ds": ds, "path": out, "torque": torque,
+            "others_cores": max(0.0, busy - own) / wall if not math.isnan(busy) else float("nan")}
+
+
+def _busy_cpu_s() -> float:
+    """CPU seconds all cores spent busy (user, nice, system, irq, softirq) or stolen by a hypervisor since
+    boot, from /proc/stat (NaN where it cannot be read)."""
+    try:
+        with open("/proc/stat") as f:
+            v = [int(x) for x in f.readline().split()[1:9]]
+        return (v[0] + v[1] + v[2] + v[5] + v[6] + v[7]) / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError):
+        return float("nan")
+
+
+def _own_cpu_s() -> float:
+    t = os.times()
+    return t.user + t.system
 
 
 def _quiet_cores(busy_below: float = 0.3, within_s: float = 60.0) -> None:
     """Wait (at most ``within_s``) until the machine's cores are busy less than ``busy_below`` of a 0.5 s
-    window (from /proc/stat; no wait where it cannot be read): a real-time check measures the code, not
+    window (from /proc/stat; no wait where it cannot be read): a real-time run measures the code, not
     processes an earlier test left finishing."""
     def ticks():
         with open("/proc/stat") as f:
@@ -207,25 +231,40 @@ def _quiet_cores(busy_below: float = 0.3, within_s: float = 60.0) -> None:
         return
 
 
-def _check_run_follows_the_gait(protocol, tmp_path):
+def _followed_gait(ds, cfg, r, j):
+    """Least-squares fit of one joint's measured angle, sampled at its real read times, to the gait's sine:
+    (amplitude / commanded amplitude, lag of the joint behind its command in ticks, mean offset rad)."""
+    gait, dt = cfg.scene.gait, 1.0 / cfg.rate_hz
+    w = 2 * math.pi * gait.frequency_hz
+    s, y = ds["sense_time"].values[5:, r, j], ds["joint_angle"].values[5:, r, j]
+    (a, b, c), *_ = np.linalg.lstsq(np.c_[np.sin(w * s), np.cos(w * s), np.ones_like(s)], y, rcond=None)
+    theta = 2 * math.pi * gait.waves_per_body * j / 3 + cfg.scene.phases_rad[r]
+    # the command A sin(theta - w t) is -A cos(theta) sin(w t) + A sin(theta) cos(w t)
+    commanded = complex(gait.amplitude_rad * math.sin(theta), -gait.amplitude_rad * math.cos(theta))
+    lag_rad = float(np.angle(complex(b, a) / commanded))  # a lag delta shifts the phase by +w delta
+    return math.hypot(a, b) / gait.amplitude_rad, lag_rad / w / dt, float(c)
+
+
+def test_run_follows_the_gait_and_logs_the_servos(gait_run):
+    """On any machine, loaded or not: every tick ran or was counted; the goals sent are the gait one tick ahead
+    and each servo received exactly them, in order, never before they were sent; the log holds what the servos
+    reported, in radians; torque is off at the end; and every joint follows the gait: fitted at its real read
+    times, its amplitude is within 20 % of the command's and it lags by at most 4 ticks.  (Measured, 2 cores:
+    amplitude 0.93-0.95 and lag 0.9-1.2 ticks when quiet; 0.84-0.96 and 1.4-3.0 ticks with four busy loops
+    beside it, when protocol 1 skipped up to 24 of 61 ticks.)"""
     from undulate.phases import phase_offsets
 
-    tmp_path.mkdir()
-    bus = ServoBus(protocol, {i: MODEL[protocol] for i in IDS8})
-    with bus:
-        cfg = _cfg(bus, duration=1.2, scene=_scene(frequency=1.0))
-        ds = run_robot(cfg, tmp_path / "run.nc", log=lambda m: None)
-        torque = [bus.torque(i) for i in IDS8]
-    assert torque == [0] * 8
+    bus, cfg, ds = gait_run["bus"], gait_run["cfg"], gait_run["ds"]
+    assert gait_run["torque"] == [0] * 8
     assert ds.attrs["completed"] == 1 and ds.attrs["torque_off"] == "off on every servo (confirmed)"
-    on_disk = xr.load_dataset(tmp_path / "run.nc", engine="h5netcdf")
+    on_disk = xr.load_dataset(gait_run["path"], engine="h5netcdf")
     assert set(on_disk.data_vars) >= {"joint_command", "joint_angle", "joint_error", "gait_phase", "servo_load"}
     assert on_disk["servo_load"].attrs["units"] == "N m" and on_disk["joint_angle"].dims == ("time", "swimmer", "joint")
     m, dt = cfg.model, 1 / 50
     t = ds["time"].values
     # every scheduled tick either ran (on the tick grid) or was counted as skipped: on a loaded machine the
-    # loop skips to the current tick rather than sending a burst, so the count may fall short of 61
-    assert ds.sizes["time"] + ds.attrs["ticks_skipped"] == 61 and ds.sizes["time"] >= 45
+    # loop skips to the current tick rather than sending a burst
+    assert ds.sizes["time"] + ds.attrs["ticks_skipped"] == 61
     np.testing.assert_allclose(t, np.round(t / dt) * dt, atol=1e-9)
     # the commands are the open-loop gait: at t (logged) and at t + dt (sent)
     gait = cfg.scene.gait
@@ -237,20 +276,40 @@ def _check_run_follows_the_gait(protocol, tmp_path):
         r, j = divmod(n, 2)
         got = bus.servos[sid].goals[-len(t):]  # after the two homing writes
         assert [g for _, g, _ in got] == list(ds["goal_position"].values[:, r, j])
-        arrival = np.array([tt for tt, _, _ in got]) - wall
-        assert np.all(arrival >= -1e-3) and np.mean(arrival < dt) >= 0.9  # received within its tick (a loaded
-        # machine may delay the emulator's thread now and then)
-        # the log holds what the servo reported, tick by tick
+        assert np.all(np.array([tt for tt, _, _ in got]) - wall >= -1e-3)  # received after it was sent
+        # the log holds what the servo reported, tick by tick, in radians
         reported = [p for _, p in bus.servos[sid].reported[-len(t):]]
         assert reported == list(ds["present_position"].values[:, r, j].astype(int))
-        # and that is the gait: the emulated servo lags its goal by its time constant (~ one tick)
-        peak = 2 * math.pi * gait.frequency_hz * gait.amplitude_rad
-        lag = np.abs(ds["joint_angle"].values[5:, r, j] - ds["joint_command"].values[5:, r, j])
-        # as for arrival above: a loaded machine may delay the emulator's thread by a tick now and then
-        assert np.mean(lag < 1.5 * peak * dt) >= 0.9 and np.max(lag) < 3 * peak * dt
+        np.testing.assert_allclose(ds["joint_angle"].values[:, r, j],
+                                   m.ticks_to_angle(ds["present_position"].values[:, r, j], 0, 1))
+        amplitude, lag_ticks, offset_rad = _followed_gait(ds, cfg, r, j)
+        assert 0.8 < amplitude < 1.05 and 0.0 <= lag_ticks <= 4.0 and abs(offset_rad) < 0.05, \
+            (sid, amplitude, lag_ticks, offset_rad)
     assert np.all(np.abs(ds["servo_load"].values) <= cfg.stall_torque_Nm)
     assert np.allclose(phase_offsets(ds).values, np.angle(np.exp(1j * np.array(PHASES4)))[None], atol=1e-9)
-    assert ds.attrs["read_timeouts"] == 0 and 45 < ds.attrs["control_rate_achieved"] < 55
+    assert ds.attrs["read_timeouts"] == 0
+
+
+def test_run_keeps_real_time_when_the_machine_does(gait_run):
+    """Where nothing else ran on the machine during the run (other processes used under a quarter of a core),
+    the run kept real time: at least 45 of 61 ticks ran, at 45-55 Hz, every goal but a few reached
+    its servo within its tick, and each joint's reading lagged its command by at most 1.5 ticks of the gait's
+    peak speed at 90 % of the ticks.  On a machine busy with other work (a shared CI runner, an earlier test's
+    processes still finishing) nothing can be said of real time, and the test says so as a skip with the
+    figure."""
+    if not gait_run["others_cores"] < 0.25:
+        pytest.skip(f"the machine was busy with other work during the run ({gait_run['others_cores']:.2f} of a "
+                    "core on average beside this test's own process): its real time is not this code's")
+    bus, cfg, ds = gait_run["bus"], gait_run["cfg"], gait_run["ds"]
+    dt, t, wall = 1 / 50, ds["time"].values, ds["wall_clock"].values
+    assert ds.sizes["time"] >= 45 and 45 < ds.attrs["control_rate_achieved"] < 55
+    peak = 2 * math.pi * cfg.scene.gait.frequency_hz * cfg.scene.gait.amplitude_rad
+    for n, sid in enumerate(IDS8):
+        r, j = divmod(n, 2)
+        arrival = np.array([tt for tt, _, _ in bus.servos[sid].goals[-len(t):]]) - wall
+        assert np.mean(arrival < dt) >= 0.9
+        lag = np.abs(ds["joint_angle"].values[5:, r, j] - ds["joint_command"].values[5:, r, j])
+        assert np.mean(lag < 1.5 * peak * dt) >= 0.9 and np.max(lag) < 3 * peak * dt
 
 
 @pytest.mark.parametrize("stall_at_tick, stall_s, ran", [(10, 0.1, 46), (48, 1.0, 48)])
