@@ -234,7 +234,8 @@ def _clustered_r2(x: np.ndarray, y: np.ndarray, labels: np.ndarray, seed: int | 
         vx = m * np.sum(sxx, axis=axis) - sx * sx
         vy = m * np.sum(syy, axis=axis) - sy * sy
         cov = m * np.sum(sxy, axis=axis) - sx * sy
-        return np.where((vx > 0) & (vy > 0), cov * cov / (vx * vy), np.nan)
+        with np.errstate(all="ignore"):  # a resample of collinear rows rounds to 1 + 2e-16: an R^2 is at most 1
+            return np.where((vx > 0) & (vy > 0), np.minimum(cov * cov / (vx * vy), 1.0), np.nan)
 
     se, lo, hi = bootstrap(r2_of, *sums, seed=seed, vectorized=True)
     return Estimate(r2v, se, lo, hi, n, f"bootstrap BCa over {what}", level(), k, k - 1)
