@@ -17,7 +17,7 @@ CLI = [sys.executable, "-m", "undulate.cli"]
 @pytest.mark.parametrize("args", [["--workers", "0"], ["--workers", "-2"], ["--workers", "two"],
                                   ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], ["--seed", "-1"],
                                   ["--workers", "100000"], ["--scheduler", "notaurl"],
-                                  ["--scheduler", "/no/such/scheduler.json"]])
+                                  ["--scheduler", "/no/such/scheduler.json"], ["--looks", "0"], ["--looks", "two"]])
 def test_workers_and_seed_options_are_validated(tmp_path, command, args):
     """Before anything is written: a negative seed once made every study of a reproduction fail after a
     page of work (exit 1), and a study leave an empty folder; a malformed scheduler once failed the first

@@ -156,3 +156,52 @@ def test_the_guides_own_study_runs_staged_as_written(tmp_path):
     finally:
         _registry._REGISTRY.pop("impulse", None)
         sys.modules.pop("guide_study", None)
+
+
+def test_a_cap_on_looks_runs_fewer_and_judges_at_that_many_looks_level(tmp_path, template_study):
+    """``max_looks=1`` on full mode's three looks: one look of 3 runs, judged at the level of a plan of one
+    look (95 %, not the 99.5 % its first look of three has), recorded in the JSON and the identity; the same
+    study without the cap is not taken for it, and reuses the capped look's runs."""
+    from undulate import stats
+    from undulate.studies import StudyConfig, is_current
+
+    run_study(NAME, tmp_path, quick=False, workers=1, progress=False, max_looks=1)
+    doc = json.loads((tmp_path / f"{NAME}.json").read_text())
+    (look,) = doc["stages"]
+    assert look["of"] == 1 and look["n_runs"] == 3 and doc["n_computed"] == 3
+    assert look["confidence_level"] == pytest.approx(stats.look_levels(1)[0]) == pytest.approx(0.95)
+    assert doc["config"]["max_looks"] == 1 and doc["identity"]["max_looks"] == 1
+    assert is_current(NAME, StudyConfig(out_dir=tmp_path, quick=False, max_looks=1))
+    assert not is_current(NAME, StudyConfig(out_dir=tmp_path, quick=False))
+    run_study(NAME, tmp_path, quick=False, workers=1, progress=False)
+    doc = json.loads((tmp_path / f"{NAME}.json").read_text())
+    assert "max_looks" not in doc["identity"] and doc["config"]["max_looks"] is None
+    assert doc["stages"][0]["of"] == 3 and doc["stages"][0]["n_computed"] == 0  # the capped look's runs, reused
+
+
+@pytest.mark.parametrize("bad", [0, -1, 1.5, True, "2"])
+def test_a_cap_on_looks_is_an_integer_of_at_least_one(tmp_path, bad):
+    from undulate.errors import ParameterError
+    from undulate.studies import StudyConfig
+
+    with pytest.raises(ParameterError, match="max_looks"):
+        StudyConfig(out_dir=tmp_path, max_looks=bad)
+
+
+def test_a_reproduction_with_a_cap_on_looks_says_so_and_keeps_its_results_apart(tmp_path, template_study):
+    """``reproduce(max_looks=1)``: the page's mode names the cap; rerun with the cap it keeps the study, rerun
+    without it runs the study again (its identity differs)."""
+    from undulate.reproduce import reproduce
+
+    logs: list[str] = []
+    path, statuses = reproduce(tmp_path, quick=False, studies=[NAME], log=logs.append, animation_s=0.5,
+                               workers=1, max_looks=1)
+    assert statuses[0]["ok"] and "Mode: <b>full, at most 1 look a study</b>" in path.read_text()
+    assert any("running (full, at most 1 look a study)" in m for m in logs)
+    logs.clear()
+    reproduce(tmp_path, quick=False, studies=[NAME], log=logs.append, animation_s=0.5, workers=1, max_looks=1)
+    assert any(f"{NAME}: done earlier" in m for m in logs)
+    logs.clear()
+    _, statuses = reproduce(tmp_path, quick=False, studies=[NAME], log=logs.append, animation_s=0.5, workers=1)
+    assert not statuses[0]["reused"] and any("running (full)" in m for m in logs)
+    assert "Mode: <b>full</b>" in path.read_text()

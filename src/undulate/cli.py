@@ -303,16 +303,22 @@ _WORKERS_HELP = ("Local worker processes (default: the cores this process may us
                  "on it. Not with --scheduler.")
 
 
-def _check_config(workers: int | None, scheduler: str | None, seed: int) -> None:
-    """``--workers``, ``--scheduler`` (its form; the connection is made by the first sweep) and ``--seed``
-    by :class:`~undulate.studies.StudyConfig`'s own rules, named as the CLI options, before anything is
-    written."""
+def _check_config(workers: int | None, scheduler: str | None, seed: int, looks: int | None = None) -> None:
+    """``--workers``, ``--scheduler`` (its form; the connection is made by the first sweep), ``--seed`` and
+    ``--looks`` by :class:`~undulate.studies.StudyConfig`'s own rules, named as the CLI options, before
+    anything is written."""
     from .studies import StudyConfig
 
     try:
-        StudyConfig(out_dir=Path("."), scheduler=scheduler, workers=workers, seed=seed)
+        StudyConfig(out_dir=Path("."), scheduler=scheduler, workers=workers, seed=seed, max_looks=looks)
     except ParameterError as e:
-        raise _cli_name(e, {"workers": "--workers", "seed": "--seed", "scheduler": "--scheduler"}) from None
+        raise _cli_name(e, {"workers": "--workers", "seed": "--seed", "scheduler": "--scheduler",
+                            "max_looks": "--looks"}) from None
+
+
+_LOOKS_HELP = ("Stop every study after at most this many looks (an integer >= 1; default: every look while "
+               "a claim is undecided). Fewer runs, more undecided verdicts; each judged at the level of that "
+               "many looks.")
 
 
 class _Terminated(KeyboardInterrupt):
@@ -367,18 +373,19 @@ def study(
     workers: Optional[int] = typer.Option(None, "--workers", help=_WORKERS_HELP),
     backend: str = typer.Option("mujoco", "--backend", help=_BACKEND_HELP),
     device: Optional[str] = typer.Option(None, "--device", help=_DEVICE_HELP),
+    looks: Optional[int] = typer.Option(None, "--looks", help=_LOOKS_HELP),
 ) -> None:
     """Run one study: writes OUT/NAME.nc, OUT/NAME.png (+ .pdf) and OUT/NAME.json."""
     from . import studies
 
     try:
-        _check_config(workers, scheduler, seed)
+        _check_config(workers, scheduler, seed, looks)
         execution = _execution(backend, device, workers, scheduler)
         out_path = Path(out)
         if out_path.exists() and not out_path.is_dir():
             raise ParameterError("--out", "a directory", str(out))
         _stop_on_termination()
-        path = studies.run_study(name, out_path, quick=quick, seed=seed, execution=execution)
+        path = studies.run_study(name, out_path, quick=quick, seed=seed, execution=execution, max_looks=looks)
     except ParameterError as e:
         _fail(str(_cli_name(e, {"out_dir": "--out"})), 2)  # another process writing to it
     except UndulateError as e:
@@ -403,13 +410,14 @@ def reproduce(
     animation_s: Optional[float] = typer.Option(
         None, "--animation-s", help="Simulated seconds of each animation, 0.2 to 600 (default: each its own, "
                                     "16-24 s). The studies and their claims do not depend on it."),
+    looks: Optional[int] = typer.Option(None, "--looks", help=_LOOKS_HELP),
 ) -> None:
     """Reproduce the paper: every study, animations, and OUT/index.html."""
     from . import studies as registry
     from .reproduce import check_animation_s, reproduce as run_all
 
     try:
-        _check_config(workers, scheduler, seed)
+        _check_config(workers, scheduler, seed, looks)
         check_animation_s(animation_s, "--animation-s")
         execution = _execution(backend, device, workers, scheduler)
         if out.exists() and not out.is_dir():
@@ -427,7 +435,8 @@ def reproduce(
     _stop_on_termination()
     try:
         path, statuses = run_all(out, quick=quick, seed=seed, studies=names, log=lambda m: typer.echo(m),
-                                 beyond_paper=beyond_paper, animation_s=animation_s, execution=execution)
+                                 beyond_paper=beyond_paper, animation_s=animation_s, execution=execution,
+                                 max_looks=looks)
     except ParameterError as e:  # another process writing to --out: refused before anything is written
         _fail(str(_cli_name(e, {"out_dir": "--out"})), 2)
     except SourceChangedError as e:

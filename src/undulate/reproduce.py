@@ -63,12 +63,14 @@ def _save_state(out: Path, state: dict) -> None:
         tmp.write_text(json.dumps(state, indent=2))
 
 
-def _study_done(out: Path, name: str, quick: bool, seed: int = 0, execution: Execution | None = None) -> bool:
-    """``NAME.json`` in ``out`` was written by this code, in this mode, with this seed, on the engine
-    ``execution`` names (None: the settings in effect)."""
+def _study_done(out: Path, name: str, quick: bool, seed: int = 0, execution: Execution | None = None,
+                max_looks: int | None = None) -> bool:
+    """``NAME.json`` in ``out`` was written by this code, in this mode, with this seed and cap on looks, on
+    the engine ``execution`` names (None: the settings in effect)."""
     from .studies import StudyConfig, is_current
 
-    return is_current(name, StudyConfig(out_dir=out, quick=quick, seed=seed, execution=execution))
+    return is_current(name, StudyConfig(out_dir=out, quick=quick, seed=seed, execution=execution,
+                                        max_looks=max_looks))
 
 
 #: How an animation is drawn: its recording rate (Hz), frame stride, frames per second (twice real
@@ -175,7 +177,7 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
               studies: list[str] | None = None, log: Callable[[str], None] = print,
               animation_s: float | None = None, workers: int | None = None,
               side_by_side: int | None = None, beyond_paper: bool = False,
-              execution: Execution | None = None) -> tuple[Path, list[dict]]:
+              execution: Execution | None = None, max_looks: int | None = None) -> tuple[Path, list[dict]]:
     """Run every registered study (or ``studies``) and write ``out_dir/index.html``.
 
     ``beyond_paper``: also run the studies beyond the reproduced paper (``Study.reference`` not
@@ -200,6 +202,11 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     number of worlds, docs/gpu.md).  Results do not depend on it: every run's result is a function of
     its parameters and seed, and each study judges its own runs.
 
+    ``max_looks``: every study stops after at most this many looks (None: every look while a claim is
+    undecided).  A budget in runs: fewer looks take fewer runs and leave more verdicts undecided, each
+    judged at the level of a plan of that many looks (:attr:`undulate.studies.StudyConfig.max_looks`);
+    the page's mode says so.
+
     Returns the report path and the per-study statuses (``name``, ``ok``,
     ``wall_s``, ``error``, ``reused``).  Another process writing to ``out_dir`` (a reproduction or a
     study) is a :class:`~undulate.errors.ParameterError` before anything is written
@@ -210,8 +217,9 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     from .studies import StudyConfig
     from .sweep import warm_workers
 
-    ex = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed, workers=workers,
-                     execution=execution).execution  # validated first
+    cfg = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed, workers=workers,
+                      execution=execution, max_looks=max_looks)  # validated first
+    ex = cfg.execution
     check_animation_s(animation_s)
     log = _one_line_at_a_time(log)
     if studies is None:
@@ -220,7 +228,8 @@ def reproduce(out_dir: str | Path, *, quick: bool = True, scheduler: str | None 
     if side_by_side is None:
         side_by_side = studies_side_by_side(len(studies), ex)  # every study at once: + the animations
     with writing_to(out_dir, "out_dir"), warm_workers(ex.workers), using(ex):
-        return _reproduce(registry, Path(out_dir), quick, ex, seed, studies, log, animation_s, side_by_side)
+        return _reproduce(registry, Path(out_dir), quick, ex, seed, studies, log, animation_s, side_by_side,
+                          cfg.max_looks)
 
 
 #: The shortest animation (s): two frames at the drawing's recording rate.
@@ -321,11 +330,12 @@ def _side_by_side(todo: list[str], deps: dict[str, set[str]], one: Callable[[str
 
 
 def _reproduce(registry, out: Path, quick: bool, ex: Execution, seed: int, studies, log, animation_s,
-               side_by_side: int = SIDE_BY_SIDE) -> tuple[Path, list[dict]]:
+               side_by_side: int = SIDE_BY_SIDE, max_looks: int | None = None) -> tuple[Path, list[dict]]:
     from .report import write_report
 
     out.mkdir(parents=True, exist_ok=True)
-    mode = "quick" if quick else "full"
+    mode = ("quick" if quick else "full") + ("" if max_looks is None else
+                                              f", at most {max_looks} look{'s' if max_looks > 1 else ''} a study")
     names = list(studies) if studies is not None else registry.names()
     for n in names:
         registry.describe(n)  # unknown names fail before any work
@@ -335,7 +345,7 @@ def _reproduce(registry, out: Path, quick: bool, ex: Execution, seed: int, studi
     todo: list[str] = []
     for i, name in enumerate(names, 1):
         prev = state["studies"].get(name, {})
-        if _study_done(out, name, quick, seed, ex):
+        if _study_done(out, name, quick, seed, ex, max_looks):
             log(f"[{i}/{len(names)}] {name}: done earlier ({prev.get('wall_s', float('nan')):.1f} s), kept")
             results[name] = {"name": name, "ok": True, "wall_s": prev.get("wall_s"), "error": None, "reused": True}
         else:
@@ -347,7 +357,7 @@ def _reproduce(registry, out: Path, quick: bool, ex: Execution, seed: int, studi
         log(f"[{number[name]}/{len(names)}] {name}: running ({mode})")
         t0 = time.perf_counter()
         try:
-            registry.run_study(name, out, quick=quick, seed=seed, execution=ex)
+            registry.run_study(name, out, quick=quick, seed=seed, execution=ex, max_looks=max_looks)
             st = {"name": name, "ok": True, "wall_s": time.perf_counter() - t0, "error": None, "reused": False}
             log(f"[{number[name]}/{len(names)}] {name}: done in {st['wall_s']:.1f} s")
         except (KeyboardInterrupt, SourceChangedError):  # the code changed under us: nothing after is attributable
@@ -370,7 +380,7 @@ def _reproduce(registry, out: Path, quick: bool, ex: Execution, seed: int, studi
         if name.startswith(_AHEAD):
             name = name[len(_AHEAD):]
             return _run_ahead(registry, name, f"[{number[name]}/{len(names)}] {name}", log,
-                              out, quick=quick, seed=seed, execution=ex)
+                              out, quick=quick, seed=seed, execution=ex, max_looks=max_looks)
         return one(name)
 
     def finished(name: str, result: Any) -> None:

@@ -31,7 +31,18 @@ if TYPE_CHECKING:  # heavy imports stay lazy
     from ..sweep import Grid, SweepResult
     from ._staging import PartPlans
 
-__all__ = ["StudyConfig", "StudyContext"]
+__all__ = ["StudyConfig", "StudyContext", "check_max_looks"]
+
+
+def check_max_looks(value: Any, name: str = "max_looks") -> int | None:
+    """``value`` as a cap on a study's looks: None (every look) or an integer >= 1; else a
+    :class:`~undulate.errors.ParameterError` naming ``name``."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
+        raise ParameterError(name, "an integer >= 1 (or none: every look)", value)
+    return int(value)
+
 
 @dataclass(frozen=True)
 class StudyConfig:
@@ -40,7 +51,9 @@ class StudyConfig:
     ``out_dir``: where the study's files go (and its resumable sweep stores);
     ``quick``: the reduced plan that runs in minutes; ``scheduler``: a Dask
     scheduler address, or None for local processes; ``seed``: the root seed
-    of every random draw; ``workers``: local worker processes (None: every
+    of every random draw; ``max_looks``: stop after at most this many of the study's looks (None: every
+    look while a claim is undecided; a cap takes fewer runs and leaves more verdicts undecided, each
+    judged at the level of a plan of that many looks); ``workers``: local worker processes (None: every
     core this process may use; results do not depend on it); ``execution``: how its runs are executed
     (:class:`undulate.execution.Execution`; None: the settings in effect with ``workers`` and
     ``scheduler``, :func:`undulate.execution.settings`).  ``workers`` and ``scheduler`` always
@@ -53,6 +66,7 @@ class StudyConfig:
     seed: int = 0
     workers: int | None = None
     execution: Execution | None = None
+    max_looks: int | None = None
 
     def __post_init__(self):
         if isinstance(self.out_dir, bytes) or not isinstance(self.out_dir, str | os.PathLike):
@@ -63,6 +77,7 @@ class StudyConfig:
         if isinstance(s, bool) or not isinstance(s, int | np.integer) or s < 0:
             raise ParameterError("seed", "an integer >= 0", s)
         object.__setattr__(self, "seed", int(s))
+        object.__setattr__(self, "max_looks", check_max_looks(self.max_looks))
         ex = self.execution
         if ex is not None and (self.workers, self.scheduler) in ((None, None), (ex.workers, ex.scheduler)):
             object.__setattr__(self, "workers", None)  # theirs, read from it below
@@ -74,9 +89,9 @@ class StudyConfig:
 
     def to_dict(self) -> dict[str, Any]:
         """What the study's JSON records of it (``config``): its folder, mode, scheduler, seed and workers
-        (the engine is in its identity, :func:`~._registry.identity`)."""
+        (the engine is in its identity, :func:`~._registry.identity`) and its cap on looks."""
         return {"out_dir": str(self.out_dir), "quick": self.quick, "scheduler": self.scheduler, "seed": self.seed,
-                "workers": self.workers}
+                "workers": self.workers, "max_looks": self.max_looks}
 
     @property
     def mode(self) -> str:

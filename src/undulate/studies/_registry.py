@@ -87,7 +87,7 @@ def describe(name: str) -> Study:
 
 
 def identity(name: str, config: StudyConfig) -> dict[str, Any]:
-    """What a study's files depend on besides its sweeps: mode, seed, package version and
+    """What a study's files depend on besides its sweeps: mode, seed, cap on looks, package version and
     the hash of the study module's code (and every undulate module it imports); for a study that
     explains other studies' claims, also their verdicts in ``config.out_dir`` (it runs only for the
     claims that fail: :meth:`~._context.StudyContext.needs_explanation`)."""
@@ -99,6 +99,8 @@ def identity(name: str, config: StudyConfig) -> dict[str, Any]:
     ident = {"study": name, "quick": bool(config.quick), "seed": int(config.seed),
              "undulate_version": package_version("undulate"), "code": code_hash(info.dataset, config.execution),
              "backend": backend_identity(config.execution)}
+    if config.max_looks is not None:  # a capped study runs fewer looks (no key without a cap: results kept)
+        ident["max_looks"] = config.max_looks
     if info.explanations:  # which explanations it runs for depends on the verdicts it explains
         known = _claim_verdicts(Path(config.out_dir), config)
         ident["explains"] = [list(t) for t in sorted({(e.study, e.claim, known.get((e.study, e.claim), "unknown"))

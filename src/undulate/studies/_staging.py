@@ -153,7 +153,8 @@ def _timing(ctx: StudyContext, here: _walltime.Tally, thread_cpu_s: float) -> di
 
 def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
               scheduler: str | None = None, seed: int = 0, progress: bool = True,
-              workers: int | None = None, execution: Execution | None = None) -> Path:
+              workers: int | None = None, execution: Execution | None = None,
+              max_looks: int | None = None) -> Path:
     """Run study ``name`` and write its files into ``out_dir`` (created if needed).
 
     Returns ``out_dir/NAME.nc``; beside it ``NAME.png``, ``NAME.pdf`` and
@@ -164,12 +165,14 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
     use), kept warm across the study's sweeps (:func:`undulate.sweep.warm_workers`).
     ``execution``: how its runs are executed (:class:`undulate.execution.Execution`, which then holds
     the workers and scheduler; default: the settings in effect with ``workers`` and ``scheduler``).
+    ``max_looks``: stop after at most this many looks (None: every look while a claim is undecided;
+    :attr:`~._context.StudyConfig.max_looks`).
     Another process writing to ``out_dir`` (a reproduction or a study) is a ParameterError before
     anything is written (:func:`undulate._outdir.writing_to`).
     """
     info = describe(name)
     config = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed,
-                         workers=workers, execution=execution)
+                         workers=workers, execution=execution, max_looks=max_looks)
     _flag("progress", progress)
     out = config.out_dir
     from .._outdir import writing_to
@@ -180,7 +183,8 @@ def run_study(name: str, out_dir: str | os.PathLike, quick: bool = False,
 
 
 def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, scheduler: str | None = None,
-              seed: int = 0, workers: int | None = None, execution: Execution | None = None) -> dict[str, Any]:
+              seed: int = 0, workers: int | None = None, execution: Execution | None = None,
+              max_looks: int | None = None) -> dict[str, Any]:
     """An explaining study's runs before the studies it explains have finished (the reproduction does
     this where it runs wide, :func:`undulate.execution.runs_ahead`, so that the explaining study does not start its long chains
     only once the others end): a stage's dataset with every explanation taken as needed, into the
@@ -194,13 +198,13 @@ def run_ahead(name: str, out_dir: str | os.PathLike, quick: bool = False, schedu
     was computed (``n_runs``, ``n_computed``, ``wall_s``)."""
     info = describe(name)
     config = StudyConfig(out_dir=out_dir, quick=quick, scheduler=scheduler, seed=seed,
-                         workers=workers, execution=execution)
+                         workers=workers, execution=execution, max_looks=max_looks)
     config.out_dir.mkdir(parents=True, exist_ok=True)
     ctx = StudyContext(config, name, progress=False, explanations=info.explanations)
     # the verdicts are not known yet: every explanation (in quick mode, every one that is not a finding)
     ctx.needs_explanation = ctx.may_run_for
     t0 = time.perf_counter()
-    plans = stage_plans(info, config.quick)
+    plans = stage_plans(info, config.quick, config.max_looks)
     ctx.parts = part_plans(info, plans, {}, {}, ctx.needs_explanation)
     with using(config.execution):
         info.dataset(ctx, plans[-1] if _prefetching(config.execution) else plans[0])
@@ -225,13 +229,14 @@ def plan_looks(plan: Any, quick: bool) -> tuple[Any, ...]:
     return tuple(dataclasses.replace(plan, **{name: g[k] for name, g in grids.items()}) for k in range(n))
 
 
-def stage_plans(info: Study, quick: bool) -> tuple[Any, ...]:
+def stage_plans(info: Study, quick: bool, max_looks: int | None = None) -> tuple[Any, ...]:
     """The plans of ``info``'s looks in this mode: its declared :attr:`~._protocol.Study.stages`, else those of its
-    plan's staged fields (:func:`plan_looks`; one, ``plan(quick)``, if none)."""
+    plan's staged fields (:func:`plan_looks`; one, ``plan(quick)``, if none); the first ``max_looks`` of them
+    where that is given (:attr:`~._context.StudyConfig.max_looks`)."""
     plans = tuple(info.stages(quick)) if info.stages is not None else plan_looks(info.plan(quick), quick)
     if not plans:
         raise UndulateError(f"study {info.name!r} declares no stages")
-    return plans
+    return plans if max_looks is None else plans[:max_looks]
 
 
 def _open(claims: list[dict[str, Any]], explanations: list[dict[str, Any]], growth_left: float,
@@ -400,7 +405,7 @@ def _run_study(info: Study, name: str, config: StudyConfig, out: Path, progress:
     t0, cpu0 = time.perf_counter(), time.thread_time()
     ctx = StudyContext(config, name, progress=progress, explanations=info.explanations)
     engines = _engine_note(name, config.execution, progress)
-    plans = stage_plans(info, config.quick)
+    plans = stage_plans(info, config.quick, config.max_looks)
     levels = stats.look_levels(len(plans))
     looks: list[dict[str, Any]] = []
     decisions = _Decisions()
