@@ -290,3 +290,18 @@ def test_an_r2_interval_stays_within_its_domain_where_resamples_are_collinear():
         assert 0.0 <= r2.low <= r2.value <= r2.high <= 1.0
         assert r2.value == pytest.approx(st.linregress(x, y).rvalue ** 2, rel=1e-12)
         check_domains({"r2": r2.to_dict()}, "test")
+
+
+def test_an_exact_flat_line_has_slope_zero_and_no_uncertainty():
+    """Equal y at spread x (a confinement's central width closed throughout the range) lie exactly on a flat
+    line: slope 0 and intercept y with standard error 0 and a zero-width interval, as for any exact line
+    (linregress leaves this one's standard errors NaN); R^2 is undefined.  Two points still give no interval."""
+    from undulate.stats import line_fit
+
+    flat = line_fit([0.6, 0.8, 1.0, 1.2], [0.25] * 4)
+    assert (flat.slope.value, flat.slope.stderr, flat.slope.low, flat.slope.high) == (0.0, 0.0, 0.0, 0.0)
+    assert flat.intercept.value == pytest.approx(0.25) and flat.intercept.low == flat.intercept.high
+    assert math.isnan(flat.r2.value)
+    exact = line_fit([0.6, 0.8, 1.0], [1.0, 2.0, 3.0])
+    assert exact.slope.stderr == pytest.approx(0.0, abs=1e-12) and exact.slope.value == pytest.approx(5.0)
+    assert math.isnan(line_fit([0.6, 0.8], [0.25, 0.25]).slope.low)

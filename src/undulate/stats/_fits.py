@@ -45,7 +45,10 @@ def line_fit(x, y, *, seed: int | None = None) -> LineFit:
 
     Slope and intercept: standard errors from linregress and Student-t 95 %
     intervals (``n - 2`` degrees of freedom); R^2: paired BCa bootstrap interval.
-    NaN estimates with fewer than 2 points or no spread in ``x``.
+    NaN estimates with fewer than 2 points or no spread in ``x``.  Equal ``y`` (at least 3 points) lie
+    exactly on a flat line: slope 0 and intercept ``y`` with standard error 0, as for any other exact
+    line (``linregress`` leaves that one's standard errors NaN: its correlation is undefined without
+    spread in ``y``); their R^2 is NaN.
     """
     from scipy import stats as st
 
@@ -57,8 +60,9 @@ def line_fit(x, y, *, seed: int | None = None) -> LineFit:
     dof = n - 2
     conf = level()
     q = float(st.t.ppf((1 + conf) / 2, dof)) if dof > 0 else math.nan
-    se_s = float(r.stderr) if dof > 0 else math.nan
-    se_i = float(r.intercept_stderr) if dof > 0 else math.nan
+    flat = dof > 0 and np.ptp(y) == 0  # an exact flat line: no residual, so no uncertainty
+    se_s = 0.0 if flat else float(r.stderr) if dof > 0 else math.nan
+    se_i = 0.0 if flat else float(r.intercept_stderr) if dof > 0 else math.nan
     slope = Estimate(float(r.slope), se_s, r.slope - q * se_s, r.slope + q * se_s, n, "linregress, t interval",
                      conf, n, dof)
     icpt = Estimate(float(r.intercept), se_i, r.intercept - q * se_i, r.intercept + q * se_i, n,

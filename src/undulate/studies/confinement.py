@@ -40,7 +40,6 @@ beside it (:attr:`~._protocol.Claim.superseded`).
 
 from __future__ import annotations
 
-import dataclasses
 import functools
 from typing import Any
 
@@ -121,22 +120,14 @@ def broadening_trend(d_over_2A, width_over_lambda) -> stats.LineFit:
     confinements with a central state only (finite widths), by :func:`undulate.stats.line_fit`
     (``scipy.stats.linregress``; Student-t intervals on ``n - 2`` degrees of freedom at the look's
     level).  Its slope is in lambda per unit ``d/2A``; no interval with fewer than 3 widths in the range.
-
-    Equal widths (a state closed, width 0, throughout the range) lie exactly on a flat line: slope 0 with
-    standard error 0 and interval [0, 0], where ``linregress`` gives a NaN standard error (its correlation
-    is undefined without spread in the widths)."""
+    Equal widths (a state closed, width 0, throughout the range) lie exactly on a flat line: slope 0,
+    interval [0, 0]."""
     r = np.asarray(d_over_2A, float)
     w = np.asarray(width_over_lambda, float)
     if r.ndim != 1 or r.shape != w.shape:
         raise ParameterError("width_over_lambda", f"one width per d/2A ({r.size} values, 1-D)", w.shape)
     keep = _in_paper_range(r) & np.isfinite(w)
-    fit = stats.line_fit(r[keep], w[keep])
-    if fit.n >= 3 and np.ptp(w[keep]) == 0 and np.ptp(r[keep]) > 0:
-        def exact(e: stats.Estimate) -> stats.Estimate:
-            return dataclasses.replace(e, stderr=0.0, low=e.value, high=e.value)
-
-        fit = dataclasses.replace(fit, slope=exact(fit.slope), intercept=exact(fit.intercept))
-    return fit
+    return stats.line_fit(r[keep], w[keep])
 
 
 def dataset(ctx: StudyContext, p: ConfinementPlan):
