@@ -87,7 +87,8 @@ def test_compatibility_study_writes_its_files(tmp_path):
         assert ds["compatible"].dtype == bool
         assert ds.attrs["study"] == "compatibility"
         assert json.loads(ds.attrs["study_config"]) == {
-            "out_dir": str(out), "quick": True, "scheduler": None, "seed": 3, "workers": None}
+            "out_dir": str(out), "quick": True, "scheduler": None, "seed": 3, "workers": None,
+            "max_looks": None}
         assert json.loads(ds.attrs["study_identity"])["seed"] == 3
         for key in ("undulate_version", "mujoco_version", "created_utc", "hostname"):
             assert ds.attrs[key]
