@@ -31,16 +31,15 @@ if TYPE_CHECKING:  # heavy imports stay lazy
     from ..sweep import Grid, SweepResult
     from ._staging import PartPlans
 
-__all__ = ["StudyConfig", "StudyContext", "check_max_looks"]
+__all__ = ["StudyConfig", "StudyContext"]
 
 
-def check_max_looks(value: Any, name: str = "max_looks") -> int | None:
-    """``value`` as a cap on a study's looks: None (every look) or an integer >= 1; else a
-    :class:`~undulate.errors.ParameterError` naming ``name``."""
+def _max_looks(value: Any) -> int | None:
+    """``value`` as a cap on a study's looks: None (every look) or an integer >= 1."""
     if value is None:
         return None
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < 1:
-        raise ParameterError(name, "an integer >= 1 (or none: every look)", value)
+        raise ParameterError("max_looks", "an integer >= 1 (or none: every look)", value)
     return int(value)
 
 
@@ -77,7 +76,7 @@ class StudyConfig:
         if isinstance(s, bool) or not isinstance(s, int | np.integer) or s < 0:
             raise ParameterError("seed", "an integer >= 0", s)
         object.__setattr__(self, "seed", int(s))
-        object.__setattr__(self, "max_looks", check_max_looks(self.max_looks))
+        object.__setattr__(self, "max_looks", _max_looks(self.max_looks))
         ex = self.execution
         if ex is not None and (self.workers, self.scheduler) in ((None, None), (ex.workers, ex.scheduler)):
             object.__setattr__(self, "workers", None)  # theirs, read from it below
